@@ -1,0 +1,224 @@
+"""Effects: physical terms a user adds to an ARX model, written as short strings.
+
+=============  ===================================  ==============================
+effect         meaning                              typical physics
+=============  ===================================  ==============================
+``vbat``       a logged signal used as an input     battery voltage, temperature
+``u1*vbat``    product of two signals               command scaled by battery
+``u1^2``       power of a signal                    propeller thrust ∝ ω²
+``y^3``        power of the output                  cubic spring
+``abs(u1)``    absolute value                       direction-independent losses
+``sign(dy)``   sign of a signal's first difference  Coulomb friction
+``const``      offset                               bias
+``time``       drift                                slow drift
+=============  ===================================  ==============================
+
+Lags: an input-derived term uses the lags (nb, nk) of the input it is built from (for a product,
+of its first input factor); a signal that is not an input enters as a new input with nb = 1 and the
+smallest nk of the model's inputs; ``const`` and ``time`` enter with nb = 1, nk = 0. Terms that
+involve the output use lag 1 (``y^3`` means y(t-1)³, ``sign(dy)`` means sign(y(t-1) − y(t-2))) and
+are re-evaluated on the simulated output in free run.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .data import IOData
+from .exceptions import OrderError
+
+__all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects"]
+
+_FACTOR = re.compile(
+    r"^(?:(?P<abs>abs)\((?P<absarg>[A-Za-z_]\w*)\)"
+    r"|sign\(d(?P<sdarg>[A-Za-z_]\w*)\)"
+    r"|sign\((?P<sarg>[A-Za-z_]\w*)\)"
+    r"|(?P<name>[A-Za-z_]\w*)(?:\^(?P<pow>\d+))?)$"
+)
+
+
+@dataclass(frozen=True)
+class Factor:
+    """One factor of an effect: ``op`` in {"pow", "abs", "sign", "signdiff", "diff"} applied to a signal."""
+
+    signal: str
+    op: str = "pow"
+    power: int = 1
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A parsed effect string: a product of factors, or ``const`` / ``time``."""
+
+    text: str
+    factors: tuple[Factor, ...]
+
+    @property
+    def special(self) -> str | None:
+        return self.text if self.text in ("const", "time") else None
+
+
+def _split_product(text: str) -> list[str]:
+    return [f for f in text.split("*") if f]
+
+
+def parse_effect(text: str, data: IOData) -> Effect:
+    """Parse ``text`` against the signals of ``data``.
+
+    Raises
+    ------
+    OrderError
+        For an effect the grammar does not know or a signal the data do not have.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise OrderError(f"an effect must be a non-empty string such as 'u1^2' or 'y^3', got {text!r}")
+    clean = re.sub(r"\s+", "", text)
+    if clean in ("const", "time"):
+        return Effect(clean, ())
+    names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
+    factors = []
+    for part in _split_product(clean):
+        m = _FACTOR.match(part)
+        if not m:
+            raise OrderError(
+                f"cannot read effect {text!r}: factor {part!r} is not one of NAME, NAME^p, abs(NAME), "
+                f"sign(dNAME), sign(NAME), dNAME"
+            )
+        if m["absarg"]:
+            f = Factor(m["absarg"], "abs")
+        elif m["sdarg"]:
+            f = Factor(m["sdarg"], "signdiff")
+        elif m["sarg"]:
+            f = Factor(m["sarg"], "sign")
+        else:
+            name, p = m["name"], int(m["pow"] or 1)
+            if name not in names and name.startswith("d") and name[1:] in names:
+                f = Factor(name[1:], "diff")
+            else:
+                if p < 1:
+                    raise OrderError(f"effect {text!r}: powers must be >= 1")
+                f = Factor(name, "pow", p)
+        if f.signal not in names:
+            raise OrderError(f"effect {text!r} uses signal {f.signal!r}, which the data do not have; signals: {sorted(names)}")
+        factors.append(f)
+    if not factors:
+        raise OrderError(f"cannot read effect {text!r}")
+    return Effect(clean, tuple(factors))
+
+
+def _is_output(name: str, data: IOData) -> bool:
+    return name in ("y", data.output_name)
+
+
+def _input_index(name: str, data: IOData) -> int | None:
+    if name in data.input_names:
+        return data.input_names.index(name)
+    if re.fullmatch(r"u\d+", name) and name not in data.extra:
+        i = int(name[1:]) - 1
+        if 0 <= i < data.n_inputs:
+            return i
+    return None
+
+
+def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
+    if f.op == "pow":
+        return x**f.power
+    if f.op == "abs":
+        return np.abs(x)
+    if f.op == "sign":
+        return np.sign(x)
+    d = np.zeros_like(x)
+    for a, b in data.segments:
+        d[a + 1:b] = np.diff(x[a:b])
+    return np.sign(d) if f.op == "signdiff" else d
+
+
+@dataclass(frozen=True)
+class EffectLayout:
+    """What the Rust core sees for a model with effects.
+
+    ``u`` holds the model's inputs followed by one column per input-derived effect and one carrier
+    column per output term with a multiplier. ``tie[j]`` says where column j takes its lags from: an
+    input index, or None for fixed lags ``nb[j], nk[j]``.
+    """
+
+    u: np.ndarray
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+    tie: tuple[int | None, ...]
+    output_terms: tuple[tuple[str, int, int], ...]
+    column_labels: tuple[str, ...]
+    effect_of_column: tuple[str | None, ...]
+    effect_of_term: tuple[str, ...]
+
+
+def _output_term(f: Factor, text: str) -> tuple[str, int]:
+    if f.op == "pow":
+        return "pow", f.power
+    if f.op == "abs":
+        return "abs", 1
+    if f.op == "signdiff":
+        return "signdiff", 1
+    raise OrderError(f"effect {text!r}: {f.op}(y) is not supported for the output; use y^p, abs(y) or sign(dy)")
+
+
+def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
+    """Turn effect strings into extra regressor columns and output terms for ``data``."""
+    m = data.n_inputs
+    cols = [data.u]
+    out_nb, out_nk, tie = list(nb), list(nk), [i for i in range(m)]
+    labels = list(data.input_names)
+    eff_col: list[str | None] = [None] * m
+    terms, eff_term = [], []
+    carriers = []
+    used_nk = [k for b, k in zip(nb, nk) if b > 0]
+    min_nk = min(used_nk) if used_nk else 0
+    seen = set()
+    for text in effects:
+        e = parse_effect(text, data)
+        if e.text in seen:
+            raise OrderError(f"effect {e.text!r} is listed twice")
+        seen.add(e.text)
+        if e.special == "const":
+            cols.append(np.ones((data.n_samples, 1)))
+            out_nb.append(1), out_nk.append(0), tie.append(None)
+            labels.append("const"), eff_col.append(e.text)
+            continue
+        if e.special == "time":
+            cols.append(data.time.reshape(-1, 1))
+            out_nb.append(1), out_nk.append(0), tie.append(None)
+            labels.append("time"), eff_col.append(e.text)
+            continue
+        y_factors = [f for f in e.factors if _is_output(f.signal, data)]
+        others = [f for f in e.factors if not _is_output(f.signal, data)]
+        if len(y_factors) > 1:
+            raise OrderError(f"effect {text!r}: at most one factor may involve the output")
+        prod = None
+        for f in others:
+            x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
+            prod = x if prod is None else prod * x
+        if y_factors:
+            kind, power = _output_term(y_factors[0], text)
+            mult = -1
+            if prod is not None:
+                mult = len(out_nb)
+                cols.append(prod.reshape(-1, 1))
+                out_nb.append(0), out_nk.append(0), tie.append(None)
+                labels.append(f"carrier:{e.text}"), eff_col.append(None)
+                carriers.append(mult)
+            terms.append((kind, power, mult))
+            eff_term.append(e.text)
+            continue
+        src = next((_input_index(f.signal, data) for f in others if _input_index(f.signal, data) is not None), None)
+        cols.append(prod.reshape(-1, 1))
+        if src is not None:
+            out_nb.append(nb[src]), out_nk.append(nk[src]), tie.append(src)
+        else:
+            out_nb.append(1), out_nk.append(min_nk), tie.append(None)
+        labels.append(e.text), eff_col.append(e.text)
+    u = np.ascontiguousarray(np.hstack(cols), dtype=float)
+    return EffectLayout(u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term))

@@ -1,0 +1,41 @@
+"""The arxid exception family.
+
+Every error arxid raises on purpose is an :class:`ArxidError`, which subclasses :class:`ValueError`
+so that ``except ValueError`` keeps working. Messages say what is wrong and how to fix it.
+"""
+
+from __future__ import annotations
+
+__all__ = ["ArxidError", "DataError", "OrderError", "IdentifiabilityError", "NotFittedError"]
+
+
+class ArxidError(ValueError):
+    """Base class of every error arxid raises on purpose."""
+
+
+class DataError(ArxidError):
+    """The data cannot be used as given: wrong shape or dtype, NaN/inf where it matters, too short,
+    unknown columns, a corrupt model file."""
+
+
+class OrderError(ArxidError):
+    """Model orders or delays are invalid (negative, wrong count for the inputs, unknown effect)."""
+
+
+class IdentifiabilityError(ArxidError):
+    """The data cannot determine the parameters: collinear regressors or an input that does not
+    excite the system.
+
+    Attributes
+    ----------
+    regressors : tuple of str
+        Names of the regressors involved (the dependent one last), when known.
+    """
+
+    def __init__(self, message: str, regressors: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.regressors = tuple(regressors)
+
+
+class NotFittedError(ArxidError, AttributeError):
+    """A fitted attribute was used before the model was fitted."""

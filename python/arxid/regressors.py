@@ -1,0 +1,89 @@
+"""The ARX regression written out in numpy: regressor names and, when needed, the matrix itself.
+
+The Rust core never materialises this matrix for a fit; Python uses it to name collinear regressors,
+for diagnostics (projecting a candidate effect on the model's regressors) and in tests as the
+reference the core must match.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .data import IOData
+from .effects import EffectLayout
+
+__all__ = ["regressor_names", "regressor_matrix", "max_lag"]
+
+
+def _lag(k: int) -> str:
+    return "t" if k == 0 else f"t-{k}"
+
+
+def max_lag(na: int, layout: EffectLayout) -> int:
+    lag = na
+    for b, k in zip(layout.nb, layout.nk):
+        if b > 0:
+            lag = max(lag, b + k - 1)
+    for kind, _, _ in layout.output_terms:
+        lag = max(lag, 2 if kind == "signdiff" else 1)
+    return lag
+
+
+def regressor_names(output_name: str, na: int, layout: EffectLayout) -> list[str]:
+    """Names of the regressors in parameter order, e.g. ``roll(t-1)``, ``u1(t-8)``, ``y^3(t-1)``."""
+    names = [f"{output_name}({_lag(i)})" for i in range(1, na + 1)]
+    for label, b, k in zip(layout.column_labels, layout.nb, layout.nk):
+        if label in ("const", "time"):
+            names += [label] * b
+        else:
+            names += [f"{label}({_lag(k + j)})" for j in range(b)]
+    names += [f"{e}(t-1)" for e in layout.effect_of_term]
+    return names
+
+
+def regressor_matrix(data: IOData, na: int, layout: EffectLayout, first_lag: int = 0,
+                     signs: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Regressor matrix Φ (rows × p), output y on those rows, and the row indices.
+
+    Rows start ``max(first_lag, lag)`` into each experiment and skip any row touching a NaN, exactly
+    as the Rust core does. With ``signs`` the output lags enter as ``-y(t-i)`` (MATLAB convention).
+    """
+    y = data.y
+    u = layout.u
+    lag = max(first_lag, max_lag(na, layout))
+    rows = np.concatenate([np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]).astype(int)
+    cols = []
+    s = -1.0 if signs else 1.0
+    for i in range(1, na + 1):
+        cols.append(s * y[rows - i])
+    for j, (b, k) in enumerate(zip(layout.nb, layout.nk)):
+        for l in range(b):
+            cols.append(u[rows - k - l, j])
+    for kind, power, mult in layout.output_terms:
+        y1 = y[rows - 1]
+        if kind == "pow":
+            g = y1**power
+        elif kind == "abs":
+            g = np.abs(y1)
+        else:
+            g = np.sign(y1 - y[rows - 2])
+        if mult >= 0:
+            g = g * u[rows - 1, mult]
+        cols.append(g)
+    phi = np.column_stack(cols) if cols else np.zeros((len(rows), 0))
+    ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
+    return phi[ok], y[rows][ok], rows[ok]
+
+
+def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:
+    """Regressors before ``column`` that together reproduce it (largest normalised weights first)."""
+    if column == 0:
+        return []
+    a = phi[:, :column]
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(a / scale, phi[:, column], rcond=None)
+    order = np.argsort(-np.abs(coef))
+    return [names[i] for i in order[:top] if abs(coef[i]) > 1e-8 * np.abs(coef).max()]

@@ -1,0 +1,144 @@
+//! Least-squares fit of one structure by Householder QR, with rank check and covariance.
+
+use crate::error::{ArxError, Result};
+use crate::qr::{back_substitute, check_rank, rank_tolerance, reduce, small_qr, to_col_major};
+use crate::structure::{usable_rows, Data, Structure};
+
+/// A fitted parameter vector with what the Python layer needs for statistics.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Parameters in the order a's, each input's b's, output terms.
+    pub theta: Vec<f64>,
+    /// Residual sum of squares on the regression rows.
+    pub rss: f64,
+    /// Number of regression rows used.
+    pub n_rows: usize,
+    /// Rows left out because a regressor or the output touched a NaN or inf.
+    pub n_skipped: usize,
+    /// $(R^T R)^{-1} = (\Phi^T \Phi)^{-1}$, row-major p × p; times the noise variance it is the
+    /// parameter covariance.
+    pub inv_gram: Vec<f64>,
+}
+
+/// Solves the least-squares problem whose `[Φ | y]` has the column-major (q × q) triangular factor
+/// `r`, restricted to the regressor columns `cols` (the output is the last column of `r`).
+/// Returns θ, the residual sum of squares, and the small re-triangularised factor (column-major,
+/// (k+1) × (k+1) with leading dimension q).
+pub fn solve_subset(r: &[f64], q: usize, cols: &[usize], n_rows: usize) -> Result<(Vec<f64>, f64, Vec<f64>)> {
+    let k = cols.len();
+    let mut a = vec![0.0; q * (k + 1)];
+    for (c, &j) in cols.iter().chain(std::iter::once(&(q - 1))).enumerate() {
+        a[c * q..c * q + q].copy_from_slice(&r[j * q..j * q + q]);
+    }
+    small_qr(&mut a, q, k + 1);
+    check_rank(&a, q, k, rank_tolerance(n_rows, k)).map_err(|e| match e {
+        ArxError::RankDeficient { column, ratio } => ArxError::RankDeficient { column: cols[column], ratio },
+        other => other,
+    })?;
+    let mut theta = vec![0.0; k];
+    let rhs: Vec<f64> = (0..k).map(|i| a[i + k * q]).collect();
+    back_substitute(&a, q, &rhs, &mut theta);
+    let rss = if k < q { a[k + k * q] * a[k + k * q] } else { 0.0 };
+    Ok((theta, rss, a))
+}
+
+/// $(R^T R)^{-1}$ for the leading k × k block of a column-major upper-triangular `r` (leading dim `ld`).
+pub fn inverse_gram(r: &[f64], ld: usize, k: usize) -> Vec<f64> {
+    // Rinv upper triangular, column-major k × k.
+    let mut rinv = vec![0.0; k * k];
+    for j in 0..k {
+        rinv[j + j * k] = 1.0 / r[j + j * ld];
+        for i in (0..j).rev() {
+            let mut acc = 0.0;
+            for l in (i + 1)..=j {
+                acc += r[i + l * ld] * rinv[l + j * k];
+            }
+            rinv[i + j * k] = -acc / r[i + i * ld];
+        }
+    }
+    // (RᵀR)⁻¹ = Rinv Rinvᵀ.
+    let mut out = vec![0.0; k * k];
+    for i in 0..k {
+        for j in 0..k {
+            let mut acc = 0.0;
+            for l in i.max(j)..k {
+                acc += rinv[i + l * k] * rinv[j + l * k];
+            }
+            out[i * k + j] = acc;
+        }
+    }
+    out
+}
+
+/// Fits structure `s` to `d` by least squares on rows that start `first_lag` into each experiment.
+///
+/// # Errors
+/// `TooFewSamples` when there are fewer usable rows than parameters; `RankDeficient` naming the first
+/// regressor column that depends on the ones before it.
+pub fn fit(d: &Data, s: &Structure, first_lag: usize, parallel: bool) -> Result<Fit> {
+    s.check(d.m)?;
+    let (rows, n_skipped) = usable_rows(d, s, first_lag);
+    let p = s.n_params();
+    if rows.len() < p + 1 {
+        return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
+    }
+    let r = to_col_major(&reduce(d, s, &rows, parallel));
+    let cols: Vec<usize> = (0..p).collect();
+    let (theta, rss, small) = solve_subset(&r, p + 1, &cols, rows.len())?;
+    let inv_gram = inverse_gram(&small, p + 1, p);
+    Ok(Fit { theta, rss, n_rows: rows.len(), n_skipped, inv_gram })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::structure::Structure;
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    }
+
+    #[test]
+    fn recovers_noise_free_arx_exactly() {
+        // y(t) - 1.5 y(t-1) + 0.7 y(t-2) = 0.5 u(t-3) + 0.25 u(t-4)
+        let n = 3000;
+        let mut seed = 7;
+        let u: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let mut y = vec![0.0; n];
+        for t in 4..n {
+            y[t] = 1.5 * y[t - 1] - 0.7 * y[t - 2] + 0.5 * u[t - 3] + 0.25 * u[t - 4];
+        }
+        let starts = [0];
+        let d = Data::new(&y, &u, 1, &starts).unwrap();
+        let s = Structure::new(2, vec![2], vec![3], vec![]).unwrap();
+        let f = fit(&d, &s, 0, true).unwrap();
+        let truth = [-1.5, 0.7, 0.5, 0.25];
+        for (a, b) in f.theta.iter().zip(truth) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        assert!(f.rss < 1e-20);
+    }
+
+    #[test]
+    fn constant_duplicate_input_is_rank_deficient() {
+        let n = 200;
+        let mut seed = 3;
+        let y: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let u = vec![1.0; n];
+        let starts = [0];
+        let d = Data::new(&y, &u, 1, &starts).unwrap();
+        let s = Structure::new(1, vec![2], vec![1], vec![]).unwrap();
+        assert!(matches!(fit(&d, &s, 0, false), Err(ArxError::RankDeficient { column: 2, .. })));
+    }
+
+    #[test]
+    fn too_few_samples() {
+        let y = vec![1.0, 2.0, 3.0];
+        let u = vec![1.0, 0.0, 1.0];
+        let starts = [0];
+        let d = Data::new(&y, &u, 1, &starts).unwrap();
+        let s = Structure::new(2, vec![1], vec![1], vec![]).unwrap();
+        assert!(matches!(fit(&d, &s, 0, false), Err(ArxError::TooFewSamples { .. })));
+    }
+}

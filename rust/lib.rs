@@ -1,0 +1,17 @@
+//! arxid core: exact ARX least squares by Householder QR (faer), exhaustive order sweeps from one
+//! factorization, and fast free-run simulation. Pure Rust; the Python boundary lives in `py`.
+
+pub mod error;
+pub mod fit;
+pub mod qr;
+pub mod simulate;
+pub mod structure;
+pub mod sweep;
+
+#[cfg(feature = "python")]
+mod py;
+
+pub use error::{ArxError, Result};
+pub use fit::{fit, Fit};
+pub use structure::{Data, OutputKind, OutputTerm, Structure};
+pub use sweep::{sweep, StructureResult, SweepOptions};

@@ -1,0 +1,46 @@
+"""Shared fixtures: seeded synthetic systems with known parameters, and the real-data folder."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def shared_data_dir() -> Path | None:
+    """``$ARXID_SHARED_DATA``, else ``../shared/data`` beside the repository, else ``/work/shared/data``."""
+    for cand in (os.environ.get("ARXID_SHARED_DATA"), REPO.parent / "shared" / "data", "/work/shared/data"):
+        if cand and Path(cand).is_dir():
+            return Path(cand)
+    return None
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    d = shared_data_dir()
+    if d is None:
+        pytest.skip("real measured data folder ../shared/data is absent (set ARXID_SHARED_DATA)")
+    return d
+
+
+def simulate_arx(a, bs, nks, u, noise=None):
+    """y(t) = -Σ a_i y(t-i) + Σ_i Σ_j b_ij u_i(t-nk_i-j) + e(t), from rest (a without the leading 1)."""
+    u = np.atleast_2d(np.asarray(u, dtype=float).T).T
+    n = u.shape[0]
+    y = np.zeros(n)
+    e = np.zeros(n) if noise is None else noise
+    for t in range(n):
+        acc = e[t]
+        for i, ai in enumerate(a, start=1):
+            if t - i >= 0:
+                acc -= ai * y[t - i]
+        for col, (b, nk) in enumerate(zip(bs, nks)):
+            for j, bj in enumerate(b):
+                if t - nk - j >= 0:
+                    acc += bj * u[t - nk - j, col]
+        y[t] = acc
+    return y
