@@ -403,8 +403,9 @@ class ArxModel:
     def to_control(self, continuous: bool = False, input: int | None = None):
         """python-control transfer function with ``dt = ts`` (descending powers of z).
 
-        SISO models give a SISO ``TransferFunction``; several inputs (including input-derived effect
-        columns) a 1 × m MIMO one, or the one picked with ``input``. With ``continuous=True`` the
+        One input gives a ``TransferFunction``; several inputs (including input-derived effect
+        columns) a list with one SISO ``TransferFunction`` per input (MIMO conversions in
+        python-control need slycot), or the one picked with ``input``. With ``continuous=True`` the
         zero-order-hold sampling is inverted (matrix logarithm); the input delay of
         ``(nk − 1)·ts`` that ZOH sampling of a strictly proper system does not explain is returned in
         the attribute ``dead_time`` of the result (seconds).
@@ -419,11 +420,8 @@ class ArxModel:
         idx = range(len(nums)) if input is None else [input]
         if continuous:
             return _d2c(self, [nums[i] for i in idx], den, [self._layout_meta[1][i] for i in idx], [labels[i] for i in idx])
-        if len(idx) == 1:
-            i = idx[0]
-            return control.TransferFunction(nums[i], den, self.ts, inputs=[labels[i]], outputs=[self.output_name])
-        return control.TransferFunction([[nums[i] for i in idx]], [[den for _ in idx]], self.ts,
-                                        inputs=[labels[i] for i in idx], outputs=[self.output_name])
+        tfs = [control.TransferFunction(nums[i], den, self.ts, inputs=[labels[i]], outputs=[self.output_name]) for i in idx]
+        return tfs[0] if len(tfs) == 1 else tfs
 
     def to_scipy(self):
         """``scipy.signal.dlti``: a transfer function for one input, a state-space model for several."""
@@ -431,12 +429,10 @@ class ArxModel:
 
         nums, den = self._tf_coefficients()
         if len(nums) == 1:
-            return signal.dlti(nums[0], den, dt=self.ts)
-        ss = [signal.tf2ss(n, den) for n in nums]
-        a, _, c, _ = ss[0]
-        b = np.column_stack([s[1][:, 0] for s in ss]) if len(a) else np.zeros((0, len(nums)))
-        # tf2ss with a shared denominator gives the same A and B for every input only in
-        # controllable form; build the common realisation in observable form instead.
+            # Leading zeros of the numerator are the delay; scipy warns about them, so drop them.
+            num = np.trim_zeros(nums[0], "f")
+            return signal.dlti(num if len(num) else [0.0], den, dt=self.ts)
+        # Observable canonical form shares A and C across inputs.
         n = len(den) - 1
         a = np.zeros((n, n))
         a[:, 0] = -den[1:]

@@ -1,0 +1,183 @@
+"""Every error a user can trigger: typed, with a message that says what is wrong and how to fix it.
+No Rust panic may reach Python."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import arxid
+from arxid import _core
+from arxid.exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
+
+
+@pytest.fixture
+def data():
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(300)
+    y = np.convolve(u, [0, 1, 0.5])[:300] + 0.01 * rng.standard_normal(300)
+    return arxid.IOData(y, u, ts=0.1)
+
+
+def test_exception_family_subclasses_value_error():
+    for cls in (DataError, OrderError, IdentifiabilityError, NotFittedError):
+        assert issubclass(cls, ArxidError) and issubclass(cls, ValueError)
+    assert issubclass(NotFittedError, AttributeError)
+
+
+def test_mismatched_lengths():
+    with pytest.raises(DataError, match="same length"):
+        arxid.IOData(np.zeros(10), np.zeros(9), ts=1)
+
+
+@pytest.mark.parametrize("bad", [np.inf, -np.inf])
+def test_inf_is_refused_nan_is_missing(bad):
+    y = np.zeros(10)
+    y[3] = bad
+    with pytest.raises(DataError, match="infinite value at sample 3.*NaN"):
+        arxid.IOData(y, np.ones(10), ts=1)
+
+
+def test_all_nan_leaves_too_few_rows():
+    y = np.full(100, np.nan)
+    d = arxid.IOData(y, np.random.default_rng(1).standard_normal(100), ts=1)
+    with pytest.raises(DataError, match="too few usable samples"):
+        arxid.arx(d, 1, 1, 1)
+
+
+def test_too_few_samples_for_the_orders(data):
+    with pytest.raises(DataError, match="too few samples for the orders.*lower na/nb/nk"):
+        arxid.arx(data[:20], 10, 10, 5)
+
+
+@pytest.mark.parametrize("kw,match", [
+    (dict(na=-1, nb=1, nk=1), "na must be >= 0"),
+    (dict(na=1, nb=-2, nk=1), "nb must be >= 0"),
+    (dict(na=1, nb=1, nk=-1), "nk must be >= 0"),
+    (dict(na=1.5, nb=1, nk=1), "na must be a non-negative integer"),
+    (dict(na=1, nb=[1, 2], nk=1), "2 entries but the data have 1 inputs"),
+    (dict(na=0, nb=0, nk=0), "no parameters"),
+])
+def test_bad_orders(data, kw, match):
+    with pytest.raises(OrderError, match=match):
+        arxid.arx(data, **kw)
+
+
+def test_constant_input_does_not_excite(data):
+    d = arxid.IOData(data.y, np.full(300, 2.0), ts=0.1, input_names=["pwm"])
+    with pytest.raises(IdentifiabilityError, match="'pwm' is constant.*does not excite") as exc:
+        arxid.arx(d, 1, 1, 1)
+    assert exc.value.regressors == ("pwm",)
+
+
+def test_collinear_regressors_are_named():
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal((500, 2))
+    u[:, 1] = 2.0 * u[:, 0]
+    y = rng.standard_normal(500)
+    d = arxid.IOData(y, u, ts=1.0, input_names=["left", "right"])
+    with pytest.raises(IdentifiabilityError, match=r"right\(t-1\) is a linear combination of left\(t-1\)") as exc:
+        arxid.arx(d, 1, 1, 1)
+    assert exc.value.regressors[-1] == "right(t-1)" and "left(t-1)" in exc.value.regressors
+
+
+def test_collinear_effect_is_named():
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(500)
+    d = arxid.IOData(rng.standard_normal(500), u, ts=1.0, extra={"vbat": np.full(500, 4.0)})
+    with pytest.raises(IdentifiabilityError, match=r"const is a linear combination of vbat"):
+        arxid.arx(d, 1, 1, 1, effects=["vbat", "const"])
+
+
+@pytest.mark.parametrize("ts", [0, -0.1, np.nan, "fast"])
+def test_bad_sampling_time(ts):
+    with pytest.raises(DataError, match="ts must be"):
+        arxid.IOData(np.zeros(10), np.zeros(10), ts=ts)
+
+
+@pytest.mark.parametrize("y,match", [
+    (np.array(["a", "b"]), "dtype"),
+    (np.zeros((3, 3)), "shape"),
+    (np.array([1 + 2j, 3j]), "complex"),
+    (np.zeros(0), "empty"),
+    ([[1, 2], [3]], "numeric array"),
+])
+def test_wrong_dtype_or_shape(y, match):
+    with pytest.raises(DataError, match=match):
+        arxid.IOData(y, np.zeros(len(y)) if len(y) else np.zeros(0), ts=1)
+
+
+def test_unknown_csv_columns(tmp_path):
+    p = tmp_path / "d.csv"
+    p.write_text("t,a,b\n0,1,2\n1,2,3\n")
+    with pytest.raises(DataError, match=r"no column\(s\) \['c'\]; available: \['a', 'b', 't'\]"):
+        arxid.IOData.from_csv(p, output="a", inputs=["c"], ts=1)
+    with pytest.raises(DataError, match="does not exist"):
+        arxid.IOData.from_csv(tmp_path / "nope.csv", output="a", inputs=["b"], ts=1)
+
+
+def test_unknown_effect(data):
+    with pytest.raises(OrderError, match="uses signal 'vbat'"):
+        arxid.arx(data, 1, 1, 1, effects=["u1*vbat"])
+    with pytest.raises(OrderError, match="cannot read effect"):
+        arxid.arx(data, 1, 1, 1, effects=["log(u1)"])
+
+
+@pytest.mark.parametrize("text", ["not json", "{}", '{"format": "arxid.ArxModel", "version": 1}', "[1, 2]",
+                                  '{"format": "arxid.ArxModel", "version": 99}'])
+def test_corrupt_model_file(tmp_path, text):
+    p = tmp_path / "m.json"
+    p.write_text(text)
+    with pytest.raises(DataError, match="corrupt model file"):
+        arxid.ArxModel.from_json(p)
+
+
+def test_model_file_with_inconsistent_parameters(data):
+    import json
+
+    d = json.loads(arxid.arx(data, 1, 2, 1).to_json())
+    d["parameters"] = d["parameters"][:-1]
+    with pytest.raises(DataError, match="corrupt model file"):
+        arxid.ArxModel.from_json(json.dumps(d))
+
+
+def test_not_fitted():
+    m = arxid.ArxModel(na=1, nb=1, nk=1)
+    with pytest.raises(NotFittedError, match="not fitted"):
+        m.parameters_
+    with pytest.raises(NotFittedError):
+        m.predict(None)
+    assert "not fitted" in str(m)
+
+
+def test_predict_on_data_with_other_inputs(data):
+    m = arxid.arx(data, 1, 1, 1)
+    other = arxid.IOData(np.zeros(50), np.zeros((50, 2)), ts=0.1)
+    with pytest.raises(DataError, match="1 inputs"):
+        m.predict(other)
+
+
+def test_nonlinear_model_has_no_transfer_function(data):
+    m = arxid.arx(data, 1, 1, 1, effects=["y^3"])
+    with pytest.raises(ArxidError, match="nonlinear"):
+        m.to_control()
+
+
+@pytest.mark.parametrize("call", [
+    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1, 2], []),          # nk count
+    lambda: _core.fit(np.zeros(5), np.zeros((4, 1)), [0], 1, [1], [1], []),              # rows
+    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0, 9], 1, [1], [1], []),           # starts
+    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [3], 1, [1], [1], []),              # first start
+    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [("pow", 2, 5)]),  # multiplier
+    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [("cube", 2, -1)]),
+    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 40, [30], [20], []),           # too few
+    lambda: _core.fit(np.zeros(0), np.zeros((0, 1)), [], 1, [1], [1], []),
+    lambda: _core.predict(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [], np.zeros(7)),
+    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1]]), []),
+    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.zeros((0, 3), dtype=np.int64), []),
+    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, -1, 0]]), []),
+    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1, 0]]), [], yv=np.zeros(9), uv=np.zeros((9, 2))),
+])
+def test_pathological_core_calls_raise_arxid_errors_not_panics(call):
+    with pytest.raises((ArxidError, TypeError)):
+        call()
