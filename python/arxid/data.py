@@ -157,6 +157,8 @@ class IOData:
             Sampling time; when omitted, ``time`` must name a time column sampled uniformly.
         time : str, optional
             Time column (seconds).
+        units : mapping of str to str, optional
+            Unit of each column, by name.
         """
         columns = {str(c): np.asarray(df[c]) for c in df.columns}
         return cls._from_columns(columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source="DataFrame")
@@ -174,6 +176,8 @@ class IOData:
             As in :meth:`from_pandas`.
         delimiter : str, optional
             Column separator; sniffed from the header when omitted.
+        units : mapping of str to str, optional
+            Unit of each column, by name.
 
         Empty cells and ``nan`` are missing samples (NaN).
         """
