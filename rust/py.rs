@@ -24,7 +24,9 @@ fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
             let _ = err.value(py).setattr("column", column);
             err
         }
-        ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } | ArxError::TooLarge { .. } => DataError::new_err(msg),
+        ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } | ArxError::TooLarge { .. } => {
+            DataError::new_err(msg)
+        }
         ArxError::InvalidStructure(_) => OrderError::new_err(msg),
     }
 }
@@ -57,7 +59,10 @@ fn run<T: Send>(py: Python<'_>, n_threads: usize, f: impl FnOnce() -> Result<T, 
     }
 }
 
-fn slices<'a>(y: &'a PyReadonlyArray1<'_, f64>, u: &'a PyReadonlyArray2<'_, f64>) -> PyResult<(&'a [f64], &'a [f64], usize)> {
+fn slices<'a>(
+    y: &'a PyReadonlyArray1<'_, f64>,
+    u: &'a PyReadonlyArray2<'_, f64>,
+) -> PyResult<(&'a [f64], &'a [f64], usize)> {
     let m = u.shape()[1];
     if u.shape()[0] != y.len() {
         return Err(DataError::new_err(format!("y has {} samples but u has {} rows", y.len(), u.shape()[0])));
@@ -137,7 +142,11 @@ fn predict<'py>(
     s.check(m).map_err(|e| to_pyerr(py, e))?;
     let th = theta.as_slice()?;
     if th.len() != s.n_params() {
-        return Err(OrderError::new_err(format!("theta has {} entries, the structure has {} parameters", th.len(), s.n_params())));
+        return Err(OrderError::new_err(format!(
+            "theta has {} entries, the structure has {} parameters",
+            th.len(),
+            s.n_params()
+        )));
     }
     let out = run(py, 1, || Ok(crate::simulate::predict(&d, &s, th, horizon, first_lag)))?;
     Ok(out.into_pyarray(py))
@@ -182,7 +191,10 @@ fn sweep<'py>(
             return Err(OrderError::new_err("orders must be non-negative"));
         }
         let r: Vec<usize> = row.iter().map(|&v| v as usize).collect();
-        grid.push(Structure::new(r[0], r[1..1 + m].to_vec(), r[1 + m..].to_vec(), terms.clone()).map_err(|e| to_pyerr(py, e))?);
+        grid.push(
+            Structure::new(r[0], r[1..1 + m].to_vec(), r[1 + m..].to_vec(), terms.clone())
+                .map_err(|e| to_pyerr(py, e))?,
+        );
     }
     let val_slices = match (&yv, &uv) {
         (Some(yv), Some(uv)) => Some(slices(yv, uv)?),
@@ -240,4 +252,3 @@ mod core_module {
     #[pymodule_export]
     use super::{fit, predict, sweep};
 }
-

@@ -68,7 +68,11 @@ pub struct Structure {
 impl Structure {
     pub fn new(na: usize, nb: Vec<usize>, nk: Vec<usize>, output_terms: Vec<OutputTerm>) -> Result<Self> {
         if nb.len() != nk.len() {
-            return Err(ArxError::ShapeMismatch { what: "nk (one delay per input)".into(), expected: nb.len(), got: nk.len() });
+            return Err(ArxError::ShapeMismatch {
+                what: "nk (one delay per input)".into(),
+                expected: nb.len(),
+                got: nk.len(),
+            });
         }
         Ok(Structure { na, nb, nk, output_terms })
     }
@@ -94,12 +98,18 @@ impl Structure {
 
     pub fn check(&self, n_inputs: usize) -> Result<()> {
         if self.nb.len() != n_inputs {
-            return Err(ArxError::ShapeMismatch { what: "nb (one order per input)".into(), expected: n_inputs, got: self.nb.len() });
+            return Err(ArxError::ShapeMismatch {
+                what: "nb (one order per input)".into(),
+                expected: n_inputs,
+                got: self.nb.len(),
+            });
         }
         for t in &self.output_terms {
             if let Some(m) = t.multiplier {
                 if m >= n_inputs {
-                    return Err(ArxError::InvalidStructure(format!("output term multiplies input {m}, but there are {n_inputs} inputs")));
+                    return Err(ArxError::InvalidStructure(format!(
+                        "output term multiplies input {m}, but there are {n_inputs} inputs"
+                    )));
                 }
             }
             if let OutputKind::Pow(p) = t.kind {
@@ -129,13 +139,19 @@ impl<'a> Data<'a> {
     pub fn new(y: &'a [f64], u: &'a [f64], m: usize, starts: &'a [usize]) -> Result<Self> {
         let n = y.len();
         if u.len() != n * m {
-            return Err(ArxError::ShapeMismatch { what: "inputs u (n_samples × n_inputs)".into(), expected: n * m, got: u.len() });
+            return Err(ArxError::ShapeMismatch {
+                what: "inputs u (n_samples × n_inputs)".into(),
+                expected: n * m,
+                got: u.len(),
+            });
         }
         if starts.first() != Some(&0) && n > 0 {
             return Err(ArxError::InvalidStructure("experiment starts must begin with 0".into()));
         }
         if starts.windows(2).any(|w| w[0] >= w[1]) || starts.iter().any(|&s| s >= n.max(1)) {
-            return Err(ArxError::InvalidStructure("experiment starts must be strictly increasing and inside the data".into()));
+            return Err(ArxError::InvalidStructure(
+                "experiment starts must be strictly increasing and inside the data".into(),
+            ));
         }
         Ok(Data { y, u, m, starts })
     }
