@@ -220,16 +220,16 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
 
     # noise, drawn up front so the loop stays lean and the log is the same with noise off
     ns = 1.0 if eff["noise"] else 0.0
-    sig = {"ang": 1e-3, "rate": 5e-3, "w": 5.0, "vbat": 5e-3, "az": 0.05}
+    sig = {"ang": 1e-3, "rate": 5e-3, "w": 1.0, "vbat": 5e-3, "az": 0.05}
     noise = {k: ns * s * rng.standard_normal((n, 3) if k in ("ang", "rate") else ((n, 4) if k == "w" else n))
              for k, s in sig.items()}
     turb = rng.standard_normal((n, 3))
-    # turbulence torque: first-order low-pass (0.5 s) white noise, ~2 % of the control authority
+    # turbulence torque: first-order low-pass (0.5 s) white noise, ~0.5 % of the control authority
     alpha = math.exp(-ts / 0.5)
     turb_f = np.zeros((n, 3))
     for k in range(1, n):
         turb_f[k] = alpha * turb_f[k - 1] + math.sqrt(1 - alpha * alpha) * turb[k]
-    turb_f *= ns * 2e-6
+    turb_f *= ns * 5e-7
 
     ixx, iyy, izz = par.inertia
     ir = par.rotor_inertia if eff["gyroscopic"] else 0.0

@@ -10,8 +10,20 @@
 
 from .mixer import CHANNELS, Mixer, mix
 from .motor import MotorFit, MotorModel, fit_percent, identify_motor, speeds_from_pwm
+from .physical import LeastSquaresEstimate, inertia_from_rotation, structured_lstsq, thrust_torque_coefficients
+from .rotational import RotationalFit, RotationalModel, RotationalScore, identify_rotational
+from .setmembership import (EmptyFeasibleSetError, InertiaIntervals, ParameterBox, RotatedBox, inertia_intervals,
+                            levels_box, linear_in_voltage_box, parameter_box, rotated_box, smallest_epsilon)
+from .thrust import (SEED001_MODEL_IDS, ThrustClassRow, ThrustClassTable, ThrustModel, fit_thrust_model,
+                     thrust_from_accelerometer, thrust_model_class)
 
 __all__ = [
     "CHANNELS", "Mixer", "mix",
     "MotorFit", "MotorModel", "fit_percent", "identify_motor", "speeds_from_pwm",
+    "LeastSquaresEstimate", "inertia_from_rotation", "structured_lstsq", "thrust_torque_coefficients",
+    "RotationalFit", "RotationalModel", "RotationalScore", "identify_rotational",
+    "EmptyFeasibleSetError", "InertiaIntervals", "ParameterBox", "RotatedBox", "inertia_intervals", "levels_box",
+    "linear_in_voltage_box", "parameter_box", "rotated_box", "smallest_epsilon",
+    "SEED001_MODEL_IDS", "ThrustClassRow", "ThrustClassTable", "ThrustModel", "fit_thrust_model",
+    "thrust_from_accelerometer", "thrust_model_class",
 ]
