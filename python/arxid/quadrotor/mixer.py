@@ -157,7 +157,8 @@ class Mixer:
         -------
         IOData
             Same output, ts and experiments; inputs ``channels``; the extra signals of ``data``
-            plus any of its inputs that did not become a channel.
+            plus any of its inputs that did not become a channel (an extra signal named like a
+            channel, such as a measured ``thrust``, is kept as ``thrust_logged``).
         """
         if len(speeds) != self.n_motors:
             raise DataError(f"{len(speeds)} speed signals named for a {self.n_motors}-motor mixer")
@@ -167,16 +168,21 @@ class Mixer:
         w = np.column_stack([data.signal(s) for s in speeds])
         mixed = self(w)
         cols = [CHANNELS.index(c) for c in channels]
-        extra = dict(data.extra)
-        for i, name in enumerate(data.input_names):
-            if name not in channels:
-                extra[name] = data.u[:, i]
+        extra = {}
+        for name, values in list(data.extra.items()) + [(n, data.u[:, i]) for i, n in enumerate(data.input_names)]:
+            if name in channels:
+                continue
+            # a logged signal named like a channel (e.g. the measured thrust) is kept as <name>_logged
+            extra[f"{name}_logged" if name in channels or name == data.output_name else name] = values
+        for name in channels:
+            if name in data.extra:
+                extra[f"{name}_logged"] = data.extra[name]
         speed_unit = data.unit(speeds[0])
         unit = f"({speed_unit})^2" if speed_unit else ""
         return IOData(data.y, mixed[:, cols], data.ts, output_name=data.output_name,
                       input_names=tuple(channels), output_unit=data.output_unit,
                       input_units=(unit,) * len(cols), extra=extra,
-                      extra_units={**data.extra_units, **{n: data.unit(n) for n in data.input_names}},
+                      extra_units={n: data.unit(n[:-7] if n.endswith("_logged") else n) for n in extra},
                       experiment_starts=data.experiment_starts)
 
 

@@ -107,7 +107,7 @@ class ThrustModel:
 
 
 def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: str = "vbat",
-                     refine: bool = True, tau_bounds=(1e-3, 2.0)) -> ThrustModel:
+                     refine: bool = True, tau_bounds=None) -> ThrustModel:
     """Fit one member of the class.
 
     Parameters
@@ -123,8 +123,8 @@ def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: 
         Name of the battery-voltage signal.
     refine : bool
         Refine ``tau`` by the free-run error (the ``alpha`` follow by least squares).
-    tau_bounds : (float, float)
-        Search interval for ``tau`` [s].
+    tau_bounds : (float, float), optional
+        Search interval for ``tau`` [s]; default ``(0.1 ts, 1000 ts)``.
 
     Returns
     -------
@@ -153,6 +153,7 @@ def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: 
         return float(e @ e), coef / scale
 
     if refine:
+        tau_bounds = (0.1 * ts, 1000 * ts) if tau_bounds is None else tau_bounds
         lo, hi = np.log(tau_bounds[0]), np.log(tau_bounds[1])
         res = minimize_scalar(lambda lt: free_run(np.exp(lt))[0], bounds=(lo, hi), method="bounded",
                               options={"xatol": 1e-4})
