@@ -65,7 +65,7 @@ class Mixer:
     >>> import numpy as np
     >>> from arxid.quadrotor import Mixer
     >>> Mixer("plus")(np.array([[1.0, 2.0, 3.0, 4.0]]))
-    array([[ 12.,   8.,  10.,  30.]])
+    array([[12.,  8., 10., 30.]])
     """
 
     frame: str = "plus"

@@ -62,7 +62,7 @@ class MotorModel:
     >>> from arxid.quadrotor import MotorModel
     >>> m = MotorModel(2.0e4, 20.0, 1.6e-3)
     >>> round(float(m.steady_speed(2.0)), 1)   # rad/s at 2 V
-    1771.9
+    1753.9
     """
 
     a0: float
