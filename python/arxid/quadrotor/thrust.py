@@ -124,7 +124,7 @@ def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: 
     refine : bool
         Refine ``tau`` by the free-run error (the ``alpha`` follow by least squares).
     tau_bounds : (float, float), optional
-        Search interval for ``tau`` [s]; default ``(0.1 ts, 1000 ts)``.
+        Search interval for ``tau`` [s]; default ``(0.1 ts, 50 ts)``.
 
     Returns
     -------
@@ -153,7 +153,7 @@ def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: 
         return float(e @ e), coef / scale
 
     if refine:
-        tau_bounds = (0.1 * ts, 1000 * ts) if tau_bounds is None else tau_bounds
+        tau_bounds = (0.1 * ts, 50 * ts) if tau_bounds is None else tau_bounds
         lo, hi = np.log(tau_bounds[0]), np.log(tau_bounds[1])
         res = minimize_scalar(lambda lt: free_run(np.exp(lt))[0], bounds=(lo, hi), method="bounded",
                               options={"xatol": 1e-4})
