@@ -1,0 +1,444 @@
+"""The ``arxid`` command: fit, sweep, diagnose, report and demo from a shell.
+
+Readable tables by default; ``--json`` prints one JSON object on stdout (NaN becomes null) for
+scripts. Progress bars go to stderr. Exit code 0 on success, 2 with a one-line message on bad
+arguments or data, 1 on an unexpected internal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["main", "load_data", "parse_range"]
+
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(Exception):
+    """A bad command line or bad data: reported in one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, no usage block: scripts read stderr
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+# ---------------------------------------------------------------------------------------- data
+def _names(text: str | None) -> list[str]:
+    return [s.strip() for s in (text or "").split(",") if s.strip()]
+
+
+def parse_range(text: str, name: str) -> list[int]:
+    """``"1:4"`` → [1, 2, 3, 4] (inclusive), ``"0,2,5"`` → [0, 2, 5], ``"3"`` → [3]."""
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            part = part.strip()
+            if ":" in part:
+                a, b = part.split(":", 1)
+                lo, hi = int(a), int(b)
+                if hi < lo:
+                    raise UsageError(f"--{name} {text!r}: the range {part} is empty (write LOW:HIGH, inclusive)")
+                out.extend(range(lo, hi + 1))
+            elif part:
+                out.append(int(part))
+    except ValueError:
+        raise UsageError(f"--{name} {text!r} is not a range; write e.g. 1:4 (inclusive) or 1,2,5") from None
+    if not out or min(out) < 0:
+        raise UsageError(f"--{name} {text!r} must list non-negative integers")
+    return sorted(set(out))
+
+
+def _parse_orders(text: str) -> tuple[int, int, int]:
+    parts = _names(text)
+    try:
+        vals = tuple(int(p) for p in parts)
+    except ValueError:
+        vals = ()
+    if len(vals) != 3 or min(vals) < 0:
+        raise UsageError(f"--orders {text!r} must be three non-negative integers NA,NB,NK, e.g. 2,1,8")
+    return vals  # type: ignore[return-value]
+
+
+def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str] = (), ts: float | None = None,
+              time_col: str | None = None):
+    """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
+
+    In a ``.npz`` the sampling time is ``--ts``, a time array named by ``--time``, or a scalar
+    array ``ts`` in the archive.
+    """
+    from .data import IOData
+    from .exceptions import DataError
+
+    p = Path(path)
+    if not p.is_file():
+        raise DataError(f"data file {path!r} does not exist")
+    if not inputs:
+        raise UsageError("name the input column(s) with --inputs A[,B,...]")
+    if not output:
+        raise UsageError("name the output column with --output COL")
+    if p.suffix.lower() == ".npz":
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                arrays = {k: np.asarray(z[k]) for k in z.files}
+        except ValueError as exc:
+            raise DataError(f"{p.name} is not a readable .npz archive ({exc})") from None
+        if ts is None and time_col is None and "ts" in arrays and arrays["ts"].size == 1:
+            ts = float(arrays["ts"].reshape(-1)[0])
+        columns = {k: v.reshape(-1).astype(float) for k, v in arrays.items() if v.ndim >= 1 and v.size > 1}
+        return IOData._from_columns(columns, output=output, inputs=list(inputs), extra=list(extra), ts=ts,
+                                    time=time_col, units=None, source=p.name)
+    return IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col)
+
+
+def _data_args(p: argparse.ArgumentParser, validation: bool = True) -> None:
+    p.add_argument("data", metavar="DATA", help="CSV file with a header row, or .npz archive of named arrays")
+    p.add_argument("--output", required=True, metavar="COL", help="output column")
+    p.add_argument("--inputs", required=True, metavar="A[,B]", help="input column(s), comma separated")
+    p.add_argument("--extra", metavar="C[,D]", default="", help="logged signals kept for diagnostics (e.g. vbat)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
+    g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
+    if validation:
+        v = p.add_mutually_exclusive_group()
+        v.add_argument("--validation", metavar="VAL.csv", help="separate validation file with the same columns")
+        v.add_argument("--split", type=float, metavar="F", default=None,
+                       help="estimation fraction of DATA when no --validation is given (default 0.7)")
+
+
+def _order_args(p: argparse.ArgumentParser, grid_default: bool) -> None:
+    p.add_argument("--orders", metavar="NA,NB,NK", help="one fixed structure, e.g. 2,1,8")
+    d = " (default %(default)s)" if grid_default else ""
+    p.add_argument("--na", metavar="RANGE", default="1:4" if grid_default else None, help="na grid, e.g. 1:4 (inclusive)" + d)
+    p.add_argument("--nb", metavar="RANGE", default="1:3" if grid_default else None, help="nb grid, e.g. 1:3" + d)
+    p.add_argument("--nk", metavar="RANGE", default="0:10" if grid_default else None, help="nk grid, e.g. 0:10" + d)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+
+
+def _load(args, need_validation: bool = True):
+    inputs, extra = _names(args.inputs), _names(args.extra)
+    data = load_data(args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time)
+    val = None
+    if getattr(args, "validation", None):
+        val = load_data(args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time)
+        if abs(val.ts - data.ts) > 1e-9 * data.ts:
+            raise UsageError(f"the validation data are sampled at {val.ts:g} s but DATA at {data.ts:g} s")
+        return data, val
+    split = getattr(args, "split", None)
+    if split is None and not need_validation:
+        return data, None
+    split = 0.7 if split is None else split
+    if not 0 < split < 1:
+        raise UsageError(f"--split {split} must be a fraction between 0 and 1, e.g. 0.7")
+    return data.split(split)
+
+
+def _grid(args) -> dict | None:
+    if getattr(args, "orders", None):
+        if any(getattr(args, k, None) not in (None, d) for k, d in (("na", "1:4"), ("nb", "1:3"), ("nk", "0:10"))):
+            raise UsageError("give either --orders NA,NB,NK or the grid --na/--nb/--nk, not both")
+        return None
+    return {k: parse_range(getattr(args, k) or d, k) for k, d in (("na", "1:4"), ("nb", "1:3"), ("nk", "0:10"))}
+
+
+def _progress(args) -> bool:
+    return not args.no_progress and sys.stderr.isatty()
+
+
+def _print_json(obj) -> None:
+    from .report import json_safe
+
+    sys.stdout.write(json.dumps(json_safe(obj), allow_nan=False, indent=2) + "\n")
+
+
+def _fmt(v, digits: int = 4) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    return "-" if not math.isfinite(f) else f"{f:.{digits}g}"
+
+
+def format_table(headers: Sequence[str], rows: Sequence[Sequence], title: str = "") -> str:
+    """Plain-text table with right-aligned numbers (first column left-aligned)."""
+    cells = [[_fmt(c) if not isinstance(c, str) else c for c in r] for r in rows]
+    widths = [max([len(h)] + [len(r[i]) for r in cells]) for i, h in enumerate(headers)]
+    def line(r):
+        return "  ".join((c.ljust(w) if i == 0 else c.rjust(w)) for i, (c, w) in enumerate(zip(r, widths)))
+    out = ([title] if title else []) + [line(headers), "  ".join("-" * w for w in widths)] + [line(r) for r in cells]
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------------------- commands
+def cmd_fit(args) -> int:
+    from .model import arx
+
+    est, val = _load(args, need_validation=False)
+    orders = _parse_orders(args.orders) if args.orders else None
+    if orders is None:
+        raise UsageError("fit needs the structure: --orders NA,NB,NK (find one with 'arxid sweep')")
+    effects = _names(args.effects)
+    model = arx(est, *orders, effects=effects)
+    h = args.horizon
+    out = {"model": model.to_dict(), "structure": model.structure_name(), "n_rows": model.n_rows_,
+           "fit_est_one_step": model.fit_percent_, "rms_pred_est": model.rms(est, 1), "horizon": h}
+    if val is not None:
+        out.update(rms_sim_val=model.rms(val, h), rms_pred_val=model.rms(val, 1), fit_val=model.fit_percent(val, h))
+    if args.save:
+        model.to_json(args.save)
+        out["saved"] = args.save
+    if args.json:
+        _print_json(out)
+        return EXIT_OK
+    print(str(model))
+    rows = [["one-step fit on estimation [%]", out["fit_est_one_step"]], ["one-step RMS on estimation", out["rms_pred_est"]]]
+    if val is not None:
+        what = "free-run" if h is None else f"{h}-step"
+        rows += [[f"{what} RMS on validation", out["rms_sim_val"]], ["one-step RMS on validation", out["rms_pred_val"]],
+                 [f"{what} fit on validation [%]", out["fit_val"]]]
+    print()
+    print(format_table(["measure", "value"], rows))
+    if args.save:
+        print(f"\nmodel saved to {args.save}")
+    return EXIT_OK
+
+
+def _sweep_records(table, top: int) -> list[dict]:
+    cols = [c for c in table.columns if c not in ("theta", "parameters")]
+    return table[cols].head(top).to_dict(orient="records")
+
+
+def cmd_sweep(args) -> int:
+    from .report import run_sweep
+
+    est, val = _load(args)
+    grid = _grid(args)
+    if grid is None:
+        o = _parse_orders(args.orders)
+        grid = {"na": [o[0]], "nb": [o[1]], "nk": [o[2]]}
+    t0 = time.perf_counter()
+    res, table, best, rejected = run_sweep(est, val, grid, progress=_progress(args), expect=args.expect)
+    elapsed = time.perf_counter() - t0
+    out = {"n_structures": int(len(table)), "seconds": elapsed,
+           "grid": grid, "best": {"na": best.na, "nb": list(best.nb), "nk": list(best.nk),
+                                  "structure": best.structure_name(), "rms_sim_val": best.rms(val, args.horizon),
+                                  "fit_val": best.fit_percent(val, args.horizon)},
+           "rejected": rejected, "table": _sweep_records(table, args.top)}
+    if args.json:
+        _print_json(out)
+        return EXIT_OK
+    cols = [c for c in table.columns if c not in ("theta", "parameters")]
+    rows = [[str(r[c]) if isinstance(r[c], (str, tuple, list)) else r[c] for c in cols] for _, r in table.head(args.top).iterrows()]
+    print(format_table([str(c) for c in cols], rows,
+                       title=f"{len(table)} structures in {elapsed:.2f} s; best {min(args.top, len(table))}:"))
+    for name, why in rejected.items():
+        print(f"rejected {name}: {why}")
+    print(f"\nbest sane structure: {best.structure_name()}  (validation RMS {_fmt(out['best']['rms_sim_val'])}, "
+          f"fit {_fmt(out['best']['fit_val'])} %)")
+    return EXIT_OK
+
+
+def _diagnosis_text(d: dict) -> str:
+    m, b = d.get("model", {}), d.get("baseline", {})
+    h = b.get("horizon")
+    what = "free-run" if h is None else f"{h}-step"
+    lines = [f"model: ARX(na={m.get('na')}, nb={m.get('nb')}, nk={m.get('nk')})"
+             + (f" + {', '.join(m.get('effects') or [])}" if m.get("effects") else ""),
+             f"validation: {what} RMS {_fmt(b.get('rms_sim_val'))}, one-step RMS {_fmt(b.get('rms_pred_val'))}, "
+             f"fit {_fmt(b.get('fit_val'))} %", ""]
+    rt = d.get("residual_tests") or {}
+    flat = [[k, v] for k, v in rt.items() if not isinstance(v, (dict, list))]
+    if flat:
+        lines += [format_table(["residual test", "value"], flat), ""]
+    sus = d.get("suspects") or []
+    if sus:
+        rows = [[str(i), s.get("effect"), s.get("score"), s.get("p_value"), bool(s.get("significant")),
+                 s.get("rms_sim_val_after")] for i, s in enumerate(sus[:12], start=1)]
+        lines += [format_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows,
+                               title="suspects (missing effects, ranked):"), ""]
+    sig = [s for s in sus if s.get("significant")]
+    lines.append(f"missing effect: {sig[0]['effect']}" if sig else "no significant missing effect")
+    lad = d.get("ladder") or []
+    if lad:
+        first = lad[0].get("rms_sim_val")
+        rows = []
+        for i, s in enumerate(lad):
+            v = s.get("rms_sim_val")
+            fall = f"{(1 - v / first) * 100:.1f} %" if first and v is not None else "-"
+            rows.append([str(i), "ARX" if not s.get("effects") else "+ " + ", ".join(s["effects"]), v, fall])
+        lines += ["", format_table(["step", "model", f"val. {what} RMS", "fall"], rows, title="error ladder:")]
+    return "\n".join(lines)
+
+
+def cmd_diagnose(args) -> int:
+    from .diagnose import diagnose_report
+
+    est, val = _load(args)
+    orders = _parse_orders(args.orders) if args.orders else None
+    grid = None if orders else _grid(args)
+    d = diagnose_report(est, val, orders=orders, grid=grid, horizon=args.horizon, max_steps=args.max_steps)
+    if args.json:
+        _print_json(d)
+    else:
+        print(_diagnosis_text(d))
+    return EXIT_OK
+
+
+def cmd_report(args) -> int:
+    from .report import build_report
+
+    est, val = _load(args)
+    orders = _parse_orders(args.orders) if args.orders else None
+    grid = None if orders else _grid(args)
+    t0 = time.perf_counter()
+    rep = build_report(est, val, orders=orders, grid=grid, horizon=args.horizon, max_steps=args.max_steps,
+                       progress=_progress(args), expect=args.expect, title=args.title,
+                       source=f"{Path(args.data).name}" + (f" + {Path(args.validation).name}" if args.validation else ""))
+    path = rep.save(args.o)
+    a = rep.analysis
+    if args.json:
+        _print_json({"report": str(path), "bytes": path.stat().st_size, "seconds": time.perf_counter() - t0,
+                     "diagnosis": a.diagnosis})
+    else:
+        print(_diagnosis_text(a.diagnosis))
+        print(f"\nreport written to {path} ({path.stat().st_size / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")
+    return EXIT_OK
+
+
+def cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    res = run_demo(output=args.o, seed=args.seed, duration=args.duration, progress=_progress(args),
+                   stream=sys.stderr if args.json else sys.stdout)
+    if args.json:
+        _print_json(res.to_dict())
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------- parser
+_EXAMPLES = {
+    "fit": "example:\n  arxid fit flight.csv --output roll --inputs roll_torque --ts 0.002 --orders 2,1,8 --split 0.7\n"
+           "  arxid fit flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 --orders 2,1,8 "
+           "--effects roll_torque*vbat --json",
+    "sweep": "example:\n  arxid sweep flight.csv --output roll --inputs roll_torque --ts 0.002 --na 2:4 --nb 1:2 --nk 0:10\n"
+             "  arxid sweep log.npz --output y --inputs u --validation val.npz --json",
+    "diagnose": "example:\n  arxid diagnose flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 "
+                "--orders 2,1,8 --split 0.7 --json",
+    "report": "example:\n  arxid report flight.csv --output roll --inputs roll_torque --extra vbat --time t -o report.html",
+    "demo": "example:\n  arxid demo                       # simulated quadrotor flight, writes arxid-demo-report.html\n"
+            "  arxid demo -o /tmp/demo.html --seed 3",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    root = _Parser(prog="arxid", description="ARX system identification that finds the missing physical effect.",
+                   formatter_class=argparse.RawDescriptionHelpFormatter,
+                   epilog="examples:\n  arxid demo\n  arxid sweep data.csv --output y --inputs u --ts 0.01\n"
+                          "  arxid diagnose data.csv --output y --inputs u --extra vbat --ts 0.01 --json\n"
+                          "run 'arxid COMMAND --help' for each command's options.")
+    import arxid
+    root.add_argument("--version", action="version", version=f"arxid {arxid.__version__}")
+    sub = root.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    kw = {"formatter_class": argparse.RawDescriptionHelpFormatter}
+
+    p = sub.add_parser("fit", help="fit one ARX structure (optionally with effects)", epilog=_EXAMPLES["fit"],
+                       description="Fit one ARX model by QR and report its errors.", **kw)
+    _data_args(p)
+    p.add_argument("--orders", metavar="NA,NB,NK", required=True, help="structure, e.g. 2,1,8")
+    p.add_argument("--effects", metavar="E[,F]", default="", help="effect terms, e.g. 'u1*vbat,const'")
+    p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
+    p.add_argument("--save", metavar="MODEL.json", help="write the fitted model as JSON")
+    _common(p)
+    p.set_defaults(func=cmd_fit)
+
+    p = sub.add_parser("sweep", help="fit and validate every (na, nb, nk) of a grid", epilog=_EXAMPLES["sweep"],
+                       description="Exhaustive order sweep, ranked by validation error; step sanity checks.", **kw)
+    _data_args(p)
+    _order_args(p, grid_default=True)
+    p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
+    p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
+    p.add_argument("--top", type=int, default=20, metavar="N", help="rows to print (default %(default)s)")
+    _common(p)
+    p.set_defaults(func=cmd_sweep)
+
+    p = sub.add_parser("diagnose", help="rank the missing physical effect and climb the error ladder",
+                       epilog=_EXAMPLES["diagnose"], description="Diagnose a model: residual tests, suspects, ladder.", **kw)
+    _data_args(p)
+    _order_args(p, grid_default=False)
+    p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
+    p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
+    _common(p)
+    p.set_defaults(func=cmd_diagnose)
+
+    p = sub.add_parser("report", help="write a self-contained HTML report", epilog=_EXAMPLES["report"],
+                       description="Sweep, choose, diagnose and write one HTML file with every plot embedded.", **kw)
+    _data_args(p)
+    _order_args(p, grid_default=False)
+    p.add_argument("-o", metavar="REPORT.html", default="report.html", help="output file (default %(default)s)")
+    p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
+    p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
+    p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
+    p.add_argument("--title", help="report title")
+    _common(p)
+    p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("demo", help="the hidden battery effect of a simulated quadrotor, end to end",
+                       epilog=_EXAMPLES["demo"], description="Simulated quadrotor flight with battery sag: sweep, "
+                       "diagnose, add the missing effect, print the error ladder, write an HTML report.", **kw)
+    p.add_argument("-o", metavar="REPORT.html", default="arxid-demo-report.html", help="report file (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="simulation seed (default %(default)s)")
+    p.add_argument("--duration", type=float, default=None, help="flight duration in seconds (default: the demo's)")
+    _common(p)
+    p.set_defaults(func=cmd_demo)
+    return root
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``arxid`` command line; returns the exit code (0 ok, 2 bad arguments or data)."""
+    from .exceptions import ArxidError
+
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if not getattr(args, "command", None):
+            parser.print_help(sys.stderr)
+            return EXIT_USAGE
+        for name in ("horizon", "max_steps", "top"):
+            v = getattr(args, name, None)
+            if v is not None and v < 1:
+                raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
+        return int(args.func(args) or EXIT_OK)
+    except UsageError as exc:
+        print(str(exc).splitlines()[0], file=sys.stderr)
+        return EXIT_USAGE
+    except BrokenPipeError:  # pragma: no cover - `arxid ... | head`
+        return EXIT_OK
+    except (ArxidError, OSError) as exc:
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"arxid: error: {msg}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("arxid: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
