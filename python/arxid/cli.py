@@ -419,8 +419,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
-            parser.print_help(sys.stderr)
-            return EXIT_USAGE
+            raise UsageError("arxid: choose a command: fit, sweep, diagnose, report or demo (see arxid --help)")
         for name in ("horizon", "max_steps", "top"):
             v = getattr(args, name, None)
             if v is not None and v < 1:

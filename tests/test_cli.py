@@ -1,0 +1,239 @@
+"""The ``arxid`` command line: every command, exit codes, ``--json`` shapes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from arxid.cli import main, parse_range
+
+TRUE_A, TRUE_B, TRUE_NK = -0.8, 0.5, 2
+
+
+def _strict_json(text: str):
+    """json.loads that refuses NaN/Infinity literals (they are not JSON)."""
+    def bad(c):
+        raise AssertionError(f"non-JSON constant {c} in output")
+    return json.loads(text, parse_constant=bad)
+
+
+def _first_order(n=1500, seed=0, noise=0.0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = np.zeros(n)
+    for t in range(TRUE_NK, n):
+        y[t] = -TRUE_A * y[t - 1] + TRUE_B * u[t - TRUE_NK]
+    return u, y + noise * rng.standard_normal(n)
+
+
+def _battery_system(n=3000, seed=1):
+    """The gain scales with a draining battery voltage that the model does not know about."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    vbat = np.linspace(4.2, 3.4, n) + 0.01 * rng.standard_normal(n)
+    y = np.zeros(n)
+    for t in range(1, n):
+        y[t] = 0.9 * y[t - 1] + 0.3 * u[t - 1] * vbat[t - 1] + 0.02 * rng.standard_normal()
+    return u, y, vbat
+
+
+@pytest.fixture
+def csv_file(tmp_path):
+    u, y = _first_order()
+    p = tmp_path / "data.csv"
+    t = np.arange(len(u)) * 0.01
+    np.savetxt(p, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="")
+    return p
+
+
+@pytest.fixture
+def noisy_csv(tmp_path):
+    u, y = _first_order(noise=0.01)
+    p = tmp_path / "noisy.csv"
+    np.savetxt(p, np.column_stack([u, y]), delimiter=",", header="u,y", comments="")
+    return p
+
+
+@pytest.fixture
+def battery_csv(tmp_path):
+    u, y, vbat = _battery_system()
+    p = tmp_path / "battery.csv"
+    np.savetxt(p, np.column_stack([u, y, vbat]), delimiter=",", header="u,y,vbat", comments="")
+    return p
+
+
+def run(capsys, *argv):
+    code = main(list(map(str, argv)))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# ---------------------------------------------------------------------------------------- fit
+def test_fit_json_recovers_the_true_parameters(capsys, csv_file):
+    code, out, err = run(capsys, "fit", csv_file, "--output", "y", "--inputs", "u", "--ts", 0.01,
+                         "--orders", "1,1,2", "--split", 0.7, "--json")
+    assert code == 0, err
+    d = _strict_json(out)
+    assert d["structure"] == "ARX(1,1,2)"
+    np.testing.assert_allclose(d["model"]["parameters"], [TRUE_A, TRUE_B], atol=1e-9)
+    assert d["rms_sim_val"] < 1e-8 and d["fit_val"] > 99.99
+
+
+def test_fit_table_time_column_and_save(capsys, csv_file, tmp_path):
+    path = tmp_path / "m.json"
+    code, out, err = run(capsys, "fit", csv_file, "--output", "y", "--inputs", "u", "--time", "t",
+                         "--orders", "1,1,2", "--save", path)
+    assert code == 0, err
+    assert "ARX(1,1,2)" in out and "one-step fit on estimation" in out
+    import arxid
+    m = arxid.ArxModel.from_json(path)
+    np.testing.assert_allclose(m.parameters_, [TRUE_A, TRUE_B], atol=1e-9)
+    assert m.ts == pytest.approx(0.01)
+
+
+def test_fit_reads_npz_with_ts_inside(capsys, tmp_path):
+    u, y = _first_order(800)
+    p = tmp_path / "log.npz"
+    np.savez(p, u=u, y=y, ts=np.array(0.05))
+    code, out, err = run(capsys, "fit", p, "--output", "y", "--inputs", "u", "--orders", "1,1,2", "--json")
+    assert code == 0, err
+    d = _strict_json(out)
+    np.testing.assert_allclose(d["model"]["parameters"], [TRUE_A, TRUE_B], atol=1e-9)
+    assert "rms_sim_val" not in d  # no validation asked for
+
+
+def test_fit_with_effect(capsys, battery_csv):
+    code, out, err = run(capsys, "fit", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
+                         "--ts", 0.01, "--orders", "1,1,1", "--effects", "u*vbat", "--json")
+    assert code == 0, err
+    d = _strict_json(out)
+    assert d["model"]["effects"] == ["u*vbat"]
+    # y = 0.9 y(t-1) + 0.3 u vbat: the product term carries the gain, the plain input none
+    np.testing.assert_allclose(d["model"]["parameters"], [-0.9, 0.0, 0.3], atol=0.01)
+
+
+# ---------------------------------------------------------------------------------------- sweep
+def test_sweep_json_finds_the_true_structure(capsys, noisy_csv):
+    code, out, err = run(capsys, "sweep", noisy_csv, "--output", "y", "--inputs", "u", "--ts", 0.01,
+                         "--na", "1:2", "--nb", "1:2", "--nk", "0:3", "--json", "--no-progress")
+    assert code == 0, err
+    d = _strict_json(out)
+    assert d["n_structures"] == 2 * 2 * 4
+    assert d["best"]["nk"] == [TRUE_NK]
+    assert d["best"]["rms_sim_val"] < 0.02  # noise 0.01 on the output
+    assert len(d["table"]) == 16 and {"na", "nb", "nk"} <= set(d["table"][0])
+
+
+def test_sweep_table(capsys, csv_file):
+    code, out, err = run(capsys, "sweep", csv_file, "--output", "y", "--inputs", "u", "--ts", 0.01,
+                         "--na", "1", "--nb", "1", "--nk", "1,2", "--top", "5")
+    assert code == 0, err
+    assert "2 structures" in out and "best sane structure: ARX(1,1,2)" in out
+
+
+# ---------------------------------------------------------------------------------------- diagnose
+def test_diagnose_json_contract_and_battery_found(capsys, battery_csv):
+    code, out, err = run(capsys, "diagnose", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
+                         "--ts", 0.01, "--orders", "1,1,1", "--split", 0.7, "--json")
+    assert code == 0, err
+    d = _strict_json(out)  # exactly one JSON object on stdout
+    assert set(d) == {"model", "baseline", "residual_tests", "suspects", "ladder"}
+    assert {"na", "nb", "nk", "effects"} <= set(d["model"])
+    assert {"rms_sim_val", "rms_pred_val", "fit_val", "horizon"} <= set(d["baseline"])
+    for s in d["suspects"]:
+        assert {"effect", "score", "p_value", "significant", "rms_sim_val_after"} <= set(s)
+    for step in d["ladder"]:
+        assert {"effects", "rms_sim_val"} <= set(step)
+    top = next(s for s in d["suspects"] if s["significant"])
+    assert "vbat" in top["effect"]
+    assert d["ladder"][-1]["rms_sim_val"] < 0.6 * d["ladder"][0]["rms_sim_val"]
+
+
+def test_diagnose_tables(capsys, battery_csv):
+    code, out, err = run(capsys, "diagnose", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
+                         "--ts", 0.01, "--orders", "1,1,1", "--max-steps", 1)
+    assert code == 0, err
+    assert "suspects" in out and "error ladder" in out and "missing effect:" in out
+    with pytest.raises(json.JSONDecodeError):
+        json.loads(out)
+
+
+# ---------------------------------------------------------------------------------------- report, demo
+def test_report_writes_self_contained_html(capsys, battery_csv, tmp_path):
+    path = tmp_path / "r.html"
+    code, out, err = run(capsys, "report", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
+                         "--ts", 0.01, "--na", "1:2", "--nb", "1", "--nk", "0:2", "-o", path, "--max-steps", 1, "--json")
+    assert code == 0, err
+    d = _strict_json(out)
+    assert d["report"] == str(path) and d["bytes"] == path.stat().st_size
+    html = path.read_text()
+    assert html.count('<img src="data:image/png;base64,') >= 8
+    assert "http://" not in html.replace("http://www.w3.org", "") and "https://" not in html
+    for section in ("Data", "Order sweep", "Model equation", "Step-response checks", "Measured against simulated",
+                    "Residual tests", "Where it fails", "Which effect is missing", "Error ladder"):
+        assert section in html
+
+
+def test_demo_short_flight(capsys, tmp_path):
+    path = tmp_path / "demo.html"
+    code, out, err = run(capsys, "demo", "-o", path, "--duration", 8, "--json", "--no-progress")
+    assert code == 0, err
+    d = _strict_json(out)
+    assert d["report"] == str(path) and path.stat().st_size > 10_000
+    assert d["ladder"][0]["effects"] == []
+    assert "error ladder" in err.lower()  # the story goes to stderr with --json
+
+
+# ---------------------------------------------------------------------------------------- errors
+@pytest.mark.parametrize("argv, needle", [
+    (["fit", "{csv}", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "--output"),
+    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1"], "--orders"),
+    (["fit", "{csv}", "--output", "y", "--inputs", "nope", "--ts", "0.01", "--orders", "1,1,2"], "nope"),
+    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--orders", "1,1,2"], "ts"),
+    (["fit", "missing.csv", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "does not exist"),
+    (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--split", "1.5"], "split"),
+    (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--na", "4:1"], "--na"),
+    (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--nk", "x"], "--nk"),
+    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "-1", "--orders", "1,1,2"], "ts"),
+    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--effects", "bogus*"], "bogus"),
+    (["diagnose", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--horizon", "0"], "horizon"),
+    (["frobnicate"], "frobnicate"),
+    ([], "command"),
+])
+def test_bad_arguments_exit_2_with_one_line(capsys, csv_file, argv, needle):
+    code, out, err = run(capsys, *[a.replace("{csv}", str(csv_file)) for a in argv])
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert needle in lines[0] and "Traceback" not in err
+
+
+@pytest.mark.parametrize("command", ["fit", "sweep", "diagnose", "report", "demo"])
+def test_help_has_an_example(capsys, command):
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert "example:" in out and f"arxid {command}" in out
+
+
+def test_parse_range():
+    assert parse_range("1:4", "na") == [1, 2, 3, 4]
+    assert parse_range("0,2,5", "nk") == [0, 2, 5]
+    assert parse_range("3", "nb") == [3]
+
+
+def test_entry_point_process_exit_codes(csv_file):
+    """The real process: exit 2 and one line on stderr for bad data, JSON on stdout on success."""
+    bad = subprocess.run([sys.executable, "-m", "arxid.cli", "fit", str(csv_file), "--output", "zz", "--inputs", "u",
+                          "--ts", "0.01", "--orders", "1,1,2"], capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
+    ok = subprocess.run([sys.executable, "-m", "arxid.cli", "fit", str(csv_file), "--output", "y", "--inputs", "u",
+                         "--ts", "0.01", "--orders", "1,1,2", "--json"], capture_output=True, text=True, timeout=60)
+    assert ok.returncode == 0, ok.stderr
+    assert _strict_json(ok.stdout)["structure"] == "ARX(1,1,2)"
