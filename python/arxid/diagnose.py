@@ -1,0 +1,926 @@
+"""Which physical effect is the model missing? :func:`diagnose`, :class:`Diagnosis`, :class:`Ladder`.
+
+The procedure (see ``DESIGN.md``, *Diagnosing a missing effect*):
+
+1. Take the model's one-step residual e on the estimation data.
+2. For each candidate (an effect such as ``u1^2``, ``y^3``, ``sign(dy)``, ``u1*vbat``, or more
+   dynamics ``na+1``, ``nb+1``, ``nk±1``), project its regressor columns z on the model's
+   regressors and keep the remainder z̃. The added-variable (partial) correlation of z̃ with e is the
+   score; its square is the share of residual energy the candidate removes. An F-test gives a
+   p-value, corrected for the number of candidates tried (Holm).
+3. Refit the best candidates and judge them by free-run error on validation data (k-step error for
+   plants with an integrator): one-step error barely moves when a real effect is added, free-run
+   error falls a lot, and a candidate that only tracks a drift makes validation worse.
+4. A suspect is *significant* only when its corrected p-value passes ``alpha`` **and** it lowers the
+   validation error by at least ``min_improvement`` (5%). With no missing effect, none is.
+5. Strong candidates are also tried together with ``const`` (asymmetric Coulomb friction is
+   c·sign(v) plus an offset); the pair is reported as one suspect, ``sign(dy)+const``.
+
+:class:`Ladder` then adds the best significant suspect, re-diagnoses, and repeats — the error falls
+step by step.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+
+from .data import IOData
+from .diagnostics import (_check_data, _check_horizon, _check_model, _finite_or_none, _pandas, _table, error_rms,
+                          fit_percent, horizon_label, prediction_error, residuals)
+from .effects import compile_effects, parse_effect
+from .exceptions import ArxidError, DataError, OrderError
+from .model import ArxModel, arx
+from .regressors import max_lag, regressor_matrix, regressor_names
+
+__all__ = ["diagnose", "Diagnosis", "Suspect", "Ladder", "LadderStep", "auto_candidates", "diagnose_report"]
+
+#: k used for the validation error of a plant with an integrator (free run drifts).
+INTEGRATING_HORIZON = 10
+
+
+# ---------------------------------------------------------------------------------------------
+# candidates
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Candidate:
+    label: str
+    effects: tuple[str, ...]
+    na: int
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+    kind: str  # "effect", "pair" or "dynamics"
+
+
+def _two_signed(x: np.ndarray) -> bool:
+    x = x[np.isfinite(x)]
+    return x.size > 0 and x.min() < 0 < x.max()
+
+
+def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
+    """Candidate effects and structure changes built from the signals of ``data``.
+
+    Effects (grammar of :mod:`arxid.effects`): each extra signal as a new input; products of each
+    input with every extra signal, every other input and the output; powers 2 and 3 of each input
+    and of the output; ``abs`` of signals that change sign; ``sign(dNAME)`` of the output and of
+    each input (Coulomb friction, backlash); ``const``; ``time``. Dynamics: ``na+1``, ``nb+1`` and
+    ``nk±1`` (per input, written ``nb(name)+1`` when there are several inputs). Candidates already
+    in the model are left out.
+    """
+    m = data.n_inputs
+    # Effects are written in the grammar's words: a name that is not an identifier (``rpm[1/min]``)
+    # is called u1, u2, ... for an input and left out for an extra signal.
+    ins = [a if a.isidentifier() else f"u{i + 1}" for i, a in enumerate(data.input_names)]
+    extras = [k for k in data.extra if k.isidentifier() and k not in ins and k not in ("y", data.output_name)]
+    out: list[str] = []
+    out += extras
+    for i, a in enumerate(ins):
+        out += [f"{a}*{x}" for x in extras]
+        out += [f"{a}*{b}" for b in ins[i + 1:]]
+        out.append(f"{a}*y")
+    for a in ins:
+        out += [f"{a}^2", f"{a}^3"]
+    out += ["y^2", "y^3"]
+    for i, a in enumerate(ins):
+        if _two_signed(data.u[:, i]):
+            out.append(f"abs({a})")
+    if _two_signed(data.y):
+        out.append("abs(y)")
+    out.append("sign(dy)")
+    out += [f"sign(d{a})" for a in ins]
+    out += ["const", "time"]
+    have = set(model.effects)
+    eff = [e for e in out if e not in have]
+    dyn = ["na+1"]
+    for i, a in enumerate(ins):
+        tag = "" if m == 1 else f"({a})"
+        if model.nb[i] > 0:
+            dyn.append(f"nb{tag}+1")
+            if model.nk[i] > 0:
+                dyn.append(f"nk{tag}-1")
+            dyn.append(f"nk{tag}+1")
+    return eff + dyn
+
+
+def _dynamics(label: str, model: ArxModel) -> _Candidate | None:
+    import re
+
+    na, nb, nk = int(model.na), list(model.nb), list(model.nk)
+    if label == "na+1":
+        return _Candidate(label, (), na + 1, tuple(nb), tuple(nk), "dynamics")
+    mt = re.fullmatch(r"(nb|nk)(?:\((?P<name>[^)]+)\))?(?P<sign>[+-])1", label)
+    if not mt:
+        return None
+    name = mt["name"]
+    if name is None:
+        idx = list(range(len(nb)))
+    elif name in model.input_names:
+        idx = [model.input_names.index(name)]
+    else:
+        raise OrderError(f"candidate {label!r}: no input named {name!r}; inputs: {list(model.input_names)}")
+    step = 1 if mt["sign"] == "+" else -1
+    for i in idx:
+        if mt[1] == "nb":
+            nb[i] += step
+        else:
+            nk[i] += step
+    if min(nb) < 0 or min(nk) < 0:
+        raise OrderError(f"candidate {label!r} would make an order negative")
+    return _Candidate(label, (), na, tuple(nb), tuple(nk), "dynamics")
+
+
+def _parse_candidate(label: str, model: ArxModel, data: IOData) -> _Candidate:
+    if not isinstance(label, str) or not label.strip():
+        raise OrderError(f"a candidate must be a non-empty string such as 'u1^2', 'y^3' or 'na+1', got {label!r}")
+    label = label.replace(" ", "")
+    dyn = _dynamics(label, model)
+    if dyn is not None:
+        return dyn
+    parts = tuple(p for p in label.split("+") if p)
+    for p in parts:
+        parse_effect(p, data)  # raises OrderError with a readable message
+    kind = "pair" if len(parts) > 1 else "effect"
+    return _Candidate(label, parts, int(model.na), tuple(model.nb), tuple(model.nk), kind)
+
+
+def _layout_for(c: _Candidate, model: ArxModel, data: IOData):
+    effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
+    layout = compile_effects(effects, data, c.nb, c.nk)
+    return effects, layout
+
+
+# ---------------------------------------------------------------------------------------------
+# results
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Suspect:
+    """One candidate explanation of the model's error.
+
+    Attributes
+    ----------
+    effect : str
+        What is added: an effect (``u1^2``), a pair (``sign(dy)+const``) or a structure change
+        (``na+1``, ``nb+1``, ``nk-1``).
+    kind : str
+        ``"effect"``, ``"pair"`` or ``"dynamics"``.
+    score : float
+        Added-variable (partial) correlation with the one-step residual, in [0, 1]; its square is
+        the share of residual energy the candidate removes on the estimation data.
+    f_statistic : float
+        Partial F statistic of the added columns.
+    p_value_raw, p_value : float
+        F-test p-value, and the same corrected for the number of candidates (Holm).
+    n_columns : int
+        Regressor columns the candidate adds.
+    rms_sim_val_after : float
+        Validation error (free run, or k-step) of the model refitted with the candidate; NaN when
+        it was not refitted, inf when its simulation diverges.
+    improvement : float
+        1 − rms_after / rms_before (0.6 = the validation error fell by 60%).
+    significant : bool
+        Corrected p-value below ``alpha`` and improvement of at least ``min_improvement``.
+    note : str
+        Why a candidate could not be scored or refitted, if so.
+    """
+
+    effect: str
+    kind: str
+    effects: tuple[str, ...]
+    na: int
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+    score: float
+    f_statistic: float
+    p_value_raw: float
+    p_value: float
+    n_columns: int
+    rms_sim_val_after: float
+    improvement: float
+    significant: bool
+    note: str = ""
+    model: ArxModel | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def refitted(self) -> bool:
+        return not math.isnan(self.rms_sim_val_after)
+
+    def to_dict(self) -> dict:
+        """The CLI contract: ``effect``, ``score``, ``p_value``, ``significant``, ``rms_sim_val_after``."""
+        return {
+            "effect": self.effect,
+            "score": _finite_or_none(float(self.score)),
+            "p_value": _finite_or_none(float(self.p_value)),
+            "significant": bool(self.significant),
+            "rms_sim_val_after": _finite_or_none(float(self.rms_sim_val_after)),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Ranked suspects for a model's error, with the baseline they are judged against.
+
+    Attributes
+    ----------
+    model : ArxModel
+        The model diagnosed.
+    data, validation : IOData
+        Estimation data (scores) and validation data (refits are judged on it).
+    horizon : int or None
+        Validation error measure: None = free run; k = k-step (chosen automatically for plants with
+        an integrator, or when the baseline's free run diverges).
+    rms_sim_val, rms_pred_val, fit_val : float
+        Baseline validation error at ``horizon``, one-step validation RMS, and fit percent at
+        ``horizon``.
+    suspects : tuple of Suspect
+        Significant suspects first (lowest validation error first), then the other refitted ones
+        by validation error, then the rest by p-value.
+    residual_tests : ResidualAnalysis or None
+        Residual analysis of the model on the validation data.
+    alpha, min_improvement : float
+    n_tested : int
+        Number of hypotheses in the multiple-comparison correction.
+    validation_is_estimation : bool
+        True when no separate validation data were given.
+    """
+
+    model: ArxModel
+    data: IOData = field(repr=False)
+    validation: IOData = field(repr=False)
+    horizon: int | None
+    rms_sim_val: float
+    rms_pred_val: float
+    fit_val: float
+    suspects: tuple[Suspect, ...]
+    residual_tests: object = field(default=None, repr=False)
+    alpha: float = 0.01
+    min_improvement: float = 0.05
+    n_tested: int = 0
+    validation_is_estimation: bool = False
+
+    @property
+    def significant(self) -> tuple[Suspect, ...]:
+        """The significant suspects, best first (empty: no missing effect found)."""
+        return tuple(s for s in self.suspects if s.significant)
+
+    @property
+    def top(self) -> Suspect | None:
+        """The best significant suspect, or None."""
+        sig = self.significant
+        return sig[0] if sig else None
+
+    def suspect(self, effect: str) -> Suspect:
+        """The suspect for ``effect`` (e.g. ``"y^3"``)."""
+        for s in self.suspects:
+            if s.effect == effect:
+                return s
+        raise ArxidError(f"no suspect {effect!r}; suspects: {[s.effect for s in self.suspects]}")
+
+    def rank(self, effect: str) -> int:
+        """0-based rank of ``effect`` among the suspects."""
+        return self.suspects.index(self.suspect(effect))
+
+    def apply(self, k: int | str = 0) -> ArxModel:
+        """The model refitted on the estimation data with suspect ``k`` added.
+
+        Parameters
+        ----------
+        k : int or str
+            Rank (0 = best) or the suspect's name (``"y^3"``).
+        """
+        if isinstance(k, str):
+            s = self.suspect(k)
+        else:
+            if not self.suspects:
+                raise ArxidError("there are no suspects to apply")
+            try:
+                s = self.suspects[k]
+            except (IndexError, TypeError):
+                raise ArxidError(f"suspect index {k!r} is out of range: there are {len(self.suspects)} suspects") from None
+        if s.model is not None:
+            return s.model
+        return _refit(self.model, self.data, s)
+
+    def __str__(self) -> str:
+        base = (f"diagnosis of {self.model.structure_name()}: validation error ({horizon_label(self.horizon)}) "
+                f"{self.rms_sim_val:.4g}, fit {self.fit_val:.2f}%, one-step rms {self.rms_pred_val:.4g}")
+        lines = [base]
+        if self.validation_is_estimation:
+            lines.append("  (no validation data given: judged on the estimation data)")
+        if self.residual_tests is not None:
+            rt = self.residual_tests
+            lines.append(f"  residual: Ljung–Box p = {rt.ljung_box_p_value:.3g} ({'white' if rt.is_white else 'not white'})")
+        rows = []
+        for i, s in enumerate(self.suspects[:15]):
+            rows.append((i, s.effect, s.score, s.p_value, s.rms_sim_val_after,
+                         f"{100 * s.improvement:+.1f}%" if s.refitted and math.isfinite(s.improvement) else "",
+                         "yes" if s.significant else "", s.note))
+        lines.append(_table(["#", "suspect", "score", "p (Holm)", "val rms after", "change", "significant", "note"],
+                            rows, ".3g"))
+        if not self.significant:
+            lines.append("no significant missing effect: no candidate passes both the corrected F-test "
+                         f"(alpha {self.alpha}) and a {100 * self.min_improvement:.0f}% validation improvement")
+        else:
+            lines.append(f"best: add {self.top.effect} (validation error {self.rms_sim_val:.4g} -> "
+                         f"{self.top.rms_sim_val_after:.4g}); diagnosis.apply(0) refits with it")
+        return "\n".join(lines)
+
+    def to_dict(self, ladder: "Ladder | None" = None) -> dict:
+        """The machine-readable report (the ``arxid diagnose --json`` contract).
+
+        Keys ``model`` (na, nb, nk, effects), ``baseline`` (rms_sim_val, rms_pred_val, fit_val,
+        horizon), ``residual_tests``, ``suspects`` (effect, score, p_value, significant,
+        rms_sim_val_after) and ``ladder`` (effects, rms_sim_val); without ``ladder`` the ladder holds
+        the diagnosed model only.
+        """
+        m = self.model
+        if ladder is None:
+            steps = [{"effects": list(m.effects), "rms_sim_val": _finite_or_none(float(self.rms_sim_val))}]
+        else:
+            steps = ladder.to_list()
+        return {
+            "model": {"na": int(m.na), "nb": [int(x) for x in m.nb], "nk": [int(x) for x in m.nk],
+                      "effects": list(m.effects)},
+            "baseline": {
+                "rms_sim_val": _finite_or_none(float(self.rms_sim_val)),
+                "rms_pred_val": _finite_or_none(float(self.rms_pred_val)),
+                "fit_val": _finite_or_none(float(self.fit_val)),
+                "horizon": self.horizon,
+            },
+            "residual_tests": self.residual_tests.to_dict() if self.residual_tests is not None else {},
+            "suspects": [s.to_dict() for s in self.suspects],
+            "ladder": steps,
+        }
+
+    def to_json(self, indent: int | None = 2, ladder: "Ladder | None" = None) -> str:
+        return json.dumps(self.to_dict(ladder), indent=indent)
+
+    def to_pandas(self):
+        """One row per suspect: score, p-values, validation error after, improvement, significant."""
+        pd = _pandas()
+        return pd.DataFrame([
+            {"suspect": s.effect, "kind": s.kind, "score": s.score, "f_statistic": s.f_statistic,
+             "p_value_raw": s.p_value_raw, "p_value": s.p_value, "rms_sim_val_after": s.rms_sim_val_after,
+             "improvement": s.improvement, "significant": s.significant, "note": s.note}
+            for s in self.suspects
+        ])
+
+    def plot(self, n: int = 12):
+        """Scores and validation change of the top ``n`` suspects. Returns the Figure."""
+        from .plots.diagnostics import plot_diagnosis
+
+        return plot_diagnosis(self, n)
+
+
+# ---------------------------------------------------------------------------------------------
+# the procedure
+# ---------------------------------------------------------------------------------------------
+def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
+    effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
+    return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
+
+
+def _is_integrating(model: ArxModel) -> bool:
+    p = model.poles()
+    return bool(np.any((np.abs(p - 1.0) < 1e-3)))
+
+
+def _holm(p: np.ndarray) -> np.ndarray:
+    m = len(p)
+    if m == 0:
+        return p
+    order = np.argsort(p)
+    adj = np.empty(m)
+    running = 0.0
+    for i, j in enumerate(order):
+        running = max(running, min(1.0, (m - i) * p[j]))
+        adj[j] = running
+    return adj
+
+
+class _Projector:
+    """Added-variable statistics against the model's regressors on fixed rows."""
+
+    def __init__(self, phi: np.ndarray, y: np.ndarray):
+        scale = np.linalg.norm(phi, axis=0)
+        scale[scale == 0] = 1.0
+        self.q, _ = np.linalg.qr(phi / scale)
+        self.e = y - self.q @ (self.q.T @ y)
+        self.rss0 = float(self.e @ self.e)
+        self.n, self.p = phi.shape
+
+    def test(self, z: np.ndarray):
+        """(score, F, p_raw, q, note) for the columns ``z`` (rows aligned with the projector)."""
+        from scipy import stats
+
+        norms = np.linalg.norm(z, axis=0)
+        keep = norms > 0
+        if not keep.any():
+            return None, "the candidate is zero on these data"
+        z = z[:, keep] / norms[keep]
+        zr = z - self.q @ (self.q.T @ z)
+        rn = np.linalg.norm(zr, axis=0)
+        ok = rn > 1e-7
+        if not ok.any():
+            return None, "already explained by the model's regressors (collinear)"
+        zr = zr[:, ok] / rn[ok]
+        qz, rz = np.linalg.qr(zr)
+        d = np.abs(np.diag(rz))
+        qz = qz[:, d > 1e-7 * d.max()]
+        q = qz.shape[1]
+        dof = self.n - self.p - q
+        if dof < 1 or self.rss0 <= 0:
+            return None, "too few rows to test it"
+        drss = float(np.sum((qz.T @ self.e) ** 2))
+        drss = min(drss, self.rss0)
+        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
+        f = (drss / q) / (rss1 / dof)
+        p = float(stats.f.sf(f, q, dof))
+        return (math.sqrt(drss / self.rss0), float(f), p, q), ""
+
+
+def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | None = None, *,
+             candidates: str | Sequence[str] = "auto", horizon: int | None = None, alpha: float = 0.01,
+             min_improvement: float = 0.05, n_refit: int = 8, n_pairs: int = 8,
+             residual_max_lag: int = 25) -> Diagnosis:
+    """Rank the physical effects (and structure changes) the model is missing.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted model.
+    data : IOData, optional
+        Estimation data (default: the data the model was fitted on).
+    validation : IOData, optional
+        Data the refitted candidates are judged on (default: ``data``; give separate data —
+        a drift-tracking candidate only shows its harm there).
+    candidates : "auto" or sequence of str
+        ``"auto"`` builds them from the data's signals (:func:`auto_candidates`); a list may hold
+        effects (``"u1*vbat"``), pairs (``"sign(dy)+const"``) and ``"na+1"``, ``"nb+1"``,
+        ``"nk-1"``, ``"nk+1"``.
+    horizon : int or None
+        Validation error: None = free run (switched to ``INTEGRATING_HORIZON``-step for a plant
+        with a pole at 1 or a baseline whose free run diverges); k = k-step prediction.
+    alpha : float
+        Level of the Holm-corrected F-test.
+    min_improvement : float
+        Relative fall of the validation error a suspect needs to be significant (0.05 = 5%).
+    n_refit : int
+        Candidates passing the corrected test are all refitted and validated, plus the best
+        ``n_refit`` by p-value (every candidate when ``candidates`` is a list).
+    n_pairs : int
+        Largest number of strong effects also tried together with ``const`` (when the model has
+        no offset).
+    residual_max_lag : int
+        Largest lag of the residual tests reported in ``residual_tests``.
+
+    Returns
+    -------
+    Diagnosis
+        ``suspects`` ranked by validated improvement; ``apply(k)`` refits with suspect k.
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.uniform(0.5, 1.5, 3000).repeat(1)
+    >>> y = np.zeros(3000)
+    >>> for t in range(1, 3000):
+    ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
+    >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
+    >>> d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
+    >>> d.top.effect
+    'u1^2'
+    """
+    model = _check_model(model)
+    if data is None:
+        data = model._data
+        if data is None:
+            raise ArxidError("this model was loaded without its data: pass the estimation data to diagnose(model, data)")
+    data = _check_data(data)
+    same = validation is None
+    validation = data if same else _check_data(validation, "validation")
+    if validation.input_names != data.input_names:
+        raise DataError(f"validation inputs {list(validation.input_names)} differ from the estimation inputs {list(data.input_names)}")
+    horizon = _check_horizon(horizon)
+    if not 0 < alpha < 1:
+        raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
+    if not 0 <= min_improvement < 1:
+        raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
+
+    # Baseline on validation data.
+    if horizon is None and _is_integrating(model):
+        horizon = INTEGRATING_HORIZON
+    base_rms = error_rms(model, validation, horizon)
+    if horizon is None and not math.isfinite(base_rms):
+        horizon = INTEGRATING_HORIZON
+        base_rms = error_rms(model, validation, horizon)
+    pred, _, _ = prediction_error(model, validation, horizon)
+    base_fit = fit_percent(validation.y, pred)
+    base_pred = error_rms(model, validation, 1)
+    try:
+        rtests = residuals(model, validation, max_lag=residual_max_lag)
+    except ArxidError:
+        rtests = None
+
+    # Candidates.
+    auto = isinstance(candidates, str)
+    if auto:
+        if candidates != "auto":
+            raise ArxidError(f"candidates must be 'auto' or a list of effect strings, got {candidates!r}")
+        labels = auto_candidates(model, data)
+    else:
+        labels = list(candidates)
+        if not labels:
+            raise ArxidError("candidates is empty: give 'auto' or at least one effect such as 'u1^2'")
+    cands: list[_Candidate] = []
+    notes: dict[str, str] = {}
+    for lab in labels:
+        c = _parse_candidate(lab, model, data)
+        if c.kind != "dynamics" and all(e in model.effects for e in c.effects):
+            continue
+        cands.append(c)
+
+    # Common rows: every candidate's regressors exist on them.
+    base_layout = compile_effects(model.effects, data, model.nb, model.nk)
+    base_names = regressor_names(data.output_name, model.na, base_layout)
+    lag = max(model.first_lag_, max_lag(model.na, base_layout))
+    prepared = []
+    for c in cands:
+        try:
+            _, lay = _layout_for(c, model, data)
+        except (OrderError, DataError) as exc:
+            notes[c.label] = str(exc)
+            continue
+        lag = max(lag, max_lag(c.na, lay))
+        prepared.append((c, lay))
+    phi0, y0, rows0 = regressor_matrix(data, model.na, base_layout, lag)
+    if len(rows0) <= phi0.shape[1] + 2:
+        raise DataError(f"too few regression rows ({len(rows0)}) to diagnose a model with {phi0.shape[1]} parameters")
+    proj0 = _Projector(phi0, y0)
+
+    def columns(c: _Candidate, lay):
+        names = regressor_names(data.output_name, c.na, lay)
+        phi, y, rows = regressor_matrix(data, c.na, lay, lag)
+        new = [i for i, nm in enumerate(names) if nm not in base_names]
+        return phi[:, new], rows
+
+    scored: list[dict] = []
+    single_z = {}
+    for c, lay in prepared:
+        z, rows = columns(c, lay)
+        if z.shape[1] == 0:
+            notes[c.label] = "adds no regressor"
+            continue
+        if len(rows) == len(rows0) and np.array_equal(rows, rows0):
+            proj = proj0
+        else:  # a candidate with missing samples: test on the rows both have
+            common, i0, i1 = np.intersect1d(rows0, rows, return_indices=True)
+            if len(common) <= phi0.shape[1] + z.shape[1] + 2:
+                notes[c.label] = "too few rows where its signal exists"
+                continue
+            proj, z = _Projector(phi0[i0], y0[i0]), z[i1]
+        res, why = proj.test(z)
+        if res is None:
+            notes[c.label] = why
+            continue
+        if proj is proj0:
+            single_z[c.label] = z
+        scored.append({"c": c, "score": res[0], "f": res[1], "p": res[2], "q": res[3]})
+
+    # Pairs with an offset for the strong effects (asymmetric Coulomb friction, an un-detrended
+    # output: the effect only helps together with a constant).
+    single_adj = _holm(np.array([s["p"] for s in scored]))
+    if "const" not in model.effects and n_pairs > 0:
+        eff = sorted((s for s, pa in zip(scored, single_adj) if pa < alpha and s["c"].kind == "effect"
+                      and s["c"].label not in ("const", "time") and s["c"].label in single_z), key=lambda s: s["p"])
+        have = {s["c"].label for s in scored}
+        for s in eff[:n_pairs]:
+            c = s["c"]
+            label = f"{c.label}+const"
+            if label in have:
+                continue
+            z = np.column_stack([single_z[c.label], np.ones(len(rows0))])
+            res, why = proj0.test(z)
+            if res is None:
+                continue
+            pc = _Candidate(label, c.effects + ("const",), c.na, c.nb, c.nk, "pair")
+            scored.append({"c": pc, "score": res[0], "f": res[1], "p": res[2], "q": res[3]})
+
+    p_raw = np.array([s["p"] for s in scored])
+    p_adj = _holm(p_raw)
+    for s, pa in zip(scored, p_adj):
+        s["p_adj"] = float(pa)
+
+    # Refit and judge on validation data: every candidate that passes the corrected test (only
+    # those can be significant), and the best n_refit by p-value so the table shows their effect.
+    order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
+    if auto:
+        chosen = set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
+    else:
+        chosen = set(range(len(scored)))
+    suspects = []
+    for i, s in enumerate(scored):
+        c = s["c"]
+        after, note, fitted = math.nan, notes.get(c.label, ""), None
+        if i in chosen:
+            try:
+                fitted = _refit(model, data, c)
+                after = error_rms(fitted, validation, horizon)
+                if not math.isfinite(after):
+                    note = "free run diverges"
+            except ArxidError as exc:
+                note = str(exc).split(":")[0]
+        if math.isfinite(after) and math.isfinite(base_rms) and base_rms > 0:
+            improvement = 1.0 - after / base_rms
+        elif math.isinf(after):
+            improvement = -math.inf
+        else:
+            improvement = math.nan
+        sig = bool(s["p_adj"] < alpha and math.isfinite(improvement) and improvement >= min_improvement)
+        suspects.append(Suspect(c.label, c.kind, c.effects, c.na, c.nb, c.nk, s["score"], s["f"], s["p"], s["p_adj"],
+                                s["q"], after, improvement, sig, note, fitted))
+    # A pair must earn its extra parameter: it stays significant only when it beats its single
+    # candidate's validation error by ``min_improvement`` as well (else the single is the suspect).
+    by_label = {s.effect: s for s in suspects}
+    for i, s in enumerate(suspects):
+        if s.kind != "pair" or not s.significant:
+            continue
+        single = by_label.get(s.effect.rsplit("+", 1)[0])
+        if single is not None and single.refitted and math.isfinite(single.rms_sim_val_after) \
+                and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after:
+            suspects[i] = replace(s, significant=False, note=f"no better than {single.effect} alone")
+    for lab, why in notes.items():
+        if not any(s.effect == lab for s in suspects):
+            c = next((c for c in cands if c.label == lab), None)
+            if c is not None:
+                suspects.append(Suspect(lab, c.kind, c.effects, c.na, c.nb, c.nk, math.nan, math.nan, math.nan,
+                                        math.nan, 0, math.nan, math.nan, False, why, None))
+
+    def key(s: Suspect):
+        after = s.rms_sim_val_after
+        refitted = not math.isnan(after)
+        p = s.p_value if math.isfinite(s.p_value) else 2.0
+        return (not s.significant, not refitted, after if refitted else 0.0, p, -np.nan_to_num(s.score))
+
+    suspects.sort(key=key)
+    return Diagnosis(model, data, validation, horizon, base_rms, base_pred, base_fit, tuple(suspects), rtests,
+                     alpha, min_improvement, len(scored), same)
+
+
+# ---------------------------------------------------------------------------------------------
+# ladder
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class LadderStep:
+    """One rung: the model after adding ``added`` and its validation error.
+
+    Attributes
+    ----------
+    added : str
+        What this step added (``""`` for the starting model).
+    model : ArxModel
+    effects : tuple of str
+        All effects of the model at this step.
+    structure : str
+        e.g. ``ARX(2,2,1) + y^3``.
+    rms_sim_val : float
+        Validation error at ``horizon`` (None = free run).
+    fit_val : float
+        Validation fit percent at ``horizon``.
+    horizon : int or None
+    """
+
+    added: str
+    model: ArxModel = field(repr=False)
+    effects: tuple[str, ...]
+    structure: str
+    rms_sim_val: float
+    fit_val: float
+    horizon: int | None
+
+
+class Ladder:
+    """The sequence of models as effects are added, with the validation error at each step.
+
+    Build it by hand with :meth:`add`, or greedily with :meth:`run`, which adds the best significant
+    suspect of :func:`diagnose` until nothing significant is left.
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.uniform(0.5, 1.5, 3000)
+    >>> y = np.zeros(3000)
+    >>> for t in range(1, 3000):
+    ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
+    >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
+    >>> ladder = arxid.Ladder.run(arxid.arx(est, 1, 1, 1), est, val)
+    >>> [s.added for s in ladder.steps][:2]
+    ['', 'u1^2']
+    """
+
+    def __init__(self, validation: IOData | None = None, horizon: int | None = None):
+        self.validation = validation
+        self.horizon = _check_horizon(horizon)
+        self.steps: list[LadderStep] = []
+        self.diagnoses: list[Diagnosis] = []
+
+    def add(self, model: ArxModel, added: str = "", validation: IOData | None = None) -> LadderStep:
+        """Record ``model`` as the next step, measured on ``validation`` (default: the ladder's)."""
+        model = _check_model(model)
+        val = validation if validation is not None else self.validation
+        if val is None:
+            val = model._data
+        if val is None:
+            raise ArxidError("give validation data: Ladder(validation) or add(model, validation=...)")
+        self.validation = self.validation if self.validation is not None else val
+        pred, err, diverged = prediction_error(model, val, self.horizon)
+        ok = np.isfinite(err)
+        rms = math.inf if diverged else (float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan)
+        step = LadderStep(added, model, tuple(model.effects), model.structure_name(), rms,
+                          -math.inf if diverged else fit_percent(val.y, pred), self.horizon)
+        self.steps.append(step)
+        return step
+
+    @classmethod
+    def run(cls, model: ArxModel, data: IOData | None = None, validation: IOData | None = None, *,
+            max_steps: int = 3, horizon: int | None = None, **diagnose_kwargs) -> "Ladder":
+        """Greedy ladder: diagnose, add the best significant suspect, repeat.
+
+        Parameters
+        ----------
+        model : ArxModel
+            Starting model.
+        data, validation : IOData
+            Estimation and validation data (see :func:`diagnose`).
+        max_steps : int
+            Largest number of suspects added.
+        horizon : int or None
+            Validation error measure (the first diagnosis may switch a free run to k-step for an
+            integrating plant; the whole ladder then uses that horizon).
+        **diagnose_kwargs
+            Passed to :func:`diagnose` (``candidates``, ``alpha``, ``min_improvement`` ...).
+
+        Returns
+        -------
+        Ladder
+            ``steps`` (the starting model first) and the ``diagnoses`` made along the way.
+        """
+        model = _check_model(model)
+        data = data if data is not None else model._data
+        d = diagnose(model, data, validation, horizon=horizon, **diagnose_kwargs)
+        ladder = cls(d.validation, d.horizon)
+        ladder.add(model)
+        ladder.diagnoses.append(d)
+        for _ in range(int(max_steps)):
+            top = d.top
+            if top is None:
+                break
+            model = d.apply(top.effect)
+            ladder.add(model, top.effect)
+            d = diagnose(model, data, validation, horizon=d.horizon, **diagnose_kwargs)
+            ladder.diagnoses.append(d)
+        return ladder
+
+    @property
+    def final_model(self) -> ArxModel:
+        if not self.steps:
+            raise ArxidError("the ladder is empty")
+        return self.steps[-1].model
+
+    @property
+    def errors(self) -> np.ndarray:
+        return np.array([s.rms_sim_val for s in self.steps])
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def __str__(self) -> str:
+        rows = []
+        first = self.steps[0].rms_sim_val if self.steps else math.nan
+        for i, s in enumerate(self.steps):
+            change = f"{100 * (s.rms_sim_val / first - 1):+.1f}%" if i and math.isfinite(first) and first > 0 else ""
+            rows.append((i, s.added or "(start)", s.structure, s.rms_sim_val, s.fit_val, change))
+        return (f"ladder (validation error, {horizon_label(self.horizon)})\n"
+                + _table(["step", "added", "model", "rms", "fit %", "vs start"], rows))
+
+    def __repr__(self) -> str:
+        return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
+
+    def to_list(self) -> list[dict]:
+        """The CLI contract: one ``{"effects": [...], "rms_sim_val": x}`` per step."""
+        return [{"effects": list(s.effects), "rms_sim_val": _finite_or_none(float(s.rms_sim_val))} for s in self.steps]
+
+    def to_dict(self) -> dict:
+        return {"horizon": self.horizon,
+                "steps": [{"added": s.added, "structure": s.structure, "effects": list(s.effects),
+                           "rms_sim_val": _finite_or_none(float(s.rms_sim_val)),
+                           "fit_val": _finite_or_none(float(s.fit_val))} for s in self.steps]}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def to_pandas(self):
+        pd = _pandas()
+        return pd.DataFrame([{"added": s.added, "structure": s.structure, "rms_sim_val": s.rms_sim_val,
+                              "fit_val": s.fit_val} for s in self.steps])
+
+    def plot(self):
+        """Validation error per step (the error falling). Returns the Figure."""
+        from .plots.diagnostics import plot_ladder
+
+        return plot_ladder(self)
+
+
+# ---------------------------------------------------------------------------------------------
+# the CLI job
+# ---------------------------------------------------------------------------------------------
+def _range(v, default):
+    if v is None:
+        return list(default)
+    if isinstance(v, (int, np.integer)):
+        return [int(v)]
+    return [int(x) for x in v]
+
+
+def _select_orders(data: IOData, validation: IOData, grid: dict | None, horizon: int | None) -> ArxModel:
+    grid = dict(grid or {})
+    na = _range(grid.get("na"), range(1, 5))
+    nb = _range(grid.get("nb"), range(1, 4))
+    nk = _range(grid.get("nk"), range(0, 6))
+    try:
+        import importlib
+
+        sweep_mod = importlib.import_module(".sweep", __package__)
+        sweep = getattr(sweep_mod, "sweep")
+        res = sweep(data, na=na, nb=nb, nk=nk, validation=validation, horizon=horizon)
+        best = res.best() if callable(getattr(res, "best", None)) else res.best
+        if isinstance(best, ArxModel):
+            return best
+        return arx(data, int(best.na), best.nb, best.nk)
+    except (ImportError, AttributeError, TypeError):
+        pass
+    best_model, best_rms = None, math.inf
+    for a in na:
+        for b in nb:
+            for k in nk:
+                if a == 0 and b == 0:
+                    continue
+                try:
+                    m = arx(data, a, b, k)
+                except ArxidError:
+                    continue
+                h = horizon if horizon is not None else (INTEGRATING_HORIZON if _is_integrating(m) else None)
+                r = error_rms(m, validation, h)
+                if r < best_rms:
+                    best_model, best_rms = m, r
+    if best_model is None:
+        raise OrderError("no structure of the grid could be fitted to these data; widen the grid or check the data")
+    return best_model
+
+
+def diagnose_report(data: IOData, validation: IOData | None = None, orders=None, grid: dict | None = None,
+                    horizon: int | None = None, max_steps: int = 3, **diagnose_kwargs) -> dict:
+    """The whole ``arxid diagnose`` job: fit (or sweep), diagnose, climb the ladder; a JSON-ready dict.
+
+    Parameters
+    ----------
+    data : IOData
+        Estimation data.
+    validation : IOData, optional
+        Validation data (default: the last 30% of ``data``, the first 70% being used to estimate).
+    orders : (na, nb, nk), optional
+        Model orders; nb and nk may be sequences (one per input). Without them the structure with
+        the lowest validation error over ``grid`` is used.
+    grid : dict, optional
+        ``{"na": [...], "nb": [...], "nk": [...]}`` (default na 1..4, nb 1..3, nk 0..5).
+    horizon : int or None
+        Validation error measure (None = free run; see :func:`diagnose`).
+    max_steps : int
+        Largest number of steps of the greedy ladder.
+
+    Returns
+    -------
+    dict
+        Keys ``model``, ``baseline``, ``residual_tests``, ``suspects``, ``ladder`` (see
+        :meth:`Diagnosis.to_dict`).
+    """
+    data = _check_data(data)
+    if validation is None:
+        data, validation = data.split(0.7)
+    validation = _check_data(validation, "validation")
+    horizon = _check_horizon(horizon)
+    if orders is not None:
+        try:
+            na, nb, nk = orders
+        except (TypeError, ValueError):
+            raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
+        model = arx(data, na, nb, nk)
+    else:
+        model = _select_orders(data, validation, grid, horizon)
+    ladder = Ladder.run(model, data, validation, max_steps=max_steps, horizon=horizon, **diagnose_kwargs)
+    return ladder.diagnoses[0].to_dict(ladder)
