@@ -34,6 +34,7 @@ from .data import IOData
 __all__ = ["DemoResult", "demo_data", "run_demo"]
 
 DURATION = 20.0
+TAKEOFF_S = 1.0
 #: Sweep grid of the demo: the thrust path has a one-sample delay and first- or second-order dynamics.
 GRID = {"na": range(1, 5), "nb": range(1, 4), "nk": range(0, 5)}
 
@@ -60,11 +61,14 @@ def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
     motor = MotorModel(*par.motor)
     blind = motor.simulate(duty, np.full(flight.n_samples, par.nominal_voltage), flight.ts)
     collective = Mixer("plus")(blind)[:, 3]
-    vbat = flight.signal("vbat")
-    data = IOData(flight.signal("az"), collective, flight.ts, output_name="az", input_names=("collective",),
-                  output_unit="m/s^2", input_units=("(rad/s)^2",), extra={"vbat": vbat, "z": flight.signal("z")},
+    # the first second is the take-off transient, not the flight the model is about
+    skip = min(int(round(TAKEOFF_S / flight.ts)), flight.n_samples // 4)
+    vbat = flight.signal("vbat")[skip:]
+    collective = collective[skip:]
+    data = IOData(flight.signal("az")[skip:], collective, flight.ts, output_name="az", input_names=("collective",),
+                  output_unit="m/s^2", input_units=("(rad/s)^2",), extra={"vbat": vbat, "z": flight.signal("z")[skip:]},
                   extra_units={"vbat": "V", "z": "m"})
-    facts = {"seed": seed, "duration": duration, "ts": flight.ts, "n_samples": flight.n_samples,
+    facts = {"seed": seed, "duration": duration, "ts": flight.ts, "n_samples": data.n_samples, "skipped_s": skip * flight.ts,
              "vbat_start": float(vbat[:50].mean()), "vbat_end": float(vbat[-50:].mean()),
              "vbat_min": float(vbat.min()), "nominal_voltage": par.nominal_voltage}
     return data, facts
@@ -145,7 +149,8 @@ def run_demo(output: str | Path = "arxid-demo-report.html", seed: int = 0, durat
     seconds["simulate"] = time.perf_counter() - t0
     say("arxid demo: a simulated quadrotor flight whose battery drains, and the effect the model is missing")
     say()
-    say(f"1. Flight: {facts['duration']:g} s at {1 / facts['ts']:g} Hz ({facts['n_samples']} samples), seed {seed}; "
+    say(f"1. Flight: {facts['duration']:g} s at {1 / facts['ts']:g} Hz, seed {seed} ({facts['n_samples']} samples after "
+        f"the {facts['skipped_s']:g} s take-off); "
         f"battery {facts['vbat_start']:.2f} V -> {facts['vbat_end']:.2f} V (sags to {facts['vbat_min']:.2f} V under load).")
     say(f"   Input: motor speeds from the PWM duty by the motor model at the nominal {facts['nominal_voltage']:g} V "
         f"(the log has no speed sensor), mixed into the collective thrust channel sum(w^2).")
