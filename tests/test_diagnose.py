@@ -389,3 +389,25 @@ def test_daisy_heating_two_step_ladder(shared_data):
     err = ladder.errors
     assert np.all(np.diff(err) < 0)
     assert ladder.steps[1].added == "volt^2+const"
+
+
+def test_simulated_quadrotor_flight_battery_sag():
+    """The project's own flight simulator with battery sag: the battery times the thrust command."""
+    from arxid.demo import demo_data
+
+    data, facts = demo_data(seed=0)
+    assert facts["vbat_end"] < facts["vbat_start"] - 0.2  # the battery does sag
+    est, val = data.split(0.6)
+    d = diagnose(arxid.arx(est, 2, 1, 1), est, val)
+    assert d.top.effect == "collective*vbat"
+    assert all("z" not in s.effect.replace("collective", "") for s in d.significant[:1])
+    assert _fall(d) >= 0.4
+
+
+def test_arxid_diagnose_is_callable_whatever_the_import_order():
+    import arxid.diagnose as module  # binds the package attribute to the module
+
+    est, val = quadratic_thrust().split(0.6)
+    d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
+    assert isinstance(d, Diagnosis) and d.top.effect == "speed^2"
+    assert module.Ladder is Ladder and arxid.Diagnosis is Diagnosis
