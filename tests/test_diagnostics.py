@@ -261,3 +261,18 @@ def test_where_it_fails_errors():
         where_it_fails(m, d, window=1)
     with pytest.raises(arxid.OrderError, match="horizon"):
         where_it_fails(m, d, horizon=-1)
+
+
+def test_missing_samples_are_left_out_not_called_divergence():
+    d = first_order(seed=9, n=1500, noise=0.1)
+    y = d.y.copy()
+    y[700:705] = np.nan
+    gap = arxid.IOData(y, d.u, d.ts, extra=d.extra)
+    m = arxid.arx(gap, 1, 1, 1)
+    r = residuals(m, gap)
+    assert r.n_samples == 1500 - 1 - 5 - 1  # first sample, the gap, and the sample after it
+    assert r.is_white
+    c = compare(m, gap, horizon=1)
+    assert not c.diverged[0] and math.isfinite(c.rms[0])
+    fa = where_it_fails(m, gap, horizon=1)
+    assert math.isfinite(fa.rms)

@@ -317,7 +317,7 @@ class Diagnosis:
         for i, s in enumerate(self.suspects[:15]):
             rows.append((i, s.effect, s.score, s.p_value, s.rms_sim_val_after,
                          f"{100 * s.improvement:+.1f}%" if s.refitted and math.isfinite(s.improvement) else "",
-                         "yes" if s.significant else "", s.note))
+                         "yes" if s.significant else "", s.note if len(s.note) <= 48 else s.note[:45] + "..."))
         lines.append(_table(["#", "suspect", "score", "p (Holm)", "val rms after", "change", "significant", "note"],
                             rows, ".3g"))
         if not self.significant:
