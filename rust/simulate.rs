@@ -32,6 +32,18 @@ fn step(d: &Data, s: &Structure, theta: &[f64], t: usize, hist: &dyn Fn(usize) -
     acc
 }
 
+/// Whether every input sample the structure reads at time `t` is finite.
+fn inputs_finite(d: &Data, s: &Structure, t: usize) -> bool {
+    for (i, (&b, &k)) in s.nb.iter().zip(&s.nk).enumerate() {
+        for j in 0..b {
+            if !d.u_at(t - k - j, i).is_finite() {
+                return false;
+            }
+        }
+    }
+    s.output_terms.iter().all(|term| term.multiplier.is_none_or(|m| d.u_at(t - 1, m).is_finite()))
+}
+
 /// Predicted output for every sample (NaN for the first `max(first_lag, lag)` samples of each
 /// experiment, which only serve as initial conditions).
 ///
@@ -53,21 +65,18 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
                 }
             }
             None => {
-                // `sim[t]` NaN marks a sample to take from the measurement (initial or after a gap).
+                // `from_measurement[t]`: take y(t) from the data (initial conditions, and samples whose
+                // inputs are missing, after which the simulation restarts). A simulation that overflows
+                // is not restarted: its NaN/inf propagate so the divergence stays visible.
                 let mut sim = vec![f64::NAN; b - a];
+                let mut from_measurement = vec![true; b - a];
                 for t in start..b {
                     let v = {
-                        let sim_ref = &sim;
-                        step(d, s, theta, t, &|i| {
-                            let v = sim_ref[t - i - a];
-                            if v.is_nan() {
-                                d.y[t - i]
-                            } else {
-                                v
-                            }
-                        })
+                        let (sim_ref, meas) = (&sim, &from_measurement);
+                        step(d, s, theta, t, &|i| if meas[t - i - a] { d.y[t - i] } else { sim_ref[t - i - a] })
                     };
                     sim[t - a] = v;
+                    from_measurement[t - a] = v.is_nan() && !inputs_finite(d, s, t);
                     out[t] = v;
                 }
             }
@@ -116,7 +125,14 @@ pub struct SimScore {
 ///
 /// The input part is accumulated first in a vectorisable pass; only the AR recursion is sequential.
 /// A simulation whose output exceeds `limit` in magnitude is stopped and reported as diverged.
-pub fn free_run_rms_linear(d: &Data, s: &Structure, theta: &[f64], first_lag: usize, limit: f64, fir: &mut Vec<f64>) -> SimScore {
+pub fn free_run_rms_linear(
+    d: &Data,
+    s: &Structure,
+    theta: &[f64],
+    first_lag: usize,
+    limit: f64,
+    fir: &mut Vec<f64>,
+) -> SimScore {
     debug_assert!(s.output_terms.is_empty());
     let lag = first_lag.max(s.max_lag());
     let na = s.na;
@@ -176,6 +192,332 @@ pub fn free_run_rms_linear(d: &Data, s: &Structure, theta: &[f64], first_lag: us
     SimScore { rms: if count > 0 { (sse / count as f64).sqrt() } else { f64::NAN }, n: count, diverged: false }
 }
 
+/// Structures simulated side by side by [`free_run_rms_lanes`] (one SIMD lane each).
+pub const LANES: usize = 8;
+
+/// Samples per time block: the input (FIR) part of a block is computed first, then the recursion.
+const BLOCK: usize = 1024;
+
+#[inline(always)]
+fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// Inputs as one contiguous column per input (`ucol[i * N + t]`), the layout the FIR pass streams.
+pub fn input_columns(d: &Data) -> Vec<f64> {
+    let n = d.len();
+    let mut out = vec![0.0; n * d.m];
+    for t in 0..n {
+        for i in 0..d.m {
+            out[i * n + t] = d.u[t * d.m + i];
+        }
+    }
+    out
+}
+
+/// Free-run RMS of up to [`LANES`] linear structures with the same `na`, simulated side by side:
+/// lane `l` is structure `models[l]`, each with its own output history, so the latency of the AR
+/// recursion is shared by all lanes. The input (FIR) part is computed per time block in a
+/// vectorised pass first.
+///
+/// Every lane starts at `max(first_lag, largest lag of the lanes)` into each experiment (a sweep
+/// passes its grid lag, which is at least every structure's own lag). `ucol` is
+/// [`input_columns`]`(d)`. A lane whose output leaves `[-limit, limit]` (or turns NaN) within a block
+/// is stopped and reported as diverged, with `n` the samples scored before that block.
+///
+/// # Panics
+/// When `models` is empty or longer than [`LANES`], a structure has output terms or a different
+/// `na`, or the data hold non-finite values (use [`predict`] and [`score`] for those).
+pub fn free_run_rms_lanes(
+    d: &Data,
+    ucol: &[f64],
+    models: &[(&Structure, &[f64])],
+    first_lag: usize,
+    limit: f64,
+) -> Vec<SimScore> {
+    assert!(!models.is_empty() && models.len() <= LANES, "1..={LANES} structures per lane group");
+    let na = models[0].0.na;
+    assert!(models.iter().all(|(s, th)| s.na == na && s.output_terms.is_empty() && th.len() == s.n_params()));
+    assert_eq!(ucol.len(), d.len() * d.m);
+    let lag = models.iter().map(|(s, _)| s.max_lag()).fold(first_lag, usize::max);
+    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+    {
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { lanes_avx2(d, ucol, models, na, lag, limit) };
+        }
+    }
+    lanes_dispatch::<false>(d, ucol, models, na, lag, limit)
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lanes_avx2(
+    d: &Data,
+    ucol: &[f64],
+    models: &[(&Structure, &[f64])],
+    na: usize,
+    lag: usize,
+    limit: f64,
+) -> Vec<SimScore> {
+    lanes_dispatch::<true>(d, ucol, models, na, lag, limit)
+}
+
+#[inline(always)]
+fn lanes_dispatch<const FMA: bool>(
+    d: &Data,
+    ucol: &[f64],
+    models: &[(&Structure, &[f64])],
+    na: usize,
+    lag: usize,
+    limit: f64,
+) -> Vec<SimScore> {
+    macro_rules! fixed {
+        ($($n:literal)*) => {
+            match na {
+                $($n => lanes_kernel::<$n, FMA>(d, ucol, models, lag, limit),)*
+                _ => lanes_kernel_dyn::<FMA>(d, ucol, models, na, lag, limit),
+            }
+        };
+    }
+    fixed!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
+}
+
+/// Lane coefficients and bookkeeping shared by the fixed-na and the general kernel.
+struct LaneState {
+    neg_a: Vec<[f64; LANES]>,
+    active: [bool; LANES],
+    sse: [f64; LANES],
+    n: [usize; LANES],
+    diverged: [bool; LANES],
+}
+
+impl LaneState {
+    fn new(models: &[(&Structure, &[f64])], na: usize) -> Self {
+        let mut neg_a = vec![[0.0; LANES]; na];
+        let mut active = [false; LANES];
+        for (l, (_, th)) in models.iter().enumerate() {
+            active[l] = true;
+            for (i, a) in neg_a.iter_mut().enumerate() {
+                a[l] = -th[i];
+            }
+        }
+        LaneState { neg_a, active, sse: [0.0; LANES], n: [0; LANES], diverged: [false; LANES] }
+    }
+
+    /// Input part of block `[t0, t0 + len)` for every active lane, lane-minor in `fir`.
+    #[inline(always)]
+    fn fir<const FMA: bool>(
+        &self,
+        d: &Data,
+        ucol: &[f64],
+        models: &[(&Structure, &[f64])],
+        t0: usize,
+        len: usize,
+        lane_buf: &mut [f64],
+        fir: &mut [[f64; LANES]],
+    ) {
+        let n = d.len();
+        for (l, (s, th)) in models.iter().enumerate() {
+            let buf = &mut lane_buf[..len];
+            buf.fill(0.0);
+            if self.active[l] {
+                let mut c = s.na;
+                for (i, (&nb, &nk)) in s.nb.iter().zip(&s.nk).enumerate() {
+                    let col = &ucol[i * n..(i + 1) * n];
+                    for j in 0..nb {
+                        let b = th[c];
+                        c += 1;
+                        let src = &col[t0 - nk - j..t0 - nk - j + len];
+                        for (f, &u) in buf.iter_mut().zip(src) {
+                            *f = madd::<FMA>(b, u, *f);
+                        }
+                    }
+                }
+            }
+            for (k, f) in buf.iter().enumerate() {
+                fir[k][l] = *f;
+            }
+        }
+        for row in fir[len..].iter_mut() {
+            *row = [0.0; LANES];
+        }
+    }
+
+    /// Folds one block's per-lane sums in; stops lanes that diverged. Returns whether any lane is left.
+    fn close_block(&mut self, sse: &[f64; LANES], mx: &[f64; LANES], len: usize, limit: f64) -> Vec<usize> {
+        let mut stopped = Vec::new();
+        for l in 0..LANES {
+            if !self.active[l] {
+                continue;
+            }
+            if !(mx[l] <= limit) || !sse[l].is_finite() {
+                self.active[l] = false;
+                self.diverged[l] = true;
+                for a in self.neg_a.iter_mut() {
+                    a[l] = 0.0;
+                }
+                stopped.push(l);
+            } else {
+                self.sse[l] += sse[l];
+                self.n[l] += len;
+            }
+        }
+        stopped
+    }
+
+    fn any_active(&self) -> bool {
+        self.active.iter().any(|&a| a)
+    }
+
+    fn scores(&self, k: usize) -> Vec<SimScore> {
+        (0..k)
+            .map(|l| {
+                if self.diverged[l] {
+                    SimScore { rms: f64::NAN, n: self.n[l], diverged: true }
+                } else {
+                    SimScore {
+                        rms: if self.n[l] > 0 { (self.sse[l] / self.n[l] as f64).sqrt() } else { f64::NAN },
+                        n: self.n[l],
+                        diverged: false,
+                    }
+                }
+            })
+            .collect()
+    }
+}
+
+#[inline(always)]
+fn lanes_kernel<const NA: usize, const FMA: bool>(
+    d: &Data,
+    ucol: &[f64],
+    models: &[(&Structure, &[f64])],
+    lag: usize,
+    limit: f64,
+) -> Vec<SimScore> {
+    let mut st = LaneState::new(models, NA);
+    let mut a = [[0.0; LANES]; NA];
+    a.copy_from_slice(&st.neg_a);
+    let mut lane_buf = vec![0.0; BLOCK];
+    let mut fir = vec![[0.0; LANES]; BLOCK];
+    'segments: for (sa, sb) in d.segments() {
+        let start = sa + lag;
+        if start >= sb {
+            continue;
+        }
+        // History of simulated outputs, newest first; initially the measured outputs.
+        let mut h = [[0.0; LANES]; NA];
+        for (i, hi) in h.iter_mut().enumerate() {
+            *hi = [d.y[start - 1 - i]; LANES];
+        }
+        let mut t0 = start;
+        while t0 < sb {
+            let len = BLOCK.min(sb - t0);
+            st.fir::<FMA>(d, ucol, models, t0, len, &mut lane_buf, &mut fir);
+            let mut sse = [0.0; LANES];
+            let mut mx = [0.0; LANES];
+            for (k, f) in fir[..len].iter().enumerate() {
+                let yk = d.y[t0 + k];
+                let mut v = *f;
+                // Oldest lags first: only the last multiply-add waits for the newest output.
+                for i in (0..NA).rev() {
+                    for l in 0..LANES {
+                        v[l] = madd::<FMA>(a[i][l], h[i][l], v[l]);
+                    }
+                }
+                for i in (1..NA).rev() {
+                    h[i] = h[i - 1];
+                }
+                if NA > 0 {
+                    h[0] = v;
+                }
+                for l in 0..LANES {
+                    let e = yk - v[l];
+                    sse[l] = madd::<FMA>(e, e, sse[l]);
+                    let av = v[l].abs();
+                    mx[l] = if av > mx[l] { av } else { mx[l] };
+                }
+            }
+            for l in st.close_block(&sse, &mx, len, limit) {
+                for hi in h.iter_mut() {
+                    hi[l] = 0.0;
+                }
+                for ai in a.iter_mut() {
+                    ai[l] = 0.0;
+                }
+            }
+            if !st.any_active() {
+                break 'segments;
+            }
+            t0 += len;
+        }
+    }
+    st.scores(models.len())
+}
+
+/// The same kernel for large `na` (history in a slice instead of registers).
+#[inline(always)]
+fn lanes_kernel_dyn<const FMA: bool>(
+    d: &Data,
+    ucol: &[f64],
+    models: &[(&Structure, &[f64])],
+    na: usize,
+    lag: usize,
+    limit: f64,
+) -> Vec<SimScore> {
+    let mut st = LaneState::new(models, na);
+    let mut lane_buf = vec![0.0; BLOCK];
+    let mut fir = vec![[0.0; LANES]; BLOCK];
+    'segments: for (sa, sb) in d.segments() {
+        let start = sa + lag;
+        if start >= sb {
+            continue;
+        }
+        let mut h = vec![[0.0; LANES]; na];
+        for (i, hi) in h.iter_mut().enumerate() {
+            *hi = [d.y[start - 1 - i]; LANES];
+        }
+        let mut t0 = start;
+        while t0 < sb {
+            let len = BLOCK.min(sb - t0);
+            st.fir::<FMA>(d, ucol, models, t0, len, &mut lane_buf, &mut fir);
+            let mut sse = [0.0; LANES];
+            let mut mx = [0.0; LANES];
+            for (k, f) in fir[..len].iter().enumerate() {
+                let yk = d.y[t0 + k];
+                let mut v = *f;
+                for i in (0..na).rev() {
+                    for l in 0..LANES {
+                        v[l] = madd::<FMA>(st.neg_a[i][l], h[i][l], v[l]);
+                    }
+                }
+                h.copy_within(0..na - 1, 1);
+                h[0] = v;
+                for l in 0..LANES {
+                    let e = yk - v[l];
+                    sse[l] = madd::<FMA>(e, e, sse[l]);
+                    let av = v[l].abs();
+                    mx[l] = if av > mx[l] { av } else { mx[l] };
+                }
+            }
+            for l in st.close_block(&sse, &mx, len, limit) {
+                for hi in h.iter_mut() {
+                    hi[l] = 0.0;
+                }
+            }
+            if !st.any_active() {
+                break 'segments;
+            }
+            t0 += len;
+        }
+    }
+    st.scores(models.len())
+}
+
 /// RMS of measured − predicted over the samples where both are finite; diverged when a prediction
 /// exceeds `limit` or is infinite.
 pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
@@ -221,5 +563,37 @@ mod tests {
         assert!(sc.rms < 1e-9 && !sc.diverged);
         let bad = [-2.5, 0.5, 0.3, 0.1];
         assert!(free_run_rms_linear(&d, &s, &bad, 0, 1e6, &mut fir).diverged);
+    }
+
+    #[test]
+    fn lanes_agree_with_single_structure_path_and_stop_diverging_lanes() {
+        let n = 5000;
+        let u: Vec<f64> = (0..2 * n).map(|t| (((t * 7919) % 23) as f64 - 11.0) / 7.0).collect();
+        let mut y = vec![0.0; n];
+        for t in 3..n {
+            y[t] = 1.2 * y[t - 1] - 0.5 * y[t - 2] + 0.3 * u[2 * (t - 2)] + 0.1 * u[2 * (t - 3) + 1];
+        }
+        let starts = [0, 2100];
+        let d = Data::new(&y, &u, 2, &starts).unwrap();
+        let s1 = Structure::new(2, vec![2, 1], vec![2, 3], vec![]).unwrap();
+        let s2 = Structure::new(2, vec![1, 3], vec![0, 1], vec![]).unwrap();
+        let s3 = Structure::new(2, vec![3, 0], vec![1, 0], vec![]).unwrap();
+        let th1 = [-1.2, 0.5, 0.3, 0.0, 0.1];
+        let th2 = [-1.1, 0.4, 0.2, 0.1, -0.3, 0.05];
+        let bad = [-2.5, 0.5, 0.3, 0.1, 0.0];
+        let models: Vec<(&Structure, &[f64])> = vec![(&s1, &th1), (&s2, &th2), (&s3, &bad)];
+        let ucol = input_columns(&d);
+        let lanes = free_run_rms_lanes(&d, &ucol, &models, 6, 1e6);
+        let mut fir = Vec::new();
+        for ((s, th), got) in models.iter().zip(&lanes) {
+            let want = free_run_rms_linear(&d, s, th, 6, 1e6, &mut fir);
+            assert_eq!(want.diverged, got.diverged);
+            if !want.diverged {
+                assert_eq!(want.n, got.n);
+                assert!((want.rms - got.rms).abs() <= 1e-10 * want.rms.max(1e-6), "{} vs {}", want.rms, got.rms);
+            }
+        }
+        assert!(lanes[0].rms < 1e-9);
+        assert!(lanes[2].diverged && lanes[2].rms.is_nan());
     }
 }

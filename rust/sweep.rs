@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
 use crate::qr::{reduce, to_col_major};
-use crate::simulate::{free_run_rms_linear, predict, score, SimScore};
+use crate::simulate::{free_run_rms_lanes, input_columns, predict, score, SimScore, LANES};
 use crate::structure::{usable_rows, Data, Structure};
 
 /// How a sweep validates its structures.
@@ -49,7 +49,9 @@ pub fn envelope(structures: &[Structure]) -> Result<Structure> {
     let mut used = vec![false; m];
     for s in structures {
         if s.nb.len() != m || s.output_terms != first.output_terms {
-            return Err(ArxError::InvalidStructure("all structures of a grid need the same inputs and output terms".into()));
+            return Err(ArxError::InvalidStructure(
+                "all structures of a grid need the same inputs and output terms".into(),
+            ));
         }
         na = na.max(s.na);
         for i in 0..m {
@@ -95,21 +97,50 @@ fn rss_from_r(r: &[f64], q: usize, cols: &[usize], theta: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum()
 }
 
-fn simulate_score(d: &Data, s: &Structure, theta: &[f64], first_lag: usize, opts: &SweepOptions, fir: &mut Vec<f64>) -> SimScore {
-    if opts.horizon.is_none() && s.output_terms.is_empty() {
-        // NaN samples need the generic path (it restarts after gaps); the fast path assumes none.
-        if d.y.iter().all(|v| v.is_finite()) && d.u.iter().all(|v| v.is_finite()) {
-            return free_run_rms_linear(d, s, theta, first_lag, opts.divergence_limit, fir);
-        }
-    }
+/// Whether the lane kernel applies: free run of linear structures on finite data.
+fn lanes_apply(d: &Data, env: &Structure, opts: &SweepOptions) -> bool {
+    opts.horizon.is_none()
+        && env.output_terms.is_empty()
+        && d.y.iter().all(|v| v.is_finite())
+        && d.u.iter().all(|v| v.is_finite())
+}
+
+/// One structure on the general path (k-step prediction, output terms, missing samples).
+fn simulate_one(d: &Data, s: &Structure, theta: &[f64], first_lag: usize, opts: &SweepOptions) -> SimScore {
     let pred = predict(d, s, theta, opts.horizon, first_lag);
     score(d, &pred, opts.divergence_limit)
+}
+
+/// Simulates the fitted members of one group (same `na`) on `d`; `ucol` is `Some` on the lane path.
+fn simulate_group(
+    d: &Data,
+    ucol: Option<&[f64]>,
+    members: &[(usize, &Structure, &[f64])],
+    first_lag: usize,
+    opts: &SweepOptions,
+) -> Vec<SimScore> {
+    match ucol {
+        Some(uc) => {
+            let models: Vec<(&Structure, &[f64])> = members.iter().map(|&(_, s, th)| (s, th)).collect();
+            free_run_rms_lanes(d, uc, &models, first_lag, opts.divergence_limit)
+        }
+        None => members.iter().map(|&(_, s, th)| simulate_one(d, s, th, first_lag, opts)).collect(),
+    }
 }
 
 /// Fits and validates every structure. All structures use the rows from the grid's largest lag on,
 /// so their losses compare on the same samples (as MATLAB `arxstruc`).
 ///
-/// `progress(done)` is called after each chunk of structures.
+/// Every structure is solved from the triangular factor of the grid's largest regressor (cost
+/// independent of N), then simulated: linear structures on complete data in groups of
+/// [`LANES`](crate::simulate::LANES) with the same `na` side by side, the others one by one.
+/// Groups are formed from the grid alone, so results do not depend on the number of threads.
+///
+/// `progress(done)` is called after each chunk of about `opts.chunk` simulated structures.
+///
+/// # Errors
+/// `InvalidStructure` for an empty or inconsistent grid, `ShapeMismatch` when the validation data
+/// have other inputs, `TooFewSamples` when the estimation data are shorter than the largest regressor.
 pub fn sweep(
     est: &Data,
     val: Option<&Data>,
@@ -143,14 +174,14 @@ pub fn sweep(
         None => (None, 0),
     };
     let nan = SimScore { rms: f64::NAN, n: 0, diverged: false };
-    let one = |s: &Structure, fir: &mut Vec<f64>| -> StructureResult {
+
+    // 1. Parameters and one-step losses of every structure, from R alone.
+    let fit_one = |s: &Structure| -> StructureResult {
         let cols = columns_in(&env, s);
         match solve_subset(&r_est, q, &cols, n_est) {
             Ok((theta, rss_est, _)) => {
                 let rss_val = r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, q, &cols, &theta));
-                let sim_est = if opts.simulate_estimation { simulate_score(est, s, &theta, first_lag, opts, fir) } else { nan };
-                let sim_val = val.map_or(nan, |v| simulate_score(v, s, &theta, first_lag, opts, fir));
-                StructureResult { theta, rss_est, rss_val, sim_est, sim_val, error: None }
+                StructureResult { theta, rss_est, rss_val, sim_est: nan, sim_val: nan, error: None }
             }
             Err(e) => StructureResult {
                 theta: vec![f64::NAN; cols.len()],
@@ -162,17 +193,69 @@ pub fn sweep(
             },
         }
     };
-    let chunk = opts.chunk.max(1);
-    let mut out = Vec::with_capacity(structures.len());
-    for block in structures.chunks(chunk) {
-        let res: Vec<StructureResult> = if opts.parallel {
-            block.par_iter().map_init(Vec::new, |fir, s| one(s, fir)).collect()
+    let mut out: Vec<StructureResult> = if opts.parallel {
+        structures.par_iter().map(fit_one).collect()
+    } else {
+        structures.iter().map(fit_one).collect()
+    };
+
+    // 2. Simulation, in groups of structures with the same na (fitted ones only).
+    let sim_est = opts.simulate_estimation;
+    if !sim_est && val.is_none() {
+        progress(structures.len());
+        return Ok((out, n_est, n_val));
+    }
+    let lanes_est = sim_est && lanes_apply(est, &env, opts);
+    let lanes_val = val.is_some_and(|v| lanes_apply(v, &env, opts));
+    let ucol_est = if lanes_est { Some(input_columns(est)) } else { None };
+    let ucol_val = if lanes_val { Some(input_columns(val.unwrap_or(est))) } else { None };
+    let mut order: Vec<usize> = (0..structures.len()).filter(|&i| out[i].error.is_none()).collect();
+    order.sort_by_key(|&i| (structures[i].na, i));
+    let width = if lanes_est || lanes_val { LANES } else { 1 };
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for &i in &order {
+        match groups.last_mut() {
+            Some(g) if g.len() < width && structures[g[0]].na == structures[i].na => g.push(i),
+            _ => groups.push(vec![i]),
+        }
+    }
+    let run_group = |g: &Vec<usize>| -> Vec<(SimScore, SimScore)> {
+        let members: Vec<(usize, &Structure, &[f64])> =
+            g.iter().map(|&i| (i, &structures[i], out[i].theta.as_slice())).collect();
+        let se = if sim_est {
+            simulate_group(est, ucol_est.as_deref(), &members, first_lag, opts)
         } else {
-            let mut fir = Vec::new();
-            block.iter().map(|s| one(s, &mut fir)).collect()
+            vec![nan; g.len()]
         };
-        out.extend(res);
-        progress(out.len());
+        let sv = match val {
+            Some(v) => simulate_group(v, ucol_val.as_deref(), &members, first_lag, opts),
+            None => vec![nan; g.len()],
+        };
+        se.into_iter().zip(sv).collect()
+    };
+    let per_chunk = (opts.chunk.max(1) / width).max(1);
+    let mut done = structures.len() - order.len();
+    let mut scores: Vec<(usize, SimScore, SimScore)> = Vec::with_capacity(order.len());
+    for block in groups.chunks(per_chunk) {
+        let res: Vec<Vec<(SimScore, SimScore)>> = if opts.parallel {
+            block.par_iter().map(run_group).collect()
+        } else {
+            block.iter().map(run_group).collect()
+        };
+        for (g, r) in block.iter().zip(res) {
+            done += g.len();
+            for (&i, (se, sv)) in g.iter().zip(r) {
+                scores.push((i, se, sv));
+            }
+        }
+        progress(done);
+    }
+    for (i, se, sv) in scores {
+        out[i].sim_est = se;
+        out[i].sim_val = sv;
+    }
+    if groups.is_empty() {
+        progress(structures.len());
     }
     Ok((out, n_est, n_val))
 }
@@ -205,7 +288,8 @@ mod tests {
                 }
             }
         }
-        let opts = SweepOptions { simulate_estimation: true, horizon: None, divergence_limit: 1e6, parallel: true, chunk: 7 };
+        let opts =
+            SweepOptions { simulate_estimation: true, horizon: None, divergence_limit: 1e6, parallel: true, chunk: 7 };
         let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
         let lag = envelope(&grid).unwrap().max_lag();
         for (s, r) in grid.iter().zip(&res) {

@@ -1,0 +1,74 @@
+"""Heat map of a sweep's ranking error over (na, nk), one panel per nb."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["plot_sweep"]
+
+
+def plot_sweep(result, nb_input: int = 0):
+    """Heat map of the validation error of every structure over (na, nk), one panel per nb.
+
+    Parameters
+    ----------
+    result : SweepResult
+    nb_input : int
+        For several inputs: whose nb and nk span the panels and the columns; each cell shows the
+        best structure over the other inputs' orders.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Diverged or unfitted cells are grey; the best cell of each panel is marked.
+    """
+    try:
+        from matplotlib.figure import Figure
+    except ImportError:  # pragma: no cover
+        raise ImportError("plot needs matplotlib: pip install 'arxid[plot]'") from None
+    score = result._score().astype(float)
+    score = np.where(result.diverged_val | result.diverged_est, np.nan, score)
+    nas = np.unique(result.na)
+    nbs = np.unique(result.nb[:, nb_input])
+    nks = np.unique(result.nk[:, nb_input])
+    grids = {}
+    for b in nbs:
+        g = np.full((len(nas), len(nks)), np.nan)
+        for i in np.flatnonzero(result.nb[:, nb_input] == b):
+            r = np.searchsorted(nas, result.na[i])
+            c = np.searchsorted(nks, result.nk[i, nb_input])
+            if np.isfinite(score[i]) and not (score[i] >= g[r, c]):
+                g[r, c] = score[i]
+        grids[b] = g
+    finite = np.concatenate([g[np.isfinite(g)] for g in grids.values()] + [np.zeros(0)])
+    ncols = min(len(nbs), 4)
+    nrows = int(np.ceil(len(nbs) / ncols))
+    fig = Figure(figsize=(3.6 * ncols + 1.0, 3.0 * nrows + 0.6), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    from matplotlib.colors import LogNorm, Normalize
+
+    positive = finite[finite > 0]
+    norm = LogNorm(positive.min(), positive.max()) if positive.size and positive.max() > positive.min() else Normalize()
+    image = None
+    import matplotlib
+
+    cmap = matplotlib.colormaps["viridis_r"].with_extremes(bad="0.75")
+    for ax, b in zip(axes.flat, nbs):
+        g = np.ma.masked_invalid(grids[b])
+        image = ax.imshow(g, origin="lower", aspect="auto", cmap=cmap, norm=norm,
+                          extent=(nks[0] - 0.5, nks[-1] + 0.5, nas[0] - 0.5, nas[-1] + 0.5))
+        if np.isfinite(grids[b]).any():
+            r, c = np.unravel_index(np.nanargmin(grids[b]), grids[b].shape)
+            ax.plot(nks[c], nas[r], marker="*", color="red", markersize=10)
+        ax.set_title(f"nb = {b}")
+        ax.set_xlabel("nk")
+        ax.set_ylabel("na")
+    for ax in list(axes.flat)[len(nbs):]:
+        ax.set_visible(False)
+    label = ("validation " if result.sort_by.startswith("val") else "") + result.measure + " RMS"
+    if result.sort_by in ("fpe", "aic", "bic"):
+        label = result.sort_by.upper()
+    if image is not None:
+        fig.colorbar(image, ax=axes, label=label)
+    fig.suptitle(f"ARX sweep, {len(result)} structures (grey: diverged or not fitted)")
+    return fig

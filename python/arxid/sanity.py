@@ -1,0 +1,248 @@
+"""Step sanity checks: does a model's step response look like the physics you expect?
+
+A structure can win a sweep on validation error and still be physically wrong (seed 004: the
+best-ranked ARX(2,2,0) of a quadrotor roll axis answers a step with an amplitude that "cannot be
+true"; the chosen ARX(2,1,8) grows with the sign of the step). :func:`step_sanity` applies a
+positive and a negative step of typical input amplitude over the validation horizon and flags:
+
+=====================  ==================================================================
+flag                   meaning
+=====================  ==================================================================
+``not-antisymmetric``  step(−a) is not −step(a) (offsets, output nonlinearities)
+``too-small``          peak |response| < ``small`` × measured output range
+``too-large``          peak |response| > ``large`` × measured output range (not checked
+                       for integrating expectations, whose response grows without bound)
+``unstable``           a pole on or outside the unit circle while ``expect="stable"``
+``not-growing``        ``expect="integrating"`` / ``"double-integrating"`` but the response
+                       at the end of the horizon is less than ``growth`` (``growth_double``)
+                       times the response at half the horizon
+``sign-change``        an integrating response that turns to the opposite sign after it has
+                       reached ``sign_tolerance`` of its peak
+``wrong-sign``         the response to a positive step ends with the sign opposite to
+                       ``sign`` (only when ``sign`` is given)
+=====================  ==================================================================
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .data import IOData
+from .exceptions import ArxidError
+
+__all__ = ["SanityLimits", "StepSanity", "step_sanity", "EXPECTATIONS"]
+
+EXPECTATIONS = (None, "stable", "integrating", "double-integrating")
+
+
+@dataclass(frozen=True)
+class SanityLimits:
+    """Thresholds of the step sanity checks (the defaults are the documented ones).
+
+    Parameters
+    ----------
+    small : float
+        A peak step response below ``small`` × the measured output range is implausibly small
+        (default 0.02).
+    large : float
+        A peak above ``large`` × the output range is implausibly large (default 50); only checked
+        when the plant is not expected to integrate.
+    antisymmetry : float
+        Largest accepted ``max|step(a) + step(−a)| / max|step(a)|`` (default 0.05).
+    growth, growth_double : float
+        Required ratio |s(end)| / |s(end/2)| for integrating (default 1.5; a pure integrator gives 2)
+        and double-integrating plants (default 3; a double integrator gives 4).
+    sign_tolerance : float
+        Excursions of the opposite sign smaller than this share of the peak are ignored (default 0.05).
+    sign : {None, 1, -1}
+        Expected sign of the response to a positive step (None: not checked).
+    """
+
+    small: float = 0.02
+    large: float = 50.0
+    antisymmetry: float = 0.05
+    growth: float = 1.5
+    growth_double: float = 3.0
+    sign_tolerance: float = 0.05
+    sign: int | None = None
+
+
+@dataclass(frozen=True)
+class StepSanity:
+    """Verdict of the step sanity checks of one model.
+
+    Attributes
+    ----------
+    structure : str
+        ``ARX(na,nb,nk)`` name.
+    flags : tuple of str
+        Short flag codes (see :mod:`arxid.sanity`); empty when the model passes.
+    reasons : tuple of str
+        One sentence per flag.
+    amplitude : float
+        Peak |response| to the positive step (largest over the inputs; inf if it overflowed).
+    output_range : float
+        Measured output range (1st to 99th percentile of the validation output).
+    input_amplitude : tuple of float
+        Step amplitude used per input (standard deviation of the measured input).
+    horizon : int
+        Length of the step responses in samples.
+    expect : str or None
+    """
+
+    structure: str
+    flags: tuple[str, ...]
+    reasons: tuple[str, ...]
+    amplitude: float
+    output_range: float
+    input_amplitude: tuple[float, ...]
+    horizon: int
+    expect: str | None
+
+    @property
+    def ok(self) -> bool:
+        """True when no check flagged the model."""
+        return not self.flags
+
+    def __str__(self) -> str:
+        head = f"{self.structure}: step sanity " + ("ok" if self.ok else "FLAGGED")
+        lines = [head + f" (peak {self.amplitude:.4g} vs output range {self.output_range:.4g}, "
+                        f"{self.horizon} samples, expect={self.expect})"]
+        lines += [f"  - {r}" for r in self.reasons]
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["ok"] = self.ok
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict())
+
+
+def typical_amplitudes(data: IOData) -> np.ndarray:
+    """Typical step amplitude per input: the standard deviation of the measured input
+    (its largest absolute value when it is constant), shape (n_inputs,)."""
+    u = data.u
+    amp = np.nanstd(u, axis=0)
+    flat = ~(amp > 0)
+    if flat.any():
+        amp[flat] = np.nanmax(np.abs(u[:, flat]), axis=0)
+    return np.where(amp > 0, amp, 1.0)
+
+
+def output_range(data: IOData) -> float:
+    """Measured output range, 99th minus 1st percentile (robust to a few spikes)."""
+    y = data.y[np.isfinite(data.y)]
+    if y.size == 0:
+        return math.nan
+    lo, hi = np.percentile(y, [1, 99])
+    return float(hi - lo)
+
+
+def check_responses(structure: str, positive: list[np.ndarray], negative: list[np.ndarray], poles: np.ndarray,
+                    *, out_range: float, amplitudes, expect: str | None, limits: SanityLimits) -> StepSanity:
+    """Apply the checks to given step responses (one positive and one negative per input)."""
+    if expect not in EXPECTATIONS:
+        raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
+    flags: list[str] = []
+    reasons: list[str] = []
+
+    def flag(code: str, why: str):
+        if code not in flags:
+            flags.append(code)
+            reasons.append(why)
+
+    integrating = expect in ("integrating", "double-integrating")
+    peak_all = 0.0
+    horizon = 0
+    with np.errstate(all="ignore"):
+        for i, (pos, neg) in enumerate(zip(positive, negative)):
+            horizon = len(pos)
+            finite = np.isfinite(pos).all() and np.isfinite(neg).all()
+            peak = float(np.max(np.abs(pos))) if finite else math.inf
+            peak_all = max(peak_all, peak)
+            label = f"input {i + 1}" if len(positive) > 1 else "the input"
+            if finite and peak > 0:
+                mismatch = float(np.max(np.abs(pos + neg))) / peak
+                if mismatch > limits.antisymmetry:
+                    flag("not-antisymmetric", f"the responses to +/- steps on {label} differ by {100 * mismatch:.0f}% of the "
+                                              f"peak (limit {100 * limits.antisymmetry:.0f}%): offset or nonlinearity")
+            if out_range > 0:
+                if peak < limits.small * out_range:
+                    flag("too-small", f"step amplitude {peak:.3g} on {label} is implausibly small against the measured "
+                                      f"output range {out_range:.3g} (limit {limits.small:g} x range)")
+                if not integrating and peak > limits.large * out_range:
+                    flag("too-large", f"step amplitude {peak:.3g} on {label} is implausibly large against the measured "
+                                      f"output range {out_range:.3g} (limit {limits.large:g} x range)")
+            if not finite:
+                end = math.inf
+                sign_end = float(np.sign(pos[np.isfinite(pos)][-1])) if np.isfinite(pos).any() else 0.0
+            else:
+                end = abs(float(pos[-1]))
+                sign_end = float(np.sign(pos[-1]))
+            if integrating and horizon >= 4:
+                mid = abs(float(pos[horizon // 2]))
+                need = limits.growth if expect == "integrating" else limits.growth_double
+                if not (end >= need * mid) or end == 0:
+                    flag("not-growing", f"expect={expect!r} but the step response on {label} is not growing "
+                                        f"(|s(end)| = {end:.3g}, |s(end/2)| = {mid:.3g}, need x{need:g})")
+                if finite and peak > 0:
+                    big = np.flatnonzero(np.abs(pos) >= limits.sign_tolerance * peak)
+                    if big.size:
+                        first_sign = np.sign(pos[big[0]])
+                        after = pos[big[0]:]
+                        if np.any(first_sign * after < -limits.sign_tolerance * peak):
+                            flag("sign-change", f"the step response on {label} changes sign, which a "
+                                                f"{expect} plant rules out")
+            if limits.sign is not None and sign_end != 0 and sign_end != np.sign(limits.sign):
+                flag("wrong-sign", f"a positive step on {label} ends {'negative' if sign_end < 0 else 'positive'}, "
+                                   f"the expected sign is {'+' if limits.sign > 0 else '-'}")
+    if expect == "stable" and poles.size and np.max(np.abs(poles)) >= 1.0:
+        flag("unstable", f"expect='stable' but the largest pole magnitude is {np.max(np.abs(poles)):.4f} (>= 1)")
+    return StepSanity(structure, tuple(flags), tuple(reasons), peak_all, float(out_range),
+                      tuple(float(a) for a in amplitudes), int(horizon), expect)
+
+
+def step_sanity(model, data: IOData, expect: str | None = None, limits: SanityLimits | None = None,
+                horizon: int | None = None) -> StepSanity:
+    """Step sanity checks of a fitted :class:`~arxid.ArxModel` against measured ``data``.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted model.
+    data : IOData
+        Measured data (normally the validation data) giving the typical input amplitude, the output
+        range and the horizon.
+    expect : {None, "stable", "integrating", "double-integrating"}
+        What the physics says about the plant.
+    limits : SanityLimits, optional
+        Thresholds (defaults documented in :class:`SanityLimits`).
+    horizon : int, optional
+        Samples of the step responses (default: the length of ``data``).
+
+    Returns
+    -------
+    StepSanity
+    """
+    limits = limits or SanityLimits()
+    horizon = int(horizon or data.n_samples)
+    amps = typical_amplitudes(data)
+    extra = {k: np.full(horizon, float(np.nanmean(v))) for k, v in data.extra.items()}
+    pos, neg = [], []
+    m = data.n_inputs
+    for i in range(m):
+        if model.nb[i] == 0:
+            continue
+        u = np.zeros((horizon, m))
+        u[:, i] = amps[i]
+        with np.errstate(all="ignore"):
+            pos.append(model.simulate(u, extra=extra))
+            neg.append(model.simulate(-u, extra=extra))
+    return check_responses(model.structure_name(), pos, neg, model.poles(), out_range=output_range(data),
+                           amplitudes=amps, expect=expect, limits=limits)

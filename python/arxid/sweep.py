@@ -1,0 +1,719 @@
+"""Exhaustive ARX order sweeps: :func:`sweep` fits and validates every (na, nb, nk) structure of a
+grid from one factorization in the Rust core and ranks them in a :class:`SweepResult`."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import numbers
+import os
+import sys
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from . import _core
+from .data import IOData
+from .effects import compile_effects
+from .exceptions import ArxidError, DataError, OrderError
+from .model import ArxModel
+from .regressors import max_lag
+from .sanity import EXPECTATIONS, SanityLimits, StepSanity, check_responses, output_range, step_sanity, typical_amplitudes
+
+__all__ = ["sweep", "SweepResult", "Selection"]
+
+SORT_KEYS = ("val_sim", "val_one_step", "est_sim", "est_one_step", "fpe", "aic", "bic")
+
+#: A pole this close to 1 (or |A(1)| below this share of sum |a_i|) marks an integrating plant.
+INTEGRATOR_TOLERANCE = 1e-3
+
+
+# ---------------------------------------------------------------------------------------------- grid
+def _order_range(name: str, value) -> tuple[int, ...]:
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        vals = (int(value),)
+    else:
+        try:
+            vals = tuple(value)
+        except TypeError:
+            raise OrderError(f"{name} must be an integer or a range of integers, got {value!r}") from None
+    if not vals:
+        raise OrderError(f"{name} is an empty range: give at least one order")
+    out = []
+    for v in vals:
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
+            raise OrderError(f"{name} must hold non-negative integers, got {v!r}")
+        out.append(int(v))
+    return tuple(dict.fromkeys(out))
+
+
+def _per_input_ranges(name: str, value, m: int) -> list[tuple[int, ...]]:
+    """One shared range for every input, or a list of ranges (one per input)."""
+    if isinstance(value, (list, tuple)) and value and all(not isinstance(v, numbers.Integral) for v in value):
+        if len(value) != m:
+            raise OrderError(f"{name} gives {len(value)} ranges but the data have {m} inputs; give one range per input "
+                             f"or a single shared range")
+        return [_order_range(f"{name}[{i}]", v) for i, v in enumerate(value)]
+    r = _order_range(name, value)
+    return [r] * m
+
+
+def _available_memory() -> int:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 4 * 2**30
+
+
+def _gib(b: float) -> str:
+    return f"{b / 2**30:.2f} GiB" if b >= 2**28 else f"{b / 2**20:.1f} MiB"
+
+
+def _estimate_memory(n_structures: int, p_max: int, q: int, n_est: int, n_val: int, n_cols: int, threads: int) -> int:
+    """Bytes a sweep needs beyond the data arrays: results (Rust and numpy copies, the table),
+    TSQR block factors, column copies of the inputs, per-thread simulation buffers."""
+    per_structure = 2 * 8 * p_max + 8 * 16 + 600
+    blocks = (n_est + n_val) // 4096 + 2
+    tsqr = 2 * blocks * q * q * 8 + threads * 4096 * q * 8
+    inputs = 2 * (n_est + n_val) * n_cols * 8
+    sim = threads * 2 * max(n_est, n_val) * 8
+    return n_structures * per_structure + tsqr + inputs + sim
+
+
+# ---------------------------------------------------------------------------------------------- result
+@dataclass(frozen=True)
+class Selection:
+    """Which structure :meth:`SweepResult.best` chose, and which better-ranked ones it skipped and why."""
+
+    rank: int
+    structure: str
+    skipped: tuple[tuple[int, str, tuple[str, ...]], ...]
+
+    def __str__(self) -> str:
+        lines = [f"chose {self.structure} (rank {self.rank + 1})"]
+        for rank, name, reasons in self.skipped:
+            lines.append(f"  skipped {name} (rank {rank + 1}): " + "; ".join(reasons))
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """Every structure of a sweep, ranked (row 0 is the best).
+
+    Attributes
+    ----------
+    na : ndarray of shape (S,)
+    nb, nk : ndarray of shape (S, n_inputs)
+    parameters : list of ndarray
+        Parameters per structure (a's, b's per input, effect terms), ranked order.
+    n_params : ndarray of shape (S,)
+    rms_est_one_step, rms_val_one_step : ndarray of shape (S,)
+        One-step prediction RMS on estimation and validation rows.
+    rms_est, rms_val : ndarray of shape (S,)
+        Free-run (or k-step, see ``horizon``) RMS on estimation and validation data; NaN when diverged.
+    fit_val : ndarray of shape (S,)
+        Validation fit in percent, 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), of the same simulation.
+    fpe, aic, bic : ndarray of shape (S,)
+        Akaike's FPE, AIC and BIC of the estimation fit (MATLAB's definitions).
+    stable : ndarray of bool, max_pole : ndarray
+        All poles inside the unit circle; largest pole magnitude.
+    diverged_est, diverged_val : ndarray of bool
+        The simulation left a plausible range and was stopped (its RMS is NaN, not a number).
+    errors : tuple of (str or None)
+        Why a structure could not be fitted (collinear regressors), else None.
+    horizon : int or None
+        None: free-run simulation; k: k-step-ahead prediction (integrating plants).
+    integrating : bool
+        The plant was expected or detected to integrate.
+    sort_by : str
+    first_lag : int
+        The grid's largest lag: every structure uses rows from here on.
+    n_est, n_val : int
+        Regression rows of estimation and validation data.
+    """
+
+    na: np.ndarray
+    nb: np.ndarray
+    nk: np.ndarray
+    parameters: list
+    n_params: np.ndarray
+    rms_est_one_step: np.ndarray
+    rms_val_one_step: np.ndarray
+    rms_est: np.ndarray
+    rms_val: np.ndarray
+    fit_val: np.ndarray
+    fpe: np.ndarray
+    aic: np.ndarray
+    bic: np.ndarray
+    stable: np.ndarray
+    max_pole: np.ndarray
+    diverged_est: np.ndarray
+    diverged_val: np.ndarray
+    errors: tuple
+    horizon: int | None
+    integrating: bool
+    integrating_reason: str
+    sort_by: str
+    first_lag: int
+    n_est: int
+    n_val: int
+    effects: tuple[str, ...]
+    expect: str | None
+    limits: SanityLimits
+    estimation: IOData = field(repr=False)
+    validation: IOData | None = field(repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    # ------------------------------------------------------------------ basics
+    def __len__(self) -> int:
+        return len(self.na)
+
+    def structure_name(self, i: int) -> str:
+        """``ARX(na,nb,nk)`` of ranked structure ``i`` (per-input lists for MISO)."""
+        nb, nk = self.nb[i], self.nk[i]
+        b = int(nb[0]) if len(set(nb.tolist())) == 1 else list(map(int, nb))
+        k = int(nk[0]) if len(set(nk.tolist())) == 1 else list(map(int, nk))
+        return f"ARX({int(self.na[i])},{b},{k})" + (" + " + " + ".join(self.effects) if self.effects else "")
+
+    @property
+    def measure(self) -> str:
+        """What ``rms_est`` / ``rms_val`` measure."""
+        return "free-run simulation" if self.horizon is None else f"{self.horizon}-step-ahead prediction"
+
+    def _index(self, i: int) -> int:
+        if isinstance(i, bool) or not isinstance(i, numbers.Integral) or not -len(self) <= i < len(self):
+            raise ArxidError(f"rank {i!r} is outside the sweep (0..{len(self) - 1})")
+        return int(i) % len(self)
+
+    # ------------------------------------------------------------------ models
+    def model(self, i: int = 0) -> "ArxModel":
+        """The ranked structure ``i`` as a fitted :class:`~arxid.ArxModel`, refitted on the sweep's rows
+        (``first_lag``), so its parameters equal the sweep's."""
+        i = self._index(i)
+        key = ("model", i)
+        if key not in self._cache:
+            nb = tuple(int(v) for v in self.nb[i])
+            nk = tuple(int(v) for v in self.nk[i])
+            self._cache[key] = ArxModel(na=int(self.na[i]), nb=nb, nk=nk, effects=self.effects).fit(
+                self.estimation, first_lag=self.first_lag)
+        return self._cache[key]
+
+    def sanity(self, i: int) -> StepSanity:
+        """Step sanity verdict of ranked structure ``i`` (computed on first use, then cached)."""
+        i = self._index(i)
+        key = ("sanity", i)
+        if key not in self._cache:
+            self._cache[key] = self._compute_sanity(i)
+        return self._cache[key]
+
+    def _compute_sanity(self, i: int) -> StepSanity:
+        data = self.validation if self.validation is not None else self.estimation
+        name = self.structure_name(i)
+        if self.errors[i] is not None:
+            return StepSanity(name, ("not-fitted",), (self.errors[i],), math.nan, output_range(data), (), 0, self.expect)
+        if self.effects:
+            return step_sanity(self.model(i), data, expect=self.expect, limits=self.limits)
+        # Linear structure: the step response is a filter of a constant (exactly antisymmetric).
+        from scipy.signal import lfilter
+
+        theta, na = self.parameters[i], int(self.na[i])
+        a = np.concatenate([[1.0], theta[:na]])
+        amps = typical_amplitudes(data)
+        horizon = data.n_samples
+        pos, neg = [], []
+        c = na
+        with np.errstate(all="ignore"):
+            for j, (b, k) in enumerate(zip(self.nb[i], self.nk[i])):
+                b, k = int(b), int(k)
+                if b == 0:
+                    continue
+                num = np.concatenate([np.zeros(k), theta[c:c + b]])
+                c += b
+                s = lfilter(num, a, np.full(horizon, amps[j]))
+                pos.append(s)
+                neg.append(-s)
+        poles = np.roots(a) if na else np.zeros(0)
+        return check_responses(name, pos, neg, poles, out_range=output_range(data), amplitudes=amps,
+                               expect=self.expect, limits=self.limits)
+
+    def _usable(self, i: int) -> bool:
+        return self.errors[i] is None and not self.diverged_val[i] and not self.diverged_est[i] and \
+            np.isfinite(self._score()[i])
+
+    def select(self, sane: bool = True) -> Selection:
+        """The best-ranked usable structure; with ``sane``, the best one whose step sanity passes.
+
+        Raises
+        ------
+        ArxidError
+            When no structure qualifies (the message lists why the best ones were rejected).
+        """
+        skipped = []
+        for i in range(len(self)):
+            if not self._usable(i):
+                continue
+            if sane:
+                verdict = self.sanity(i)
+                if not verdict.ok:
+                    skipped.append((i, self.structure_name(i), verdict.reasons))
+                    continue
+            return Selection(i, self.structure_name(i), tuple(skipped))
+        why = "; ".join(f"{n}: {', '.join(r)}" for _, n, r in skipped[:5]) or "every structure diverged or could not be fitted"
+        raise ArxidError(f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
+                         f"widen the grid, check expect={self.expect!r}, or relax SanityLimits")
+
+    def best(self, sane: bool = False, *, explain: bool = True) -> "ArxModel":
+        """The best-ranked structure as a fitted :class:`~arxid.ArxModel`.
+
+        Parameters
+        ----------
+        sane : bool
+            Skip structures flagged by the step sanity checks (see :mod:`arxid.sanity`).
+        explain : bool
+            With ``sane``, print to stderr which better-ranked structures were skipped and why.
+            The same is in the model's attribute ``selection_`` (a :class:`Selection`).
+        """
+        sel = self.select(sane)
+        if sane and explain and sel.skipped:
+            print(f"arxid.sweep best(sane=True): {sel}", file=sys.stderr)
+        model = self.model(sel.rank)
+        model.selection_ = sel
+        return model
+
+    # ------------------------------------------------------------------ tables
+    def _score(self) -> np.ndarray:
+        return _ranking_column(self, self.sort_by)
+
+    def _rows(self, n: int | None, sanity: bool):
+        n = len(self) if n is None else min(n, len(self))
+        rows = []
+        for i in range(n):
+            sv = self.sanity(i) if sanity else None
+            rows.append({
+                "rank": i + 1,
+                "structure": self.structure_name(i),
+                "na": int(self.na[i]),
+                "nb": [int(v) for v in self.nb[i]],
+                "nk": [int(v) for v in self.nk[i]],
+                "n_params": int(self.n_params[i]),
+                "rms_est": _num(self.rms_est[i]),
+                "rms_val": _num(self.rms_val[i]),
+                "rms_est_one_step": _num(self.rms_est_one_step[i]),
+                "rms_val_one_step": _num(self.rms_val_one_step[i]),
+                "fit_val": _num(self.fit_val[i]),
+                "fpe": _num(self.fpe[i]),
+                "aic": _num(self.aic[i]),
+                "bic": _num(self.bic[i]),
+                "stable": bool(self.stable[i]),
+                "max_pole": _num(self.max_pole[i]),
+                "diverged_est": bool(self.diverged_est[i]),
+                "diverged_val": bool(self.diverged_val[i]),
+                "horizon": self.horizon,
+                "error": self.errors[i],
+                "step_sanity": None if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
+                "parameters": [float(x) for x in self.parameters[i]],
+            })
+        return rows
+
+    def to_pandas(self, sanity: bool = True):
+        """One row per structure in ranked order (``sanity=False`` skips the step checks, which cost
+        one step response per structure)."""
+        try:
+            import pandas as pd
+        except ImportError:  # pragma: no cover
+            raise ImportError("to_pandas needs pandas: pip install 'arxid[pandas]'") from None
+        df = pd.DataFrame(self._rows(None, sanity))
+        return df.set_index("rank")
+
+    def to_dict(self, sanity: bool = True) -> dict:
+        return {
+            "format": "arxid.SweepResult",
+            "measure": self.measure,
+            "horizon": self.horizon,
+            "integrating": self.integrating,
+            "integrating_reason": self.integrating_reason,
+            "sort_by": self.sort_by,
+            "first_lag": self.first_lag,
+            "n_est": self.n_est,
+            "n_val": self.n_val,
+            "effects": list(self.effects),
+            "expect": self.expect,
+            "structures": self._rows(None, sanity),
+        }
+
+    def to_json(self, path=None, indent: int | None = None, sanity: bool = True) -> str:
+        """JSON of :meth:`to_dict`; NaN (diverged or not fitted) becomes null."""
+        text = json.dumps(self.to_dict(sanity), indent=indent, allow_nan=False)
+        if path is not None:
+            with open(path, "w") as fh:
+                fh.write(text)
+        return text
+
+    def table(self, n: int = 12, sanity: bool = True) -> str:
+        """The top ``n`` rows as text, like seed 004's Table 1 plus more columns."""
+        k = "" if self.horizon is None else f" k={self.horizon}"
+        head = ["#", "Model Configuration", f"RMS est{k}", f"RMS val{k}", "fit val %", "RMS val 1-step",
+                "FPE", "AIC", "BIC", "p", "stable", "step"]
+        lines = []
+        for i in range(min(n, len(self))):
+            if self.errors[i] is not None:
+                cells = [str(i + 1), self.structure_name(i), "not fitted", "not fitted"] + ["-"] * 7 + ["collinear"]
+            else:
+                sv = self.sanity(i) if sanity else None
+                cells = [
+                    str(i + 1), self.structure_name(i),
+                    "diverged" if self.diverged_est[i] else _fmt(self.rms_est[i]),
+                    "diverged" if self.diverged_val[i] else _fmt(self.rms_val[i]),
+                    "-" if self.diverged_val[i] else _fmt(self.fit_val[i], ".1f"),
+                    _fmt(self.rms_val_one_step[i]), _fmt(self.fpe[i]), _fmt(self.aic[i], ".4g"), _fmt(self.bic[i], ".4g"),
+                    str(int(self.n_params[i])), "yes" if self.stable[i] else "no",
+                    "-" if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
+                ]
+            lines.append(cells)
+        widths = [max(len(h), *(len(r[j]) for r in lines)) if lines else len(h) for j, h in enumerate(head)]
+        out = [
+            f"ARX sweep: {len(self)} structures, {self.n_est} estimation rows, {self.n_val} validation rows, "
+            f"ranked by {_SORT_TEXT[self.sort_by]} ({self.measure}" + (f", horizon {self.horizon} samples = "
+            f"{self.horizon * self.estimation.ts:g} s" if self.horizon else "") + ")",
+        ]
+        if self.integrating:
+            out.append(f"integrating plant ({self.integrating_reason}): free-run error is meaningless, "
+                       f"RMS columns are {self.horizon}-step-ahead prediction errors")
+        out.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
+        out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in lines]
+        if len(self) > n:
+            out.append(f"... {len(self) - n} more structures (.to_pandas() has all)")
+        return "\n".join(out)
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def __repr__(self) -> str:
+        return f"<SweepResult {len(self)} structures, best {self.structure_name(0)}, {self.measure}>"
+
+    def plot(self, nb_input: int = 0):
+        """Heat map of the ranking error over (na, nk) for each nb (matplotlib Figure)."""
+        from .plots.sweep import plot_sweep
+
+        return plot_sweep(self, nb_input=nb_input)
+
+
+_SORT_TEXT = {
+    "val_sim": "validation RMS", "val_one_step": "validation one-step RMS", "est_sim": "estimation RMS",
+    "est_one_step": "estimation one-step RMS", "fpe": "FPE", "aic": "AIC", "bic": "BIC",
+}
+
+
+def _num(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _fmt(x, spec: str = ".4g") -> str:
+    x = float(x)
+    return format(x, spec) if math.isfinite(x) else "nan"
+
+
+def _ranking_column(r, key: str) -> np.ndarray:
+    col = {"val_sim": r.rms_val, "val_one_step": r.rms_val_one_step, "est_sim": r.rms_est,
+           "est_one_step": r.rms_est_one_step, "fpe": r.fpe, "aic": r.aic, "bic": r.bic}[key]
+    return col
+
+
+# ---------------------------------------------------------------------------------------------- sweep
+def _detect_integrator(na, theta, order) -> tuple[bool, str]:
+    """Integrating if most of the best structures have A(1) ≈ 0 or a pole on/outside the unit circle
+    near z = 1."""
+    votes, looked = 0, 0
+    for i in order[:5]:
+        a = np.concatenate([[1.0], theta[i][: na[i]]])
+        if na[i] == 0 or not np.isfinite(a).all():
+            continue
+        looked += 1
+        a1 = abs(a.sum()) / np.abs(a).sum()
+        poles = np.roots(a)
+        near = poles[(np.abs(poles.imag) < 1e-9) & (poles.real >= 1 - INTEGRATOR_TOLERANCE)]
+        if a1 < INTEGRATOR_TOLERANCE or near.size:
+            votes += 1
+    if looked and votes * 2 > looked:
+        return True, f"detected: {votes} of the {looked} best structures by FPE have a pole at z = 1 (A(1) ~ 0)"
+    return False, ""
+
+
+def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, validation=None, sort_by: str = "val_sim",
+          n_threads: int = 0, progress: bool = True, effects: Sequence[str] = (), expect: str | None = None,
+          horizon: int | None = None, max_memory: int | None = None, limits: SanityLimits | None = None,
+          simulate_estimation: bool = True) -> SweepResult:
+    """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
+
+    Parameters
+    ----------
+    data : IOData
+        Estimation data.
+    na : int or iterable of int
+        Numbers of poles to try.
+    nb, nk : int, iterable of int, or list of iterables (one per input)
+        Input orders and delays to try. One iterable is shared by every input (each input still
+        ranges over it independently); the grid is the cartesian product of all ranges.
+    validation : None, IOData or float
+        Validation data, or the fraction of ``data`` (its end) to hold out. None validates on the
+        estimation data only (``sort_by="val_sim"`` then ranks by estimation error).
+    sort_by : {"val_sim", "val_one_step", "est_sim", "est_one_step", "fpe", "aic", "bic"}
+        Ranking measure. ``*_sim`` is the free-run RMS (the k-step RMS for integrating plants).
+    n_threads : int
+        Threads (0 = all cores). Results are identical for any number of threads.
+    progress : bool
+        Show a tqdm progress bar (only when stderr is a terminal).
+    effects : sequence of str
+        Effect terms added to every structure; input-derived terms take the orders of their input.
+    expect : {None, "stable", "integrating", "double-integrating"}
+        What the physics says. Integrating expectations rank by k-step prediction error; None
+        detects integrators (a pole at 1 in most of the 5 best structures by FPE).
+    horizon : int, optional
+        k of the k-step prediction for integrating plants (default ``max(10, 2 × largest lag)``).
+    max_memory : int, optional
+        Refuse grids needing more bytes than this (default: half the available memory).
+    limits : SanityLimits, optional
+        Thresholds of the step sanity checks.
+    simulate_estimation : bool
+        Also simulate every structure on the estimation data (``rms_est``).
+
+    Returns
+    -------
+    SweepResult
+
+    Notes
+    -----
+    Every structure uses the regression rows from the grid's largest lag on (as ``arxstruc``), and
+    its free-run simulation starts there from measured outputs, so all errors compare on the same
+    samples. The Rust core reduces ``[Φ_max | y]`` once to a triangular R by Householder QR and
+    solves each structure from its columns of R; the simulation of linear structures runs several
+    structures with the same ``na`` side by side in SIMD lanes. A simulation that leaves ±1000 times
+    the largest measured output is stopped and reported as diverged.
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(1)
+    >>> u = rng.standard_normal(3000)
+    >>> y = np.zeros(3000)
+    >>> for t in range(3, 3000):
+    ...     y[t] = 1.5 * y[t - 1] - 0.7 * y[t - 2] + 0.5 * u[t - 3] + 0.01 * rng.standard_normal()
+    >>> res = arxid.sweep(arxid.IOData(y, u, ts=0.01), na=range(1, 4), nb=range(1, 3), nk=range(0, 5),
+    ...                   validation=0.3, sort_by="bic", progress=False)
+    >>> res.structure_name(0)
+    'ARX(2,1,3)'
+    """
+    if not isinstance(data, IOData):
+        raise DataError(f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)")
+    if sort_by not in SORT_KEYS:
+        raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
+    if expect not in EXPECTATIONS:
+        raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
+    if isinstance(validation, IOData):
+        est, val = data, validation
+        if val.n_inputs != data.n_inputs:
+            raise DataError(f"validation data have {val.n_inputs} inputs, the estimation data {data.n_inputs}")
+    elif validation is None:
+        est, val = data, None
+    elif isinstance(validation, numbers.Real) and not isinstance(validation, bool):
+        if not 0 < validation < 1:
+            raise DataError(f"validation as a fraction must be between 0 and 1, got {validation}")
+        est, val = data.split(1 - float(validation))
+    else:
+        raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
+    if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
+        raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
+    n_threads = int(n_threads)
+    if n_threads < 0:
+        raise ArxidError(f"n_threads must be >= 0 (0 = all cores), got {n_threads}")
+    m = est.n_inputs
+    nas = _order_range("na", na)
+    nbs = _per_input_ranges("nb", nb, m)
+    nks = _per_input_ranges("nk", nk, m)
+    effects = tuple(effects)
+
+    # Size and memory before building anything.
+    n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
+    probe = compile_effects(effects, est[: min(est.n_samples, 8)], [max(r) for r in nbs], [max(r) for r in nks])
+    n_cols = len(probe.nb)
+    span = max(max(k) + max(b) - 1 - min(k) + 1 for b, k in zip(nbs, nks))
+    n_terms = len(probe.output_terms)
+    p_max = max(nas) + n_cols * max(max(b) for b in nbs) + n_terms
+    q = max(nas) + n_cols * span + n_terms + 1
+    threads = n_threads or (os.cpu_count() or 1)
+    need = _estimate_memory(n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols, threads)
+    limit = int(max_memory) if max_memory is not None else _available_memory() // 2
+    if need > limit:
+        raise DataError(
+            f"the grid is too large: {n_structures:,} structures with up to {p_max} parameters and a largest regressor of "
+            f"{q} columns need about {_gib(need)}, more than the limit of {_gib(limit)} (max_memory); "
+            f"narrow the ranges or split the sweep into parts"
+        )
+
+    # The grid: (na, nb_1..nb_M, nk_1..nk_M) over the layout's columns (effects tied to their input).
+    layouts: dict = {}
+    head = est[: min(est.n_samples, 8)]
+
+    def layout_orders(nbv, nkv):
+        key = (nbv, nkv)
+        if key not in layouts:
+            lay = compile_effects(effects, head, list(nbv), list(nkv)) if effects else None
+            layouts[key] = (tuple(lay.nb), tuple(lay.nk)) if lay else (nbv, nkv)
+        return layouts[key]
+
+    rows = []
+    user_nb, user_nk = [], []
+    for a in nas:
+        for nbv in itertools.product(*nbs):
+            for nkv in itertools.product(*nks):
+                lnb, lnk = layout_orders(nbv, nkv)
+                if a + sum(lnb) + len(probe.output_terms) == 0:
+                    continue
+                rows.append((a, *lnb, *lnk))
+                user_nb.append(nbv)
+                user_nk.append(nkv)
+    if not rows:
+        raise OrderError("the grid has no structure with a parameter: use na >= 1 or nb >= 1")
+    grid = np.array(rows, dtype=np.int64)
+    lay_est = compile_effects(effects, est, list(user_nb[0]), list(user_nk[0]))
+    lay_val = compile_effects(effects, val, list(user_nb[0]), list(user_nk[0])) if val is not None else None
+    terms = list(lay_est.output_terms)
+    first_lag = 0
+    for r in rows:
+        mc = (len(r) - 1) // 2
+        lag = max([r[0]] + [r[1 + j] + r[1 + mc + j] - 1 for j in range(mc) if r[1 + j] > 0]
+                  + [2 if k == "signdiff" else 1 for k, _, _ in terms])
+        first_lag = max(first_lag, lag)
+
+    # Integrating plants: decide the measure before simulating.
+    integrating, reason = False, ""
+    if expect in ("integrating", "double-integrating"):
+        integrating, reason = True, f"expect={expect!r}"
+    elif expect is None:
+        pre = _core.sweep(np.ascontiguousarray(est.y), lay_est.u, list(est.experiment_starts), grid, terms,
+                          simulate_estimation=False, n_threads=n_threads)
+        fpe_pre = _fpe(np.asarray(pre["rss_est"]), int(pre["n_est"]), grid, len(terms))
+        order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
+        integrating, reason = _detect_integrator(grid[:, 0], np.asarray(pre["theta"]), order_pre)
+    k_step = None
+    if integrating:
+        k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
+
+    y_scale = max(float(np.nanmax(np.abs(est.y))) if est.n_samples else 0.0,
+                  float(np.nanmax(np.abs(val.y))) if val is not None else 0.0, 1e-300)
+    bar = None
+    if progress and sys.stderr.isatty():
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(rows), desc="arxid.sweep", unit="structure", leave=False)
+    chunk = max(64, (len(rows) // 100) // 8 * 8)
+
+    def report(done: int):
+        bar.update(done - bar.n)
+
+    try:
+        res = _core.sweep(
+            np.ascontiguousarray(est.y), lay_est.u, list(est.experiment_starts), grid, terms,
+            yv=np.ascontiguousarray(val.y) if val is not None else None,
+            uv=lay_val.u if lay_val is not None else None,
+            starts_v=list(val.experiment_starts) if val is not None else None,
+            simulate_estimation=bool(simulate_estimation), horizon=k_step, divergence_limit=1e3 * y_scale,
+            n_threads=n_threads, chunk=chunk, progress=report if bar is not None else None,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    return _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_step, integrating, reason,
+                         sort_by, effects, expect, limits or SanityLimits(), m)
+
+
+def _fpe(rss, n, grid, n_terms):
+    mc = (grid.shape[1] - 1) // 2
+    p = grid[:, 0] + grid[:, 1:1 + mc].sum(axis=1) + n_terms
+    loss = rss / n
+    with np.errstate(all="ignore"):
+        return loss * (n + p) / np.maximum(n - p, 1)
+
+
+def _scored_norm(d: IOData, lag: int) -> float:
+    """‖y − ȳ‖ over the samples a sweep scores (from ``lag`` into each experiment, finite)."""
+    parts = [d.y[a + lag:b] for a, b in d.segments if b > a + lag]
+    y = np.concatenate(parts) if parts else np.zeros(0)
+    y = y[np.isfinite(y)]
+    return float(np.linalg.norm(y - y.mean())) if y.size else math.nan
+
+
+def _max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Largest pole magnitude of every structure (companion matrices, batched per na)."""
+    out = np.zeros(len(na))
+    for k in np.unique(na):
+        idx = np.flatnonzero(na == k)
+        if k == 0:
+            continue
+        a = theta[idx, :k]
+        ok = np.isfinite(a).all(axis=1)
+        comp = np.zeros((len(idx), k, k))
+        comp[:, 0, :] = -np.where(ok[:, None], a, 0.0)
+        if k > 1:
+            comp[:, np.arange(1, k), np.arange(k - 1)] = 1.0
+        mags = np.abs(np.linalg.eigvals(comp)).max(axis=1)
+        out[idx] = np.where(ok, mags, np.nan)
+    return out
+
+
+def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_step, integrating, reason, sort_by,
+                  effects, expect, limits, m) -> SweepResult:
+    s = len(grid)
+    mc = (grid.shape[1] - 1) // 2
+    na = grid[:, 0].copy()
+    p = na + grid[:, 1:1 + mc].sum(axis=1) + len(terms)
+    theta_all = np.asarray(res["theta"])
+    n_est, n_val = int(res["n_est"]), int(res["n_val"])
+    rss_est, rss_val = np.asarray(res["rss_est"]), np.asarray(res["rss_val"])
+    with np.errstate(all="ignore"):
+        loss = rss_est / n_est
+        rms_est_one = np.sqrt(loss)
+        rms_val_one = np.sqrt(rss_val / n_val) if n_val else np.full(s, np.nan)
+        fpe = loss * (n_est + p) / np.maximum(n_est - p, 1)
+        aic = np.where(loss > 0, n_est * np.log(loss) + 2 * p + n_est * (np.log(2 * np.pi) + 1), -np.inf)
+        bic = np.where(loss > 0, n_est * np.log(loss) + p * np.log(n_est) + n_est * (np.log(2 * np.pi) + 1), -np.inf)
+    div_est = np.asarray(res["diverged_est"], dtype=bool)
+    div_val = np.asarray(res["diverged_val"], dtype=bool)
+    rms_est = np.where(div_est, np.nan, np.asarray(res["rms_sim_est"]))
+    rms_val = np.where(div_val, np.nan, np.asarray(res["rms_sim_val"]))
+    errors = tuple(res["errors"])
+    if val is not None:
+        norm = _scored_norm(val, first_lag)
+        with np.errstate(all="ignore"):
+            fit_val = 100.0 * (1.0 - rms_val * np.sqrt(np.asarray(res["n_sim_val"])) / norm)
+    else:
+        fit_val = np.full(s, np.nan)
+    max_pole = _max_poles(na, theta_all)
+    stable = max_pole < 1.0
+    key = sort_by
+    if val is None and key in ("val_sim", "val_one_step"):
+        key = "est_sim" if key == "val_sim" else "est_one_step"
+    score = {"val_sim": rms_val, "val_one_step": rms_val_one, "est_sim": rms_est, "est_one_step": rms_est_one,
+             "fpe": fpe, "aic": aic, "bic": bic}[key]
+    bad = ~np.isfinite(score) | div_val | div_est | np.array([e is not None for e in errors])
+    # Diverged and unfitted structures go last; ties keep grid order (stable sort).
+    order = np.lexsort((np.arange(s), np.where(bad, np.inf, score), bad))
+    nbm = np.array(user_nb, dtype=int).reshape(s, m)
+    nkm = np.array(user_nk, dtype=int).reshape(s, m)
+    params = [theta_all[i, : p[i]].copy() for i in order]
+    return SweepResult(
+        na=na[order], nb=nbm[order], nk=nkm[order], parameters=params, n_params=p[order],
+        rms_est_one_step=rms_est_one[order], rms_val_one_step=rms_val_one[order], rms_est=rms_est[order],
+        rms_val=rms_val[order], fit_val=fit_val[order], fpe=fpe[order], aic=aic[order], bic=bic[order],
+        stable=stable[order], max_pole=max_pole[order], diverged_est=div_est[order], diverged_val=div_val[order],
+        errors=tuple(errors[i] for i in order), horizon=k_step, integrating=integrating, integrating_reason=reason,
+        sort_by=key, first_lag=first_lag, n_est=n_est, n_val=n_val, effects=effects, expect=expect, limits=limits,
+        estimation=est, validation=val,
+    )
