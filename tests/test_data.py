@@ -102,3 +102,13 @@ def test_duplicate_names_and_extra_length():
         arxid.IOData(np.zeros(5), np.zeros(5), ts=1, output_name="u1")
     with pytest.raises(DataError, match="extra signal 'v' has 4 samples"):
         arxid.IOData(np.zeros(5), np.zeros(5), ts=1, extra={"v": np.zeros(4)})
+
+
+def test_csv_headers_with_units_become_plain_signal_names(tmp_path):
+    p = tmp_path / "stand.csv"
+    p.write_text("weight[g],pwm,vbat[V],motor speed\n1,2,3.9,4\n2,3,3.8,5\n3,1,3.7,4\n")
+    d = arxid.IOData.from_csv(p, output="weight[g]", inputs=["pwm", "motor speed"], extra=["vbat[V]"], ts=1)
+    assert d.output_name == "weight" and d.output_unit == "g"
+    assert d.input_names == ("pwm", "motor_speed") and d.extra_units == {"vbat": "V"}
+    d2 = arxid.IOData.from_csv(p, output="weight", inputs=["pwm"], extra=["vbat"], ts=1)
+    np.testing.assert_array_equal(d2.extra["vbat"], [3.9, 3.8, 3.7])

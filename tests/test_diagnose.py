@@ -405,9 +405,13 @@ def test_simulated_quadrotor_flight_battery_sag():
 
 
 def test_arxid_diagnose_is_callable_whatever_the_import_order():
-    import arxid.diagnose as module  # binds the package attribute to the module
+    import importlib
+
+    module = importlib.import_module("arxid.diagnose")
+    from arxid.sweep import SweepResult  # noqa: F401  (importing submodules must not rebind the functions)
 
     est, val = quadratic_thrust().split(0.6)
     d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
     assert isinstance(d, Diagnosis) and d.top.effect == "speed^2"
     assert module.Ladder is Ladder and arxid.Diagnosis is Diagnosis
+    assert callable(arxid.sweep) and arxid.sweep is importlib.import_module("arxid.sweep").sweep

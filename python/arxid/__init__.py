@@ -25,31 +25,30 @@ __all__ = [
 
 __version__ = "0.1.0"
 
-# Names defined in modules that are imported on first use (they pull in heavier dependencies).
-_LAZY = {
-    "sweep": "sweep",
-    "SweepResult": "sweep",
-    "compare": "diagnostics",
-    "residuals": "diagnostics",
-    "where_it_fails": "diagnostics",
-    "diagnose": "diagnose",
-    "Diagnosis": "diagnose",
-    "Ladder": "diagnose",
-    "quadrotor": None,
-    "datasets": None,
-    "effects": None,
-}
-__all__ += [k for k in _LAZY if k not in __all__]
+# ``sweep`` and ``diagnose`` name both a module and its main function. Importing the modules here,
+# before binding the functions, means a later ``import arxid.sweep`` finds them in ``sys.modules``
+# and never rebinds the package attribute to the module: ``arxid.sweep(...)`` always works.
+from . import diagnose as _diagnose_module  # noqa: E402
+from . import diagnostics as _diagnostics_module  # noqa: E402
+from . import sweep as _sweep_module  # noqa: E402
+from .diagnose import Diagnosis, Ladder, diagnose  # noqa: E402
+from .diagnostics import compare, residuals, where_it_fails  # noqa: E402
+from .sweep import SweepResult, sweep  # noqa: E402
+
+__all__ += ["sweep", "SweepResult", "compare", "residuals", "where_it_fails", "diagnose", "Diagnosis", "Ladder",
+            "quadrotor", "datasets", "effects"]
+
+# Subpackages with heavier or optional dependencies load on first use.
+_LAZY_MODULES = ("quadrotor", "datasets", "effects", "report", "cli")
 
 
 def __getattr__(name: str):
-    if name in _LAZY:
+    if name in _LAZY_MODULES:
         import importlib
 
-        module = importlib.import_module(f".{_LAZY[name] or name}", __name__)
-        value = module if _LAZY[name] is None else getattr(module, name)
-        globals()[name] = value
-        return value
+        module = importlib.import_module(f".{name}", __name__)
+        globals()[name] = module
+        return module
     raise AttributeError(f"module 'arxid' has no attribute {name!r}")
 
 

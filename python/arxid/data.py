@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -179,7 +180,9 @@ class IOData:
         units : mapping of str to str, optional
             Unit of each column, by name.
 
-        Empty cells and ``nan`` are missing samples (NaN).
+        Empty cells and ``nan`` are missing samples (NaN). A header ``vbat[V]`` names the signal
+        ``vbat`` with unit ``V``; other characters that cannot appear in an effect are replaced by
+        ``_`` (the raw header text is accepted too when selecting columns).
         """
         path = Path(path)
         if not path.is_file():
@@ -193,7 +196,25 @@ class IOData:
             head = lines[0]
             delimiter = max([",", ";", "\t", " "], key=head.count) if any(c in head for c in ",;\t ") else ","
         rows = list(csv.reader(lines, delimiter=delimiter))
-        header = [h.strip() for h in rows[0]]
+        raw_header = [h.strip() for h in rows[0]]
+        # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
+        # the raw header text is still accepted in output=/inputs=/extra=/time=.
+        header, header_units, rename = [], {}, {}
+        for h in raw_header:
+            m = re.fullmatch(r"(.*?)\s*\[(.*)\]", h)
+            base = m[1] if m else h
+            clean = re.sub(r"\W+", "_", base).strip("_") if base else ""
+            if clean and clean[0].isdigit():
+                clean = "_" + clean
+            header.append(clean)
+            rename[h] = clean
+            if m and clean:
+                header_units[clean] = m[2]
+        output = rename.get(output, output)
+        time = rename.get(time, time) if time else time
+        inputs = [rename.get(c, c) for c in ([inputs] if isinstance(inputs, str) else inputs)]
+        extra = [rename.get(c, c) for c in ([extra] if isinstance(extra, str) else extra)]
+        units = {**header_units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
         body = [r for r in rows[1:] if any(c.strip() for c in r)]
         columns = {}
         for j, name in enumerate(header):

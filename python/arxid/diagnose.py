@@ -924,14 +924,3 @@ def diagnose_report(data: IOData, validation: IOData | None = None, orders=None,
         model = _select_orders(data, validation, grid, horizon)
     ladder = Ladder.run(model, data, validation, max_steps=max_steps, horizon=horizon, **diagnose_kwargs)
     return ladder.diagnoses[0].to_dict(ladder)
-
-
-# ``arxid.diagnose`` names both this module and the function: once the module has been imported
-# (``from arxid.diagnose import Ladder``), Python binds the package attribute to the module. Making
-# the module callable keeps ``arxid.diagnose(model, data, validation)`` working in every import order.
-class _CallableModule(__import__("types").ModuleType):
-    def __call__(self, *args, **kwargs) -> Diagnosis:
-        return diagnose(*args, **kwargs)
-
-
-__import__("sys").modules[__name__].__class__ = _CallableModule

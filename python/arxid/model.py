@@ -309,23 +309,38 @@ class ArxModel:
                                         np.ascontiguousarray(self.parameters_, dtype=float), horizon=horizon))
 
     @staticmethod
+    def _diverged(y: np.ndarray, pred: np.ndarray) -> bool:
+        """A simulation that overflowed: the core lets inf (then NaN) propagate instead of restarting."""
+        return bool(np.isinf(pred).any())
+
+    @staticmethod
     def _fit_percent(y: np.ndarray, pred: np.ndarray) -> float:
+        if ArxModel._diverged(y, pred):
+            return -math.inf
         ok = np.isfinite(y) & np.isfinite(pred)
         if not ok.any():
             return math.nan
-        e = np.linalg.norm(y[ok] - pred[ok])
+        with np.errstate(over="ignore", invalid="ignore"):
+            e = np.linalg.norm(y[ok] - pred[ok])
         d = np.linalg.norm(y[ok] - y[ok].mean())
         return float(100.0 * (1.0 - e / d)) if d > 0 else math.nan
 
     def fit_percent(self, data: IOData, horizon: int | None = None) -> float:
-        """NRMSE fit in percent, 100 (1 − ‖y − ŷ‖ / ‖y − mean y‖), of the prediction with ``horizon``."""
+        """NRMSE fit in percent, 100 (1 − ‖y − ŷ‖ / ‖y − mean y‖), of the prediction with ``horizon``
+        (``-inf`` when a free-run simulation diverges)."""
         return self._fit_percent(data.y, self.predict(data, horizon))
 
     def rms(self, data: IOData, horizon: int | None = None) -> float:
-        """Root mean square of measured − predicted output over the predicted samples."""
+        """Root mean square of measured − predicted output over the predicted samples (``inf`` when a
+        free-run simulation diverges)."""
         pred = self.predict(data, horizon)
+        if self._diverged(data.y, pred):
+            return math.inf
         ok = np.isfinite(pred) & np.isfinite(data.y)
-        return float(np.sqrt(np.mean((data.y[ok] - pred[ok]) ** 2))) if ok.any() else math.nan
+        if not ok.any():
+            return math.nan
+        with np.errstate(over="ignore", invalid="ignore"):
+            return float(np.sqrt(np.mean((data.y[ok] - pred[ok]) ** 2)))
 
     def simulate(self, u, initial=None, extra=None) -> np.ndarray:
         """Free-run response to the inputs ``u`` (shape (N,) or (N, n_inputs)).
