@@ -124,8 +124,12 @@ def test_sweep_json_finds_the_true_structure(capsys, noisy_csv):
     d = _strict_json(out)
     assert d["n_structures"] == 2 * 2 * 4
     assert d["best"]["nk"] == [TRUE_NK]
-    assert d["best"]["rms_sim_val"] < 0.02  # noise 0.01 on the output
-    assert len(d["table"]) == 16 and {"na", "nb", "nk"} <= set(d["table"][0])
+    assert d["best"]["rms_val"] < 0.02  # noise 0.01 on the output
+    assert d["horizon"] is None and d["measure"] == "free-run simulation"
+    assert len(d["table"]) == 16 and {"structure", "na", "nb", "nk", "rms_val"} <= set(d["table"][0])
+    assert d["table"][0]["rms_val"] <= d["table"][1]["rms_val"]
+    if d["best"]["structure"] == "ARX(1,1,2)":
+        np.testing.assert_allclose(d["best"]["parameters"], [TRUE_A, TRUE_B], atol=0.02)
 
 
 def test_sweep_table(capsys, csv_file):
@@ -133,6 +137,7 @@ def test_sweep_table(capsys, csv_file):
                          "--na", "1", "--nb", "1", "--nk", "1,2", "--top", "5")
     assert code == 0, err
     assert "2 structures" in out and "best sane structure: ARX(1,1,2)" in out
+    assert "ARX(1,1,1)" in out  # the table lists both
 
 
 # ---------------------------------------------------------------------------------------- diagnose

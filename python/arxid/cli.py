@@ -223,7 +223,7 @@ def cmd_fit(args) -> int:
 
 def _sweep_records(table, top: int) -> list[dict]:
     cols = [c for c in table.columns if c not in ("theta", "parameters")]
-    return table[cols].head(top).to_dict(orient="records")
+    return table[cols].head(top).reset_index().to_dict(orient="records")
 
 
 def cmd_sweep(args) -> int:
@@ -235,24 +235,24 @@ def cmd_sweep(args) -> int:
         o = _parse_orders(args.orders)
         grid = {"na": [o[0]], "nb": [o[1]], "nk": [o[2]]}
     t0 = time.perf_counter()
-    res, table, best, rejected = run_sweep(est, val, grid, progress=_progress(args), expect=args.expect)
+    res, table, best, rejected = run_sweep(est, val, grid, progress=_progress(args), expect=args.expect,
+                                           horizon=args.horizon)
     elapsed = time.perf_counter() - t0
-    out = {"n_structures": int(len(table)), "seconds": elapsed,
-           "grid": grid, "best": {"na": best.na, "nb": list(best.nb), "nk": list(best.nk),
-                                  "structure": best.structure_name(), "rms_sim_val": best.rms(val, args.horizon),
-                                  "fit_val": best.fit_percent(val, args.horizon)},
+    row = table[table["structure"] == best.structure_name()].iloc[0]
+    out = {"n_structures": int(len(table)), "seconds": elapsed, "grid": grid, "measure": res.measure,
+           "horizon": res.horizon, "integrating": res.integrating,
+           "best": {"structure": best.structure_name(), "na": best.na, "nb": list(best.nb), "nk": list(best.nk),
+                    "rms_val": row["rms_val"], "fit_val": row["fit_val"], "parameters": best.parameters_},
            "rejected": rejected, "table": _sweep_records(table, args.top)}
     if args.json:
         _print_json(out)
         return EXIT_OK
-    cols = [c for c in table.columns if c not in ("theta", "parameters")]
-    rows = [[str(r[c]) if isinstance(r[c], (str, tuple, list)) else r[c] for c in cols] for _, r in table.head(args.top).iterrows()]
-    print(format_table([str(c) for c in cols], rows,
-                       title=f"{len(table)} structures in {elapsed:.2f} s; best {min(args.top, len(table))}:"))
+    print(res.table(args.top))
+    print(f"\n{len(table)} structures in {elapsed:.2f} s")
     for name, why in rejected.items():
-        print(f"rejected {name}: {why}")
-    print(f"\nbest sane structure: {best.structure_name()}  (validation RMS {_fmt(out['best']['rms_sim_val'])}, "
-          f"fit {_fmt(out['best']['fit_val'])} %)")
+        print(f"skipped {name}: {why}")
+    print(f"best sane structure: {best.structure_name()}  (validation RMS {_fmt(row['rms_val'])}, "
+          f"fit {_fmt(row['fit_val'])} %, {res.measure})")
     return EXIT_OK
 
 

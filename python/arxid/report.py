@@ -118,78 +118,26 @@ def _grid_kwargs(grid) -> dict:
     return {k: g.get(k, DEFAULT_GRID[k]) for k in ("na", "nb", "nk")}
 
 
-def run_sweep(est: IOData, val: IOData, grid=None, progress: bool = False, expect: str | None = None):
-    """Sweep the grid with :func:`arxid.sweep` and choose the best sane structure.
+def run_sweep(est: IOData, val: IOData, grid=None, progress: bool = False, expect: str | None = None,
+              horizon: int | None = None):
+    """Sweep the grid with :func:`arxid.sweep` and choose the best structure that passes the step
+    sanity checks.
 
     Returns
     -------
-    (SweepResult, pandas.DataFrame, ArxModel, dict of rejected structure → reason)
+    (SweepResult, pandas.DataFrame, ArxModel, dict of rejected structure name → reason)
+        The table is best first; ``rejected`` lists the better-ranked structures the sanity check
+        skipped.
     """
     import arxid
 
     kw = _grid_kwargs(grid)
-    try:
-        sweep = arxid.sweep
-    except (ImportError, AttributeError):  # arxid.sweep not available: a plain loop over arx()
-        return _loop_sweep(est, val, kw)
-    extra = {"expect": expect} if expect else {}
-    try:
-        res = sweep(est, validation=val, progress=progress, **kw, **extra)
-    except TypeError:
-        if not extra:
-            raise
-        res = sweep(est, validation=val, progress=progress, **kw)
+    res = arxid.sweep(est, validation=val, progress=progress, expect=expect, horizon=horizon, **kw)
     table = res.to_pandas()
-    best = res.best(sane=True)
-    model = best if isinstance(best, ArxModel) else res.model(best)
-    rejected = _rejected(res, table)
+    model = res.best(sane=True, explain=False)
+    sel = getattr(model, "selection_", None)
+    rejected = {name: "; ".join(reasons) for _, name, reasons in (sel.skipped if sel is not None else ())}
     return res, table, model, rejected
-
-
-def _loop_sweep(est: IOData, val: IOData, kw: dict):
-    """Every structure fitted with :func:`arx` and simulated on ``val`` (used without :mod:`arxid.sweep`)."""
-    import itertools
-
-    import pandas as pd
-
-    rows, models = [], []
-    for na, nb, nk in itertools.product(kw["na"], kw["nb"], kw["nk"]):
-        try:
-            m = arx(est, na, nb, nk)
-        except ArxidError:
-            continue
-        rms = m.rms(val) if m.is_stable else math.nan
-        rows.append({"na": na, "nb": nb, "nk": nk, "rms_pred_est": m.rms(est, 1), "rms_sim_val": rms})
-        models.append(m)
-    if not rows:
-        raise ArxidError("no structure of the grid could be fitted; lower the orders or use more data")
-    table = pd.DataFrame(rows).sort_values("rms_sim_val", na_position="last").reset_index(drop=True)
-    best = table.iloc[0]
-    model = next(m for m in models if (m.na, m.nb[0], m.nk[0]) == (best["na"], best["nb"], best["nk"]))
-    return None, table, model, {}
-
-
-def _rejected(res, table) -> dict:
-    """Structures ranked above the chosen one that the sanity check flagged, with the reason."""
-    out = {}
-    cols = [c for c in ("flags", "flag", "sanity", "reason", "step_flags") if c in getattr(table, "columns", [])]
-    if not cols:
-        return out
-    col = cols[0]
-    for _, row in table.head(12).iterrows():
-        v = row[col]
-        if isinstance(v, (list, tuple)):
-            v = ", ".join(str(x) for x in v)
-        if v is None or (isinstance(v, float) and math.isnan(v)) or str(v).strip() in ("", "ok", "[]", "None"):
-            continue
-        out[_row_name(row)] = str(v)
-    return out
-
-
-def _row_name(row) -> str:
-    if "structure" in row.index:
-        return str(row["structure"])
-    return f"ARX({row['na']},{row['nb']},{row['nk']})"
 
 
 def _orders_of(orders) -> tuple:
@@ -198,23 +146,18 @@ def _orders_of(orders) -> tuple:
     return tuple(orders)
 
 
-def diagnose_dict(est: IOData, val: IOData, model: ArxModel, horizon: int | None = None, max_steps: int = 3,
-                  candidates=None) -> tuple[dict, list[str]]:
-    """The diagnosis in the JSON shape of ``arxid diagnose --json``, for the structure of ``model``.
+def diagnose_ladder(est: IOData, val: IOData, model: ArxModel, horizon: int | None = None, max_steps: int = 3):
+    """Diagnose ``model`` and climb the greedy error ladder (:meth:`arxid.Ladder.run`).
 
     Returns
     -------
-    (dict, list of notes)
+    (dict, Ladder)
+        The diagnosis in the JSON shape of ``arxid diagnose --json`` and the ladder itself.
     """
-    from .diagnose import diagnose_report
+    from .diagnose import Ladder
 
-    kw = {} if candidates is None else {"candidates": candidates}
-    d = diagnose_report(est, val, orders=_structure(model), horizon=horizon, max_steps=max_steps, **kw)
-    return d, []
-
-
-def _rms_val(model: ArxModel, val: IOData, horizon: int | None) -> float:
-    return model.rms(val, horizon)
+    ladder = Ladder.run(model, est, val, max_steps=max_steps, horizon=horizon)
+    return ladder.diagnoses[0].to_dict(ladder), ladder
 
 
 def analyse(data: IOData, validation: IOData | float | None = None, *, orders=None, grid=None,
@@ -256,18 +199,19 @@ def analyse(data: IOData, validation: IOData | float | None = None, *, orders=No
     sw = table = None
     rejected: dict = {}
     if orders is None:
-        sw, table, model, rejected = run_sweep(est, val, grid, progress=progress, expect=expect)
+        sw, table, model, rejected = run_sweep(est, val, grid, progress=progress, expect=expect, horizon=horizon)
+        if horizon is None and getattr(sw, "horizon", None) is not None:
+            horizon = int(sw.horizon)  # an integrating plant: diagnose on the sweep's k-step measure
+            notes.append(f"The sweep found an integrating plant ({getattr(sw, 'integrating_reason', '')}); "
+                         f"validation errors are {horizon}-step-ahead prediction errors, not free-run.")
     else:
         na, nb, nk = _orders_of(orders)
         model = arx(est, na, nb, nk)
     timings["sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    diag, more = diagnose_dict(est, val, model, horizon=horizon, max_steps=max_steps)
-    notes += more
+    diag, ladder = diagnose_ladder(est, val, model, horizon=horizon, max_steps=max_steps)
     timings["diagnose"] = time.perf_counter() - t0
-    ladder = diag.get("ladder") or []
-    effects = list(ladder[-1].get("effects", [])) if ladder else []
-    final = model.with_effects(effects) if effects else model
+    final = ladder.final_model if len(ladder) > 1 else model
     return Analysis(est, val, sw, table, model, rejected, diag, final, timings, notes)
 
 
@@ -354,51 +298,46 @@ def _horizon_text(h) -> str:
     return "free-run simulation" if h is None else f"{h}-step-ahead prediction"
 
 
+_SWEEP_COLUMNS = ("structure", "rms_est", "rms_val", "fit_val", "rms_val_one_step", "fpe", "n_params", "stable",
+                  "max_pole", "step_sanity")
+
+
 def _sweep_section(a: Analysis) -> str:
     from .plots.report import sweep_heatmap
 
     if a.table is None:
         return "<p>The orders were given, so no sweep was run.</p>"
     df = a.table
-    cols = list(df.columns)
-    value = next((c for c in ("rms_sim_val", "rms_val", "val_sim", "rms_pred_val") if c in cols), None)
-    num_cols = [c for c in cols if c not in ("theta", "parameters") and not str(c).startswith("_")]
-    head = df.head(15)
-    chosen = (a.model.na, a.model.nb, a.model.nk)
+    cols = [c for c in _SWEEP_COLUMNS if c in df.columns] or [c for c in df.columns if c != "parameters"]
+    chosen = a.model.structure_name()
     rows, classes = [], []
-    for _, r in head.iterrows():
+    for _, r in df.head(15).iterrows():
         cells = []
-        for c in num_cols:
+        for c in cols:
             v = r[c]
             if isinstance(v, (list, tuple, np.ndarray)):
                 v = ",".join(str(x) for x in np.ravel(v))
-            cells.append(_num(v) if not isinstance(v, str) else _e(v))
+            cells.append(_e(v) if isinstance(v, str) else _num(v))
         rows.append(cells)
-        nb = r.get("nb")
-        nk = r.get("nk")
-        try:
-            same = (int(r["na"]), tuple(np.atleast_1d(nb).astype(int)), tuple(np.atleast_1d(nk).astype(int))) == chosen
-        except (TypeError, ValueError, KeyError):
-            same = False
-        flagged = _row_name(r) in a.rejected
-        classes.append("chosen" if same else ("flagged" if flagged else ""))
-    parts = [f"<p>{len(df)} structures fitted on the estimation data and validated on the validation data; "
-             f"the best 15 by {_e(value or 'the sweep ranking')} are shown. The chosen structure is highlighted; "
+        name = str(r.get("structure", ""))
+        classes.append("chosen" if name == chosen else ("flagged" if name in a.rejected else ""))
+    measure = getattr(a.sweep, "measure", "free-run simulation")
+    parts = [f"<p>{len(df)} structures fitted on the estimation data ({a.estimation.n_samples} samples) and "
+             f"validated on the validation data ({a.validation.n_samples} samples) by {_e(measure)}; the best 15 "
+             f"are shown, ranked by validation RMS (<code>rms_val</code>). The chosen structure is highlighted; "
              f"grey rows failed the step sanity check.</p>",
-             _table(num_cols, rows, classes, left=0)]
+             _table(cols, rows, classes, left=1)]
     if a.rejected:
-        parts.append("<p>Rejected above the chosen structure: " + "; ".join(
+        parts.append("<p>Skipped by the step sanity check: " + "; ".join(
             f"<b>{_e(k)}</b>: {_e(v)}" for k, v in a.rejected.items()) + "</p>")
     fig = None
     if hasattr(a.sweep, "plot"):
         try:
             fig = a.sweep.plot()
-        except Exception:  # the sweep's own plot is optional; fall back to ours
+        except (ArxidError, ValueError, ImportError):  # the sweep's own plot is optional; ours follows
             fig = None
-        if fig is not None and not hasattr(fig, "savefig"):
-            fig = getattr(fig, "figure", None)
-    if fig is None and value and {"na", "nb", "nk"} <= set(cols) and df["nb"].map(np.isscalar).all():
-        fig = sweep_heatmap(df, value, nb_value=a.model.nb[0] if len(a.model.nb) == 1 else None)
+    if fig is None and {"na", "nb", "nk", "rms_val"} <= set(df.columns) and df["nb"].map(np.isscalar).all():
+        fig = sweep_heatmap(df, "rms_val", nb_value=a.model.nb[0] if len(a.model.nb) == 1 else None)
     if fig is not None:
         parts.append(_img(fig, "sweep heat map", "Validation error over the order grid; lower is better."))
     return "\n".join(parts)
@@ -412,13 +351,12 @@ def _step_section(a: Analysis) -> str:
     n = min(val.n_samples, max(50, int(round(2.0 / val.ts)) if val.ts < 0.05 else 200))
     models = [("chosen " + a.model.structure_name(), a.model)]
     flags = {}
-    for name, reason in list(a.rejected.items())[:3]:
-        try:
-            na, nb, nk = (int(x) for x in name[name.index("(") + 1:name.index(")")].split(","))
-            models.append((name, arx(a.estimation, na, nb, nk)))
-            flags[name] = reason
-        except (ValueError, ArxidError):
-            continue
+    if a.sweep is not None and a.rejected:
+        names = [a.sweep.structure_name(i) for i in range(min(len(a.sweep), 40))]
+        for name, reason in list(a.rejected.items())[:3]:
+            if name in names:
+                models.append((name, a.sweep.model(names.index(name))))
+                flags[name] = reason
     responses = []
     for label, m in models:
         try:
