@@ -264,8 +264,14 @@ def _diagnosis_text(d: dict) -> str:
              + (f" + {', '.join(m.get('effects') or [])}" if m.get("effects") else ""),
              f"validation: {what} RMS {_fmt(b.get('rms_sim_val'))}, one-step RMS {_fmt(b.get('rms_pred_val'))}, "
              f"fit {_fmt(b.get('fit_val'))} %", ""]
-    rt = d.get("residual_tests") or {}
-    flat = [[k, v] for k, v in rt.items() if not isinstance(v, (dict, list))]
+    flat = []
+    def walk(prefix, obj):
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                walk(f"{prefix}.{k}" if prefix else str(k), v)
+        elif not isinstance(obj, (list, tuple)):
+            flat.append([prefix, obj])
+    walk("", d.get("residual_tests") or {})
     if flat:
         lines += [format_table(["residual test", "value"], flat), ""]
     sus = d.get("suspects") or []
