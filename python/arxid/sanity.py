@@ -197,8 +197,8 @@ def check_responses(structure: str, positive: list[np.ndarray], negative: list[n
                         first_sign = np.sign(pos[big[0]])
                         after = pos[big[0]:]
                         if np.any(first_sign * after < -limits.sign_tolerance * peak):
-                            flag("sign-change", f"the step response on {label} changes sign, which a "
-                                                f"{expect} plant rules out")
+                            flag("sign-change", f"the step response on {label} changes sign, which "
+                                                f"{'an' if expect == 'integrating' else 'a'} {expect} plant rules out")
             if limits.sign is not None and sign_end != 0 and sign_end != np.sign(limits.sign):
                 flag("wrong-sign", f"a positive step on {label} ends {'negative' if sign_end < 0 else 'positive'}, "
                                    f"the expected sign is {'+' if limits.sign > 0 else '-'}")

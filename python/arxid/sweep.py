@@ -214,11 +214,13 @@ class SweepResult:
 
     def _compute_sanity(self, i: int) -> StepSanity:
         data = self.validation if self.validation is not None else self.estimation
+        # A detected integrator is checked as one (growth, no upper amplitude bound).
+        expect = self.expect if self.expect is not None or not self.integrating else "integrating"
         name = self.structure_name(i)
         if self.errors[i] is not None:
-            return StepSanity(name, ("not-fitted",), (self.errors[i],), math.nan, output_range(data), (), 0, self.expect)
+            return StepSanity(name, ("not-fitted",), (self.errors[i],), math.nan, output_range(data), (), 0, expect)
         if self.effects:
-            return step_sanity(self.model(i), data, expect=self.expect, limits=self.limits)
+            return step_sanity(self.model(i), data, expect=expect, limits=self.limits)
         # Linear structure: the step response is a filter of a constant (exactly antisymmetric).
         from scipy.signal import lfilter
 
@@ -240,7 +242,7 @@ class SweepResult:
                 neg.append(-s)
         poles = np.roots(a) if na else np.zeros(0)
         return check_responses(name, pos, neg, poles, out_range=output_range(data), amplitudes=amps,
-                               expect=self.expect, limits=self.limits)
+                               expect=expect, limits=self.limits)
 
     def _usable(self, i: int) -> bool:
         return self.errors[i] is None and not self.diverged_val[i] and not self.diverged_est[i] and \
@@ -592,44 +594,50 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
                   + [2 if k == "signdiff" else 1 for k, _, _ in terms])
         first_lag = max(first_lag, lag)
 
-    # Integrating plants: decide the measure before simulating.
+    # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
+    # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
     integrating, reason = False, ""
     if expect in ("integrating", "double-integrating"):
         integrating, reason = True, f"expect={expect!r}"
-    elif expect is None:
-        pre = _core.sweep(np.ascontiguousarray(est.y), lay_est.u, list(est.experiment_starts), grid, terms,
-                          simulate_estimation=False, n_threads=n_threads)
-        fpe_pre = _fpe(np.asarray(pre["rss_est"]), int(pre["n_est"]), grid, len(terms))
-        order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
-        integrating, reason = _detect_integrator(grid[:, 0], np.asarray(pre["theta"]), order_pre)
     k_step = None
     if integrating:
         k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
 
     y_scale = max(float(np.nanmax(np.abs(est.y))) if est.n_samples else 0.0,
                   float(np.nanmax(np.abs(val.y))) if val is not None else 0.0, 1e-300)
-    bar = None
-    if progress and sys.stderr.isatty():
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(rows), desc="arxid.sweep", unit="structure", leave=False)
     chunk = max(64, (len(rows) // 100) // 8 * 8)
 
-    def report(done: int):
-        bar.update(done - bar.n)
+    def run(k):
+        bar = None
+        if progress and sys.stderr.isatty():
+            from tqdm.auto import tqdm
 
-    try:
-        res = _core.sweep(
-            np.ascontiguousarray(est.y), lay_est.u, list(est.experiment_starts), grid, terms,
-            yv=np.ascontiguousarray(val.y) if val is not None else None,
-            uv=lay_val.u if lay_val is not None else None,
-            starts_v=list(val.experiment_starts) if val is not None else None,
-            simulate_estimation=bool(simulate_estimation), horizon=k_step, divergence_limit=1e3 * y_scale,
-            n_threads=n_threads, chunk=chunk, progress=report if bar is not None else None,
-        )
-    finally:
-        if bar is not None:
-            bar.close()
+            bar = tqdm(total=len(rows), desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
+
+        def report(done: int):
+            bar.update(done - bar.n)
+
+        try:
+            return _core.sweep(
+                np.ascontiguousarray(est.y), lay_est.u, list(est.experiment_starts), grid, terms,
+                yv=np.ascontiguousarray(val.y) if val is not None else None,
+                uv=lay_val.u if lay_val is not None else None,
+                starts_v=list(val.experiment_starts) if val is not None else None,
+                simulate_estimation=bool(simulate_estimation), horizon=k, divergence_limit=1e3 * y_scale,
+                n_threads=n_threads, chunk=chunk, progress=report if bar is not None else None,
+            )
+        finally:
+            if bar is not None:
+                bar.close()
+
+    res = run(k_step)
+    if expect is None:
+        fpe_pre = _fpe(np.asarray(res["rss_est"]), int(res["n_est"]), grid, len(terms))
+        order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
+        integrating, reason = _detect_integrator(grid[:, 0], np.asarray(res["theta"]), order_pre)
+        if integrating:
+            k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
+            res = run(k_step)
     return _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_step, integrating, reason,
                          sort_by, effects, expect, limits or SanityLimits(), m)
 
