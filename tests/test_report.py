@@ -134,3 +134,19 @@ def test_demo_tells_the_battery_story(tmp_path):
     assert "Error ladder" in text and "before" in text
     assert (tmp_path / "demo.html").stat().st_size > 100_000
     json.dumps(json_safe(res.to_dict()), allow_nan=False)
+
+
+def test_public_functions_document_their_parameters():
+    import inspect
+
+    from arxid import cli, demo, report
+
+    fns = [report.analyse, report.render_html, report.build_report, report.run_sweep, report.diagnose_ladder,
+           demo.run_demo, demo.demo_data, cli.load_data, plots.data_overview, plots.sweep_heatmap, plots.step_checks,
+           plots.measured_vs_simulated, plots.residual_correlations, plots.error_in_time, plots.error_by_signal,
+           plots.error_ladder]
+    for fn in fns:
+        doc = inspect.getdoc(fn) or ""
+        assert doc, f"{fn.__qualname__} has no docstring"
+        for name in inspect.signature(fn).parameters:
+            assert name in doc, f"{fn.__qualname__}: parameter {name} undocumented"

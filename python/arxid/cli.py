@@ -72,7 +72,20 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
               time_col: str | None = None):
     """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
 
-    In a ``.npz`` the sampling time is ``--ts``, a time array named by ``--time``, or a scalar
+    Parameters
+    ----------
+    path : str
+        ``.csv`` or ``.npz`` file.
+    output : str
+        Output column (array) name.
+    inputs, extra : sequence of str
+        Input and extra signal names.
+    ts : float, optional
+        Sampling time in seconds.
+    time_col : str, optional
+        Time column (uniformly sampled seconds), instead of ``ts``.
+
+    In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
     """
     from .data import IOData

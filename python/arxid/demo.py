@@ -42,6 +42,13 @@ GRID = {"na": range(1, 5), "nb": range(1, 4), "nk": range(0, 5)}
 def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
     """The demo's identification data: accelerometer ``az`` against the collective thrust channel.
 
+    Parameters
+    ----------
+    seed : int
+        Simulation seed.
+    duration : float
+        Flight duration in seconds (the first second, the take-off, is cut).
+
     Returns
     -------
     data : IOData

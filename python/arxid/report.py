@@ -123,6 +123,19 @@ def run_sweep(est: IOData, val: IOData, grid=None, progress: bool = False, expec
     """Sweep the grid with :func:`arxid.sweep` and choose the best structure that passes the step
     sanity checks.
 
+    Parameters
+    ----------
+    est, val : IOData
+        Estimation and validation data.
+    grid : dict with keys na, nb, nk, optional
+        Order ranges (default :data:`DEFAULT_GRID`).
+    progress : bool
+        Progress bar on stderr for long sweeps.
+    expect : str, optional
+        Step sanity expectation (``"stable"``, ``"integrating"``, ``"double-integrating"``).
+    horizon : int, optional
+        Validation measure (None: free run, or the sweep's k-step for integrating plants).
+
     Returns
     -------
     (SweepResult, pandas.DataFrame, ArxModel, dict of rejected structure name → reason)
@@ -148,6 +161,17 @@ def _orders_of(orders) -> tuple:
 
 def diagnose_ladder(est: IOData, val: IOData, model: ArxModel, horizon: int | None = None, max_steps: int = 3):
     """Diagnose ``model`` and climb the greedy error ladder (:meth:`arxid.Ladder.run`).
+
+    Parameters
+    ----------
+    est, val : IOData
+        Estimation and validation data.
+    model : ArxModel
+        The model to diagnose.
+    horizon : int, optional
+        Validation measure (None: free run; integrating plants get a k-step horizon).
+    max_steps : int
+        Largest number of effects added.
 
     Returns
     -------
@@ -538,7 +562,20 @@ class Report:
 def build_report(data: IOData, validation: IOData | float | None = None, *, orders=None, grid=None,
                  horizon: int | None = None, max_steps: int = 3, progress: bool = False,
                  expect: str | None = None, title: str | None = None, source: str = "") -> Report:
-    """:func:`analyse` then :func:`render_html`. Parameters as in those functions."""
+    """:func:`analyse` then :func:`render_html`: the whole report in one call.
+
+    Parameters
+    ----------
+    data, validation, orders, grid, horizon, max_steps, progress, expect
+        As in :func:`analyse`.
+    title, source
+        As in :func:`render_html`.
+
+    Returns
+    -------
+    Report
+        ``.html`` (the document), ``.analysis``; ``.save(path)`` writes it.
+    """
     a = analyse(data, validation, orders=orders, grid=grid, horizon=horizon, max_steps=max_steps,
                 progress=progress, expect=expect)
     return Report(render_html(a, title=title, source=source), a)

@@ -83,6 +83,8 @@ def sweep_heatmap(table, value: str, nb_value=None, title: str | None = None):
         Column to show (lower is better); NaN cells (diverged) are grey.
     nb_value : int, optional
         Which nb to show; default: the nb of the best row.
+    title : str, optional
+        Figure title.
     """
     df = table[np.isfinite(table[value].astype(float))]
     if nb_value is None:
@@ -131,6 +133,8 @@ def step_checks(responses: Sequence[tuple[str, np.ndarray]], ts: float, flags: M
         Response to a positive step of typical amplitude; the negative step is drawn as its mirror
         computed by the caller (or, for a linear model, ``-response``).
     ts : float
+    ts : float
+        Sampling time [s].
     flags : mapping of label to str, optional
         Why a structure was rejected; drawn dashed with the reason in the legend.
     """
@@ -161,6 +165,8 @@ def measured_vs_simulated(data, predictions: Sequence[tuple[str, np.ndarray]], t
         Validation data.
     predictions : sequence of (label, ndarray of shape (n_samples,))
         Simulated (or k-step predicted) output, NaN where there is none.
+    title : str
+        Figure title.
     """
     fig, axes = _figure(2, 1, height=2.4, sharex=True)
     t = np.arange(data.n_samples) * data.ts
@@ -217,6 +223,8 @@ def residual_correlations(residual: np.ndarray, signals: Mapping[str, np.ndarray
         One-step prediction error (NaN where none).
     signals : mapping of str to ndarray of shape (n_samples,)
         Inputs and extra signals to correlate with.
+    max_lag : int
+        Largest lag shown.
     """
     n = int(np.isfinite(residual).sum())
     bound = 2.58 / math.sqrt(max(n, 1))
@@ -310,8 +318,12 @@ def error_by_signal(data, error: np.ndarray, names: Sequence[str], n_bins: int =
     error : ndarray of shape (n_samples,)
     names : sequence of str
         Signals to bin by (output, inputs, extra signals; ``"d<output>"`` is the output's rate).
+    n_bins : int
+        Number of equal-count bins.
     other : ndarray of shape (n_samples,), optional
         A second model's error, drawn for comparison.
+    labels : (str, str)
+        Legend labels of ``error`` and ``other``.
     """
     cols = 3
     rows = int(math.ceil(len(names) / cols)) or 1
@@ -343,6 +355,8 @@ def error_ladder(steps: Sequence[tuple[str, float]], metric: str = "validation R
     Parameters
     ----------
     steps : sequence of (label, value)
+    metric : str
+        Axis label: what the value measures.
     """
     fig, axes = _figure(1, 1, height=max(1.2 + 0.45 * len(steps), 2.2))
     ax = axes[0, 0]
