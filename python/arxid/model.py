@@ -565,10 +565,11 @@ class ArxModel:
             num = _format_poly(coefs) if b > 1 else f"{coefs[0]:.4g}"
             delay = f" z^-{k}" if k else ""
             width = max(len(num), len(den))
-            lhs = f"{self.output_name}(z) = " if j == 0 else " " * len(f"{self.output_name}(z) = ") + "+ "[: 0]
-            pad = " " * len(f"{self.output_name}(z) = ")
+            # Seed 004 eq. (29): y(z) = B(z)/A(z) u(z) z^-nk, one fraction per input or effect column.
+            lhs = f"{self.output_name}(z) = "
+            pad = " " * len(lhs)
             lines.append(pad + num.center(width))
-            lines.append(("" if j == 0 else "") + (lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z){delay}")
+            lines.append((lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z){delay}")
             lines.append(pad + den.center(width))
         for kind, power, mult in terms:
             coef = self.parameters_[c]
