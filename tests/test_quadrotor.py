@@ -19,7 +19,7 @@ TRUTH = QuadrotorParameters()
 
 @pytest.fixture(scope="module")
 def clean_flight():
-    return quadrotor_flight(seed=0, duration=12.0, effects={"noise": False})
+    return quadrotor_flight(seed=0, duration=12.0, effects={"noise": False, "turbulence": False})
 
 
 # ----------------------------------------------------------------------------- item 1: mixer
@@ -132,12 +132,12 @@ def test_rotational_gain_and_delay_from_noise_free_flight(clean_flight):
 
 
 def test_rotational_delay_follows_the_simulator():
-    d = quadrotor_flight(seed=0, duration=8.0, effects={"noise": False, "delay": False})
+    d = quadrotor_flight(seed=0, duration=8.0, effects={"noise": False, "turbulence": False, "delay": False})
     assert identify_rotational(quadrotor_axis(d, "roll")).model.delay == 1
 
 
 def test_rotational_needs_offset_with_mismatched_motors():
-    d = quadrotor_flight(seed=0, duration=12.0, effects={"noise": False, "motor_mismatch": True})
+    d = quadrotor_flight(seed=0, duration=12.0, effects={"noise": False, "turbulence": False, "motor_mismatch": True})
     ax = quadrotor_axis(d, "roll")
     plain = identify_rotational(ax)
     with_offset = identify_rotational(ax, offset=True)
@@ -152,7 +152,7 @@ def stand_split():
 
 
 def test_thrust_model_recovers_time_constant_and_static_map():
-    s = thrust_stand(seed=1, duration=30.0, ts=0.01, effects={"noise": False})
+    s = thrust_stand(seed=1, duration=30.0, ts=0.01, effects={"noise": False, "turbulence": False})
     m = fit_thrust_model(s, nu=2, nb=2, inputs=["duty"])
     # the true lag is the motor's linearised time constant near hover, ~ 1/(a1 + 2 a2 w)
     a0, a1, a2 = TRUTH.motor
@@ -241,7 +241,7 @@ def test_inertia_intervals_bound_every_admissible_body():
 
 # ----------------------------------------------------------------------------- item 6: structured LS
 def test_inertias_within_one_percent_noise_free():
-    d = quadrotor_flight(seed=4, duration=10.0, effects={"noise": False, "delay": False})
+    d = quadrotor_flight(seed=4, duration=10.0, effects={"noise": False, "turbulence": False, "delay": False})
     om = np.column_stack([d.signal(k) for k in "pqr"])
     acc = np.diff(om, axis=0) / d.ts
     tau = np.column_stack([d.signal(f"tau_{k}") for k in "xyz"])[:-1]
@@ -253,7 +253,7 @@ def test_inertias_within_one_percent_noise_free():
 
 
 def test_thrust_and_torque_coefficients_from_stand():
-    s = thrust_stand(seed=0, duration=20.0, effects={"noise": False})
+    s = thrust_stand(seed=0, duration=20.0, effects={"noise": False, "turbulence": False})
     k, b = thrust_torque_coefficients(s.signal("w1"), s.y / 4, s.signal("torque1"))
     assert k["k"] == pytest.approx(TRUTH.thrust_coefficient, rel=0.01)
     assert b["b"] == pytest.approx(TRUTH.drag_coefficient, rel=1e-6)

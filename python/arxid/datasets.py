@@ -21,7 +21,7 @@ __all__ = ["QuadrotorParameters", "DEFAULT_EFFECTS", "quadrotor_flight", "quadro
 
 #: Hidden effects of :func:`quadrotor_flight` and their defaults.
 DEFAULT_EFFECTS = {"battery_sag": True, "motor_mismatch": False, "gyroscopic": True, "delay": True,
-                   "noise": True}
+                   "noise": True, "turbulence": True}
 
 _G = 9.81
 PWM_FULL_SCALE = 65535.0
@@ -85,6 +85,17 @@ class QuadrotorParameters:
     avionics_current: float = 0.2
     nominal_voltage: float = 3.8
     delay_samples: int = 8
+    gyro_noise: float = 2.5e-3
+    tilt_noise: float = 5e-3
+    estimator_time_constant: float = 1.0
+    speed_noise: float = 1.0
+    vbat_noise: float = 5e-3
+    accel_noise: float = 0.05
+    turbulence: float = 1.5e-5
+    turbulence_time_constant: float = 0.01
+    pilot_amplitude: tuple = (0.10, 0.10, 0.05)
+    pilot_band: tuple = (1.0, 6.0)
+    pilot_sines: int = 8
 
     @property
     def roll_gain(self) -> float:
@@ -113,9 +124,11 @@ def _effects(effects) -> dict:
 
 
 def _sum_of_sines(rng, t, amplitude, f_lo, f_hi, n=5):
-    """Pilot-like excitation: n sines with random frequencies and phases, amplitudes falling as
-    1/f^2 as in seed 001 eq. 15 (equal acceleration content), normalised to ``amplitude`` RMS."""
-    f = np.sort(rng.uniform(f_lo, f_hi, n))
+    """Pilot-like excitation: n sines log-spaced over [f_lo, f_hi] (each jittered by up to 10 %)
+    with random phases, amplitudes falling as 1/f^2 as in seed 001 eq. 15 (equal acceleration
+    content), normalised to ``amplitude`` RMS. Log spacing keeps every seed's log equally rich in
+    the fast content that makes the delay identifiable."""
+    f = np.geomspace(f_lo, f_hi, n) * np.exp(rng.uniform(-0.1, 0.1, n))
     ph = rng.uniform(0, 2 * np.pi, n)
     a = 1.0 / f**2
     w = 2 * np.pi * f
@@ -213,23 +226,30 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
     t = np.arange(n) * ts
 
     # references: roll/pitch/yaw sums of sines, altitude from seed 001 eq. 15
-    phr, phrd = _sum_of_sines(rng, t, 0.10, 0.2, 2.0)
-    thr, thrd = _sum_of_sines(rng, t, 0.10, 0.2, 2.0)
-    psr, psrd = _sum_of_sines(rng, t, 0.25, 0.05, 0.5)
+    (a_r, a_p, a_y), (lo, hi) = par.pilot_amplitude, par.pilot_band
+    phr, phrd = _sum_of_sines(rng, t, a_r, lo, hi, par.pilot_sines)
+    thr, thrd = _sum_of_sines(rng, t, a_p, lo, hi, par.pilot_sines)
+    psr, psrd = _sum_of_sines(rng, t, a_y, 0.05, 0.5)
     zr, zrd, zrdd = _eq15(t)
 
     # noise, drawn up front so the loop stays lean and the log is the same with noise off
+    # (the draw order is fixed: switching an effect never changes the other random signals)
     ns = 1.0 if eff["noise"] else 0.0
-    sig = {"ang": 1e-3, "rate": 5e-3, "w": 1.0, "vbat": 5e-3, "az": 0.05}
-    noise = {k: ns * s * rng.standard_normal((n, 3) if k in ("ang", "rate") else ((n, 4) if k == "w" else n))
-             for k, s in sig.items()}
+    raw = {k: rng.standard_normal((n, 3) if k in ("tilt", "gyro") else ((n, 4) if k == "w" else n))
+           for k in ("tilt", "gyro", "w", "vbat", "az")}
     turb = rng.standard_normal((n, 3))
-    # turbulence torque: first-order low-pass (0.5 s) white noise, ~0.5 % of the control authority
-    alpha = math.exp(-ts / 0.5)
-    turb_f = np.zeros((n, 3))
-    for k in range(1, n):
-        turb_f[k] = alpha * turb_f[k - 1] + math.sqrt(1 - alpha * alpha) * turb[k]
-    turb_f *= ns * 5e-7
+    gyro_noise = ns * par.gyro_noise * raw["gyro"]
+    # attitude estimate: a complementary filter integrates the gyro and pulls towards the
+    # accelerometer's tilt with time constant estimator_time_constant; its error is the gyro noise
+    # integrated and the tilt noise low-passed (the linearised filter, exact for noise off)
+    beta = math.exp(-ts / par.estimator_time_constant)
+    from scipy.signal import lfilter
+
+    att_err = lfilter([1.0], [1.0, -beta], ts * gyro_noise + (1 - beta) * ns * par.tilt_noise * raw["tilt"], axis=0)
+    # turbulence torque: first-order low-pass white noise of RMS par.turbulence [N m]
+    alpha = math.exp(-ts / par.turbulence_time_constant)
+    turb_f = lfilter([math.sqrt(1 - alpha * alpha)], [1.0, -alpha], turb, axis=0)
+    turb_f *= par.turbulence if eff["turbulence"] else 0.0
 
     ixx, iyy, izz = par.inertia
     ir = par.rotor_inertia if eff["gyroscopic"] else 0.0
@@ -267,8 +287,8 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
     w = np.full(4, w_hover)
     drawn = 0.0
     current = 0.0
-    nang = noise["ang"]
-    nrate = noise["rate"]
+    nang = att_err
+    nrate = gyro_noise
     sin, cos, tan, sqrt, exp = math.sin, math.cos, math.tan, math.sqrt, math.exp
     wl = [w_hover] * 4
     for k in range(n):
@@ -354,13 +374,14 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
         wl = new
 
     idx = np.maximum(np.arange(n) - dm, 0)
-    ang_m = ang[idx] + noise["ang"]
-    rate_m = rate[idx] + noise["rate"]
+    ang_m = ang[idx] + att_err
+    rate_m = rate[idx] + gyro_noise
     sig_out = {
         "roll": ang_m[:, 0], "pitch": ang_m[:, 1], "yaw": ang_m[:, 2],
         "p": rate_m[:, 0], "q": rate_m[:, 1], "r": rate_m[:, 2],
-        **{f"w{i + 1}": W[:, i] + noise["w"][:, i] for i in range(4)},
-        "vbat": vb_log + noise["vbat"], "thrust": T_log, "az": T_log / mass + noise["az"],
+        **{f"w{i + 1}": W[:, i] + ns * par.speed_noise * raw["w"][:, i] for i in range(4)},
+        "vbat": vb_log + ns * par.vbat_noise * raw["vbat"], "thrust": T_log,
+        "az": T_log / mass + ns * par.accel_noise * raw["az"],
         "z": z_log, "tau_x": tau_log[:, 0], "tau_y": tau_log[:, 1], "tau_z": tau_log[:, 2],
         "roll_ref": phr, "pitch_ref": thr, "yaw_ref": psr, "current": cur_log,
     }

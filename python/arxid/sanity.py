@@ -14,8 +14,10 @@ flag                   meaning
                        for integrating expectations, whose response grows without bound)
 ``unstable``           a pole on or outside the unit circle while ``expect="stable"``
 ``not-growing``        ``expect="integrating"`` / ``"double-integrating"`` but the response
-                       at the end of the horizon is less than ``growth`` (``growth_double``)
-                       times the response at half the horizon
+                       at the end of the growth horizon is less than ``growth``
+                       (``growth_double``) times the response at half of it; the growth
+                       horizon ends where the response first leaves the measured output
+                       range (:func:`growth_horizon`)
 ``sign-change``        an integrating response that turns to the opposite sign after it has
                        reached ``sign_tolerance`` of its peak
 ``wrong-sign``         the response to a positive step ends with the sign opposite to
@@ -34,7 +36,7 @@ import numpy as np
 from .data import IOData
 from .exceptions import ArxidError
 
-__all__ = ["SanityLimits", "StepSanity", "step_sanity", "EXPECTATIONS"]
+__all__ = ["SanityLimits", "StepSanity", "step_sanity", "growth_horizon", "EXPECTATIONS"]
 
 EXPECTATIONS = (None, "stable", "integrating", "double-integrating")
 
@@ -54,8 +56,10 @@ class SanityLimits:
     antisymmetry : float
         Largest accepted ``max|step(a) + step(−a)| / max|step(a)|`` (default 0.05).
     growth, growth_double : float
-        Required ratio |s(end)| / |s(end/2)| for integrating (default 1.5; a pure integrator gives 2)
-        and double-integrating plants (default 3; a double integrator gives 4).
+        Required ratio |s(h)| / |s(h/2)| for integrating (default 1.5; a pure integrator gives 2)
+        and double-integrating plants (default 3; a double integrator gives 4), where ``h`` is the
+        growth horizon: the sample at which the response first leaves the measured output range
+        (at least ``2 * dead time + 8``, at most the whole response).
     sign_tolerance : float
         Excursions of the opposite sign smaller than this share of the peak are ignored (default 0.05).
     sign : {None, 1, -1}
@@ -144,6 +148,20 @@ def output_range(data: IOData) -> float:
     return float(hi - lo)
 
 
+def growth_horizon(response: np.ndarray, out_range: float) -> int:
+    """Samples over which an integrating step response is judged: until it first leaves the measured
+    output range (beyond it the data say nothing, and an estimated integrator's pole a hair inside
+    the unit circle levels the response off over a long record), but at least ``2 * dead time + 8``
+    samples, and at most the whole response."""
+    n = len(response)
+    moving = np.flatnonzero(response != 0)
+    if not moving.size or not out_range > 0:
+        return n
+    out = np.flatnonzero(np.abs(response) >= out_range)
+    h = int(out[0]) + 1 if out.size else n
+    return int(min(n, max(h, 2 * int(moving[0]) + 8)))
+
+
 def check_responses(structure: str, positive: list[np.ndarray], negative: list[np.ndarray], poles: np.ndarray,
                     *, out_range: float, amplitudes, expect: str | None, limits: SanityLimits) -> StepSanity:
     """Apply the checks to given step responses (one positive and one negative per input)."""
@@ -186,11 +204,13 @@ def check_responses(structure: str, positive: list[np.ndarray], negative: list[n
                 end = abs(float(pos[-1]))
                 sign_end = float(np.sign(pos[-1]))
             if integrating and horizon >= 4:
-                mid = abs(float(pos[horizon // 2]))
+                h = growth_horizon(pos, out_range) if finite else horizon
+                g_end = abs(float(pos[h - 1])) if finite else end
+                mid = abs(float(pos[h // 2]))
                 need = limits.growth if expect == "integrating" else limits.growth_double
-                if not (end >= need * mid) or end == 0:
+                if not (g_end >= need * mid) or g_end == 0:
                     flag("not-growing", f"expect={expect!r} but the step response on {label} is not growing "
-                                        f"(|s(end)| = {end:.3g}, |s(end/2)| = {mid:.3g}, need x{need:g})")
+                                        f"(|s({h})| = {g_end:.3g}, |s({h // 2})| = {mid:.3g}, need x{need:g})")
                 if finite and peak > 0:
                     big = np.flatnonzero(np.abs(pos) >= limits.sign_tolerance * peak)
                     if big.size:
