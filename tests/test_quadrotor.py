@@ -1,8 +1,5 @@
 """Known-answer tests of arxid.quadrotor (issue 5, seeds 000-004)."""
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -263,41 +260,4 @@ def test_thrust_and_torque_coefficients_from_stand():
     assert abs(k4["k"] - TRUTH.thrust_coefficient) < 4 * k4.stderr[0] + 1e-3 * TRUTH.thrust_coefficient
 
 
-# ----------------------------------------------------------------------------- real data
-def _real_csv() -> Path:
-    root = Path(os.environ.get("ARXID_SHARED_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
-    path = root / "crazyflie-thrust-stand" / "cf2.1-stock-prop.csv"
-    if not path.exists():
-        pytest.skip(f"real Crazyflie thrust-stand data not found at {path} (set ARXID_SHARED_DATA)")
-    return path
-
-
-@pytest.fixture(scope="module")
-def crazyflie():
-    pd = pytest.importorskip("pandas")
-    df = pd.read_csv(_real_csv())
-    return df
-
-
-@pytest.mark.realdata
-def test_real_thrust_follows_w2_better_than_linear(crazyflie):
-    df = crazyflie
-    w = df[[f"rpm{i}" for i in range(1, 5)]].to_numpy() * 2 * np.pi / 60
-    thrust = df["weight[g]"].to_numpy() * 9.81e-3
-    on = w.min(axis=1) > 100   # motors spinning
-    quad, _ = thrust_torque_coefficients(w[on], thrust[on])
-    lin = np.linalg.lstsq(w[on].sum(1)[:, None], thrust[on], rcond=None)
-    rms_lin = np.sqrt(lin[1][0] / on.sum())
-    assert quad.rms < 0.5 * rms_lin
-
-
-@pytest.mark.realdata
-def test_real_battery_term_improves_thrust_model(crazyflie):
-    df = crazyflie
-    d = IOData(df["weight[g]"].to_numpy() * 9.81e-3, df["pwm"].to_numpy() / 65535, 1.0, output_name="thrust",
-               input_names=("duty",), extra={"vbat": df["vbat[V]"].to_numpy()})
-    # estimate on the ramp up, validate on the ramp down (lower battery at the same pwm)
-    k = int(np.argmax(df["pwm"].to_numpy()))
-    table = thrust_model_class(d[:k], d[k:])
-    # seed 001's comparison: models 3 and 4 differ only by the battery term
-    assert table.row(1, 1).rms < 0.9 * table.row(1, 0).rms
+# Real Crazyflie thrust-stand tests (the w^2 law, the battery term) are in tests/test_seed004.py.
