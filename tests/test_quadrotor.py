@@ -249,6 +249,30 @@ def test_inertias_within_one_percent_noise_free():
     assert np.all(est.stderr[:3] < 0.01 * est.values[:3])
 
 
+def test_inertias_from_noisy_gyro_need_smoothing_and_the_delay():
+    """Default flight (gyro noise, turbulence, 8-sample sensor delay): differentiating raw gyro data
+    pulls the least-excited inertia (Izz) far low; smoothing both sides recovers it."""
+    d = quadrotor_flight(seed=4, duration=10.0)
+    om = np.column_stack([d.signal(k) for k in "pqr"])
+    tau = np.column_stack([d.signal(f"tau_{k}") for k in "xyz"])
+    truth = {"Ixx": TRUTH.inertia[0], "Iyy": TRUTH.inertia[1], "Izz": TRUTH.inertia[2]}
+    raw = inertia_from_rotation(om, None, tau, ts=d.ts, delay=TRUTH.delay_samples - 1).relative_error(truth)
+    assert raw["Izz"] < -0.5
+    smooth = inertia_from_rotation(om, None, tau, ts=d.ts, smoothing=51,
+                                   delay=TRUTH.delay_samples - 1).relative_error(truth)
+    assert abs(smooth["Ixx"]) < 0.005 and abs(smooth["Iyy"]) < 0.005 and abs(smooth["Izz"]) < 0.03
+    with pytest.raises(DataError, match="ts"):
+        inertia_from_rotation(om, None, tau)
+
+
+def test_rotational_delay_and_gain_from_default_noisy_flight():
+    d = quadrotor_flight(seed=1, duration=20.0)
+    fit = identify_rotational(quadrotor_axis(d, "roll"))
+    assert fit.model.delay == TRUTH.delay_samples
+    assert fit.model.gain == pytest.approx(TRUTH.roll_gain, rel=0.02)
+    assert fit.model.evaluate(quadrotor_axis(d, "pitch")).fit_percent > 99.0
+
+
 def test_thrust_and_torque_coefficients_from_stand():
     s = thrust_stand(seed=0, duration=20.0, effects={"noise": False, "turbulence": False})
     k, b = thrust_torque_coefficients(s.signal("w1"), s.y / 4, s.signal("torque1"))
