@@ -67,6 +67,25 @@ class QuadrotorParameters:
     delay_samples : int
         Samples from a motor-speed change to its first effect on the logged attitude (seed 004
         found ``nk = 8`` at 2 ms): one sample of sampling plus ``delay_samples - 1`` of sensor lag.
+    gyro_noise : float
+        Gyro white noise [rad/s] (a BMI088 after the Crazyflie's 80 Hz filter).
+    tilt_noise : float
+        Noise of the accelerometer's tilt angle [rad] that the attitude estimate leans on.
+    estimator_time_constant : float
+        Complementary-filter time constant [s]: the attitude estimate integrates the gyro and
+        follows the accelerometer tilt only this slowly, so its error is slow, not white.
+    speed_noise, vbat_noise, accel_noise : float
+        Noise of the logged motor speeds [rad/s], battery voltage [V] and ``az`` [m/s^2].
+    turbulence : float
+        RMS of the gust torque on each axis [N m] (``turbulence`` effect).
+    turbulence_time_constant : float
+        Correlation time of the gust torque [s] (first-order low-pass white noise).
+    pilot_amplitude : tuple of 3 float
+        RMS of the roll, pitch and yaw references [rad].
+    pilot_band : tuple of 2 float
+        Frequency band of the roll and pitch reference sines [Hz] (yaw: 0.05-0.5 Hz).
+    pilot_sines : int
+        Number of sines in the roll and pitch references.
     """
 
     mass: float = 0.027
@@ -181,7 +200,12 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
         ``delay`` (default on)
             The logged attitude and rates lag the motors: ``nk = delay_samples`` (8) instead of 1.
         ``noise`` (default on)
-            Sensor noise on every logged signal and a low-pass turbulence torque.
+            Sensor noise: gyro noise (logged in ``p, q, r`` and integrated by the attitude
+            estimate), accelerometer tilt noise (low-passed by the estimate), motor-speed,
+            battery-voltage and accelerometer noise. Off: the logged attitude is the true one.
+        ``turbulence`` (default on)
+            A broadband gust torque on every axis (``parameters.turbulence`` RMS, correlation
+            time ``turbulence_time_constant``), about 0.25 degrees of hover jitter.
     output : str
         Which logged signal becomes the output (``"roll"``, ``"pitch"``, ``"yaw"``, ``"az"``, ...).
     parameters : QuadrotorParameters, optional
@@ -204,7 +228,10 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
         Iyy q' = k l (w3^2 - w1^2) + (Izz - Ixx) p r + Ir p W
         Izz r' = b (-w1^2 + w2^2 - w3^2 + w4^2) + (Ixx - Iyy) p q,   W = -w1 + w2 - w3 + w4
 
-    with Euler-angle kinematics, integrated by semi-implicit Euler at ``ts``. Motors follow
+    with Euler-angle kinematics, integrated by semi-implicit Euler at ``ts``. The logged attitude
+    is a complementary filter's estimate (gyro integrated, pulled towards the accelerometer tilt
+    with ``estimator_time_constant``), delayed with the gyro by ``delay_samples - 1`` samples; the
+    controller flies on these logged values. Motors follow
     ``w' = a0 vbat d - a1 w - a2 w^2``, integrated exactly over each sample. A PID attitude
     controller (on the delayed measurements) and an altitude loop tracking seed 001's eq. 15
     compute thrust and torques, allocate them to squared speeds with the nominal parameters and
