@@ -40,13 +40,18 @@ pub fn reduce(d: &Data, s: &Structure, rows: &[usize], parallel: bool) -> Mat<f6
     let q = p + 1;
     let block_r = |block: &[usize]| -> Mat<f64> {
         let mut a = Mat::<f64>::zeros(block.len(), q);
-        let mut row = vec![0.0; p];
-        for (r, &t) in block.iter().enumerate() {
-            fill_row(d, s, t, &mut row);
-            for (c, &v) in row.iter().enumerate() {
-                a[(r, c)] = v;
+        if s.output_terms.is_empty() {
+            // Column by column: every column is the output or an input read at a fixed lag.
+            fill_block_columns(d, s, block, &mut a);
+        } else {
+            let mut row = vec![0.0; p];
+            for (r, &t) in block.iter().enumerate() {
+                fill_row(d, s, t, &mut row);
+                for (c, &v) in row.iter().enumerate() {
+                    a[(r, c)] = v;
+                }
+                a[(r, p)] = d.y[t];
             }
-            a[(r, p)] = d.y[t];
         }
         qr_r_in_place(a.as_mut());
         take_r(&a, q)
@@ -57,6 +62,28 @@ pub fn reduce(d: &Data, s: &Structure, rows: &[usize], parallel: bool) -> Mat<f6
         rows.chunks(BLOCK_ROWS).map(block_r).collect()
     };
     stack_and_reduce(&blocks, q)
+}
+
+/// Writes `[Φ | y]` of a linear structure for the rows `block` into `a`, one contiguous column at a
+/// time (the same values [`fill_row`] gives, without a per-element gather into a column-major matrix).
+fn fill_block_columns(d: &Data, s: &Structure, block: &[usize], a: &mut Mat<f64>) {
+    fn put(a: &mut Mat<f64>, c: usize, block: &[usize], f: impl Fn(usize) -> f64) {
+        for (dst, &t) in a.col_as_slice_mut(c).iter_mut().zip(block) {
+            *dst = f(t);
+        }
+    }
+    let mut c = 0;
+    for i in 1..=s.na {
+        put(a, c, block, |t| -d.y[t - i]);
+        c += 1;
+    }
+    for (i, (&b, &k)) in s.nb.iter().zip(&s.nk).enumerate() {
+        for j in 0..b {
+            put(a, c, block, |t| d.u[(t - k - j) * d.m + i]);
+            c += 1;
+        }
+    }
+    put(a, c, block, |t| d.y[t]);
 }
 
 /// Stacks square upper-triangular factors and returns the R of the stack.

@@ -195,7 +195,7 @@ pub fn free_run_rms_linear(
 /// Structures simulated side by side by [`free_run_rms_lanes`] (one SIMD lane each).
 pub const LANES: usize = 8;
 
-/// Samples per time block: the input (FIR) part of a block is computed first, then the recursion.
+/// Samples per divergence check.
 const BLOCK: usize = 1024;
 
 #[inline(always)]
@@ -246,12 +246,31 @@ pub fn free_run_rms_lanes(
     let lag = models.iter().map(|(s, _)| s.max_lag()).fold(first_lag, usize::max);
     #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
     {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { lanes_avx512(d, ucol, models, na, lag, limit) };
+        }
         if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
             // SAFETY: the CPU supports the features the function is compiled for.
             return unsafe { lanes_avx2(d, ucol, models, na, lag, limit) };
         }
     }
     lanes_dispatch::<false>(d, ucol, models, na, lag, limit)
+}
+
+/// AVX-512: one register holds all lanes, and 32 registers keep the output history of
+/// every lane out of memory.
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn lanes_avx512(
+    d: &Data,
+    ucol: &[f64],
+    models: &[(&Structure, &[f64])],
+    na: usize,
+    lag: usize,
+    limit: f64,
+) -> Vec<SimScore> {
+    lanes_dispatch::<true>(d, ucol, models, na, lag, limit)
 }
 
 #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
@@ -289,7 +308,11 @@ fn lanes_dispatch<const FMA: bool>(
 
 /// Lane coefficients and bookkeeping shared by the fixed-na and the general kernel.
 struct LaneState {
+    /// `-a_i` per lane.
     neg_a: Vec<[f64; LANES]>,
+    /// Per input: the smallest lag any lane reads and, for each lag from there, the lanes' b
+    /// coefficient (zero where a lane does not use that lag).
+    fir: Vec<(usize, Vec<[f64; LANES]>)>,
     active: [bool; LANES],
     sse: [f64; LANES],
     n: [usize; LANES],
@@ -297,7 +320,7 @@ struct LaneState {
 }
 
 impl LaneState {
-    fn new(models: &[(&Structure, &[f64])], na: usize) -> Self {
+    fn new(models: &[(&Structure, &[f64])], na: usize, m: usize) -> Self {
         let mut neg_a = vec![[0.0; LANES]; na];
         let mut active = [false; LANES];
         for (l, (_, th)) in models.iter().enumerate() {
@@ -306,49 +329,50 @@ impl LaneState {
                 a[l] = -th[i];
             }
         }
-        LaneState { neg_a, active, sse: [0.0; LANES], n: [0; LANES], diverged: [false; LANES] }
+        let mut fir = Vec::with_capacity(m);
+        let mut offset: Vec<usize> = models.iter().map(|(s, _)| s.na).collect();
+        for i in 0..m {
+            let used = models.iter().filter(|(s, _)| s.nb[i] > 0);
+            let lo = used.clone().map(|(s, _)| s.nk[i]).min();
+            let hi = used.map(|(s, _)| s.nk[i] + s.nb[i] - 1).max();
+            let (Some(lo), Some(hi)) = (lo, hi) else {
+                fir.push((0, Vec::new()));
+                continue;
+            };
+            let mut c = vec![[0.0; LANES]; hi - lo + 1];
+            for (l, (s, th)) in models.iter().enumerate() {
+                for j in 0..s.nb[i] {
+                    c[s.nk[i] + j - lo][l] = th[offset[l] + j];
+                }
+                offset[l] += s.nb[i];
+            }
+            fir.push((lo, c));
+        }
+        LaneState { neg_a, fir, active, sse: [0.0; LANES], n: [0; LANES], diverged: [false; LANES] }
     }
 
-    /// Input part of block `[t0, t0 + len)` for every active lane, lane-minor in `fir`.
+    /// Input (FIR) part at time `t` for every lane: lags in ascending order, as in the one-structure
+    /// path, so each lane computes exactly what it would alone.
     #[inline(always)]
-    fn fir<const FMA: bool>(
-        &self,
-        d: &Data,
-        ucol: &[f64],
-        models: &[(&Structure, &[f64])],
-        t0: usize,
-        len: usize,
-        lane_buf: &mut [f64],
-        fir: &mut [[f64; LANES]],
-    ) {
-        let n = d.len();
-        for (l, (s, th)) in models.iter().enumerate() {
-            let buf = &mut lane_buf[..len];
-            buf.fill(0.0);
-            if self.active[l] {
-                let mut c = s.na;
-                for (i, (&nb, &nk)) in s.nb.iter().zip(&s.nk).enumerate() {
-                    let col = &ucol[i * n..(i + 1) * n];
-                    for j in 0..nb {
-                        let b = th[c];
-                        c += 1;
-                        let src = &col[t0 - nk - j..t0 - nk - j + len];
-                        for (f, &u) in buf.iter_mut().zip(src) {
-                            *f = madd::<FMA>(b, u, *f);
-                        }
-                    }
+    fn input_part<const FMA: bool>(&self, ucol: &[f64], n: usize, t: usize) -> [f64; LANES] {
+        let mut v = [0.0; LANES];
+        for (i, (lo, c)) in self.fir.iter().enumerate() {
+            if c.is_empty() {
+                continue;
+            }
+            // u_i(t - hi) ..= u_i(t - lo), read newest first.
+            let window = &ucol[i * n + t + 1 - lo - c.len()..i * n + t + 1 - lo];
+            for (cl, &x) in c.iter().zip(window.iter().rev()) {
+                for l in 0..LANES {
+                    v[l] = madd::<FMA>(cl[l], x, v[l]);
                 }
             }
-            for (k, f) in buf.iter().enumerate() {
-                fir[k][l] = *f;
-            }
         }
-        for row in fir[len..].iter_mut() {
-            *row = [0.0; LANES];
-        }
+        v
     }
 
-    /// Folds one block's per-lane sums in; stops lanes that diverged. Returns whether any lane is left.
+    /// Folds one block's per-lane sums in; stops lanes that diverged (their coefficients are zeroed
+    /// so they idle at 0). Returns the lanes stopped.
     fn close_block(&mut self, sse: &[f64; LANES], mx: &[f64; LANES], len: usize, limit: f64) -> Vec<usize> {
         let mut stopped = Vec::new();
         for l in 0..LANES {
@@ -360,6 +384,11 @@ impl LaneState {
                 self.diverged[l] = true;
                 for a in self.neg_a.iter_mut() {
                     a[l] = 0.0;
+                }
+                for (_, c) in self.fir.iter_mut() {
+                    for cl in c.iter_mut() {
+                        cl[l] = 0.0;
+                    }
                 }
                 stopped.push(l);
             } else {
@@ -380,14 +409,22 @@ impl LaneState {
                 if self.diverged[l] {
                     SimScore { rms: f64::NAN, n: self.n[l], diverged: true }
                 } else {
-                    SimScore {
-                        rms: if self.n[l] > 0 { (self.sse[l] / self.n[l] as f64).sqrt() } else { f64::NAN },
-                        n: self.n[l],
-                        diverged: false,
-                    }
+                    let rms = if self.n[l] > 0 { (self.sse[l] / self.n[l] as f64).sqrt() } else { f64::NAN };
+                    SimScore { rms, n: self.n[l], diverged: false }
                 }
             })
             .collect()
+    }
+}
+
+/// Error and peak bookkeeping of one simulated sample.
+#[inline(always)]
+fn account<const FMA: bool>(yk: f64, v: &[f64; LANES], sse: &mut [f64; LANES], mx: &mut [f64; LANES]) {
+    for l in 0..LANES {
+        let e = yk - v[l];
+        sse[l] = madd::<FMA>(e, e, sse[l]);
+        let av = v[l].abs();
+        mx[l] = if av > mx[l] { av } else { mx[l] };
     }
 }
 
@@ -399,11 +436,8 @@ fn lanes_kernel<const NA: usize, const FMA: bool>(
     lag: usize,
     limit: f64,
 ) -> Vec<SimScore> {
-    let mut st = LaneState::new(models, NA);
-    let mut a = [[0.0; LANES]; NA];
-    a.copy_from_slice(&st.neg_a);
-    let mut lane_buf = vec![0.0; BLOCK];
-    let mut fir = vec![[0.0; LANES]; BLOCK];
+    let n = d.len();
+    let mut st = LaneState::new(models, NA, d.m);
     'segments: for (sa, sb) in d.segments() {
         let start = sa + lag;
         if start >= sb {
@@ -417,37 +451,32 @@ fn lanes_kernel<const NA: usize, const FMA: bool>(
         let mut t0 = start;
         while t0 < sb {
             let len = BLOCK.min(sb - t0);
-            st.fir::<FMA>(d, ucol, models, t0, len, &mut lane_buf, &mut fir);
+            // Local copies with constant indices only: they live in registers.
+            let mut hl = h;
+            let mut a = [[0.0; LANES]; NA];
+            a.copy_from_slice(&st.neg_a);
             let mut sse = [0.0; LANES];
             let mut mx = [0.0; LANES];
-            for (k, f) in fir[..len].iter().enumerate() {
-                let yk = d.y[t0 + k];
-                let mut v = *f;
+            for t in t0..t0 + len {
+                let mut v = st.input_part::<FMA>(ucol, n, t);
                 // Oldest lags first: only the last multiply-add waits for the newest output.
                 for i in (0..NA).rev() {
                     for l in 0..LANES {
-                        v[l] = madd::<FMA>(a[i][l], h[i][l], v[l]);
+                        v[l] = madd::<FMA>(a[i][l], hl[i][l], v[l]);
                     }
                 }
                 for i in (1..NA).rev() {
-                    h[i] = h[i - 1];
+                    hl[i] = hl[i - 1];
                 }
                 if NA > 0 {
-                    h[0] = v;
+                    hl[0] = v;
                 }
-                for l in 0..LANES {
-                    let e = yk - v[l];
-                    sse[l] = madd::<FMA>(e, e, sse[l]);
-                    let av = v[l].abs();
-                    mx[l] = if av > mx[l] { av } else { mx[l] };
-                }
+                account::<FMA>(d.y[t], &v, &mut sse, &mut mx);
             }
+            h = hl;
             for l in st.close_block(&sse, &mx, len, limit) {
                 for hi in h.iter_mut() {
                     hi[l] = 0.0;
-                }
-                for ai in a.iter_mut() {
-                    ai[l] = 0.0;
                 }
             }
             if !st.any_active() {
@@ -469,9 +498,8 @@ fn lanes_kernel_dyn<const FMA: bool>(
     lag: usize,
     limit: f64,
 ) -> Vec<SimScore> {
-    let mut st = LaneState::new(models, na);
-    let mut lane_buf = vec![0.0; BLOCK];
-    let mut fir = vec![[0.0; LANES]; BLOCK];
+    let n = d.len();
+    let mut st = LaneState::new(models, na, d.m);
     'segments: for (sa, sb) in d.segments() {
         let start = sa + lag;
         if start >= sb {
@@ -484,12 +512,10 @@ fn lanes_kernel_dyn<const FMA: bool>(
         let mut t0 = start;
         while t0 < sb {
             let len = BLOCK.min(sb - t0);
-            st.fir::<FMA>(d, ucol, models, t0, len, &mut lane_buf, &mut fir);
             let mut sse = [0.0; LANES];
             let mut mx = [0.0; LANES];
-            for (k, f) in fir[..len].iter().enumerate() {
-                let yk = d.y[t0 + k];
-                let mut v = *f;
+            for t in t0..t0 + len {
+                let mut v = st.input_part::<FMA>(ucol, n, t);
                 for i in (0..na).rev() {
                     for l in 0..LANES {
                         v[l] = madd::<FMA>(st.neg_a[i][l], h[i][l], v[l]);
@@ -497,12 +523,7 @@ fn lanes_kernel_dyn<const FMA: bool>(
                 }
                 h.copy_within(0..na - 1, 1);
                 h[0] = v;
-                for l in 0..LANES {
-                    let e = yk - v[l];
-                    sse[l] = madd::<FMA>(e, e, sse[l]);
-                    let av = v[l].abs();
-                    mx[l] = if av > mx[l] { av } else { mx[l] };
-                }
+                account::<FMA>(d.y[t], &v, &mut sse, &mut mx);
             }
             for l in st.close_block(&sse, &mx, len, limit) {
                 for hi in h.iter_mut() {

@@ -97,6 +97,17 @@ fn rss_from_r(r: &[f64], q: usize, cols: &[usize], theta: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum()
 }
 
+/// Regression rows of the envelope: every sample from `first_lag` into each experiment when the data
+/// are complete (no per-row check needed), else the rows [`usable_rows`] keeps.
+fn rows_of(d: &Data, env: &Structure, first_lag: usize) -> Vec<usize> {
+    if env.output_terms.is_empty() && d.y.iter().all(|v| v.is_finite()) && d.u.iter().all(|v| v.is_finite()) {
+        let lag = first_lag.max(env.max_lag());
+        d.segments().into_iter().flat_map(|(a, b)| (a + lag).min(b)..b).collect()
+    } else {
+        usable_rows(d, env, first_lag).0
+    }
+}
+
 /// Whether the lane kernel applies: free run of linear structures on finite data.
 fn lanes_apply(d: &Data, env: &Structure, opts: &SweepOptions) -> bool {
     opts.horizon.is_none()
@@ -155,7 +166,7 @@ pub fn sweep(
     }
     let first_lag = env.max_lag();
     let q = env.n_params() + 1;
-    let (rows, _) = usable_rows(est, &env, first_lag);
+    let rows = rows_of(est, &env, first_lag);
     if rows.len() < q {
         return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
     }
@@ -167,7 +178,7 @@ pub fn sweep(
             if v.m != est.m {
                 return Err(ArxError::ShapeMismatch { what: "validation inputs".into(), expected: est.m, got: v.m });
             }
-            let (vrows, _) = usable_rows(v, &env, first_lag);
+            let vrows = rows_of(v, &env, first_lag);
             let n = vrows.len();
             (Some(to_col_major(&reduce(v, &env, &vrows, opts.parallel))), n)
         }
@@ -210,7 +221,11 @@ pub fn sweep(
     let ucol_est = if lanes_est { Some(input_columns(est)) } else { None };
     let ucol_val = if lanes_val { Some(input_columns(val.unwrap_or(est))) } else { None };
     let mut order: Vec<usize> = (0..structures.len()).filter(|&i| out[i].error.is_none()).collect();
-    order.sort_by_key(|&i| (structures[i].na, i));
+    // Same na in a group; neighbouring delays and orders so the lanes share most input lags.
+    order.sort_by(|&i, &j| {
+        let (a, b) = (&structures[i], &structures[j]);
+        (a.na, &a.nk, &a.nb, i).cmp(&(b.na, &b.nk, &b.nb, j))
+    });
     let width = if lanes_est || lanes_val { LANES } else { 1 };
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for &i in &order {
