@@ -98,32 +98,48 @@ def vectorised(y, u, yv, uv, structures, lag):
     return out
 
 
-def peak_rss_during(fn) -> int:
-    """Peak resident memory above the starting one while fn runs (sampled every 2 ms)."""
-    import threading
+_PEAK_CHILD = r"""
+import os, sys, threading, time
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from sweep_vs_numpy import make_data, NA, NB, NK
+import arxid
+arxid.sweep(arxid.IOData(*make_data(2000, 5), ts=0.01), na=range(1, 3), nb=1, nk=range(0, 2), validation=0.5,
+            progress=False)  # imports and thread pool outside the measurement
+y, u = make_data(200_000, 1)
+yv, uv = make_data(200_000, 2)
+est, val = arxid.IOData(y, u, ts=0.01), arxid.IOData(yv, uv, ts=0.01)
+page = os.sysconf("SC_PAGE_SIZE")
+def rss():
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * page
+base = rss()
+peak = [base]
+done = threading.Event()
+def sample():
+    while not done.is_set():
+        peak[0] = max(peak[0], rss())
+        time.sleep(0.001)
+th = threading.Thread(target=sample)
+th.start()
+arxid.sweep(est, na=NA, nb=NB, nk=NK, validation=val, progress=False, simulate_estimation=False)
+done.set()
+th.join()
+print(max(peak[0], rss()) - base)
+"""
 
-    def rss():
-        with open("/proc/self/statm") as fh:
-            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    try:
-        base = rss()
-    except OSError:
+
+def peak_rss_of_sweep() -> int:
+    """Peak resident memory a fresh process gains while running the benchmark sweep (sampled
+    every millisecond), or -1 where /proc is not available."""
+    import subprocess
+    import sys
+
+    if not os.path.exists("/proc/self/statm"):
         return -1
-    peak = [base]
-    done = threading.Event()
-
-    def sample():
-        while not done.is_set():
-            peak[0] = max(peak[0], rss())
-            time.sleep(0.002)
-    th = threading.Thread(target=sample)
-    th.start()
-    try:
-        fn()
-    finally:
-        done.set()
-        th.join()
-    return max(peak[0], rss()) - base
+    out = subprocess.run([sys.executable, "-c", _PEAK_CHILD, os.path.dirname(os.path.abspath(__file__))],
+                         capture_output=True, text=True, check=True)
+    return int(out.stdout.strip().splitlines()[-1])
 
 
 def main():
@@ -183,9 +199,9 @@ def main():
     print(f"  fit / Gram pass: {t_fit / t_gram:5.2f}   (target < 3; vs Phi^T Phi alone {t_fit / t_gram_mm:.2f})")
     print()
     inputs = (y.nbytes + u.nbytes + yv.nbytes + uv.nbytes)
-    peak = peak_rss_during(run_arxid)
+    peak = peak_rss_of_sweep()
     if peak >= 0:
-        print(f"  peak memory of arxid.sweep above its inputs: {peak / 2**20:.1f} MiB "
+        print(f"  peak memory of arxid.sweep above its inputs (fresh process): {peak / 2**20:.1f} MiB "
               f"(inputs {inputs / 2**20:.1f} MiB; target < 2 x inputs + O(threads N))")
     print()
     print("  scaling (arxid, same grid; 'solve' = fit part minus one TSQR of the largest regressor):")

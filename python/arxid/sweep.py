@@ -121,7 +121,7 @@ class SweepResult:
         Validation fit in percent, 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), of the same simulation.
     fpe, aic, bic : ndarray of shape (S,)
         Akaike's FPE, AIC and BIC of the estimation fit (MATLAB's definitions).
-    stable : ndarray of bool, max_pole : ndarray
+    stable : ndarray of bool, max_pole : ndarray (properties, computed on first use)
         All poles inside the unit circle; largest pole magnitude.
     diverged_est, diverged_val : ndarray of bool
         The simulation left a plausible range and was stopped (its RMS is NaN, not a number).
@@ -151,8 +151,6 @@ class SweepResult:
     fpe: np.ndarray
     aic: np.ndarray
     bic: np.ndarray
-    stable: np.ndarray
-    max_pole: np.ndarray
     diverged_est: np.ndarray
     diverged_val: np.ndarray
     errors: tuple
@@ -190,6 +188,21 @@ class SweepResult:
         if isinstance(i, bool) or not isinstance(i, numbers.Integral) or not -len(self) <= i < len(self):
             raise ArxidError(f"rank {i!r} is outside the sweep (0..{len(self) - 1})")
         return int(i) % len(self)
+
+    @property
+    def max_pole(self) -> np.ndarray:
+        """Largest pole magnitude of every structure, shape (S,)."""
+        if "max_pole" not in self._cache:
+            theta = np.full((len(self), max(int(self.na.max()), 1)), np.nan)
+            for i, (th, k) in enumerate(zip(self.parameters, self.na)):
+                theta[i, :k] = th[:k]
+            self._cache["max_pole"] = _max_poles(self.na, theta)
+        return self._cache["max_pole"]
+
+    @property
+    def stable(self) -> np.ndarray:
+        """All poles strictly inside the unit circle, shape (S,)."""
+        return self.max_pole < 1.0
 
     # ------------------------------------------------------------------ models
     def model(self, i: int = 0) -> "ArxModel":
@@ -584,9 +597,12 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
     if not rows:
         raise OrderError("the grid has no structure with a parameter: use na >= 1 or nb >= 1")
     grid = np.array(rows, dtype=np.int64)
-    lay_est = compile_effects(effects, est, list(user_nb[0]), list(user_nk[0]))
-    lay_val = compile_effects(effects, val, list(user_nb[0]), list(user_nk[0])) if val is not None else None
-    terms = list(lay_est.output_terms)
+    # Without effects the core reads the inputs in place (no copy of the data).
+    lay_est = compile_effects(effects, est, list(user_nb[0]), list(user_nk[0])) if effects else None
+    lay_val = compile_effects(effects, val, list(user_nb[0]), list(user_nk[0])) if effects and val is not None else None
+    u_est = lay_est.u if lay_est is not None else np.ascontiguousarray(est.u, dtype=float)
+    u_val = None if val is None else (lay_val.u if lay_val is not None else np.ascontiguousarray(val.u, dtype=float))
+    terms = list(lay_est.output_terms) if lay_est is not None else []
     first_lag = 0
     for r in rows:
         mc = (len(r) - 1) // 2
@@ -603,8 +619,7 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
     if integrating:
         k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
 
-    y_scale = max(float(np.nanmax(np.abs(est.y))) if est.n_samples else 0.0,
-                  float(np.nanmax(np.abs(val.y))) if val is not None else 0.0, 1e-300)
+    y_scale = max(_peak(est.y), _peak(val.y) if val is not None else 0.0, 1e-300)
     chunk = max(64, (len(rows) // 100) // 8 * 8)
 
     def run(k):
@@ -619,9 +634,9 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
 
         try:
             return _core.sweep(
-                np.ascontiguousarray(est.y), lay_est.u, list(est.experiment_starts), grid, terms,
+                np.ascontiguousarray(est.y), u_est, list(est.experiment_starts), grid, terms,
                 yv=np.ascontiguousarray(val.y) if val is not None else None,
-                uv=lay_val.u if lay_val is not None else None,
+                uv=u_val,
                 starts_v=list(val.experiment_starts) if val is not None else None,
                 simulate_estimation=bool(simulate_estimation), horizon=k, divergence_limit=1e3 * y_scale,
                 n_threads=n_threads, chunk=chunk, progress=report if bar is not None else None,
@@ -642,6 +657,11 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
                          sort_by, effects, expect, limits or SanityLimits(), m)
 
 
+def _peak(y: np.ndarray) -> float:
+    """Largest |y| (ignoring NaN) without a temporary copy of y."""
+    return float(max(np.nanmax(y), -np.nanmin(y))) if y.size else 0.0
+
+
 def _fpe(rss, n, grid, n_terms):
     mc = (grid.shape[1] - 1) // 2
     p = grid[:, 0] + grid[:, 1:1 + mc].sum(axis=1) + n_terms
@@ -653,7 +673,17 @@ def _fpe(rss, n, grid, n_terms):
 def _scored_norm(d: IOData, lag: int) -> float:
     """‖y − ȳ‖ over the samples a sweep scores (from ``lag`` into each experiment, finite)."""
     parts = [d.y[a + lag:b] for a, b in d.segments if b > a + lag]
-    y = np.concatenate(parts) if parts else np.zeros(0)
+    if not parts:
+        return math.nan
+    if all(np.isfinite(p).all() for p in parts):
+        # Σy² − nȳ² on views (no copy of the data), unless cancellation would cost accuracy.
+        n = sum(len(p) for p in parts)
+        total = sum(float(p.sum()) for p in parts)
+        sq = sum(float(np.dot(p, p)) for p in parts)
+        centred = sq - total * total / n
+        if centred > 1e-6 * sq:
+            return math.sqrt(centred)
+    y = np.concatenate(parts)
     y = y[np.isfinite(y)]
     return float(np.linalg.norm(y - y.mean())) if y.size else math.nan
 
@@ -703,8 +733,6 @@ def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_ste
             fit_val = 100.0 * (1.0 - rms_val * np.sqrt(np.asarray(res["n_sim_val"])) / norm)
     else:
         fit_val = np.full(s, np.nan)
-    max_pole = _max_poles(na, theta_all)
-    stable = max_pole < 1.0
     key = sort_by
     if val is None and key in ("val_sim", "val_one_step"):
         key = "est_sim" if key == "val_sim" else "est_one_step"
@@ -720,7 +748,7 @@ def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_ste
         na=na[order], nb=nbm[order], nk=nkm[order], parameters=params, n_params=p[order],
         rms_est_one_step=rms_est_one[order], rms_val_one_step=rms_val_one[order], rms_est=rms_est[order],
         rms_val=rms_val[order], fit_val=fit_val[order], fpe=fpe[order], aic=aic[order], bic=bic[order],
-        stable=stable[order], max_pole=max_pole[order], diverged_est=div_est[order], diverged_val=div_val[order],
+        diverged_est=div_est[order], diverged_val=div_val[order],
         errors=tuple(errors[i] for i in order), horizon=k_step, integrating=integrating, integrating_reason=reason,
         sort_by=key, first_lag=first_lag, n_est=n_est, n_val=n_val, effects=effects, expect=expect, limits=limits,
         estimation=est, validation=val,
