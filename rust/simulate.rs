@@ -60,8 +60,8 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
         }
         match horizon {
             Some(k) if k <= 1 => {
-                for t in start..b {
-                    out[t] = step(d, s, theta, t, &|i| d.y[t - i]);
+                for (t, o) in out.iter_mut().enumerate().take(b).skip(start) {
+                    *o = step(d, s, theta, t, &|i| d.y[t - i]);
                 }
             }
             None => {
@@ -172,10 +172,9 @@ pub fn free_run_rms_linear(
             for i in 0..na {
                 v -= a[i] * h[i];
             }
+            // NaN must count as diverged, hence the negated comparison.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
             if !(v.abs() <= limit) {
-                if v.is_nan() && d.y[start + idx].is_nan() {
-                    // A missing sample, not a divergence: handled by the generic path.
-                }
                 return SimScore { rms: f64::NAN, n: count, diverged: true };
             }
             if na > 0 {
@@ -379,7 +378,10 @@ impl LaneState {
             if !self.active[l] {
                 continue;
             }
-            if !(mx[l] <= limit) || !sse[l].is_finite() {
+            // NaN must count as diverged, hence the negated comparison.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let diverged = !(mx[l] <= limit) || !sse[l].is_finite();
+            if diverged {
                 self.active[l] = false;
                 self.diverged[l] = true;
                 for a in self.neg_a.iter_mut() {
@@ -616,5 +618,54 @@ mod tests {
         }
         assert!(lanes[0].rms < 1e-9);
         assert!(lanes[2].diverged && lanes[2].rms.is_nan());
+    }
+}
+
+#[cfg(test)]
+mod perf_probe {
+    use super::*;
+
+    /// Fixed work for `perf stat` comparisons of the lane kernel (ignored by default).
+    #[test]
+    #[ignore]
+    fn lanes_fixed_work() {
+        let n = 200_000;
+        let mut seed = 5u64;
+        let u: Vec<f64> = (0..n)
+            .map(|_| {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+            })
+            .collect();
+        let mut y = vec![0.0; n];
+        for t in 4..n {
+            y[t] = 1.5 * y[t - 1] - 0.7 * y[t - 2] + 0.5 * u[t - 3];
+        }
+        let starts = [0];
+        let d = Data::new(&y, &u, 1, &starts).unwrap();
+        let ucol = input_columns(&d);
+        let mut total = 0.0;
+        for na in 1..=10 {
+            let grid: Vec<Structure> = (0..=10)
+                .flat_map(|k| (1..=10).map(move |b| Structure::new(na, vec![b], vec![k], vec![]).unwrap()))
+                .collect();
+            let thetas: Vec<Vec<f64>> = grid
+                .iter()
+                .map(|s| {
+                    let mut th = vec![0.0; s.n_params()];
+                    th[0] = -0.9;
+                    th[na] = 0.1;
+                    th
+                })
+                .collect();
+            for chunk in (0..grid.len()).collect::<Vec<_>>().chunks(LANES) {
+                let models: Vec<(&Structure, &[f64])> =
+                    chunk.iter().map(|&i| (&grid[i], thetas[i].as_slice())).collect();
+                for sc in free_run_rms_lanes(&d, &ucol, &models, 20, 1e6) {
+                    total += sc.rms;
+                }
+            }
+        }
+        assert!(total.is_finite());
     }
 }
