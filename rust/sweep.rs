@@ -1,6 +1,8 @@
 //! Exhaustive order sweep: one QR reduction of the largest regressor, then every structure solved
 //! from its columns of R at a cost independent of the number of samples, and simulated in parallel.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
@@ -147,7 +149,8 @@ fn simulate_group(
 /// [`LANES`](crate::simulate::LANES) with the same `na` side by side, the others one by one.
 /// Groups are formed from the grid alone, so results do not depend on the number of threads.
 ///
-/// `progress(done)` is called after each chunk of about `opts.chunk` simulated structures.
+/// `progress(done)` is called about every `opts.chunk` simulated structures (from a worker thread,
+/// possibly out of order) and once at the end with the total.
 ///
 /// # Errors
 /// `InvalidStructure` for an empty or inconsistent grid, `ShapeMismatch` when the validation data
@@ -248,30 +251,35 @@ pub fn sweep(
         };
         se.into_iter().zip(sv).collect()
     };
-    let per_chunk = (opts.chunk.max(1) / width).max(1);
-    let mut done = structures.len() - order.len();
-    let mut scores: Vec<(usize, SimScore, SimScore)> = Vec::with_capacity(order.len());
-    for block in groups.chunks(per_chunk) {
-        let res: Vec<Vec<(SimScore, SimScore)>> = if opts.parallel {
-            block.par_iter().map(run_group).collect()
-        } else {
-            block.iter().map(run_group).collect()
-        };
-        for (g, r) in block.iter().zip(res) {
-            done += g.len();
-            for (&i, (se, sv)) in g.iter().zip(r) {
-                scores.push((i, se, sv));
-            }
+    // No barrier between progress reports: each group adds to a counter when it finishes, and the
+    // group that crosses a multiple of `chunk` reports (from whichever thread ran it).
+    let chunk = opts.chunk.max(1);
+    let done = AtomicUsize::new(structures.len() - order.len());
+    let run_and_report = |g: &Vec<usize>| {
+        let r = run_group(g);
+        let before = done.fetch_add(g.len(), Ordering::Relaxed);
+        let after = before + g.len();
+        if after / chunk > before / chunk && after < structures.len() {
+            progress(after);
         }
-        progress(done);
+        r
+    };
+    let res: Vec<Vec<(SimScore, SimScore)>> = if opts.parallel {
+        groups.par_iter().map(run_and_report).collect()
+    } else {
+        groups.iter().map(run_and_report).collect()
+    };
+    let mut scores: Vec<(usize, SimScore, SimScore)> = Vec::with_capacity(order.len());
+    for (g, r) in groups.iter().zip(res) {
+        for (&i, (se, sv)) in g.iter().zip(r) {
+            scores.push((i, se, sv));
+        }
     }
     for (i, se, sv) in scores {
         out[i].sim_est = se;
         out[i].sim_val = sv;
     }
-    if groups.is_empty() {
-        progress(structures.len());
-    }
+    progress(structures.len());
     Ok((out, n_est, n_val))
 }
 

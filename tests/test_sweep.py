@@ -4,6 +4,7 @@ integrating plants, a delayed double-integrator roll axis, MISO grids, size guar
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -267,3 +268,17 @@ def test_bad_arguments_say_what_to_do():
         arxid.sweep(d, sort_by="speed", progress=False)
     with pytest.raises(DataError, match="fraction"):
         arxid.sweep(d, validation=1.5, progress=False)
+
+
+def test_progress_is_reported_from_the_core_and_drives_a_bar(monkeypatch, capsys):
+    from arxid import _core
+
+    est, val = _arx_data(5000, 1), _arx_data(5000, 2)
+    grid = np.array([(a, b, k) for a in range(1, 5) for b in range(1, 5) for k in range(0, 5)], dtype=np.int64)
+    calls = []
+    _core.sweep(est.y, est.u, [0], grid, [], yv=val.y, uv=val.u, starts_v=[0], chunk=16, progress=calls.append)
+    assert calls[-1] == len(grid) and all(0 < c <= len(grid) for c in calls) and len(calls) > 2
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    res = arxid.sweep(est, na=range(1, 5), nb=range(1, 5), nk=range(0, 5), validation=val, progress=True)
+    assert len(res) == len(grid)
+    assert "arxid.sweep" in capsys.readouterr().err

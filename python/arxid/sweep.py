@@ -620,7 +620,7 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
         k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
 
     y_scale = max(_peak(est.y), _peak(val.y) if val is not None else 0.0, 1e-300)
-    chunk = max(64, (len(rows) // 100) // 8 * 8)
+    chunk = max(64, len(rows) // 100)
 
     def run(k):
         bar = None
@@ -630,7 +630,8 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
             bar = tqdm(total=len(rows), desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
 
         def report(done: int):
-            bar.update(done - bar.n)
+            if done > bar.n:  # reports may arrive out of order from the worker threads
+                bar.update(done - bar.n)
 
         try:
             return _core.sweep(
@@ -679,7 +680,9 @@ def _scored_norm(d: IOData, lag: int) -> float:
         # Σy² − nȳ² on views (no copy of the data), unless cancellation would cost accuracy.
         n = sum(len(p) for p in parts)
         total = sum(float(p.sum()) for p in parts)
-        sq = sum(float(np.dot(p, p)) for p in parts)
+        # einsum, not dot: a multithreaded BLAS call here leaves its threads spinning on the cores
+        # the next sweep's Rust threads need.
+        sq = sum(float(np.einsum("i,i->", p, p)) for p in parts)
         centred = sq - total * total / n
         if centred > 1e-6 * sq:
             return math.sqrt(centred)
