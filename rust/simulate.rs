@@ -110,6 +110,123 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
     out
 }
 
+/// Coefficients of the s-step-ahead predictors of a linear ARX structure, s = 1..=k:
+/// $\hat y(b+s) = \sum_i g^y_{s,i}\, y(b-i) + \sum_m \sum_j g^u_{s,m,j}\, u_m(b+s-j)$, with b the last
+/// measured sample. Built by running the model recursion on coefficient vectors instead of numbers.
+struct KStepCoefficients {
+    /// `gy[s][i]`, i < na.
+    gy: Vec<Vec<f64>>,
+    /// `gu[s][m][j]`, j < k + largest input lag.
+    gu: Vec<Vec<Vec<f64>>>,
+}
+
+impl KStepCoefficients {
+    fn new(s: &Structure, theta: &[f64], k: usize) -> Self {
+        let na = s.na;
+        let m = s.nb.len();
+        let width = k + s.max_lag() + 1;
+        let mut gy = vec![vec![0.0; na]; k + 1];
+        let mut gu = vec![vec![vec![0.0; width]; m]; k + 1];
+        for step in 1..=k {
+            let (mut y_s, mut u_s) = (vec![0.0; na], vec![vec![0.0; width]; m]);
+            for i in 1..=na {
+                let a = theta[i - 1];
+                if step <= i {
+                    // y(b + step - i) is measured: y(b - (i - step)).
+                    y_s[i - step] -= a;
+                } else {
+                    let r = step - i;
+                    for (dst, src) in y_s.iter_mut().zip(&gy[r]) {
+                        *dst -= a * src;
+                    }
+                    for (um, gm) in u_s.iter_mut().zip(&gu[r]) {
+                        // u(b + r - j) = u(b + step - (j + i)).
+                        for j in 0..width - i {
+                            um[j + i] -= a * gm[j];
+                        }
+                    }
+                }
+            }
+            let mut c = na;
+            for (mi, (&nb, &nk)) in s.nb.iter().zip(&s.nk).enumerate() {
+                for j in 0..nb {
+                    u_s[mi][nk + j] += theta[c];
+                    c += 1;
+                }
+            }
+            gy[step] = y_s;
+            gu[step] = u_s;
+        }
+        KStepCoefficients { gy, gu }
+    }
+}
+
+/// k-step-ahead prediction of a linear structure (no output terms) on complete data: the same
+/// numbers as [`predict`] with `Some(k)` (up to rounding), at a cost of O(N (na + k + lag)) instead
+/// of O(N k (na + nb)): the k-step predictor of an ARX model is itself a FIR filter of past outputs
+/// and inputs, applied here one coefficient at a time over all samples (vectorised).
+///
+/// # Panics
+/// When `s` has output terms or `k == 0`.
+pub fn predict_k_linear(d: &Data, s: &Structure, theta: &[f64], k: usize, first_lag: usize) -> Vec<f64> {
+    assert!(s.output_terms.is_empty() && k >= 1);
+    let n = d.len();
+    let lag = first_lag.max(s.max_lag());
+    let co = KStepCoefficients::new(s, theta, k);
+    let mut out = vec![f64::NAN; n];
+    let mut ucol = vec![0.0; n];
+    for (a, b) in d.segments() {
+        let start = a + lag;
+        if start >= b {
+            continue;
+        }
+        // First k - 1 rows: shorter horizons from the measured outputs before `start`.
+        let steady = (start + k - 1).min(b);
+        for (t, o) in out.iter_mut().enumerate().take(steady).skip(start) {
+            let step = t - start + 1;
+            let mut v = 0.0;
+            for (i, g) in co.gy[step].iter().enumerate() {
+                v += g * d.y[start - 1 - i];
+            }
+            for (mi, gm) in co.gu[step].iter().enumerate() {
+                for (j, g) in gm.iter().enumerate() {
+                    if *g != 0.0 {
+                        v += g * d.u[(t - j) * d.m + mi];
+                    }
+                }
+            }
+            *o = v;
+        }
+        if steady >= b {
+            continue;
+        }
+        // Steady part: horizon k for every row, one coefficient at a time over all rows.
+        let rows = &mut out[steady..b];
+        rows.fill(0.0);
+        for (i, &g) in co.gy[k].iter().enumerate() {
+            let src = &d.y[steady - k - i..b - k - i];
+            for (o, &y) in rows.iter_mut().zip(src) {
+                *o += g * y;
+            }
+        }
+        for (mi, gm) in co.gu[k].iter().enumerate() {
+            for (t, u) in ucol.iter_mut().enumerate().take(b).skip(a) {
+                *u = d.u[t * d.m + mi];
+            }
+            for (j, &g) in gm.iter().enumerate() {
+                if g == 0.0 {
+                    continue;
+                }
+                let src = &ucol[steady - j..b - j];
+                for (o, &u) in rows.iter_mut().zip(src) {
+                    *o += g * u;
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Outcome of a free-run (or k-step) check of one structure.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimScore {
@@ -618,6 +735,33 @@ mod tests {
         }
         assert!(lanes[0].rms < 1e-9);
         assert!(lanes[2].diverged && lanes[2].rms.is_nan());
+    }
+
+    #[test]
+    fn k_step_filter_equals_step_by_step_prediction() {
+        let n = 700;
+        let u: Vec<f64> = (0..2 * n).map(|t| (((t * 7919) % 23) as f64 - 11.0) / 7.0).collect();
+        let mut y = vec![0.0; n];
+        for t in 3..n {
+            y[t] = 1.9 * y[t - 1] - 0.905 * y[t - 2]
+                + 0.3 * u[2 * (t - 2)]
+                + 0.1 * u[2 * (t - 3) + 1]
+                + 0.01 * ((t * 31 % 7) as f64 - 3.0);
+        }
+        let starts = [0, 300];
+        let d = Data::new(&y, &u, 2, &starts).unwrap();
+        let s = Structure::new(3, vec![2, 1], vec![1, 3], vec![]).unwrap();
+        let theta = [-1.8, 0.85, -0.03, 0.3, 0.05, 0.1];
+        for k in [1, 2, 5, 17] {
+            let slow = predict(&d, &s, &theta, Some(k), 9);
+            let fast = predict_k_linear(&d, &s, &theta, k, 9);
+            for (t, (a, b)) in slow.iter().zip(&fast).enumerate() {
+                assert_eq!(a.is_nan(), b.is_nan(), "t={t} k={k}");
+                if a.is_finite() {
+                    assert!((a - b).abs() <= 1e-9 * a.abs().max(1.0), "t={t} k={k}: {a} vs {b}");
+                }
+            }
+        }
     }
 }
 

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
 use crate::qr::{reduce, to_col_major};
-use crate::simulate::{free_run_rms_lanes, input_columns, predict, score, SimScore, LANES};
+use crate::simulate::{free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES};
 use crate::structure::{usable_rows, Data, Structure};
 
 /// How a sweep validates its structures.
@@ -118,10 +118,19 @@ fn lanes_apply(d: &Data, env: &Structure, opts: &SweepOptions) -> bool {
         && d.u.iter().all(|v| v.is_finite())
 }
 
-/// One structure on the general path (k-step prediction, output terms, missing samples).
+/// One structure on the general path (k-step prediction, output terms, missing samples). The k-step
+/// prediction of a linear structure on complete data runs as a filter ([`predict_k_linear`]).
 fn simulate_one(d: &Data, s: &Structure, theta: &[f64], first_lag: usize, opts: &SweepOptions) -> SimScore {
-    let pred = predict(d, s, theta, opts.horizon, first_lag);
+    let pred = match opts.horizon {
+        Some(k) if k >= 1 && s.output_terms.is_empty() && complete(d) => predict_k_linear(d, s, theta, k, first_lag),
+        _ => predict(d, s, theta, opts.horizon, first_lag),
+    };
     score(d, &pred, opts.divergence_limit)
+}
+
+/// No missing (non-finite) sample in the data.
+fn complete(d: &Data) -> bool {
+    d.y.iter().all(|v| v.is_finite()) && d.u.iter().all(|v| v.is_finite())
 }
 
 /// Simulates the fitted members of one group (same `na`) on `d`; `ucol` is `Some` on the lane path.
