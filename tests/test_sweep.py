@@ -136,6 +136,9 @@ def test_integrating_plant_is_detected_and_ranked_by_k_step_error():
     # (the sweep starts every prediction at the grid's lag, the model at its own: the first k
     # predictions have shorter horizons, hence the tolerance)
     assert res.rms_val[i] == pytest.approx(np.sqrt(np.mean((val.y[ok] - pred[ok]) ** 2)), rel=1e-3)
+    # an explicit horizon is used as given (stable plant too)
+    short = arxid.sweep(est, na=range(1, 3), nb=1, nk=range(1, 3), validation=val, progress=False, horizon=3)
+    assert short.horizon == 3 and "3-step" in short.measure
 
 
 def _roll_axis(seed, n=12000, delay=8, ts=0.002):

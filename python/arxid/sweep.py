@@ -491,7 +491,8 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
         What the physics says. Integrating expectations rank by k-step prediction error; None
         detects integrators (a pole at 1 in most of the 5 best structures by FPE).
     horizon : int, optional
-        k of the k-step prediction for integrating plants (default ``max(10, 2 × largest lag)``).
+        Rank by the k-step-ahead prediction error with this k instead of free run. Integrating
+        plants use k-step prediction anyway, by default with ``k = max(10, 2 × largest lag)``.
     max_memory : int, optional
         Refuse grids needing more bytes than this (default: half the available memory).
     limits : SanityLimits, optional
@@ -618,6 +619,8 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
     k_step = None
     if integrating:
         k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
+    elif horizon is not None:
+        k_step = int(horizon)  # an explicit horizon ranks by k-step error whatever the plant
 
     y_scale = max(_peak(est.y), _peak(val.y) if val is not None else 0.0, 1e-300)
     chunk = max(64, len(rows) // 100)
@@ -647,7 +650,7 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
                 bar.close()
 
     res = run(k_step)
-    if expect is None:
+    if expect is None and k_step is None:
         fpe_pre = _fpe(np.asarray(res["rss_est"]), int(res["n_est"]), grid, len(terms))
         order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
         integrating, reason = _detect_integrator(grid[:, 0], np.asarray(res["theta"]), order_pre)
