@@ -3,6 +3,7 @@
 //! ARX in MATLAB's sign convention:
 //! $y(t) + a_1 y(t-1) + \dots + a_{n_a} y(t-n_a) = \sum_i \sum_{j=1}^{n_{b,i}} b_{ij} u_i(t-n_{k,i}-j+1)
 //!  + \sum_l c_l g_l(y(t-1), y(t-2)) s_l(t-1) + e(t)$.
+//!
 //! The regressor row is therefore $[-y(t-1), \dots, -y(t-n_a), u_i(\cdot)\dots, g_l\dots]$.
 
 use crate::error::{ArxError, Result};

@@ -759,15 +759,3 @@ def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_ste
         sort_by=key, first_lag=first_lag, n_est=n_est, n_val=n_val, effects=effects, expect=expect, limits=limits,
         estimation=est, validation=val,
     )
-
-
-class _CallableModule(type(sys)):
-    """``arxid.sweep`` is both this module and the function: importing the module
-    (``from arxid.sweep import SweepResult``) rebinds the package attribute to it, so the module
-    forwards calls to :func:`sweep`."""
-
-    def __call__(self, *args, **kwargs):
-        return sweep(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
