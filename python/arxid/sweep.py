@@ -96,9 +96,16 @@ class Selection:
     skipped: tuple[tuple[int, str, tuple[str, ...]], ...]
 
     def __str__(self) -> str:
+        return self.describe()
+
+    def describe(self, limit: int | None = 8) -> str:
+        """The choice and the skipped structures (the first ``limit`` of them; None for all)."""
         lines = [f"chose {self.structure} (rank {self.rank + 1})"]
-        for rank, name, reasons in self.skipped:
+        shown = self.skipped if limit is None else self.skipped[:limit]
+        for rank, name, reasons in shown:
             lines.append(f"  skipped {name} (rank {rank + 1}): " + "; ".join(reasons))
+        if len(shown) < len(self.skipped):
+            lines.append(f"  ... and {len(self.skipped) - len(shown)} more skipped (model.selection_.describe(None) lists all)")
         return "\n".join(lines)
 
 
