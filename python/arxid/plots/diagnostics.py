@@ -63,9 +63,11 @@ def plot_residuals(res):
         ax.vlines(res.cross_lags, 0, r, color="C1")
         ax.plot(res.cross_lags, r, "o", color="C1", ms=3)
         b = res.cross_bounds[name]
-        ax.axhspan(-b, b, color="C1", alpha=0.15, lw=0)
+        if math.isfinite(b):
+            ax.axhspan(-b, b, color="C1", alpha=0.15, lw=0)
         ax.axhline(0, color="0.5", lw=0.5)
-        ax.set_title(f"cross-correlation of e with {name} (positive lag: {name} leads)")
+        untested = "" if math.isfinite(b) else ": untested, no data"
+        ax.set_title(f"cross-correlation of e with {name} (positive lag: {name} leads){untested}")
         ax.set_xlabel("lag")
     return fig
 
