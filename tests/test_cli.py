@@ -218,6 +218,45 @@ def test_bad_arguments_exit_2_with_one_line(capsys, csv_file, argv, needle):
     assert needle in lines[0] and "Traceback" not in err
 
 
+def _bad_files(tmp_path):
+    rng = np.random.default_rng(0)
+    n = 300
+    y, u = rng.standard_normal(n), rng.standard_normal(n)
+    (tmp_path / "binary.csv").write_bytes(bytes(range(256)) * 10)
+    np.save(tmp_path / "array.npy", y)
+    np.savez(tmp_path / "twod.npz", y=y, u=rng.standard_normal((n // 2, 2)), ts=0.01)
+    np.savez(tmp_path / "text.npz", y=y, u=np.array(["a"] * n), ts=0.01)
+    np.savez(tmp_path / "complex.npz", y=y, u=u + 1j, ts=0.01)
+    np.savez(tmp_path / "ts_text.npz", y=y, u=u, ts="abc")
+    np.savez(tmp_path / "nan_extra.npz", y=y, u=u, vbat=np.full(n, np.nan), ts=0.01)
+    np.savetxt(tmp_path / "nan_output.csv", np.column_stack([np.full(n, np.nan), u]), delimiter=",",
+               header="y,u", comments="")
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["fit", "binary.csv", "--orders", "1,1,1"], "binary.csv"),
+    (["fit", "array.npy", "--orders", "1,1,1"], "array.npy"),
+    (["fit", "twod.npz", "--orders", "1,1,1"], "'u'"),
+    (["fit", "text.npz", "--orders", "1,1,1"], "'u'"),
+    (["fit", "complex.npz", "--orders", "1,1,1"], "'u'"),
+    (["fit", "ts_text.npz", "--orders", "1,1,1"], "ts"),
+    (["diagnose", "nan_extra.npz", "--extra", "vbat", "--orders", "1,1,1"], "'vbat'"),
+    (["sweep", "nan_output.csv", "--na", "1:2", "--nb", "1", "--nk", "1"], "'y'"),
+])
+def test_bad_data_files_exit_2_with_one_line(tmp_path, argv, needle):
+    """In a real process (warnings are not errors there): exit 2, one line naming the problem."""
+    _bad_files(tmp_path)
+    argv = [argv[0], str(tmp_path / argv[1]), *argv[2:], "--output", "y", "--inputs", "u"]
+    if argv[1].endswith(".csv"):
+        argv += ["--ts", "0.01"]
+    p = subprocess.run([sys.executable, "-m", "arxid.cli", *argv], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert p.stdout == ""
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in p.stderr, p.stderr
+    assert needle in lines[0]
+
+
 @pytest.mark.parametrize("command", ["fit", "sweep", "diagnose", "report", "demo"])
 def test_help_has_an_example(capsys, command):
     with pytest.raises(SystemExit) as exc:

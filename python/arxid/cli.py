@@ -98,18 +98,48 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
         raise UsageError("name the input column(s) with --inputs A[,B,...]")
     if not output:
         raise UsageError("name the output column with --output COL")
+    wanted = [output, *inputs, *extra] + ([time_col] if time_col else [])
+    if p.suffix.lower() == ".npy":
+        raise DataError(f"{p.name} holds one unnamed array; save the signals by name with "
+                        "numpy.savez('log.npz', y=..., u=..., ts=...) or write a CSV file with a header row")
     if p.suffix.lower() == ".npz":
         try:
             with np.load(p, allow_pickle=False) as z:
                 arrays = {k: np.asarray(z[k]) for k in z.files}
-        except ValueError as exc:
-            raise DataError(f"{p.name} is not a readable .npz archive ({exc})") from None
+        except (ValueError, OSError, EOFError) as exc:
+            raise DataError(f"{p.name} is not a readable .npz archive ({' '.join(str(exc).split()[:12])})") from None
         if ts is None and time_col is None and "ts" in arrays and arrays["ts"].size == 1:
+            if not np.issubdtype(arrays["ts"].dtype, np.number) or np.iscomplexobj(arrays["ts"]):
+                raise DataError(f"{p.name}: the array 'ts' holds {arrays['ts'].reshape(-1)[0]!r}, not a sampling "
+                                "time in seconds; store a number or pass --ts")
             ts = float(arrays["ts"].reshape(-1)[0])
-        columns = {k: v.reshape(-1).astype(float) for k, v in arrays.items() if v.ndim >= 1 and v.size > 1}
-        return IOData._from_columns(columns, output=output, inputs=list(inputs), extra=list(extra), ts=ts,
+        columns = {}
+        for k, v in arrays.items():
+            if v.ndim == 0 or v.size <= 1:
+                continue
+            numeric = np.issubdtype(v.dtype, np.number) or v.dtype == bool
+            if k not in wanted:
+                if numeric and not np.iscomplexobj(v) and v.ndim == 1:
+                    columns[k] = v.astype(float)
+                continue
+            if not numeric or np.iscomplexobj(v):
+                raise DataError(f"{p.name}: the array {k!r} holds {v.dtype} values, not real numbers")
+            if v.ndim != 1:
+                raise DataError(f"{p.name}: the array {k!r} has shape {v.shape}; store each signal as a 1-D "
+                                "array of samples under its own name")
+            columns[k] = v.astype(float)
+        data = IOData._from_columns(columns, output=output, inputs=list(inputs), extra=list(extra), ts=ts,
                                     time=time_col, units=None, source=p.name)
-    return IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col)
+    else:
+        try:
+            data = IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col)
+        except UnicodeDecodeError:
+            raise DataError(f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
+                            "give a CSV file with a header row or a .npz archive") from None
+    for name, values in [(data.output_name, data.y), *zip(data.input_names, data.u.T), *data.extra.items()]:
+        if not np.isfinite(values).any():
+            raise DataError(f"{p.name}: the column {name!r} holds no numbers (every sample is missing)")
+    return data
 
 
 def _data_args(p: argparse.ArgumentParser, validation: bool = True) -> None:
