@@ -201,6 +201,8 @@ def test_demo_short_flight(capsys, tmp_path):
     (["fit", "{csv}", "--output", "y", "--inputs", "u", "--orders", "1,1,2"], "ts"),
     (["fit", "missing.csv", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "does not exist"),
     (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--split", "1.5"], "split"),
+    (["diagnose", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--split", "0.9995"],
+     "validation"),
     (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--na", "4:1"], "--na"),
     (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--nk", "x"], "--nk"),
     (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "-1", "--orders", "1,1,2"], "ts"),

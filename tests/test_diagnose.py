@@ -245,6 +245,15 @@ def test_apply_by_name_and_errors():
         diagnose(d.model, est, validation=np.zeros(3))
 
 
+def test_validation_too_short_for_a_prediction_is_an_error_not_a_k_step_switch():
+    est, val = quadratic_thrust().split(0.6)
+    m = arxid.arx(est, 1, 1, 1)
+    with pytest.raises(arxid.DataError, match="validation"):
+        diagnose(m, est, val[:1])  # one sample: no prediction, so no baseline to judge suspects by
+    with pytest.raises(arxid.DataError, match="validation"):
+        diagnose_report(est, val[:1], orders=(1, 1, 1))
+
+
 def test_diagnosis_outputs(tmp_path):
     est, val = battery_gain().split(0.6)
     d = diagnose(arxid.arx(est, 1, 1, 1), est, val)

@@ -515,7 +515,10 @@ def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | N
     if horizon is None and _is_integrating(model):
         horizon = INTEGRATING_HORIZON
     base_rms = error_rms(model, validation, horizon)
-    if horizon is None and not math.isfinite(base_rms):
+    if math.isnan(base_rms):  # no sample of the validation data has a prediction
+        raise DataError(f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
+                        f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)")
+    if horizon is None and math.isinf(base_rms):  # the free run diverges
         horizon = INTEGRATING_HORIZON
         base_rms = error_rms(model, validation, horizon)
     pred, _, _ = prediction_error(model, validation, horizon)
