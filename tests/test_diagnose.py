@@ -335,6 +335,22 @@ def test_diagnose_report_with_orders_and_with_a_grid():
         diagnose_report(est, val, orders=(1, 1))
 
 
+def test_diagnose_report_chooses_the_best_sane_structure_like_sweep_and_report():
+    """Without orders, the diagnosed model is the best structure that passes the step sanity check,
+    the one ``arxid sweep`` and ``arxid report`` choose on the same grid (on this roll axis the best
+    by validation error, ARX(3,2,7), has an implausible step)."""
+    from arxid.datasets import quadrotor_axis, quadrotor_flight
+    from arxid.report import run_sweep
+
+    roll = quadrotor_axis(quadrotor_flight(seed=1, duration=20.0), "roll")
+    est, val = roll.split(0.5)
+    grid = {"na": [2, 3, 4], "nb": [1, 2], "nk": list(range(11))}
+    res, _, sane, _ = run_sweep(est, val, grid)
+    assert res.best().structure_name() != sane.structure_name()  # the case this test is about
+    rep = diagnose_report(est, val, grid=grid, max_steps=1)
+    assert (rep["model"]["na"], rep["model"]["nb"], rep["model"]["nk"]) == (sane.na, list(sane.nb), list(sane.nk))
+
+
 # ---------------------------------------------------------------------------------------------
 # real measured data
 # ---------------------------------------------------------------------------------------------

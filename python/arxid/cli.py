@@ -343,7 +343,8 @@ def cmd_diagnose(args) -> int:
     est, val = _load(args)
     orders = _parse_orders(args.orders) if args.orders else None
     grid = None if orders else _grid(args)
-    d = diagnose_report(est, val, orders=orders, grid=grid, horizon=args.horizon, max_steps=args.max_steps)
+    d = diagnose_report(est, val, orders=orders, grid=grid, horizon=args.horizon, max_steps=args.max_steps,
+                        progress=_progress(args))
     if args.json:
         _print_json(d)
     else:

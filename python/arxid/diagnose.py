@@ -850,44 +850,23 @@ def _range(v, default):
     return [int(x) for x in v]
 
 
-def _select_orders(data: IOData, validation: IOData, grid: dict | None, horizon: int | None) -> ArxModel:
+def _select_orders(data: IOData, validation: IOData, grid: dict | None, horizon: int | None,
+                   progress: bool = False) -> ArxModel:
+    """The best structure of the grid that passes the step sanity check (as ``arxid sweep`` and
+    ``arxid report`` choose it)."""
+    from .sweep import sweep
+
     grid = dict(grid or {})
     na = _range(grid.get("na"), range(1, 5))
     nb = _range(grid.get("nb"), range(1, 4))
     nk = _range(grid.get("nk"), range(0, 6))
-    try:
-        import importlib
-
-        sweep_mod = importlib.import_module(".sweep", __package__)
-        sweep = getattr(sweep_mod, "sweep")
-        res = sweep(data, na=na, nb=nb, nk=nk, validation=validation, horizon=horizon)
-        best = res.best() if callable(getattr(res, "best", None)) else res.best
-        if isinstance(best, ArxModel):
-            return best
-        return arx(data, int(best.na), best.nb, best.nk)
-    except (ImportError, AttributeError, TypeError):
-        pass
-    best_model, best_rms = None, math.inf
-    for a in na:
-        for b in nb:
-            for k in nk:
-                if a == 0 and b == 0:
-                    continue
-                try:
-                    m = arx(data, a, b, k)
-                except ArxidError:
-                    continue
-                h = horizon if horizon is not None else (INTEGRATING_HORIZON if _is_integrating(m) else None)
-                r = error_rms(m, validation, h)
-                if r < best_rms:
-                    best_model, best_rms = m, r
-    if best_model is None:
-        raise OrderError("no structure of the grid could be fitted to these data; widen the grid or check the data")
-    return best_model
+    res = sweep(data, na=na, nb=nb, nk=nk, validation=validation, horizon=horizon, progress=progress)
+    return res.best(sane=True, explain=False)
 
 
 def diagnose_report(data: IOData, validation: IOData | None = None, orders=None, grid: dict | None = None,
-                    horizon: int | None = None, max_steps: int = 3, **diagnose_kwargs) -> dict:
+                    horizon: int | None = None, max_steps: int = 3, progress: bool = False,
+                    **diagnose_kwargs) -> dict:
     """The whole ``arxid diagnose`` job: fit (or sweep), diagnose, climb the ladder; a JSON-ready dict.
 
     Parameters
@@ -898,13 +877,18 @@ def diagnose_report(data: IOData, validation: IOData | None = None, orders=None,
         Validation data (default: the last 30% of ``data``, the first 70% being used to estimate).
     orders : (na, nb, nk), optional
         Model orders; nb and nk may be sequences (one per input). Without them the structure with
-        the lowest validation error over ``grid`` is used.
+        the lowest validation error over ``grid`` that passes the step sanity check is used (the
+        choice of ``arxid sweep`` and ``arxid report``).
     grid : dict, optional
         ``{"na": [...], "nb": [...], "nk": [...]}`` (default na 1..4, nb 1..3, nk 0..5).
     horizon : int or None
         Validation error measure (None = free run; see :func:`diagnose`).
     max_steps : int
         Largest number of steps of the greedy ladder.
+    progress : bool
+        Progress bar of the sweep on stderr.
+    **diagnose_kwargs
+        Passed to :func:`diagnose` (``alpha``, ``min_improvement`` ...).
 
     Returns
     -------
@@ -924,6 +908,6 @@ def diagnose_report(data: IOData, validation: IOData | None = None, orders=None,
             raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
         model = arx(data, na, nb, nk)
     else:
-        model = _select_orders(data, validation, grid, horizon)
+        model = _select_orders(data, validation, grid, horizon, progress)
     ladder = Ladder.run(model, data, validation, max_steps=max_steps, horizon=horizon, **diagnose_kwargs)
     return ladder.diagnoses[0].to_dict(ladder)
