@@ -440,3 +440,18 @@ def test_arxid_diagnose_is_callable_whatever_the_import_order():
     assert isinstance(d, Diagnosis) and d.top.effect == "speed^2"
     assert module.Ladder is Ladder and arxid.Diagnosis is Diagnosis
     assert callable(arxid.sweep) and arxid.sweep is importlib.import_module("arxid.sweep").sweep
+
+
+def test_docs_examples_run():
+    """Every ``python`` block of docs/diagnostics.md runs, in order, in one namespace."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "diagnostics.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert blocks
+    namespace: dict = {}
+    for i, code in enumerate(blocks):
+        exec(compile(code, f"docs/diagnostics.md block {i}", "exec"), namespace)
+    assert namespace["d"].top is not None and "vbat" in namespace["d"].top.effect
+    assert namespace["ladder"].errors[-1] < 0.6 * namespace["ladder"].errors[0]

@@ -285,3 +285,19 @@ def test_thrust_and_torque_coefficients_from_stand():
 
 
 # Real Crazyflie thrust-stand tests (the w^2 law, the battery term) are in tests/test_seed004.py.
+
+
+def test_docs_examples_run():
+    """Every ``python`` block of docs/quadrotor.md runs, in order, in one namespace."""
+    import contextlib
+    import io
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "quadrotor.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert blocks
+    namespace: dict = {}
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        for i, code in enumerate(blocks):
+            exec(compile(code, f"docs/quadrotor.md block {i}", "exec"), namespace)
