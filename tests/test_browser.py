@@ -74,7 +74,10 @@ window.addEventListener('load', function () {
              broken: imgs.filter(function (i) { return !(i.complete && i.naturalWidth > 0 && i.naturalHeight > 0); })
                          .map(function (i) { return i.alt; }),
              external: res.filter(function (n) { return n.indexOf('data:') !== 0; }),
-             errors: window.__errors};
+             errors: window.__errors,
+             diagnosis: (function () {
+               try { return JSON.parse(document.getElementById('diagnosis').textContent).ladder.length; }
+               catch (e) { return 'unreadable: ' + e; } })()};
   var pre = document.createElement('pre'); pre.id = '__probe'; pre.textContent = JSON.stringify(out);
   document.body.appendChild(pre);
 });
@@ -109,6 +112,7 @@ def test_report_renders_with_every_plot_loaded_and_no_errors(browser, report_fil
     assert probe["broken"] == [], f"plots that did not load: {probe['broken']}"
     assert probe["external"] == [], f"the report fetched {probe['external']}: it must be self-contained"
     assert probe["errors"] == [], probe["errors"]
+    assert isinstance(probe["diagnosis"], int) and probe["diagnosis"] >= 1, probe["diagnosis"]  # embedded JSON parses
     # what the browser itself logged about the page (console messages carry the page's URL)
     page_lines = [ln for ln in res.stderr.splitlines()
                   if ("CONSOLE" in ln or "Uncaught" in ln or "Failed to load resource" in ln or "net::ERR" in ln)]

@@ -64,8 +64,10 @@ def test_html_is_self_contained_and_complete(analysis):
                  "Residual tests", "Where it fails", "Which effect is missing", "Error ladder"):
         assert f". {head}</h2>" in html
     embedded = re.search(r'<script type="application/json" id="diagnosis">(.*?)</script>', html, re.S).group(1)
-    import html as h
-    assert json.loads(h.unescape(embedded))["ladder"] == json_safe(analysis.diagnosis["ladder"])
+    # A script element's text is raw: a browser does not decode entities in it, so the JSON must be
+    # readable as it stands (JSON.parse(el.textContent)), with "<" escaped so "</script>" cannot occur.
+    assert json.loads(embedded)["ladder"] == json_safe(analysis.diagnosis["ladder"])
+    assert "<" not in embedded and "&quot;" not in embedded
 
 
 def test_build_report_with_fixed_orders_skips_the_sweep(tmp_path):
