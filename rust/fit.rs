@@ -77,8 +77,12 @@ pub fn inverse_gram(r: &[f64], ld: usize, k: usize) -> Vec<f64> {
 /// regressor column that depends on the ones before it.
 pub fn fit(d: &Data, s: &Structure, first_lag: usize, parallel: bool) -> Result<Fit> {
     s.check(d.m)?;
-    let (rows, n_skipped) = usable_rows(d, s, first_lag);
     let p = s.n_params();
+    let bound = d.max_rows(first_lag.max(s.max_lag()));
+    if bound < p + 1 {
+        return Err(ArxError::TooFewSamples { needed: p + 1, got: bound });
+    }
+    let (rows, n_skipped) = usable_rows(d, s, first_lag);
     if rows.len() < p + 1 {
         return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
     }
@@ -130,6 +134,17 @@ mod tests {
         let d = Data::new(&y, &u, 1, &starts).unwrap();
         let s = Structure::new(1, vec![2], vec![1], vec![]).unwrap();
         assert!(matches!(fit(&d, &s, 0, false), Err(ArxError::RankDeficient { column: 2, .. })));
+    }
+
+    #[test]
+    fn orders_beyond_any_data_are_refused_before_allocating() {
+        assert!(matches!(Structure::new(usize::MAX, vec![2], vec![1], vec![]), Err(ArxError::InvalidStructure(_))));
+        assert!(matches!(Structure::new(1, vec![2], vec![usize::MAX - 1], vec![]), Err(ArxError::InvalidStructure(_))));
+        let y = vec![0.5; 50];
+        let starts = [0];
+        let d = Data::new(&y, &y, 1, &starts).unwrap();
+        let s = Structure::new(1 << 39, vec![1], vec![0], vec![]).unwrap();
+        assert!(matches!(fit(&d, &s, 0, false), Err(ArxError::TooFewSamples { got: 0, .. })));
     }
 
     #[test]

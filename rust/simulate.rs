@@ -81,6 +81,9 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
                 }
             }
             Some(k) => {
+                // Beyond the segment every prediction starts from the measured initial outputs, so a
+                // longer horizon changes nothing (and must not size the buffer).
+                let k = k.min(b - start);
                 let mut local = vec![0.0f64; k];
                 for t in start..b {
                     let t0 = (t + 1).saturating_sub(k).max(start);
@@ -121,6 +124,16 @@ struct KStepCoefficients {
 }
 
 impl KStepCoefficients {
+    /// Largest coefficient table (in f64 entries) [`predict_k_linear`] builds; longer horizons
+    /// predict step by step instead.
+    const MAX_ENTRIES: usize = 1 << 22;
+
+    /// Entries of the table for horizon `k`: (k + 1) (na + m (k + lag + 1)).
+    fn entries(s: &Structure, k: usize) -> usize {
+        let width = k.saturating_add(s.max_lag() + 1);
+        k.saturating_add(1).saturating_mul(s.nb.len().max(1).saturating_mul(width).saturating_add(s.na))
+    }
+
     fn new(s: &Structure, theta: &[f64], k: usize) -> Self {
         let na = s.na;
         let m = s.nb.len();
@@ -166,12 +179,20 @@ impl KStepCoefficients {
 /// of O(N k (na + nb)): the k-step predictor of an ARX model is itself a FIR filter of past outputs
 /// and inputs, applied here one coefficient at a time over all samples (vectorised).
 ///
+/// A horizon longer than every experiment is shortened to the longest one (same predictions); when
+/// the coefficient table would still be large, the prediction runs step by step ([`predict`]).
+///
 /// # Panics
 /// When `s` has output terms or `k == 0`.
 pub fn predict_k_linear(d: &Data, s: &Structure, theta: &[f64], k: usize, first_lag: usize) -> Vec<f64> {
     assert!(s.output_terms.is_empty() && k >= 1);
     let n = d.len();
     let lag = first_lag.max(s.max_lag());
+    let longest = d.segments().iter().map(|&(a, b)| (b - a).saturating_sub(lag)).max().unwrap_or(0);
+    let k = k.min(longest.max(1));
+    if KStepCoefficients::entries(s, k) > KStepCoefficients::MAX_ENTRIES {
+        return predict(d, s, theta, Some(k), first_lag);
+    }
     let co = KStepCoefficients::new(s, theta, k);
     let mut out = vec![f64::NAN; n];
     let mut ucol = vec![0.0; n];

@@ -66,7 +66,14 @@ pub struct Structure {
     pub output_terms: Vec<OutputTerm>,
 }
 
+/// Largest order or delay accepted (about 10^12 samples): beyond any data set that fits in memory,
+/// and small enough that no lag or parameter count computed from the orders can overflow.
+pub const MAX_ORDER: usize = 1 << 40;
+
 impl Structure {
+    /// # Errors
+    /// `ShapeMismatch` when `nb` and `nk` differ in length, `InvalidStructure` for an order or delay
+    /// above [`MAX_ORDER`].
     pub fn new(na: usize, nb: Vec<usize>, nk: Vec<usize>, output_terms: Vec<OutputTerm>) -> Result<Self> {
         if nb.len() != nk.len() {
             return Err(ArxError::ShapeMismatch {
@@ -74,6 +81,13 @@ impl Structure {
                 expected: nb.len(),
                 got: nk.len(),
             });
+        }
+        let total = nb.iter().try_fold(na, |acc, &b| acc.checked_add(b));
+        if na > MAX_ORDER || nb.iter().chain(&nk).any(|&v| v > MAX_ORDER) || total.is_none_or(|t| t > MAX_ORDER) {
+            return Err(ArxError::InvalidStructure(format!(
+                "orders too large (na = {na}, nb = {nb:?}, nk = {nk:?}): orders and delays must stay below 2^40 \
+                 samples; use orders much smaller than the number of samples"
+            )));
         }
         Ok(Structure { na, nb, nk, output_terms })
     }
@@ -168,6 +182,12 @@ impl<'a> Data<'a> {
     #[inline]
     pub fn u_at(&self, t: usize, i: usize) -> f64 {
         self.u[t * self.m + i]
+    }
+
+    /// Upper bound on the regression rows that start `lag` samples into each experiment (before any
+    /// NaN is left out): lets callers refuse too-short data before allocating per-parameter buffers.
+    pub fn max_rows(&self, lag: usize) -> usize {
+        self.segments().iter().map(|&(a, b)| (b - a).saturating_sub(lag)).sum()
     }
 
     /// Half-open sample ranges of the experiments.

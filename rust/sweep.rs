@@ -178,6 +178,10 @@ pub fn sweep(
     }
     let first_lag = env.max_lag();
     let q = env.n_params() + 1;
+    let bound = est.max_rows(first_lag);
+    if bound < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: bound });
+    }
     let rows = rows_of(est, &env, first_lag);
     if rows.len() < q {
         return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });

@@ -181,3 +181,45 @@ def test_nonlinear_model_has_no_transfer_function(data):
 def test_pathological_core_calls_raise_arxid_errors_not_panics(call):
     with pytest.raises((ArxidError, TypeError)):
         call()
+
+
+# Pathological inputs found in review: each must end in a typed error that says what to do, never in
+# a caught Rust panic ("internal error"), a MemoryError or an aborted process.
+_HUGE = 2**64 - 2
+
+
+@pytest.mark.parametrize("call", [
+    lambda: _core.fit(np.zeros(50), np.zeros((50, 1)), [0], _HUGE, [2], [1], []),       # na + nb overflows
+    lambda: _core.fit(np.zeros(50), np.zeros((50, 1)), [0], 1, [2], [_HUGE], []),       # nb + nk overflows
+    lambda: _core.predict(np.zeros(50), np.zeros((50, 1)), [0, 10], 1, [2], [_HUGE], [], np.zeros(3)),
+    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 2, 2**63 - 1]]), []),
+])
+def test_orders_whose_lags_overflow_are_order_errors_not_panics(call):
+    with pytest.raises(OrderError, match="too large") as info:
+        call()
+    assert "internal error" not in str(info.value)
+
+
+def test_huge_orders_fail_fast_with_a_data_error(data):
+    with pytest.raises(DataError, match="too few samples for the orders.*lower na/nb/nk"):
+        arxid.arx(data, 10**12, 1, 1)
+    with pytest.raises(DataError, match="too few samples for the orders"):
+        arxid.arx(data, 1, 10**12, 0)
+
+
+def test_huge_prediction_horizon_equals_free_run_from_the_start(data):
+    # A horizon beyond the data must not try to allocate per-horizon buffers (this aborted the
+    # process); every prediction then starts from the measured initial outputs, i.e. a free run.
+    m = arxid.arx(data, 2, 2, 1)
+    far = m.predict(data, horizon=2**40)
+    np.testing.assert_allclose(far, m.predict(data, horizon=None), rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(far, m.predict(data, horizon=data.n_samples))
+
+
+def test_sweep_with_a_huge_horizon_runs(data):
+    res = arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), horizon=2**40, progress=False)
+    free = arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), horizon=None, progress=False)
+    assert res.horizon == 2**40 and res.measure.startswith(str(2**40))
+    for i in range(len(res)):
+        j = next(j for j in range(len(free)) if free.structure_name(j) == res.structure_name(i))
+        assert res.rms_est[i] == pytest.approx(free.rms_est[j], rel=1e-9)

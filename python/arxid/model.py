@@ -116,8 +116,8 @@ class ArxModel:
         nk = _per_input("nk", self.nk, m)
         first_lag = _order("first_lag", first_lag)
         layout = compile_effects(self.effects, data, nb, nk)
-        names = regressor_names(data.output_name, na, layout)
-        p = len(names)
+        # Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
+        p = na + sum(layout.nb) + len(layout.output_terms)
         if p == 0:
             raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
         lag = max(first_lag, max_lag(na, layout))
@@ -128,6 +128,7 @@ class ArxModel:
                 f"but {data.n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
                 f"lower na/nb/nk or use more data"
             )
+        names = regressor_names(data.output_name, na, layout)
         for i in range(m):
             if nb[i] > 0:
                 x = data.u[:, i]
