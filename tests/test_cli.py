@@ -209,6 +209,10 @@ def test_demo_short_flight(capsys, tmp_path):
     (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--effects", "bogus*"], "bogus"),
     (["diagnose", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--horizon", "0"], "horizon"),
     (["frobnicate"], "frobnicate"),
+    (["demo", "--duration", "0"], "--duration"),
+    (["demo", "--duration", "nan"], "--duration"),
+    (["demo", "--duration", "1e9"], "at most"),
+    (["demo", "--seed", "-1"], "seed"),
     ([], "command"),
 ])
 def test_bad_arguments_exit_2_with_one_line(capsys, csv_file, argv, needle):

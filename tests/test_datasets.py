@@ -103,6 +103,14 @@ def test_unknown_effect_and_output_are_refused():
         quadrotor_flight(duration=1.0, output="altitude")
     with pytest.raises(DataError, match="at least 100"):
         quadrotor_flight(duration=0.01)
+    with pytest.raises(DataError, match="duration"):
+        quadrotor_flight(duration=float("nan"))
+    with pytest.raises(DataError, match="at most"):
+        quadrotor_flight(duration=1e9)  # would need terabytes: refused before allocating
+    with pytest.raises(DataError, match="seed"):
+        quadrotor_flight(seed=-1, duration=1.0)
+    with pytest.raises(DataError, match="seed"):
+        thrust_stand(seed=-1, duration=2.0)
     assert set(DEFAULT_EFFECTS) == {"battery_sag", "motor_mismatch", "gyroscopic", "delay", "noise",
                                     "turbulence"}
 

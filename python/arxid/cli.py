@@ -376,6 +376,9 @@ def cmd_report(args) -> int:
 def cmd_demo(args) -> int:
     from .demo import run_demo
 
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise UsageError(f"--duration {args.duration:g} must be a positive number of seconds, e.g. 20")
+
     res = run_demo(output=args.o, seed=args.seed, duration=args.duration, progress=_progress(args),
                    stream=sys.stderr if args.json else sys.stdout)
     if args.json:

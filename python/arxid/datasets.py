@@ -166,13 +166,31 @@ def _eq15(t):
     return (a * np.sin(arg)).sum(1), (a * w * np.cos(arg)).sum(1), -(a * w**2 * np.sin(arg)).sum(1)
 
 
+#: Largest simulated record (samples): 10^4 s at 2 ms, about a gigabyte of state; more is refused
+#: before anything is allocated.
+MAX_SAMPLES = 5_000_000
+
+
 def _check_timing(duration, ts):
     if not (ts > 0 and math.isfinite(ts)):
         raise DataError(f"ts must be a positive number of seconds, got {ts!r}")
+    if not math.isfinite(duration):
+        raise DataError(f"duration must be a finite number of seconds, got {duration!r}")
     n = int(round(duration / ts))
     if n < 100:
         raise DataError(f"duration {duration} s at ts {ts} s gives {n} samples; ask for at least 100")
+    if n > MAX_SAMPLES:
+        raise DataError(f"duration {duration:g} s at ts {ts} s gives {n} samples; ask for at most {MAX_SAMPLES} "
+                        f"({MAX_SAMPLES * ts:g} s)")
     return n
+
+
+def _rng(seed):
+    """``numpy.random.default_rng(seed)`` with a DataError for a seed it cannot take."""
+    try:
+        return np.random.default_rng(seed)
+    except (ValueError, TypeError):
+        raise DataError(f"seed must be a non-negative integer, got {seed!r}") from None
 
 
 def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, effects=None,
@@ -249,7 +267,7 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
     eff = _effects(effects)
     par = parameters or QuadrotorParameters()
     n = _check_timing(duration, ts)
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     t = np.arange(n) * ts
 
     # references: roll/pitch/yaw sums of sines, altitude from seed 001 eq. 15
@@ -514,7 +532,7 @@ def thrust_stand(seed: int = 0, duration: float = 60.0, ts: float = 0.01, profil
     eff = _effects(effects)
     par = parameters or QuadrotorParameters()
     n = _check_timing(duration, ts)
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     t = np.arange(n) * ts
     pwm = _stand_pwm(profile, t, rng)
     duty = pwm / PWM_FULL_SCALE
@@ -583,7 +601,7 @@ def thrust_stand_static(seed: int = 0, pwm_levels=None, supply_levels=(3.5, 3.7,
         ``torque1`` [N m] (reaction torque of one motor).
     """
     par = parameters or QuadrotorParameters()
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     pwm_levels = np.linspace(0.15, 1.0, 12) * PWM_FULL_SCALE if pwm_levels is None else np.asarray(pwm_levels, float)
     from .quadrotor.motor import MotorModel
 

@@ -152,7 +152,7 @@ def run_demo(output: str | Path = "arxid-demo-report.html", seed: int = 0, durat
     t_all = time.perf_counter()
     seconds = {}
     t0 = time.perf_counter()
-    data, facts = demo_data(seed, duration or DURATION)
+    data, facts = demo_data(seed, DURATION if duration is None else duration)
     seconds["simulate"] = time.perf_counter() - t0
     say("arxid demo: a simulated quadrotor flight whose battery drains, and the effect the model is missing")
     say()
