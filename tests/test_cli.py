@@ -272,6 +272,14 @@ def test_help_has_an_example(capsys, command):
     assert "example:" in out and f"arxid {command}" in out
 
 
+def test_fit_help_does_not_promise_a_default_split(capsys):
+    """fit validates only when asked (--split or --validation); its help must not say 0.7 by default."""
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "default 0.7" not in out and "no validation" in out
+
+
 def test_parse_range():
     assert parse_range("1:4", "na") == [1, 2, 3, 4]
     assert parse_range("0,2,5", "nk") == [0, 2, 5]

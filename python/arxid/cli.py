@@ -142,7 +142,7 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
     return data
 
 
-def _data_args(p: argparse.ArgumentParser, validation: bool = True) -> None:
+def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_default: bool = True) -> None:
     p.add_argument("data", metavar="DATA", help="CSV file with a header row, or .npz archive of named arrays")
     p.add_argument("--output", required=True, metavar="COL", help="output column")
     p.add_argument("--inputs", required=True, metavar="A[,B]", help="input column(s), comma separated")
@@ -154,7 +154,8 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True) -> None:
         v = p.add_mutually_exclusive_group()
         v.add_argument("--validation", metavar="VAL.csv", help="separate validation file with the same columns")
         v.add_argument("--split", type=float, metavar="F", default=None,
-                       help="estimation fraction of DATA when no --validation is given (default 0.7)")
+                       help="estimation fraction of DATA when no --validation is given "
+                            + ("(default 0.7)" if split_default else "(default: no validation, fit on all of DATA)"))
 
 
 def _order_args(p: argparse.ArgumentParser, grid_default: bool) -> None:
@@ -414,7 +415,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("fit", help="fit one ARX structure (optionally with effects)", epilog=_EXAMPLES["fit"],
                        description="Fit one ARX model by QR and report its errors.", **kw)
-    _data_args(p)
+    _data_args(p, split_default=False)
     p.add_argument("--orders", metavar="NA,NB,NK", required=True, help="structure, e.g. 2,1,8")
     p.add_argument("--effects", metavar="E[,F]", default="", help="effect terms, e.g. 'u1*vbat,const'")
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
