@@ -2,7 +2,7 @@
 
 use crate::error::{ArxError, Result};
 use crate::qr::{back_substitute, check_rank, rank_tolerance, reduce, small_qr, to_col_major};
-use crate::structure::{usable_rows, Data, Structure};
+use crate::structure::{fill_row, usable_rows, Data, Structure};
 
 /// A fitted parameter vector with what the Python layer needs for statistics.
 #[derive(Debug, Clone)]
@@ -76,13 +76,46 @@ pub fn inverse_gram(r: &[f64], ld: usize, k: usize) -> Vec<f64> {
 /// `TooFewSamples` when there are fewer usable rows than parameters; `RankDeficient` naming the first
 /// regressor column that depends on the ones before it.
 pub fn fit(d: &Data, s: &Structure, first_lag: usize, parallel: bool) -> Result<Fit> {
+    fit_rows_like(d, s, first_lag, parallel, None)
+}
+
+/// [`fit`] on the rows where the regressors of `rows_like` (normally a sweep's grid envelope,
+/// which reads every lag `s` reads) are finite too, so that a structure refitted after a sweep on
+/// data with NaN uses exactly the sweep's rows. `n_skipped` then counts the rows either left out.
+///
+/// # Errors
+/// As [`fit`]; `ShapeMismatch` or `InvalidStructure` when `rows_like` does not fit the data.
+pub fn fit_rows_like(
+    d: &Data,
+    s: &Structure,
+    first_lag: usize,
+    parallel: bool,
+    rows_like: Option<&Structure>,
+) -> Result<Fit> {
     s.check(d.m)?;
     let p = s.n_params();
-    let bound = d.max_rows(first_lag.max(s.max_lag()));
+    let lag = first_lag.max(s.max_lag()).max(rows_like.map_or(0, |r| r.max_lag()));
+    let bound = d.max_rows(lag);
     if bound < p + 1 {
         return Err(ArxError::TooFewSamples { needed: p + 1, got: bound });
     }
-    let (rows, n_skipped) = usable_rows(d, s, first_lag);
+    let (rows, n_skipped) = match rows_like {
+        None => usable_rows(d, s, first_lag),
+        Some(env) => {
+            if env.nb.len() != d.m {
+                return Err(ArxError::ShapeMismatch {
+                    what: "row structure nb (one order per input)".into(),
+                    expected: d.m,
+                    got: env.nb.len(),
+                });
+            }
+            let mut row = vec![0.0; p];
+            let rows: Vec<usize> =
+                usable_rows(d, env, lag).0.into_iter().filter(|&t| fill_row(d, s, t, &mut row)).collect();
+            let skipped = bound - rows.len();
+            (rows, skipped)
+        }
+    };
     if rows.len() < p + 1 {
         return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
     }

@@ -90,8 +90,11 @@ fn structure(na: usize, nb: Vec<usize>, nk: Vec<usize>, terms: Vec<(String, i32,
 }
 
 /// Least-squares ARX fit by Householder QR. Returns a dict with theta, rss, n_rows, n_skipped, inv_gram.
+///
+/// `rows_like = (na, nb, nk)` fits on the rows where that larger structure's regressors are finite
+/// too (a sweep's grid envelope), so that a refit uses exactly the sweep's rows.
 #[pyfunction]
-#[pyo3(signature = (y, u, starts, na, nb, nk, output_terms, first_lag = 0, n_threads = 0))]
+#[pyo3(signature = (y, u, starts, na, nb, nk, output_terms, first_lag = 0, n_threads = 0, rows_like = None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -104,11 +107,16 @@ fn fit<'py>(
     output_terms: Vec<(String, i32, i64)>,
     first_lag: usize,
     n_threads: usize,
+    rows_like: Option<(usize, Vec<usize>, Vec<usize>)>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let env = match rows_like {
+        Some((ena, enb, enk)) => Some(structure(ena, enb, enk, output_terms.clone())?),
+        None => None,
+    };
     let s = structure(na, nb, nk, output_terms)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
-    let f = run(py, n_threads, || crate::fit::fit(&d, &s, first_lag, true))?;
+    let f = run(py, n_threads, || crate::fit::fit_rows_like(&d, &s, first_lag, true, env.as_ref()))?;
     let p = f.theta.len();
     let out = PyDict::new(py);
     out.set_item("theta", f.theta.into_pyarray(py))?;

@@ -56,6 +56,30 @@ def test_every_structure_equals_lstsq_and_arx_on_the_same_rows(small):
     assert res.bic[0] == pytest.approx(fresh.bic_, rel=1e-9)
 
 
+def test_with_missing_samples_every_structure_and_its_model_use_the_sweeps_rows():
+    # NaN in output and input: the sweep leaves out every row where the grid's largest regressor
+    # touches a NaN; model(i) must refit on those same rows (it used its own, larger row set).
+    d = _arx_data(3000, 4)
+    y, u = d.y.copy(), d.u.copy()
+    y[[100, 500, 901, 1700]] = np.nan
+    u[[300, 1200, 2222], 0] = np.nan
+    d = arxid.IOData(y, u, ts=d.ts)
+    res = arxid.sweep(d, na=range(1, 4), nb=range(1, 3), nk=range(0, 4), progress=False)
+    env = compile_effects((), d, [5], [0])  # lags 0..4 of u: nb 1..2 with nk 0..3
+    _, _, rows = regressor_matrix(d, 3, env, first_lag=res.first_lag)
+    assert res.n_est == len(rows) < d.n_samples - res.first_lag
+    for i in range(len(res)):
+        na, nb, nk = int(res.na[i]), int(res.nb[i, 0]), int(res.nk[i, 0])
+        phi, _, own = regressor_matrix(d, na, compile_effects((), d, [nb], [nk]), first_lag=res.first_lag)
+        keep = np.isin(own, rows)
+        ref, *_ = np.linalg.lstsq(phi[keep], d.y[own[keep]], rcond=None)
+        np.testing.assert_allclose(res.parameters[i], ref, rtol=1e-9, atol=1e-11)
+        m = res.model(i)
+        np.testing.assert_allclose(m.parameters_, res.parameters[i], rtol=1e-9, atol=1e-11)
+        assert m.n_rows_ == res.n_est
+        assert m.n_skipped_ == d.n_samples - res.first_lag - res.n_est
+
+
 def test_free_run_errors_match_an_explicit_simulation(small):
     est, val, res = small
     for i in (0, 5, len(res) - 1):

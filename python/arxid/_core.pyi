@@ -18,6 +18,7 @@ def fit(
     output_terms: Sequence[_Term],
     first_lag: int = 0,
     n_threads: int = 0,
+    rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
 ) -> dict[str, Any]: ...
 def predict(
     y: _F,

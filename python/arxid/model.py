@@ -102,11 +102,14 @@ class ArxModel:
         self.effects = tuple(effects)
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, data: IOData, *, first_lag: int = 0, n_threads: int = 0) -> "ArxModel":
+    def fit(self, data: IOData, *, first_lag: int = 0, n_threads: int = 0, rows_like=None) -> "ArxModel":
         """Least squares by Householder QR in the Rust core. Returns ``self``.
 
         ``first_lag`` starts the regression rows that far into each experiment (at least the
         model's own largest lag); sweeps use it to compare structures on the same rows.
+        ``rows_like = (na, nb, nk)``, orders per column of the effect layout, also leaves out the
+        rows where that larger structure's regressors touch a NaN (a sweep passes its grid's
+        envelope, so that on data with NaN the refit uses exactly the sweep's rows).
         """
         if not isinstance(data, IOData):
             raise DataError(f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)")
@@ -142,7 +145,8 @@ class ArxModel:
         y = np.ascontiguousarray(data.y)
         try:
             res = _core.fit(y, layout.u, list(data.experiment_starts), na, list(layout.nb), list(layout.nk),
-                            list(layout.output_terms), first_lag=first_lag, n_threads=_order("n_threads", n_threads))
+                            list(layout.output_terms), first_lag=first_lag, n_threads=_order("n_threads", n_threads),
+                            rows_like=rows_like)
         except IdentifiabilityError as exc:
             col = getattr(exc, "column", None)
             if col is None:

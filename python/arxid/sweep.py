@@ -141,6 +141,9 @@ class SweepResult:
     sort_by : str
     first_lag : int
         The grid's largest lag: every structure uses rows from here on.
+    row_orders : tuple (na, nb, nk)
+        Orders (per effect-layout column) of the grid's envelope, the largest regressor: rows where
+        it touches a NaN are left out for every structure.
     n_est, n_val : int
         Regression rows of estimation and validation data.
     """
@@ -166,6 +169,7 @@ class SweepResult:
     integrating_reason: str
     sort_by: str
     first_lag: int
+    row_orders: tuple
     n_est: int
     n_val: int
     effects: tuple[str, ...]
@@ -221,7 +225,7 @@ class SweepResult:
             nb = tuple(int(v) for v in self.nb[i])
             nk = tuple(int(v) for v in self.nk[i])
             self._cache[key] = ArxModel(na=int(self.na[i]), nb=nb, nk=nk, effects=self.effects).fit(
-                self.estimation, first_lag=self.first_lag)
+                self.estimation, first_lag=self.first_lag, rows_like=self.row_orders)
         return self._cache[key]
 
     def sanity(self, i: int) -> StepSanity:
@@ -719,6 +723,21 @@ def _max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return out
 
 
+def _envelope(grid: np.ndarray) -> tuple[int, tuple[int, ...], tuple[int, ...]]:
+    """(na, nb, nk) of the regressor holding every column of the grid (as the Rust core builds it)."""
+    mc = (grid.shape[1] - 1) // 2
+    nb, nk = grid[:, 1:1 + mc], grid[:, 1 + mc:]
+    env_nb, env_nk = [], []
+    for j in range(mc):
+        used = nb[:, j] > 0
+        if not used.any():
+            env_nb.append(0), env_nk.append(0)
+            continue
+        lo, hi = int(nk[used, j].min()), int((nk[used, j] + nb[used, j] - 1).max())
+        env_nb.append(hi - lo + 1), env_nk.append(lo)
+    return int(grid[:, 0].max()), tuple(env_nb), tuple(env_nk)
+
+
 def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_step, integrating, reason, sort_by,
                   effects, expect, limits, m) -> SweepResult:
     s = len(grid)
@@ -763,6 +782,6 @@ def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_ste
         rms_val=rms_val[order], fit_val=fit_val[order], fpe=fpe[order], aic=aic[order], bic=bic[order],
         diverged_est=div_est[order], diverged_val=div_val[order],
         errors=tuple(errors[i] for i in order), horizon=k_step, integrating=integrating, integrating_reason=reason,
-        sort_by=key, first_lag=first_lag, n_est=n_est, n_val=n_val, effects=effects, expect=expect, limits=limits,
+        sort_by=key, first_lag=first_lag, row_orders=_envelope(grid), n_est=n_est, n_val=n_val, effects=effects, expect=expect, limits=limits,
         estimation=est, validation=val,
     )
