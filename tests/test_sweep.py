@@ -309,3 +309,27 @@ def test_progress_is_reported_from_the_core_and_drives_a_bar(monkeypatch, capsys
     res = arxid.sweep(est, na=range(1, 5), nb=range(1, 5), nk=range(0, 5), validation=val, progress=True)
     assert len(res) == len(grid)
     assert "arxid.sweep" in capsys.readouterr().err
+
+
+def test_validation_shorter_than_the_grid_lag_is_a_data_error():
+    d = _arx_data(1000, 1)
+    with pytest.raises(DataError, match="validation data.*3 samples.*largest lag 6.*longer validation"):
+        arxid.sweep(d, na=range(1, 3), nb=range(1, 3), nk=range(0, 6), validation=d[:3], progress=False)
+
+
+def test_all_nan_output_is_a_data_error_without_warnings():
+    d = _arx_data(500, 1)
+    bad = arxid.IOData(np.full(500, np.nan), d.u, ts=d.ts)
+    with pytest.raises(DataError, match="too few usable samples"):
+        arxid.sweep(bad, na=range(1, 3), nb=1, nk=1, progress=False)  # warnings are errors here
+    with pytest.raises(DataError, match="validation.*no finite output"):
+        arxid.sweep(d, na=range(1, 3), nb=1, nk=1, validation=bad, progress=False)
+
+
+def test_when_no_structure_can_be_fitted_best_says_why():
+    d = _arx_data(1000, 1)
+    d = arxid.IOData(d.y, d.u, ts=d.ts, extra={"vbat": np.full(1000, 12.0)})
+    res = arxid.sweep(d, na=range(1, 3), nb=1, nk=range(1, 3), effects=["u1*vbat"], progress=False)
+    assert all(e is not None for e in res.errors)
+    with pytest.raises(arxid.ArxidError, match="could not be fitted.*linear combination"):
+        res.best()

@@ -9,6 +9,7 @@ import math
 import numbers
 import os
 import sys
+import warnings
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -290,7 +291,12 @@ class SweepResult:
                     skipped.append((i, self.structure_name(i), verdict.reasons))
                     continue
             return Selection(i, self.structure_name(i), tuple(skipped))
-        why = "; ".join(f"{n}: {', '.join(r)}" for _, n, r in skipped[:5]) or "every structure diverged or could not be fitted"
+        why = "; ".join(f"{n}: {', '.join(r)}" for _, n, r in skipped[:5])
+        if not why:
+            n_err = sum(e is not None for e in self.errors)
+            first = next((f"{self.structure_name(i)}: {e}" for i, e in enumerate(self.errors) if e is not None), None)
+            why = (f"{len(self) - n_err} structures diverged or have no finite error, {n_err} could not be fitted"
+                   + (f", e.g. {first}" if first else ""))
         raise ArxidError(f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
                          f"widen the grid, check expect={self.expect!r}, or relax SanityLimits")
 
@@ -621,6 +627,16 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
         lag = max([r[0]] + [r[1 + j] + r[1 + mc + j] - 1 for j in range(mc) if r[1 + j] > 0]
                   + [2 if k == "signdiff" else 1 for k, _, _ in terms])
         first_lag = max(first_lag, lag)
+    if val is not None:
+        left = sum(max(0, b - a - first_lag) for a, b in val.segments)
+        if left == 0:
+            raise DataError(
+                f"the validation data have {val.n_samples} samples, but every structure starts at the grid's largest lag "
+                f"{first_lag} into each experiment, which leaves none to validate on; use longer validation data or "
+                f"smaller orders")
+        if not np.isfinite(val.y).any():
+            raise DataError("the validation data hold no finite output sample (all NaN); pass validation data with a "
+                            "measured output")
 
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
@@ -674,7 +690,12 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
 
 def _peak(y: np.ndarray) -> float:
     """Largest |y| (ignoring NaN) without a temporary copy of y."""
-    return float(max(np.nanmax(y), -np.nanmin(y))) if y.size else 0.0
+    if not y.size:
+        return 0.0
+    with warnings.catch_warnings():  # all NaN: nanmax warns; the core then reports too few usable rows
+        warnings.simplefilter("ignore", RuntimeWarning)
+        peak = float(max(np.nanmax(y), -np.nanmin(y)))
+    return peak if math.isfinite(peak) else 0.0
 
 
 def _fpe(rss, n, grid, n_terms):
