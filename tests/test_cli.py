@@ -193,6 +193,25 @@ def test_demo_short_flight(capsys, tmp_path):
     assert "error ladder" in err.lower()  # the story goes to stderr with --json
 
 
+def test_default_demo_under_60_s_tells_the_battery_story(capsys, tmp_path):
+    """``make demo`` runs exactly this: the default 20 s flight, under a minute, before/after numbers."""
+    import re
+    import time
+
+    path = tmp_path / "arxid-demo-report.html"
+    t0 = time.perf_counter()
+    code, out, err = run(capsys, "demo", "-o", path, "--no-progress")
+    elapsed = time.perf_counter() - t0
+    assert code == 0, err
+    assert elapsed < 60, f"the demo took {elapsed:.1f} s"
+    assert "Missing effect: collective*vbat" in out and "battery" in out
+    m = re.search(r"before ([0-9.e+-]+) m/s\^2 -> after ([0-9.e+-]+) m/s\^2", out)
+    assert m, out
+    before, after = float(m.group(1)), float(m.group(2))
+    assert after < 0.5 * before
+    assert "Error ladder" in out and path.stat().st_size > 100_000
+
+
 # ---------------------------------------------------------------------------------------- errors
 @pytest.mark.parametrize("argv, needle", [
     (["fit", "{csv}", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "--output"),
