@@ -223,3 +223,16 @@ def test_sweep_with_a_huge_horizon_runs(data):
     for i in range(len(res)):
         j = next(j for j in range(len(free)) if free.structure_name(j) == res.structure_name(i))
         assert res.rms_est[i] == pytest.approx(free.rms_est[j], rel=1e-9)
+
+
+def test_effect_overflowing_the_float_range_is_a_data_error_not_missing_rows(data):
+    # y ~ 1e80: y^4 exceeds the float range. The rows used to be dropped as if NaN, ending in
+    # "too few usable samples" (or, with fewer overflows, a fit on silently fewer rows).
+    big = arxid.IOData(data.y * 1e80, data.u, ts=data.ts)
+    with pytest.raises(DataError, match=r"effect 'y\^4' overflows.*scale"):
+        arxid.arx(big, 1, 1, 1, effects=["y^4"])
+    loud = arxid.IOData(data.y, data.u * 1e100, ts=data.ts)
+    with pytest.raises(DataError, match=r"effect 'u1\^4' overflows.*scale"):
+        arxid.arx(loud, 1, 1, 1, effects=["u1^4"])
+    with pytest.raises(DataError, match=r"effect 'y\*u1' overflows"):
+        arxid.arx(arxid.IOData(data.y * 1e200, data.u * 1e200, ts=data.ts), 1, 1, 1, effects=["y*u1"])

@@ -29,7 +29,7 @@ from typing import Sequence
 import numpy as np
 
 from .data import IOData
-from .exceptions import OrderError
+from .exceptions import DataError, OrderError
 
 __all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects"]
 
@@ -166,6 +166,17 @@ def _output_term(f: Factor, text: str) -> tuple[str, int]:
     raise OrderError(f"effect {text!r}: {f.op}(y) is not supported for the output; use y^p, abs(y) or sign(dy)")
 
 
+def _check_range(text: str, value: np.ndarray) -> None:
+    """Refuse an effect that leaves the float range (IOData holds no inf, so any inf is an overflow):
+    the core would drop those rows as if they were missing samples."""
+    bad = np.isinf(value)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DataError(
+            f"effect {text!r} overflows the float range at sample {i} (its signals are finite there but too large for "
+            f"the term); scale the signals (other units, or divide by a typical value) or use a lower power")
+
+
 def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
     """Turn effect strings into extra regressor columns and output terms for ``data``."""
     m = data.n_inputs
@@ -198,11 +209,20 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
         if len(y_factors) > 1:
             raise OrderError(f"effect {text!r}: at most one factor may involve the output")
         prod = None
-        for f in others:
-            x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
-            prod = x if prod is None else prod * x
+        with np.errstate(over="ignore", invalid="ignore"):
+            for f in others:
+                x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
+                _check_range(text, x)
+                prod = x if prod is None else prod * x
+                _check_range(text, prod)
         if y_factors:
             kind, power = _output_term(y_factors[0], text)
+            # The core evaluates the term on y(t-1); check it on the measured output here.
+            with np.errstate(over="ignore", invalid="ignore"):
+                g = _apply(Factor("y", kind, power), data.y, data)
+                _check_range(text, g)
+                if prod is not None:
+                    _check_range(text, g * prod)
             mult = -1
             if prod is not None:
                 mult = len(out_nb)
