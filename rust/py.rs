@@ -225,7 +225,7 @@ fn sweep<'py>(
     let s = res.len();
     let pmax = res.iter().map(|r| r.theta.len()).max().unwrap_or(0);
     let mut theta = vec![f64::NAN; s * pmax];
-    let mut cols: [Vec<f64>; 6] = Default::default();
+    let mut cols: [Vec<f64>; 8] = Default::default();
     let mut diverged_est = Vec::with_capacity(s);
     let mut diverged_val = Vec::with_capacity(s);
     let mut errors: Vec<Option<String>> = Vec::with_capacity(s);
@@ -237,13 +237,16 @@ fn sweep<'py>(
         cols[3].push(r.sim_val.rms);
         cols[4].push(r.sim_est.n as f64);
         cols[5].push(r.sim_val.n as f64);
+        cols[6].push(r.sim_est.norm);
+        cols[7].push(r.sim_val.norm);
         diverged_est.push(r.sim_est.diverged);
         diverged_val.push(r.sim_val.diverged);
         errors.push(r.error.map(|e| e.to_string()));
     }
     let out = PyDict::new(py);
     out.set_item("theta", PyArray1::from_vec(py, theta).reshape([s, pmax])?)?;
-    let names = ["rss_est", "rss_val", "rms_sim_est", "rms_sim_val", "n_sim_est", "n_sim_val"];
+    let names =
+        ["rss_est", "rss_val", "rms_sim_est", "rms_sim_val", "n_sim_est", "n_sim_val", "norm_sim_est", "norm_sim_val"];
     for (name, col) in names.iter().zip(cols) {
         out.set_item(*name, col.into_pyarray(py))?;
     }

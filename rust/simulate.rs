@@ -257,6 +257,9 @@ pub struct SimScore {
     pub n: usize,
     /// The simulation left any plausible range and was stopped.
     pub diverged: bool,
+    /// ‖y − ȳ‖ over the scored samples, for the fit percent, when [`score`] scored a subset of the
+    /// samples (missing data); NaN on the paths that score every sample from the first lag on.
+    pub norm: f64,
 }
 
 /// Free-run RMS of a linear structure (no output terms), the hot loop of a sweep.
@@ -313,7 +316,7 @@ pub fn free_run_rms_linear(
             // NaN must count as diverged, hence the negated comparison.
             #[allow(clippy::neg_cmp_op_on_partial_ord)]
             if !(v.abs() <= limit) {
-                return SimScore { rms: f64::NAN, n: count, diverged: true };
+                return SimScore { rms: f64::NAN, n: count, diverged: true, norm: f64::NAN };
             }
             if na > 0 {
                 h.copy_within(0..na - 1, 1);
@@ -326,7 +329,12 @@ pub fn free_run_rms_linear(
             }
         }
     }
-    SimScore { rms: if count > 0 { (sse / count as f64).sqrt() } else { f64::NAN }, n: count, diverged: false }
+    SimScore {
+        rms: if count > 0 { (sse / count as f64).sqrt() } else { f64::NAN },
+        n: count,
+        diverged: false,
+        norm: f64::NAN,
+    }
 }
 
 /// Structures simulated side by side by [`free_run_rms_lanes`] (one SIMD lane each).
@@ -547,10 +555,10 @@ impl LaneState {
         (0..k)
             .map(|l| {
                 if self.diverged[l] {
-                    SimScore { rms: f64::NAN, n: self.n[l], diverged: true }
+                    SimScore { rms: f64::NAN, n: self.n[l], diverged: true, norm: f64::NAN }
                 } else {
                     let rms = if self.n[l] > 0 { (self.sse[l] / self.n[l] as f64).sqrt() } else { f64::NAN };
-                    SimScore { rms, n: self.n[l], diverged: false }
+                    SimScore { rms, n: self.n[l], diverged: false, norm: f64::NAN }
                 }
             })
             .collect()
@@ -680,21 +688,29 @@ fn lanes_kernel_dyn<const FMA: bool>(
 }
 
 /// RMS of measured − predicted over the samples where both are finite; diverged when a prediction
-/// exceeds `limit` or is infinite.
+/// exceeds `limit` or is infinite. `norm` is ‖y − ȳ‖ over the same samples.
 pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
     let mut sse = 0.0;
+    let mut sum_y = 0.0;
     let mut n = 0;
     for (yt, pt) in d.y.iter().zip(pred) {
         if pt.is_infinite() || pt.abs() > limit {
-            return SimScore { rms: f64::NAN, n, diverged: true };
+            return SimScore { rms: f64::NAN, n, diverged: true, norm: f64::NAN };
         }
         let e = yt - pt;
         if e.is_finite() {
             sse += e * e;
+            sum_y += yt;
             n += 1;
         }
     }
-    SimScore { rms: if n > 0 { (sse / n as f64).sqrt() } else { f64::NAN }, n, diverged: false }
+    if n == 0 {
+        return SimScore { rms: f64::NAN, n, diverged: false, norm: f64::NAN };
+    }
+    let mean = sum_y / n as f64;
+    let centred: f64 =
+        d.y.iter().zip(pred).filter(|(y, p)| (*y - *p).is_finite()).map(|(y, _)| (y - mean) * (y - mean)).sum();
+    SimScore { rms: (sse / n as f64).sqrt(), n, diverged: false, norm: centred.sqrt() }
 }
 
 #[cfg(test)]

@@ -200,7 +200,7 @@ pub fn sweep(
         }
         None => (None, 0),
     };
-    let nan = SimScore { rms: f64::NAN, n: 0, diverged: false };
+    let nan = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN };
 
     // 1. Parameters and one-step losses of every structure, from R alone.
     let fit_one = |s: &Structure| -> StructureResult {

@@ -333,3 +333,23 @@ def test_when_no_structure_can_be_fitted_best_says_why():
     assert all(e is not None for e in res.errors)
     with pytest.raises(arxid.ArxidError, match="could not be fitted.*linear combination"):
         res.best()
+
+
+def test_fit_percent_with_missing_validation_inputs_is_that_of_the_scored_samples():
+    # The fit percent must normalise by the output samples the simulation scored, not by every
+    # validation sample from the first lag on (they differ when inputs are missing).
+    from arxid import _core
+
+    est, val = _arx_data(2000, 5), _arx_data(1500, 6)
+    uv = val.u.copy()
+    uv[[100, 400, 401, 700, 1100], 0] = np.nan
+    val = arxid.IOData(val.y, uv, ts=val.ts)
+    res = arxid.sweep(est, na=range(1, 3), nb=range(1, 3), nk=range(1, 4), validation=val, progress=False)
+    for i in range(len(res)):
+        m = res.model(i)
+        pred = _core.predict(val.y, val.u, [0], m.na, list(m.nb), list(m.nk), [], m.parameters_, None, res.first_lag)
+        ok = np.isfinite(pred) & np.isfinite(val.y)
+        e = val.y[ok] - pred[ok]
+        assert res.rms_val[i] == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-9)
+        fit = 100 * (1 - np.linalg.norm(e) / np.linalg.norm(val.y[ok] - val.y[ok].mean()))
+        assert res.fit_val[i] == pytest.approx(fit, rel=1e-9)

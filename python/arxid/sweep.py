@@ -781,7 +781,9 @@ def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_ste
     rms_val = np.where(div_val, np.nan, np.asarray(res["rms_sim_val"]))
     errors = tuple(res["errors"])
     if val is not None:
-        norm = _scored_norm(val, first_lag)
+        # With missing validation samples the core scores a subset per structure and gives its norm.
+        per_structure = np.asarray(res["norm_sim_val"])
+        norm = np.where(np.isfinite(per_structure), per_structure, _scored_norm(val, first_lag))
         with np.errstate(all="ignore"):
             fit_val = 100.0 * (1.0 - rms_val * np.sqrt(np.asarray(res["n_sim_val"])) / norm)
     else:
