@@ -25,7 +25,8 @@ impl fmt::Display for ArxError {
             }
             ArxError::TooFewSamples { needed, got } => write!(
                 f,
-                "too few usable samples: the orders need at least {needed} regression rows, the data give {got}"
+                "too few usable samples: the orders need at least {needed} regression rows, the data give {got} \
+                 (rows whose regressors touch a NaN are left out); lower the orders (na, nb, nk) or use more data"
             ),
             ArxError::RankDeficient { column, ratio } => write!(
                 f,

@@ -32,22 +32,28 @@ fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
 }
 
 /// Runs `f` without the GIL on `n_threads` threads (0 = all), turning a panic into an error.
+/// Results do not depend on the thread count, so more than 4 threads per core are not started.
 fn run<T: Send>(py: Python<'_>, n_threads: usize, f: impl FnOnce() -> Result<T, ArxError> + Send) -> PyResult<T> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let n_threads = n_threads.min(4 * cores);
     let out = py.detach(move || {
         catch_unwind(AssertUnwindSafe(|| {
             if n_threads == 0 {
-                f()
+                Ok(f())
             } else {
                 match rayon::ThreadPoolBuilder::new().num_threads(n_threads).build() {
-                    Ok(pool) => pool.install(f),
-                    Err(e) => Err(ArxError::InvalidStructure(format!("cannot start {n_threads} threads: {e}"))),
+                    Ok(pool) => Ok(pool.install(f)),
+                    Err(e) => {
+                        Err(format!("cannot start n_threads = {n_threads} threads ({e}); use n_threads=0 (all cores)"))
+                    }
                 }
             }
         }))
     });
     match out {
-        Ok(Ok(v)) => Ok(v),
-        Ok(Err(e)) => Err(to_pyerr(py, e)),
+        Ok(Ok(Ok(v))) => Ok(v),
+        Ok(Ok(Err(e))) => Err(to_pyerr(py, e)),
+        Ok(Err(msg)) => Err(ArxidError::new_err(msg)),
         Err(panic) => {
             let what = panic
                 .downcast_ref::<String>()

@@ -236,3 +236,21 @@ def test_effect_overflowing_the_float_range_is_a_data_error_not_missing_rows(dat
         arxid.arx(loud, 1, 1, 1, effects=["u1^4"])
     with pytest.raises(DataError, match=r"effect 'y\*u1' overflows"):
         arxid.arx(arxid.IOData(data.y * 1e200, data.u * 1e200, ts=data.ts), 1, 1, 1, effects=["y*u1"])
+
+
+def test_too_few_rows_from_the_core_says_how_to_fix(data):
+    with pytest.raises(DataError, match="too few usable samples.*lower the orders.*or use more data"):
+        arxid.sweep(data, na=1, nb=1, nk=[1, 290], progress=False)
+    nan_y = arxid.IOData(np.where(np.arange(300) % 2 == 0, np.nan, data.y), data.u, ts=data.ts)
+    with pytest.raises(DataError, match="too few usable samples.*NaN"):
+        arxid.arx(nan_y, 1, 1, 1)
+
+
+def test_absurd_thread_counts_are_clamped_not_spawned(data):
+    # 10^7 threads used to be requested from the OS (minutes of spawning, then an OrderError
+    # "invalid model structure"); results do not depend on the thread count, so it is clamped.
+    ref = arxid.arx(data, 2, 2, 1, n_threads=1).parameters_
+    np.testing.assert_array_equal(arxid.arx(data, 2, 2, 1, n_threads=10**7).parameters_, ref)
+    res = arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=10**7, progress=False)
+    assert res.structure_name(0) == arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=1,
+                                                progress=False).structure_name(0)

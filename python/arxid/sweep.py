@@ -580,7 +580,8 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
     n_terms = len(probe.output_terms)
     p_max = max(nas) + n_cols * max(max(b) for b in nbs) + n_terms
     q = max(nas) + n_cols * span + n_terms + 1
-    threads = n_threads or (os.cpu_count() or 1)
+    cores = os.cpu_count() or 1
+    threads = min(n_threads, 4 * cores) or cores  # the core starts at most 4 threads per core
     need = _estimate_memory(n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols, threads)
     limit = int(max_memory) if max_memory is not None else _available_memory() // 2
     if need > limit:
