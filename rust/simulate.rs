@@ -66,17 +66,21 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
             }
             None => {
                 // `from_measurement[t]`: take y(t) from the data (initial conditions, and samples whose
-                // inputs are missing, after which the simulation restarts). A simulation that overflows
-                // is not restarted: its NaN/inf propagate so the divergence stays visible.
+                // inputs or measured initial outputs are missing, after which the simulation restarts
+                // from the measurements). A simulation that overflows is not restarted: its NaN/inf
+                // propagate so the divergence stays visible.
                 let mut sim = vec![f64::NAN; b - a];
                 let mut from_measurement = vec![true; b - a];
+                let reach = s.max_lag().max(1);
                 for t in start..b {
                     let v = {
                         let (sim_ref, meas) = (&sim, &from_measurement);
                         step(d, s, theta, t, &|i| if meas[t - i - a] { d.y[t - i] } else { sim_ref[t - i - a] })
                     };
                     sim[t - a] = v;
-                    from_measurement[t - a] = v.is_nan() && !inputs_finite(d, s, t);
+                    let missing_history =
+                        (1..=reach.min(t - a)).any(|i| from_measurement[t - i - a] && d.y[t - i].is_nan());
+                    from_measurement[t - a] = v.is_nan() && (missing_history || !inputs_finite(d, s, t));
                     out[t] = v;
                 }
             }

@@ -217,3 +217,22 @@ def test_n_threads_do_not_change_the_answer():
     a = arxid.arx(data, 1, 2, 1, n_threads=1).parameters_
     b = arxid.arx(data, 1, 2, 1, n_threads=0).parameters_
     assert np.array_equal(a, b)
+
+
+def test_free_run_restarts_after_missing_initial_outputs():
+    # The first outputs of the second experiment are missing: the simulation must start once
+    # measured outputs are available again, not stay NaN for the whole experiment.
+    rng = np.random.default_rng(12)
+    parts = []
+    for _ in range(2):
+        u = rng.standard_normal(400)
+        parts.append(arxid.IOData(simulate_arx([-0.7], [[1.0]], [1], u), u, ts=1.0))
+    y = parts[1].y.copy()
+    y[:3] = np.nan
+    parts[1] = arxid.IOData(y, parts[1].u, ts=1.0)
+    data = arxid.IOData.merge(parts)
+    model = arxid.arx(data, 1, 1, 1)
+    free = model.predict(data)
+    second = free[400:]
+    assert np.isnan(second[:4]).all()
+    np.testing.assert_allclose(second[4:], y[4:], atol=1e-9)

@@ -179,8 +179,16 @@ def test_nonlinear_model_has_no_transfer_function(data):
     lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1, 0]]), [], yv=np.zeros(9), uv=np.zeros((9, 2))),
 ])
 def test_pathological_core_calls_raise_arxid_errors_not_panics(call):
-    with pytest.raises((ArxidError, TypeError)):
+    with pytest.raises((ArxidError, TypeError)) as exc:
         call()
+    # A caught Rust panic also arrives as ArxidError, worded "internal error": none may happen.
+    assert "internal error" not in str(exc.value)
+
+
+@pytest.mark.parametrize("n_threads", [1.5, -1, "2", True])
+def test_sweep_refuses_a_thread_count_that_is_not_a_count(data, n_threads):
+    with pytest.raises(OrderError, match="n_threads must be an integer"):
+        arxid.sweep(data, na=range(1, 3), nb=1, nk=1, n_threads=n_threads, progress=False)
 
 
 # Pathological inputs found in review: each must end in a typed error that says what to do, never in

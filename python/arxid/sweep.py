@@ -563,9 +563,9 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
         raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
+    if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
+        raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
     n_threads = int(n_threads)
-    if n_threads < 0:
-        raise ArxidError(f"n_threads must be >= 0 (0 = all cores), got {n_threads}")
     m = est.n_inputs
     nas = _order_range("na", na)
     nbs = _per_input_ranges("nb", nb, m)
