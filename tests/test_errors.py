@@ -262,3 +262,12 @@ def test_absurd_thread_counts_are_clamped_not_spawned(data):
     res = arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=10**7, progress=False)
     assert res.structure_name(0) == arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=1,
                                                 progress=False).structure_name(0)
+
+
+def test_model_file_with_absurd_order_is_corrupt(data):
+    import json
+
+    d = json.loads(arxid.arx(data, 1, 1, 1).to_json())
+    d["nk"] = [2**70]
+    with pytest.raises(DataError, match="corrupt model file.*too large"):
+        arxid.ArxModel.from_json(json.dumps(d))

@@ -19,6 +19,8 @@ __all__ = ["ArxModel", "arx"]
 
 _JSON_FORMAT = "arxid.ArxModel"
 _JSON_VERSION = 1
+# Same bound as the Rust core: larger orders cannot describe sampled data and would overflow lags.
+_MAX_ORDER = 2**40
 
 
 def _order(name: str, value) -> int:
@@ -26,6 +28,8 @@ def _order(name: str, value) -> int:
         raise OrderError(f"{name} must be a non-negative integer, got {value!r}")
     if value < 0:
         raise OrderError(f"{name} must be >= 0, got {value}")
+    if value > _MAX_ORDER:
+        raise OrderError(f"{name} = {value} is too large (at most {_MAX_ORDER}); orders and delays count samples")
     return int(value)
 
 
