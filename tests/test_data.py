@@ -112,3 +112,17 @@ def test_csv_headers_with_units_become_plain_signal_names(tmp_path):
     assert d.input_names == ("pwm", "motor_speed") and d.extra_units == {"vbat": "V"}
     d2 = arxid.IOData.from_csv(p, output="weight", inputs=["pwm"], extra=["vbat"], ts=1)
     np.testing.assert_array_equal(d2.extra["vbat"], [3.9, 3.8, 3.7])
+
+
+def test_from_csv_refuses_a_binary_file(tmp_path):
+    p = tmp_path / "data.csv"
+    p.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(DataError, match="not a UTF-8 text CSV"):
+        arxid.IOData.from_csv(p, output="y", inputs=["u"], ts=1)
+
+
+def test_from_csv_reads_a_byte_order_mark(tmp_path):
+    p = tmp_path / "excel.csv"
+    p.write_bytes("\ufeffy,u\n1,2\n2,3\n".encode("utf-8"))
+    d = arxid.IOData.from_csv(p, output="y", inputs=["u"], ts=1)
+    assert d.output_name == "y" and d.y.tolist() == [1.0, 2.0]

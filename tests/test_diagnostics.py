@@ -280,6 +280,18 @@ def test_residual_errors():
 # ---------------------------------------------------------------------------------------------
 # where it fails
 # ---------------------------------------------------------------------------------------------
+def test_worst_segments_of_a_correct_model_are_not_significant():
+    # Without a disturbance the worst window is only the largest of many noise windows: the
+    # corrected test must not call it significant (at most one of 10 seeds at alpha = 0.01).
+    flagged = 0
+    for seed in range(10):
+        d = first_order(seed=100 + seed, n=3000, noise=0.05)
+        fa = where_it_fails(arxid.arx(d, 1, 1, 1), d, window=100)
+        flagged += any(s.significant for s in fa.worst_segments)
+        assert all(0 <= s.p_value <= 1 for s in fa.worst_segments)
+    assert flagged <= 1
+
+
 def test_where_it_fails_finds_a_disturbance_in_time(tmp_path):
     d = first_order(seed=6, n=3000, noise=0.05)
     m = arxid.arx(d, 1, 1, 1)
@@ -291,6 +303,8 @@ def test_where_it_fails_finds_a_disturbance_in_time(tmp_path):
     assert worst.start_time <= 185.0 <= worst.end_time
     assert 1750 <= worst.start and worst.end <= 1950
     assert worst.ratio > 3
+    assert worst.significant and worst.p_value < 1e-6
+    assert fa.to_dict()["worst_segments"][0]["significant"] is True
     assert len(fa.worst_segments) == 3
     # the segments do not overlap
     spans = sorted((s.start, s.end) for s in fa.worst_segments)

@@ -187,8 +187,12 @@ class IOData:
         path = Path(path)
         if not path.is_file():
             raise DataError(f"CSV file {str(path)!r} does not exist")
-        with path.open(newline="") as fh:
-            text = fh.read()
+        try:
+            with path.open(newline="", encoding="utf-8-sig") as fh:
+                text = fh.read()
+        except UnicodeDecodeError as exc:
+            raise DataError(f"{path.name} is not a UTF-8 text CSV file ({exc.reason} at byte {exc.start}); "
+                            f"export it as CSV with a header row") from None
         lines = text.splitlines()
         if not lines:
             raise DataError(f"CSV file {str(path)!r} is empty")

@@ -585,6 +585,11 @@ class WorstSegment:
     ``start_time``/``end_time`` in seconds from the first sample of the data (experiments laid end
     to end), ``start``/``end`` sample indices (half open), ``rms`` the error RMS inside, ``ratio``
     that RMS over the RMS of the whole record.
+
+    ``p_value`` asks whether the one-step residual is larger inside the window than outside: a
+    one-sided F test of the two variances (the one-step residual, unlike the free-run error, has
+    nearly independent samples), Bonferroni-corrected for the ``n / window`` windows the search
+    looked at. ``significant`` compares it with the analysis' ``alpha``.
     """
 
     start: int
@@ -593,6 +598,8 @@ class WorstSegment:
     end_time: float
     rms: float
     ratio: float
+    p_value: float = math.nan
+    significant: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -676,8 +683,9 @@ class FailureAnalysis:
     def __str__(self) -> str:
         lines = [f"where {self.model_name or 'the model'} fails ({horizon_label(self.horizon)} error, rms {self.rms:.4g})",
                  f"worst segments (window {self.window} samples):"]
-        lines.append(_table(["from [s]", "to [s]", "rms", "× overall"],
-                            [(s.start_time, s.end_time, s.rms, s.ratio) for s in self.worst_segments]))
+        lines.append(_table(["from [s]", "to [s]", "rms", "× overall", "p-value", "significant"],
+                            [(s.start_time, s.end_time, s.rms, s.ratio, s.p_value, "yes" if s.significant else "")
+                             for s in self.worst_segments]))
         k = max(len(self.by_signal), 1)
         lines.append("one-step residual binned by signal (Bonferroni over signals):")
         rows = []
@@ -705,7 +713,8 @@ class FailureAnalysis:
             "window": self.window,
             "worst_segments": [
                 {"start_time": s.start_time, "end_time": s.end_time, "start": s.start, "end": s.end,
-                 "rms": s.rms, "ratio": s.ratio} for s in self.worst_segments
+                 "rms": s.rms, "ratio": s.ratio, "p_value": _finite_or_none(s.p_value),
+                 "significant": s.significant} for s in self.worst_segments
             ],
             "by_signal": [
                 {"signal": b.signal, "ratio": b.ratio, "p_value": b.p_value, "edges": b.edges.tolist(),
@@ -772,6 +781,22 @@ def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int) -> SignalB
     return SignalBins(name, edges, centers, rms, mean, counts, float(np.nanmax(rms) / overall), p)
 
 
+def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int) -> float:
+    """One-sided F test: is the one-step residual variance in [lo, hi) larger than outside it?"""
+    from scipy import stats
+
+    inside = res[lo:hi]
+    outside = np.concatenate([res[:lo], res[hi:]])
+    inside, outside = inside[np.isfinite(inside)], outside[np.isfinite(outside)]
+    if inside.size < 2 or outside.size < 2:
+        return math.nan
+    v_out = float(np.mean(outside**2))
+    if v_out == 0:
+        return math.nan
+    f = float(np.mean(inside**2)) / v_out
+    return float(min(1.0, stats.f.sf(f, inside.size, outside.size) * n_windows))
+
+
 def where_it_fails(model: ArxModel, data: IOData, horizon: int | None = None, *, window: int | None = None,
                    n_worst: int = 3, n_bins: int = 8, alpha: float = 0.01) -> FailureAnalysis:
     """Locate a model's error in time and by operating point.
@@ -830,8 +855,9 @@ def where_it_fails(model: ArxModel, data: IOData, horizon: int | None = None, *,
         seg = err[lo:hi]
         seg = seg[np.isfinite(seg)]
         rms = float(np.sqrt(np.mean(seg**2))) if seg.size else math.nan
+        p = _segment_p_value(res, lo, hi, n_windows=max(1, n // window))
         worst.append(WorstSegment(lo, hi, float(t[lo]), float(t[hi - 1] + data.ts), rms,
-                                  rms / overall if overall > 0 else math.nan))
+                                  rms / overall if overall > 0 else math.nan, p, bool(p < alpha)))
         r[max(0, lo - half):min(n, hi + half)] = np.nan
     # Operating points.
     signals = []
