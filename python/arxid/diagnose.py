@@ -12,7 +12,9 @@ The procedure (see ``DESIGN.md``, *Diagnosing a missing effect*):
    plants with an integrator): one-step error barely moves when a real effect is added, free-run
    error falls a lot, and a candidate that only tracks a drift makes validation worse.
 4. A suspect is *significant* only when its corrected p-value passes ``alpha`` **and** it lowers the
-   validation error by at least ``min_improvement`` (5%). With no missing effect, none is.
+   validation error by at least ``min_improvement`` (5%), and — below the best suspect — only if it
+   still lowers the error by that much once the best one is in the model (else it is "explained
+   by" the best). With no missing effect, none is.
 5. Strong candidates are also tried together with ``const`` (asymmetric Coulomb friction is
    c·sign(v) plus an offset); the pair is reported as one suspect, ``sign(dy)+const``.
 
@@ -378,6 +380,39 @@ class Diagnosis:
 # ---------------------------------------------------------------------------------------------
 # the procedure
 # ---------------------------------------------------------------------------------------------
+def _conditional_on_top(suspects: list, model: ArxModel, data: IOData, validation: IOData, horizon,
+                        min_improvement: float) -> list:
+    """Keep a suspect significant only if it still helps once the best suspect is in the model.
+
+    With a large missing effect, many candidates lower the validation error a little simply by
+    soaking up part of it (a drift, a correlated signal); they are not missing themselves. Each
+    significant suspect below the best one is refitted together with it and must lower the error
+    of the best one alone by ``min_improvement`` as well — otherwise it is "explained by" the best.
+    """
+    sig = [s for s in suspects if s.significant and s.refitted and math.isfinite(s.rms_sim_val_after)]
+    if len(sig) < 2:
+        return suspects
+    top = min(sig, key=lambda s: s.rms_sim_val_after)
+    out = []
+    for s in suspects:
+        if not s.significant or s is top:
+            out.append(s)
+            continue
+        na = max(top.na + s.na - model.na, 0)
+        nb = tuple(max(t + x - b, 0) for t, x, b in zip(top.nb, s.nb, model.nb))
+        nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, model.nk))
+        effects = tuple(dict.fromkeys(top.effects + s.effects))
+        both = _Candidate(f"{top.effect}+{s.effect}", effects, na, nb, nk, "pair")
+        try:
+            after = error_rms(_refit(model, data, both), validation, horizon)
+        except ArxidError:
+            after = math.nan
+        if not (math.isfinite(after) and after <= (1.0 - min_improvement) * top.rms_sim_val_after):
+            s = replace(s, significant=False, note=f"explained by {top.effect}: no gain once it is added")
+        out.append(s)
+    return out
+
+
 def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
     effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
@@ -656,6 +691,7 @@ def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | N
         if single is not None and single.refitted and math.isfinite(single.rms_sim_val_after) \
                 and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after:
             suspects[i] = replace(s, significant=False, note=f"no better than {single.effect} alone")
+    suspects = _conditional_on_top(suspects, model, data, validation, horizon, min_improvement)
     for lab, why in notes.items():
         if not any(s.effect == lab for s in suspects):
             c = next((c for c in cands if c.label == lab), None)
