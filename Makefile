@@ -17,7 +17,8 @@ setup: $(VENV)/.installed
 
 # Release build of the Rust core into python/arxid (incremental: target/ is the cache).
 develop: setup
-	$(VENV)/bin/maturin develop --release --quiet
+	@echo "building the Rust core (release; the first build takes a few minutes) -> $(VENV)/develop.log"
+	@$(VENV)/bin/maturin develop --release > $(VENV)/develop.log 2>&1 || { cat $(VENV)/develop.log; exit 1; }
 
 demo: develop
 	$(VENV)/bin/arxid demo
