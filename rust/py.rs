@@ -90,9 +90,15 @@ fn parse_output_terms(spec: Vec<(String, i32, i64)>) -> PyResult<Vec<OutputTerm>
         .collect()
 }
 
-fn structure(na: usize, nb: Vec<usize>, nk: Vec<usize>, terms: Vec<(String, i32, i64)>) -> PyResult<Structure> {
+fn structure(
+    py: Python<'_>,
+    na: usize,
+    nb: Vec<usize>,
+    nk: Vec<usize>,
+    terms: Vec<(String, i32, i64)>,
+) -> PyResult<Structure> {
     let terms = parse_output_terms(terms)?;
-    Python::attach(|py| Structure::new(na, nb, nk, terms).map_err(|e| to_pyerr(py, e)))
+    Structure::new(na, nb, nk, terms).map_err(|e| to_pyerr(py, e))
 }
 
 /// Least-squares ARX fit by Householder QR. Returns a dict with theta, rss, n_rows, n_skipped, inv_gram.
@@ -116,10 +122,10 @@ fn fit<'py>(
     rows_like: Option<(usize, Vec<usize>, Vec<usize>)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let env = match rows_like {
-        Some((ena, enb, enk)) => Some(structure(ena, enb, enk, output_terms.clone())?),
+        Some((ena, enb, enk)) => Some(structure(py, ena, enb, enk, output_terms.clone())?),
         None => None,
     };
-    let s = structure(na, nb, nk, output_terms)?;
+    let s = structure(py, na, nb, nk, output_terms)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
     let f = run(py, n_threads, || crate::fit::fit_rows_like(&d, &s, first_lag, true, env.as_ref()))?;
@@ -150,7 +156,7 @@ fn predict<'py>(
     horizon: Option<usize>,
     first_lag: usize,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let s = structure(na, nb, nk, output_terms)?;
+    let s = structure(py, na, nb, nk, output_terms)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
     s.check(m).map_err(|e| to_pyerr(py, e))?;
