@@ -7,10 +7,19 @@ export PATH := $(abspath $(VENV))/bin:$(PATH)
 
 .PHONY: setup develop demo test test-rust test-python bench lint clean
 
+# Everything the venv needs, read from pyproject.toml (the one list): the build backend, the
+# runtime dependencies and the `test` and `dev` extras (pinned ruff and mypy). Python < 3.11 has no
+# tomllib; pip's vendored copy reads the file there.
+REQUIREMENTS = $(PY) -c 'import sys; \
+	exec("try:\n import tomllib\nexcept ImportError:\n from pip._vendor import tomli as tomllib"); \
+	t = tomllib.load(open("pyproject.toml", "rb")); p = t["project"]; x = p["optional-dependencies"]; \
+	print(" ".join(t["build-system"]["requires"] + p["dependencies"] + x["test"] + x["dev"]))'
+
+# The stamp depends on pyproject.toml: a changed dependency list reinstalls.
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q "maturin>=1.9.4,<2" "numpy>=1.23" "scipy>=1.10" "pandas>=1.5" "matplotlib>=3.6" "control>=0.10" "tqdm>=4.60" "pytest>=7"
+	$(PIP) install -q $$($(REQUIREMENTS))
 	touch $@
 
 setup: $(VENV)/.installed
@@ -34,7 +43,14 @@ test: setup test-rust test-python
 bench: develop
 	$(PY) benches/sweep_vs_numpy.py
 
-lint:
+# Python: lint, format, types, and the stub of the compiled core against the built module (hence
+# `develop`). Rust: format and clippy. clippy checks into target/ too (--release, so it shares the
+# build scripts and profile of `make test`'s builds; its metadata-only artifacts are its own).
+lint: develop
+	$(PY) -m ruff check python tests benches
+	$(PY) -m ruff format --check python tests benches
+	$(PY) -m mypy
+	$(PY) -m mypy.stubtest arxid._core
 	cargo fmt --check
 	cargo clippy --release --all-targets --features python -- -D warnings
 

@@ -13,8 +13,6 @@ pub enum ArxError {
     RankDeficient { column: usize, ratio: f64 },
     /// An order or lag is invalid (for example an input index out of range).
     InvalidStructure(String),
-    /// The requested sweep would not fit in memory.
-    TooLarge { bytes: u128, limit: u128 },
 }
 
 impl fmt::Display for ArxError {
@@ -33,12 +31,6 @@ impl fmt::Display for ArxError {
                 "regressor column {column} is a linear combination of the columns before it (relative residual {ratio:.3e})"
             ),
             ArxError::InvalidStructure(msg) => write!(f, "invalid model structure: {msg}"),
-            ArxError::TooLarge { bytes, limit } => write!(
-                f,
-                "the sweep needs about {:.1} GiB but the limit is {:.1} GiB",
-                *bytes as f64 / 2f64.powi(30),
-                *limit as f64 / 2f64.powi(30)
-            ),
         }
     }
 }

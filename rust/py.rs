@@ -3,13 +3,15 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyInt, PyTuple};
 
 use crate::error::ArxError;
 use crate::structure::{Data, OutputKind, OutputTerm, Structure};
-use crate::sweep::SweepOptions;
+use crate::sweep::{clamp_threads, envelope, SweepOptions};
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
@@ -24,18 +26,15 @@ fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
             let _ = err.value(py).setattr("column", column);
             err
         }
-        ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } | ArxError::TooLarge { .. } => {
-            DataError::new_err(msg)
-        }
+        ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } => DataError::new_err(msg),
         ArxError::InvalidStructure(_) => OrderError::new_err(msg),
     }
 }
 
 /// Runs `f` without the GIL on `n_threads` threads (0 = all), turning a panic into an error.
-/// Results do not depend on the thread count, so more than 4 threads per core are not started.
+/// Results do not depend on the thread count, so the count is capped by [`clamp_threads`].
 fn run<T: Send>(py: Python<'_>, n_threads: usize, f: impl FnOnce() -> Result<T, ArxError> + Send) -> PyResult<T> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let n_threads = n_threads.min(4 * cores);
+    let n_threads = clamp_threads(n_threads);
     let out = py.detach(move || {
         catch_unwind(AssertUnwindSafe(|| {
             if n_threads == 0 {
@@ -90,6 +89,37 @@ fn parse_output_terms(spec: Vec<(String, i32, i64)>) -> PyResult<Vec<OutputTerm>
         .collect()
 }
 
+/// Rows `(na, nb_1..nb_m, nk_1..nk_m)` of an (S, 1 + 2m) integer array as structures.
+fn parse_grid(
+    py: Python<'_>,
+    structures: &PyReadonlyArray2<'_, i64>,
+    m: usize,
+    terms: &[OutputTerm],
+) -> PyResult<Vec<Structure>> {
+    let shape = structures.shape();
+    if shape[1] != 1 + 2 * m {
+        return Err(OrderError::new_err(format!("structures need 1 + 2·{m} columns, got {}", shape[1])));
+    }
+    let raw = structures.as_slice()?;
+    let mut grid = Vec::with_capacity(shape[0]);
+    for row in raw.chunks(shape[1]) {
+        if row.iter().any(|&v| v < 0) {
+            return Err(OrderError::new_err("orders must be non-negative"));
+        }
+        let r: Vec<usize> = row.iter().map(|&v| v as usize).collect();
+        grid.push(
+            Structure::new(r[0], r[1..1 + m].to_vec(), r[1 + m..].to_vec(), terms.to_vec())
+                .map_err(|e| to_pyerr(py, e))?,
+        );
+    }
+    Ok(grid)
+}
+
+/// `(na, (nb per input column), (nk per input column))` of a structure, as Python tuples.
+fn orders_tuple<'py>(py: Python<'py>, s: &Structure) -> PyResult<Bound<'py, PyTuple>> {
+    (s.na, PyTuple::new(py, s.nb.iter().copied())?, PyTuple::new(py, s.nk.iter().copied())?).into_pyobject(py)
+}
+
 fn structure(
     py: Python<'_>,
     na: usize,
@@ -101,7 +131,22 @@ fn structure(
     Structure::new(na, nb, nk, terms).map_err(|e| to_pyerr(py, e))
 }
 
-/// Least-squares ARX fit by Householder QR. Returns a dict with theta, rss, n_rows, n_skipped, inv_gram.
+/// What `fit` returns.
+#[pyclass(frozen, get_all, module = "arxid._core")]
+pub struct FitOutput {
+    /// Parameters, shape (p,): the a's, each input's b's, the output terms.
+    theta: Py<PyArray1<f64>>,
+    /// Residual sum of squares on the regression rows.
+    rss: f64,
+    /// Number of regression rows used.
+    n_rows: usize,
+    /// Rows left out because a regressor or the output touched a NaN or inf.
+    n_skipped: usize,
+    /// (Φᵀ Φ)⁻¹, shape (p, p); times the noise variance it is the parameter covariance.
+    inv_gram: Py<PyArray2<f64>>,
+}
+
+/// Least-squares ARX fit by Householder QR (returns a `FitOutput`).
 ///
 /// `rows_like = (na, nb, nk)` fits on the rows where that larger structure's regressors are finite
 /// too (a sweep's grid envelope), so that a refit uses exactly the sweep's rows.
@@ -120,7 +165,7 @@ fn fit<'py>(
     first_lag: usize,
     n_threads: usize,
     rows_like: Option<(usize, Vec<usize>, Vec<usize>)>,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<FitOutput> {
     let env = match rows_like {
         Some((ena, enb, enk)) => Some(structure(py, ena, enb, enk, output_terms.clone())?),
         None => None,
@@ -130,13 +175,13 @@ fn fit<'py>(
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
     let f = run(py, n_threads, || crate::fit::fit_rows_like(&d, &s, first_lag, true, env.as_ref()))?;
     let p = f.theta.len();
-    let out = PyDict::new(py);
-    out.set_item("theta", f.theta.into_pyarray(py))?;
-    out.set_item("rss", f.rss)?;
-    out.set_item("n_rows", f.n_rows)?;
-    out.set_item("n_skipped", f.n_skipped)?;
-    out.set_item("inv_gram", PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?)?;
-    Ok(out)
+    Ok(FitOutput {
+        theta: f.theta.into_pyarray(py).unbind(),
+        rss: f.rss,
+        n_rows: f.n_rows,
+        n_skipped: f.n_skipped,
+        inv_gram: PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?.unbind(),
+    })
 }
 
 /// Prediction with `horizon` steps (None = free-run simulation); NaN where no prediction exists.
@@ -172,13 +217,50 @@ fn predict<'py>(
     Ok(out.into_pyarray(py))
 }
 
-/// Fits and validates every structure of a grid from one factorization.
+/// What `sweep` returns: one entry per structure of the grid, in grid order.
+#[pyclass(frozen, get_all, module = "arxid._core")]
+pub struct SweepOutput {
+    /// Parameters, shape (S, p_max), NaN-padded after each structure's own p.
+    theta: Py<PyArray2<f64>>,
+    /// One-step residual sum of squares on the estimation rows.
+    rss_est: Py<PyArray1<f64>>,
+    /// Same on the validation rows (NaN without validation data).
+    rss_val: Py<PyArray1<f64>>,
+    /// RMS of the simulation (free run or k-step) on the estimation data.
+    rms_sim_est: Py<PyArray1<f64>>,
+    /// Same on the validation data.
+    rms_sim_val: Py<PyArray1<f64>>,
+    /// Samples scored by the estimation simulation.
+    n_sim_est: Py<PyArray1<f64>>,
+    /// Samples scored by the validation simulation.
+    n_sim_val: Py<PyArray1<f64>>,
+    /// ‖y − ȳ‖ over the samples the estimation simulation scored.
+    norm_sim_est: Py<PyArray1<f64>>,
+    /// Same for the validation simulation.
+    norm_sim_val: Py<PyArray1<f64>>,
+    /// The estimation simulation left the divergence limit of the estimation output.
+    diverged_est: Py<PyArray1<bool>>,
+    /// The validation simulation left the divergence limit of the validation output.
+    diverged_val: Py<PyArray1<bool>>,
+    /// Why a structure could not be fitted, else None.
+    errors: Vec<Option<String>>,
+    /// Regression rows of the estimation data.
+    n_est: usize,
+    /// Regression rows of the validation data (0 without them).
+    n_val: usize,
+    /// The grid envelope's largest lag: every structure's rows and simulations start here.
+    first_lag: usize,
+    /// `(na, nb, nk)` of the grid envelope (the largest regressor), per layout column.
+    envelope: Py<PyTuple>,
+}
+
+/// Fits and validates every structure of a grid from one factorization (returns a `SweepOutput`).
 ///
-/// `structures` is an (S, 1 + 2m) integer array of rows (na, nb_1..nb_m, nk_1..nk_m).
+/// `structures` is an (S, 1 + 2m) integer array of rows (na, nb_1..nb_m, nk_1..nk_m). A simulation
+/// beyond `divergence_limit` of the measured output of its data set is stopped as diverged.
 #[pyfunction]
 #[pyo3(signature = (y, u, starts, structures, output_terms, yv = None, uv = None, starts_v = None,
-                    simulate_estimation = true, horizon = None, divergence_limit = 1e6, n_threads = 0,
-                    chunk = 64, progress = None))]
+                    simulate_estimation = true, horizon = None, n_threads = 0, chunk = 64, progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn sweep<'py>(
     py: Python<'py>,
@@ -192,30 +274,14 @@ fn sweep<'py>(
     starts_v: Option<Vec<usize>>,
     simulate_estimation: bool,
     horizon: Option<usize>,
-    divergence_limit: f64,
     n_threads: usize,
     chunk: usize,
     progress: Option<Py<PyAny>>,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<SweepOutput> {
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
     let terms = parse_output_terms(output_terms)?;
-    let shape = structures.shape();
-    if shape[1] != 1 + 2 * m {
-        return Err(OrderError::new_err(format!("structures need 1 + 2·{m} columns, got {}", shape[1])));
-    }
-    let raw = structures.as_slice()?;
-    let mut grid = Vec::with_capacity(shape[0]);
-    for row in raw.chunks(shape[1]) {
-        if row.iter().any(|&v| v < 0) {
-            return Err(OrderError::new_err("orders must be non-negative"));
-        }
-        let r: Vec<usize> = row.iter().map(|&v| v as usize).collect();
-        grid.push(
-            Structure::new(r[0], r[1..1 + m].to_vec(), r[1 + m..].to_vec(), terms.clone())
-                .map_err(|e| to_pyerr(py, e))?,
-        );
-    }
+    let grid = parse_grid(py, &structures, m, &terms)?;
     let val_slices = match (&yv, &uv) {
         (Some(yv), Some(uv)) => Some(slices(yv, uv)?),
         _ => None,
@@ -225,7 +291,7 @@ fn sweep<'py>(
         Some((a, b, mv)) => Some(Data::new(a, b, mv, &sv).map_err(|e| to_pyerr(py, e))?),
         None => None,
     };
-    let opts = SweepOptions { simulate_estimation, horizon, divergence_limit, parallel: n_threads != 1, chunk };
+    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk };
     let report = |done: usize| {
         if let Some(cb) = &progress {
             Python::attach(|py| {
@@ -234,6 +300,8 @@ fn sweep<'py>(
         }
     };
     let (res, n_est, n_val) = run(py, n_threads, || crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report))?;
+    // The same envelope the sweep built (it succeeded, so this cannot fail).
+    let env = envelope(&grid).map_err(|e| to_pyerr(py, e))?;
     let s = res.len();
     let pmax = res.iter().map(|r| r.theta.len()).max().unwrap_or(0);
     let mut theta = vec![f64::NAN; s * pmax];
@@ -255,23 +323,112 @@ fn sweep<'py>(
         diverged_val.push(r.sim_val.diverged);
         errors.push(r.error.map(|e| e.to_string()));
     }
-    let out = PyDict::new(py);
-    out.set_item("theta", PyArray1::from_vec(py, theta).reshape([s, pmax])?)?;
-    let names =
-        ["rss_est", "rss_val", "rms_sim_est", "rms_sim_val", "n_sim_est", "n_sim_val", "norm_sim_est", "norm_sim_val"];
-    for (name, col) in names.iter().zip(cols) {
-        out.set_item(*name, col.into_pyarray(py))?;
+    let [rss_est, rss_val, rms_sim_est, rms_sim_val, n_sim_est, n_sim_val, norm_sim_est, norm_sim_val] =
+        cols.map(|c| c.into_pyarray(py).unbind());
+    Ok(SweepOutput {
+        theta: PyArray1::from_vec(py, theta).reshape([s, pmax])?.unbind(),
+        rss_est,
+        rss_val,
+        rms_sim_est,
+        rms_sim_val,
+        n_sim_est,
+        n_sim_val,
+        norm_sim_est,
+        norm_sim_val,
+        diverged_est: PyArray1::from_vec(py, diverged_est).unbind(),
+        diverged_val: PyArray1::from_vec(py, diverged_val).unbind(),
+        errors,
+        n_est,
+        n_val,
+        first_lag: env.max_lag(),
+        envelope: orders_tuple(py, &env)?.unbind(),
+    })
+}
+
+/// `(first_lag, (na, nb, nk))` of a grid: the largest lag of its envelope (where every structure's
+/// rows start) and the envelope's orders per layout column, exactly as `sweep` builds them.
+///
+/// `structures` is an (S, 1 + 2m) integer array of rows (na, nb_1..nb_m, nk_1..nk_m).
+#[pyfunction]
+fn grid_envelope<'py>(
+    py: Python<'py>,
+    structures: PyReadonlyArray2<'py, i64>,
+    output_terms: Vec<(String, i32, i64)>,
+) -> PyResult<(usize, Bound<'py, PyTuple>)> {
+    let width = structures.shape()[1];
+    if width % 2 == 0 {
+        return Err(OrderError::new_err(format!(
+            "structures need 1 + 2·m columns (na, nb_1..nb_m, nk_1..nk_m), got {width}"
+        )));
     }
-    out.set_item("diverged_est", PyArray1::from_vec(py, diverged_est))?;
-    out.set_item("diverged_val", PyArray1::from_vec(py, diverged_val))?;
-    out.set_item("errors", errors)?;
-    out.set_item("n_est", n_est)?;
-    out.set_item("n_val", n_val)?;
-    Ok(out)
+    let terms = parse_output_terms(output_terms)?;
+    let grid = parse_grid(py, &structures, (width - 1) / 2, &terms)?;
+    let env = envelope(&grid).map_err(|e| to_pyerr(py, e))?;
+    Ok((env.max_lag(), orders_tuple(py, &env)?))
+}
+
+/// Largest lag any regressor of the structure reads: its first usable row is this far into each
+/// experiment.
+#[pyfunction]
+fn max_lag(
+    py: Python<'_>,
+    na: usize,
+    nb: Vec<usize>,
+    nk: Vec<usize>,
+    output_terms: Vec<(String, i32, i64)>,
+) -> PyResult<usize> {
+    Ok(structure(py, na, nb, nk, output_terms)?.max_lag())
+}
+
+/// A non-negative Python int as usize, saturating at `usize::MAX` (sizes only compared to a limit).
+fn saturating_usize(v: &Bound<'_, PyAny>) -> PyResult<usize> {
+    match v.extract::<usize>() {
+        Ok(n) => Ok(n),
+        Err(_) if v.is_instance_of::<PyInt>() && v.gt(0)? => Ok(usize::MAX),
+        Err(e) => Err(e),
+    }
+}
+
+/// Bytes a sweep needs beyond the data arrays (saturates at 2^64 − 1 for absurd sizes).
+///
+/// `n_structures` structures with up to `p_max` parameters, a largest regressor of `q` columns
+/// (output included), `n_est` / `n_val` samples, `n_cols` input columns of the effect layout,
+/// `n_threads` as passed to `sweep` (0 = all cores).
+#[pyfunction]
+fn sweep_memory(
+    n_structures: &Bound<'_, PyAny>,
+    p_max: &Bound<'_, PyAny>,
+    q: &Bound<'_, PyAny>,
+    n_est: &Bound<'_, PyAny>,
+    n_val: &Bound<'_, PyAny>,
+    n_cols: &Bound<'_, PyAny>,
+    n_threads: &Bound<'_, PyAny>,
+) -> PyResult<usize> {
+    Ok(crate::sweep::sweep_memory(
+        saturating_usize(n_structures)?,
+        saturating_usize(p_max)?,
+        saturating_usize(q)?,
+        saturating_usize(n_est)?,
+        saturating_usize(n_val)?,
+        saturating_usize(n_cols)?,
+        saturating_usize(n_threads)?,
+    ))
+}
+
+/// Magnitude beyond which a prediction of `y` counts as diverged (the core's one divergence rule).
+#[pyfunction]
+fn divergence_limit(y: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
+    Ok(crate::simulate::divergence_limit(y.as_slice()?))
 }
 
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
-    use super::{fit, predict, sweep};
+    use super::{divergence_limit, fit, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput};
+
+    #[pymodule_init]
+    fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {
+        use pyo3::types::PyModuleMethods;
+        m.add("DIVERGENCE_FACTOR", crate::simulate::DIVERGENCE_FACTOR)
+    }
 }

@@ -691,6 +691,20 @@ fn lanes_kernel_dyn<const FMA: bool>(
     st.scores(models.len())
 }
 
+/// A prediction whose magnitude exceeds this many times the largest measured |y| has diverged.
+///
+/// The one divergence rule of arxid: the sweep's free-run lanes stop there, and the Python layer
+/// (`arxid._metrics`) reads it from here, so every table, comparison and ladder agrees.
+pub const DIVERGENCE_FACTOR: f64 = 1e3;
+
+/// Magnitude beyond which a prediction of the measured output `y` counts as diverged:
+/// [`DIVERGENCE_FACTOR`] times the largest finite |y| (at least the smallest normal float, so that
+/// an all-zero or all-missing output still has a limit).
+pub fn divergence_limit(y: &[f64]) -> f64 {
+    let peak = y.iter().filter(|v| v.is_finite()).fold(0.0f64, |m, v| m.max(v.abs()));
+    DIVERGENCE_FACTOR * peak.max(f64::MIN_POSITIVE)
+}
+
 /// RMS of measured − predicted over the samples where both are finite; diverged when a prediction
 /// exceeds `limit` or is infinite. `norm` is ‖y − ȳ‖ over the same samples.
 pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
@@ -720,6 +734,17 @@ pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn divergence_limit_is_the_factor_times_the_largest_finite_output() {
+        assert_eq!(divergence_limit(&[1.0, -3.0, f64::NAN, 2.0]), 3.0 * DIVERGENCE_FACTOR);
+        assert_eq!(divergence_limit(&[0.5, f64::INFINITY, f64::NEG_INFINITY]), 0.5 * DIVERGENCE_FACTOR);
+        // No finite or only zero outputs: still a positive limit, so any nonzero prediction diverges.
+        for y in [&[][..], &[0.0, -0.0][..], &[f64::NAN, f64::NAN][..]] {
+            let lim = divergence_limit(y);
+            assert!(lim > 0.0 && lim == DIVERGENCE_FACTOR * f64::MIN_POSITIVE, "{y:?}: {lim}");
+        }
+    }
 
     #[test]
     fn free_run_reproduces_noise_free_system_and_fast_path_agrees() {

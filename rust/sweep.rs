@@ -7,23 +7,73 @@ use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
-use crate::qr::{reduce, to_col_major};
-use crate::simulate::{free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES};
+use crate::qr::{reduce, to_col_major, BLOCK_ROWS};
+use crate::simulate::{
+    divergence_limit, free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES,
+};
 use crate::structure::{usable_rows, Data, Structure};
 
-/// How a sweep validates its structures.
+/// How a sweep validates its structures. A simulation is stopped as diverged by the core's one
+/// rule, [`divergence_limit`] of the measured output of the data set it runs on.
 #[derive(Debug, Clone, Copy)]
 pub struct SweepOptions {
     /// Also simulate every structure on the estimation data.
     pub simulate_estimation: bool,
     /// `None`: free-run simulation; `Some(k)`: k-step-ahead prediction (integrating plants).
     pub horizon: Option<usize>,
-    /// A simulated output beyond this magnitude stops the simulation as diverged.
-    pub divergence_limit: f64,
     /// Parallel across structures and TSQR blocks.
     pub parallel: bool,
     /// Structures per progress report.
     pub chunk: usize,
+}
+
+/// At most this many threads per core are started for an explicit `n_threads`: results do not
+/// depend on the thread count, so more would only cost memory (every thread has its own buffers).
+pub const MAX_THREADS_PER_CORE: usize = 4;
+
+/// The thread count the Python boundary starts for a request of `n_threads`: capped at
+/// [`MAX_THREADS_PER_CORE`] per core; 0 stays 0 (run on the global rayon pool, all cores).
+pub fn clamp_threads(n_threads: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    n_threads.min(MAX_THREADS_PER_CORE.saturating_mul(cores))
+}
+
+/// Threads a sweep requested with `n_threads` (0 = all cores) actually runs on.
+pub fn effective_threads(n_threads: usize) -> usize {
+    match clamp_threads(n_threads) {
+        0 => rayon::current_num_threads(),
+        n => n,
+    }
+}
+
+/// Bytes a sweep needs beyond the data arrays: the results (Rust vectors and their numpy copies,
+/// the Python table), the TSQR block factors ([`BLOCK_ROWS`] rows per block) and per-thread block
+/// buffers, column copies of the inputs, and per-thread simulation buffers.
+///
+/// `n_structures` structures with up to `p_max` parameters, a largest regressor of `q` columns
+/// (output included), `n_est` / `n_val` samples of estimation and validation data, `n_cols` input
+/// columns of the effect layout, `n_threads` as requested (0 = all cores, clamped as the boundary
+/// clamps it). Saturates at `usize::MAX` instead of overflowing.
+pub fn sweep_memory(
+    n_structures: usize,
+    p_max: usize,
+    q: usize,
+    n_est: usize,
+    n_val: usize,
+    n_cols: usize,
+    n_threads: usize,
+) -> usize {
+    let threads = effective_threads(n_threads);
+    let mul = |factors: &[usize]| factors.iter().fold(1usize, |a, &b| a.saturating_mul(b));
+    let sum = |terms: &[usize]| terms.iter().fold(0usize, |a, &b| a.saturating_add(b));
+    let f = std::mem::size_of::<f64>();
+    let n_all = n_est.saturating_add(n_val);
+    let per_structure = sum(&[mul(&[2, f, p_max]), f * 16, 600]);
+    let blocks = (n_all / BLOCK_ROWS).saturating_add(2);
+    let tsqr = sum(&[mul(&[2, blocks, q, q, f]), mul(&[threads, BLOCK_ROWS, q, f])]);
+    let inputs = mul(&[2, n_all, n_cols, f]);
+    let sim = mul(&[threads, 2, n_est.max(n_val), f]);
+    sum(&[mul(&[n_structures, per_structure]), tsqr, inputs, sim])
 }
 
 /// Everything a sweep learns about one structure.
@@ -120,12 +170,12 @@ fn lanes_apply(d: &Data, env: &Structure, opts: &SweepOptions) -> bool {
 
 /// One structure on the general path (k-step prediction, output terms, missing samples). The k-step
 /// prediction of a linear structure on complete data runs as a filter ([`predict_k_linear`]).
-fn simulate_one(d: &Data, s: &Structure, theta: &[f64], first_lag: usize, opts: &SweepOptions) -> SimScore {
+fn simulate_one(d: &Data, s: &Structure, theta: &[f64], first_lag: usize, limit: f64, opts: &SweepOptions) -> SimScore {
     let pred = match opts.horizon {
         Some(k) if k >= 1 && s.output_terms.is_empty() && complete(d) => predict_k_linear(d, s, theta, k, first_lag),
         _ => predict(d, s, theta, opts.horizon, first_lag),
     };
-    score(d, &pred, opts.divergence_limit)
+    score(d, &pred, limit)
 }
 
 /// No missing (non-finite) sample in the data.
@@ -134,19 +184,21 @@ fn complete(d: &Data) -> bool {
 }
 
 /// Simulates the fitted members of one group (same `na`) on `d`; `ucol` is `Some` on the lane path.
+/// A simulation beyond `limit` (the [`divergence_limit`] of `d.y`) is stopped as diverged.
 fn simulate_group(
     d: &Data,
     ucol: Option<&[f64]>,
     members: &[(usize, &Structure, &[f64])],
     first_lag: usize,
+    limit: f64,
     opts: &SweepOptions,
 ) -> Vec<SimScore> {
     match ucol {
         Some(uc) => {
             let models: Vec<(&Structure, &[f64])> = members.iter().map(|&(_, s, th)| (s, th)).collect();
-            free_run_rms_lanes(d, uc, &models, first_lag, opts.divergence_limit)
+            free_run_rms_lanes(d, uc, &models, first_lag, limit)
         }
-        None => members.iter().map(|&(_, s, th)| simulate_one(d, s, th, first_lag, opts)).collect(),
+        None => members.iter().map(|&(_, s, th)| simulate_one(d, s, th, first_lag, limit, opts)).collect(),
     }
 }
 
@@ -157,6 +209,9 @@ fn simulate_group(
 /// independent of N), then simulated: linear structures on complete data in groups of
 /// [`LANES`](crate::simulate::LANES) with the same `na` side by side, the others one by one.
 /// Groups are formed from the grid alone, so results do not depend on the number of threads.
+///
+/// Each data set's simulations are judged against its own measured output: a prediction beyond
+/// [`divergence_limit`]`(y)` of that data set is stopped and reported as diverged.
 ///
 /// `progress(done)` is called about every `opts.chunk` simulated structures (from a worker thread,
 /// possibly out of order) and once at the end with the total.
@@ -236,6 +291,8 @@ pub fn sweep(
     let lanes_val = val.is_some_and(|v| lanes_apply(v, &env, opts));
     let ucol_est = if lanes_est { Some(input_columns(est)) } else { None };
     let ucol_val = if lanes_val { Some(input_columns(val.unwrap_or(est))) } else { None };
+    let limit_est = divergence_limit(est.y);
+    let limit_val = val.map_or(f64::NAN, |v| divergence_limit(v.y));
     let mut order: Vec<usize> = (0..structures.len()).filter(|&i| out[i].error.is_none()).collect();
     // Same na in a group; neighbouring delays and orders so the lanes share most input lags.
     order.sort_by(|&i, &j| {
@@ -254,12 +311,12 @@ pub fn sweep(
         let members: Vec<(usize, &Structure, &[f64])> =
             g.iter().map(|&i| (i, &structures[i], out[i].theta.as_slice())).collect();
         let se = if sim_est {
-            simulate_group(est, ucol_est.as_deref(), &members, first_lag, opts)
+            simulate_group(est, ucol_est.as_deref(), &members, first_lag, limit_est, opts)
         } else {
             vec![nan; g.len()]
         };
         let sv = match val {
-            Some(v) => simulate_group(v, ucol_val.as_deref(), &members, first_lag, opts),
+            Some(v) => simulate_group(v, ucol_val.as_deref(), &members, first_lag, limit_val, opts),
             None => vec![nan; g.len()],
         };
         se.into_iter().zip(sv).collect()
@@ -324,8 +381,7 @@ mod tests {
                 }
             }
         }
-        let opts =
-            SweepOptions { simulate_estimation: true, horizon: None, divergence_limit: 1e6, parallel: true, chunk: 7 };
+        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: true, chunk: 7 };
         let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
         let lag = envelope(&grid).unwrap().max_lag();
         for (s, r) in grid.iter().zip(&res) {
@@ -342,5 +398,58 @@ mod tests {
             assert_eq!(a.theta, b.theta);
             assert_eq!(a.sim_val.rms.to_bits(), b.sim_val.rms.to_bits());
         }
+    }
+
+    /// Each data set's simulation is judged against its own measured output.
+    #[test]
+    fn divergence_is_judged_per_data_set() {
+        let n = 2000;
+        let mut seed = 5u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let u: Vec<f64> = (0..n).map(|_| rnd()).collect();
+        let mut y = vec![0.0; n];
+        for t in 1..n {
+            y[t] = 0.5 * y[t - 1] + u[t - 1] + 0.01 * rnd();
+        }
+        // Validation output measured 10^-4 times smaller: the model's free run on these inputs is
+        // about 10^4 times the measured output, beyond the limit of 10^3 times max |y_val|.
+        let yv: Vec<f64> = y.iter().map(|v| v * 1e-4).collect();
+        let starts = [0];
+        let d = Data::new(&y, &u, 1, &starts).unwrap();
+        let v = Data::new(&yv, &u, 1, &starts).unwrap();
+        let grid = vec![Structure::new(1, vec![1], vec![1], vec![]).unwrap()];
+        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: false, chunk: 1 };
+        let (res, _, _) = sweep(&d, Some(&v), &grid, &opts, &|_| {}).unwrap();
+        assert!(!res[0].sim_est.diverged && res[0].sim_est.rms < 0.1, "{:?}", res[0].sim_est);
+        assert!(res[0].sim_val.diverged, "{:?}", res[0].sim_val);
+        // The same data as validation do not diverge.
+        let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
+        assert!(!res[0].sim_val.diverged);
+    }
+
+    #[test]
+    fn sweep_memory_follows_the_formula_and_saturates() {
+        let f = 8;
+        let expected = |threads: usize| {
+            let per_structure = 2 * f * 10 + f * 16 + 600;
+            let blocks = 15_000 / BLOCK_ROWS + 2;
+            let tsqr = 2 * blocks * 21 * 21 * f + threads * BLOCK_ROWS * 21 * f;
+            100 * per_structure + tsqr + 2 * 15_000 * 2 * f + threads * 2 * 10_000 * f
+        };
+        assert_eq!(sweep_memory(100, 10, 21, 10_000, 5_000, 2, 1), expected(1));
+        assert_eq!(sweep_memory(100, 10, 21, 10_000, 5_000, 2, 2), expected(2));
+        // n_threads = 0 means all cores; an absurd request is capped per core like the boundary does.
+        assert_eq!(sweep_memory(100, 10, 21, 10_000, 5_000, 2, 0), expected(rayon::current_num_threads()));
+        assert_eq!(sweep_memory(100, 10, 21, 10_000, 5_000, 2, usize::MAX), expected(clamp_threads(usize::MAX)));
+        assert!(clamp_threads(usize::MAX) >= MAX_THREADS_PER_CORE);
+        assert_eq!(clamp_threads(0), 0);
+        assert_eq!(clamp_threads(1), 1);
+        // Absurd sizes saturate instead of overflowing.
+        assert_eq!(sweep_memory(usize::MAX, 10, 21, 10, 0, 1, 1), usize::MAX);
+        assert_eq!(sweep_memory(1, 1, usize::MAX, 10, 0, 1, 1), usize::MAX);
+        assert_eq!(sweep_memory(1, 1, 3, usize::MAX, usize::MAX, usize::MAX, 1), usize::MAX);
     }
 }

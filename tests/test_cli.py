@@ -146,7 +146,7 @@ def test_diagnose_json_contract_and_battery_found(capsys, battery_csv):
                          "--ts", 0.01, "--orders", "1,1,1", "--split", 0.7, "--json")
     assert code == 0, err
     d = _strict_json(out)  # exactly one JSON object on stdout
-    assert set(d) == {"model", "baseline", "residual_tests", "suspects", "ladder"}
+    assert {"model", "baseline", "residual_tests", "suspects", "ladder", "choice"} <= set(d)
     assert {"na", "nb", "nk", "effects"} <= set(d["model"])
     assert {"rms_sim_val", "rms_pred_val", "fit_val", "horizon"} <= set(d["baseline"])
     for s in d["suspects"]:

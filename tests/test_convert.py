@@ -88,7 +88,7 @@ def test_json_round_trip_is_exact(tmp_path):
     assert np.array_equal(back.covariance_, model.covariance_)
     assert back.to_json() == text
     assert str(back).splitlines()[:4] == str(model).splitlines()[:4]
-    data = model._data
+    data = model.data_
     np.testing.assert_array_equal(back.predict(data), model.predict(data))
 
 

@@ -29,7 +29,7 @@ def test_readme_quick_start_is_two_commands_and_example_runs():
     namespace: dict = {}
     exec(compile(example, "README example", "exec"), namespace)
     model = namespace["model"]
-    assert model.nk == (8,) and abs(model.parameters_[0] + 1.5) < 0.01
+    assert model.nk_ == (8,) and abs(model.parameters_[0] + 1.5) < 0.01
 
 
 def test_every_public_function_documents_its_parameters():

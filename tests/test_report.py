@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.plots import report as plots
-from arxid.report import Analysis, analyse, build_report, json_safe, render_html
+from arxid import plots
+from arxid.analysis import Analysis, analyse
+from arxid.report import build_report, json_safe, render_html
 
 
 def _battery_data(n=2500, seed=5):
@@ -27,7 +28,7 @@ def _battery_data(n=2500, seed=5):
 
 @pytest.fixture(scope="module")
 def analysis() -> Analysis:
-    return analyse(_battery_data(), 0.7, grid={"na": [1, 2], "nb": [1, 2], "nk": [0, 1, 2]}, max_steps=2)
+    return analyse(_battery_data(), split=0.7, grid={"na": [1, 2], "nb": [1, 2], "nk": [0, 1, 2]}, max_steps=2)
 
 
 def test_json_safe_turns_nan_into_null_and_numpy_into_python():
@@ -38,17 +39,18 @@ def test_json_safe_turns_nan_into_null_and_numpy_into_python():
 
 
 def test_analysis_picks_the_true_structure_and_finds_the_battery(analysis):
-    assert analysis.model.nk == (1,)  # the true delay; the orders may grow to soak up the battery's drift
-    assert analysis.table is not None and len(analysis.table) == 2 * 2 * 3
-    d = analysis.diagnosis
-    assert set(d) == {"model", "baseline", "residual_tests", "suspects", "ladder"}
-    top = next(s for s in d["suspects"] if s["significant"])
-    assert "vbat" in top["effect"]
-    assert analysis.final_model.effects == tuple(analysis.ladder[-1]["effects"])
-    assert analysis.ladder[-1]["rms_sim_val"] < 0.5 * analysis.ladder[0]["rms_sim_val"]
-    # the final model's validation error is the ladder's last number
+    assert analysis.model.nk_ == (1,)  # the true delay; the orders may grow to soak up the battery's drift
+    assert analysis.sweep is not None and len(analysis.sweep) == 2 * 2 * 3
+    d = analysis.to_dict()
+    assert {"model", "baseline", "residual_tests", "suspects", "ladder", "choice", "comparison"} <= set(d)
+    assert "vbat" in analysis.missing_effect
+    assert analysis.final_model.effects == analysis.ladder.steps[-1].effects
+    assert analysis.ladder.errors[-1] < 0.5 * analysis.ladder.errors[0]
+    # the final model's validation error is the ladder's last number, and the comparison's
     assert analysis.final_model.rms(analysis.validation, analysis.horizon) == pytest.approx(
-        analysis.ladder[-1]["rms_sim_val"], rel=1e-6)
+        analysis.ladder.errors[-1], rel=1e-12)
+    assert analysis.comparison.rms[-1] == analysis.ladder.errors[-1]
+    assert analysis.comparison.rms[0] == analysis.diagnosis.rms_sim_val == analysis.ladder.errors[0]
 
 
 def test_html_is_self_contained_and_complete(analysis):
@@ -66,60 +68,50 @@ def test_html_is_self_contained_and_complete(analysis):
     embedded = re.search(r'<script type="application/json" id="diagnosis">(.*?)</script>', html, re.S).group(1)
     # A script element's text is raw: a browser does not decode entities in it, so the JSON must be
     # readable as it stands (JSON.parse(el.textContent)), with "<" escaped so "</script>" cannot occur.
-    assert json.loads(embedded)["ladder"] == json_safe(analysis.diagnosis["ladder"])
+    assert json.loads(embedded)["ladder"] == json_safe(analysis.to_dict()["ladder"])
     assert "<" not in embedded and "&quot;" not in embedded
 
 
 def test_build_report_with_fixed_orders_skips_the_sweep(tmp_path):
-    rep = build_report(_battery_data(1200), 0.7, orders=(1, 1, 1), max_steps=1)
-    assert rep.analysis.table is None
+    rep = build_report(_battery_data(1200), orders=(1, 1, 1), max_steps=1)
+    assert rep.analysis.sweep is None
     assert "no sweep was run" in rep.html
     p = rep.save(tmp_path / "r.html")
     assert p.read_text() == rep.html
     assert "ARX(1,1,1)" in str(rep)
 
 
-def test_correlation_matches_numpy():
-    rng = np.random.default_rng(0)
-    a, b = rng.standard_normal(300), rng.standard_normal(300)
-    lags, r = plots.correlation(a, b, 5)
-    ac, bc = a - a.mean(), b - b.mean()
-    full = np.correlate(ac, bc, mode="full") / math.sqrt(ac @ ac * (bc @ bc))
-    mid = len(a) - 1
-    np.testing.assert_allclose(r, full[mid - 5: mid + 6], atol=1e-12)
-    assert list(lags) == list(range(-5, 6))
-    _, r0 = plots.correlation(a, a, 0)
-    assert r0[0] == pytest.approx(1.0)
-
-
-def test_binned_and_rolling_rms_known_answers():
-    x = np.repeat([0.0, 1.0], 50)
-    e = np.where(x > 0, 2.0, 1.0)
-    c, r, n = plots.binned_rms(x, e, n_bins=2)
-    np.testing.assert_allclose(c, [0.0, 1.0])
-    np.testing.assert_allclose(r, [1.0, 2.0])
-    assert list(n) == [50, 50]
-    e2 = np.full(100, 3.0)
-    e2[:10] = np.nan
-    rr = plots.rolling_rms(e2, 5)
-    np.testing.assert_allclose(rr[20:80], 3.0)
-    assert np.isnan(rr[3])
-
-
 def test_every_figure_renders_to_png(analysis):
-    val = analysis.validation
-    p = analysis.model.predict(val)
-    import pandas as pd
-
-    grid = pd.DataFrame([{"na": a, "nb": 1, "nk": k, "v": a + k + 1.0} for a in (1, 2) for k in (0, 1, 2)])
-    figs = [plots.data_overview(val), plots.sweep_heatmap(grid, "v"),
-            plots.step_checks([("a", np.ones(10))], 0.01, {"a": "too small"}),
-            plots.measured_vs_simulated(val, [("m", p)]), plots.residual_correlations(val.y - p, {"u": val.u[:, 0]}),
-            plots.error_in_time(val, [("m", val.y - p)]), plots.error_by_signal(val, val.y - p, ["y", "dy", "u", "vbat"]),
-            plots.error_ladder([("ARX", 1.0), ("+ u*vbat", 0.2)])]
+    a = analysis
+    figs = [plots.data_overview(a.validation), plots.plot_sweep(a.sweep, chosen=a.choice.rank),
+            plots.step_checks([("a", np.ones(10))], 0.01, {"a": "too small"}), plots.plot_comparison(a.comparison),
+            plots.plot_residuals(a.residual_tests), plots.plot_failures(a.failures[0]),
+            plots.plot_error_by_signal(a.failures[0], a.failures[-1]), plots.plot_diagnosis(a.diagnosis),
+            plots.plot_ladder(a.ladder)]
     for f in figs:
         uri = plots.figure_to_data_uri(f, dpi=40)
         assert uri.startswith("data:image/png;base64,iVBOR")  # PNG magic
+
+
+def test_plots_draw_into_given_axes(analysis):
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    ax = fig.subplots()
+    assert analysis.ladder.plot(ax=ax) is fig and analysis.failures[0].plot(ax=ax) is fig
+    top, bottom = Figure().subplots(2, 1)
+    assert analysis.comparison.plot(ax=[top, bottom]) is top.figure
+
+
+def test_residual_plot_marks_exactly_the_lags_the_analysis_calls_outside(analysis):
+    """The plot draws the analysis' own bounds: red points are the lags ``cross_outside`` lists."""
+    rt = analysis.residual_tests
+    fig = plots.plot_residuals(rt)
+    axes = fig.axes
+    for ax, name in zip(axes[1:], rt.cross_correlation):
+        red = [line for line in ax.get_lines() if line.get_marker() == "o"]
+        xs = red[0].get_xdata() if red else []
+        assert list(xs) == list(rt.cross_outside(name))
 
 
 def test_demo_tells_the_battery_story(tmp_path):
@@ -138,17 +130,3 @@ def test_demo_tells_the_battery_story(tmp_path):
     json.dumps(json_safe(res.to_dict()), allow_nan=False)
 
 
-def test_public_functions_document_their_parameters():
-    import inspect
-
-    from arxid import cli, demo, report
-
-    fns = [report.analyse, report.render_html, report.build_report, report.run_sweep, report.diagnose_ladder,
-           demo.run_demo, demo.demo_data, cli.load_data, plots.data_overview, plots.sweep_heatmap, plots.step_checks,
-           plots.measured_vs_simulated, plots.residual_correlations, plots.error_in_time, plots.error_by_signal,
-           plots.error_ladder]
-    for fn in fns:
-        doc = inspect.getdoc(fn) or ""
-        assert doc, f"{fn.__qualname__} has no docstring"
-        for name in inspect.signature(fn).parameters:
-            assert name in doc, f"{fn.__qualname__}: parameter {name} undocumented"

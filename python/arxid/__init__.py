@@ -4,53 +4,71 @@ you find the physical effect your model is missing.
 A Rust core (faer) fits ARX models by Householder QR and sweeps every (na, nb, nk) structure from a
 single factorization; this package prepares data, checks models, diagnoses them and exports them to
 python-control and scipy.
+
+The map (one module per concept):
+
+* :mod:`arxid.data` — :class:`IOData`; :mod:`arxid.effects` — the physical-term grammar;
+* :mod:`arxid.model` — :func:`arx`, :class:`ArxModel`; :mod:`arxid.convert` — python-control, scipy, d2c;
+* :mod:`arxid.orders` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`;
+* :mod:`arxid.validation` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`;
+* :mod:`arxid.missing` — :func:`diagnose`, :class:`Diagnosis`; :mod:`arxid.ladder` — :class:`Ladder`;
+* :mod:`arxid.analysis` — :func:`analyse`, the one pipeline behind the CLI, the report and the demo;
+* :mod:`arxid.report`, :mod:`arxid.plots`, :mod:`arxid.cli`, :mod:`arxid.quadrotor`, :mod:`arxid.datasets`.
 """
 
 from __future__ import annotations
 
+import importlib
+from typing import Any
+
+from .analysis import Analysis, analyse
 from .data import IOData
-from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .ladder import Ladder
+from .missing import Diagnosis, diagnose
 from .model import ArxModel, arx
+from .orders import DEFAULT_GRID, SweepResult, sweep
+from .validation import compare, residuals, where_it_fails
 
 __all__ = [
     "IOData",
     "ArxModel",
     "arx",
+    "sweep",
+    "SweepResult",
+    "DEFAULT_GRID",
+    "compare",
+    "residuals",
+    "where_it_fails",
+    "diagnose",
+    "Diagnosis",
+    "Ladder",
+    "analyse",
+    "Analysis",
     "ArxidError",
     "DataError",
     "OrderError",
     "IdentifiabilityError",
     "NotFittedError",
+    "ArxidWarning",
+    "quadrotor",
+    "datasets",
+    "effects",
 ]
 
-__version__ = "0.1.0"
-
-# ``sweep`` and ``diagnose`` name both a module and its main function. Importing the modules here,
-# before binding the functions, means a later ``import arxid.sweep`` finds them in ``sys.modules``
-# and never rebinds the package attribute to the module: ``arxid.sweep(...)`` always works.
-from . import diagnose as _diagnose_module  # noqa: E402
-from . import diagnostics as _diagnostics_module  # noqa: E402
-from . import sweep as _sweep_module  # noqa: E402
-from .diagnose import Diagnosis, Ladder, diagnose  # noqa: E402
-from .diagnostics import compare, residuals, where_it_fails  # noqa: E402
-from .sweep import SweepResult, sweep  # noqa: E402
-
-__all__ += ["sweep", "SweepResult", "compare", "residuals", "where_it_fails", "diagnose", "Diagnosis", "Ladder",
-            "quadrotor", "datasets", "effects"]
+from ._version import __version__  # noqa: E402
 
 # Subpackages with heavier or optional dependencies load on first use.
-_LAZY_MODULES = ("quadrotor", "datasets", "effects", "report", "cli")
+_LAZY_MODULES = ("quadrotor", "datasets", "effects", "report", "cli", "plots", "demo", "convert")
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _LAZY_MODULES:
-        import importlib
-
         module = importlib.import_module(f".{name}", __name__)
         globals()[name] = module
         return module
     raise AttributeError(f"module 'arxid' has no attribute {name!r}")
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))

@@ -1,12 +1,83 @@
 """Type stub of the Rust extension ``arxid._core`` (private: use the public ``arxid`` API)."""
 
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Final, final
 
 import numpy as np
 import numpy.typing as npt
 
 _F = npt.NDArray[np.float64]
+_B = npt.NDArray[np.bool_]
 _Term = tuple[str, int, int]
+_Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
+
+__all__ = [
+    "divergence_limit",
+    "fit",
+    "grid_envelope",
+    "max_lag",
+    "predict",
+    "sweep",
+    "sweep_memory",
+    "FitOutput",
+    "SweepOutput",
+    "DIVERGENCE_FACTOR",
+]
+
+#: A prediction beyond this many times the largest measured |y| has diverged.
+DIVERGENCE_FACTOR: Final[float]
+
+@final
+class FitOutput:
+    """What :func:`fit` returns."""
+
+    @property
+    def theta(self) -> _F: ...
+    @property
+    def rss(self) -> float: ...
+    @property
+    def n_rows(self) -> int: ...
+    @property
+    def n_skipped(self) -> int: ...
+    @property
+    def inv_gram(self) -> _F: ...
+
+@final
+class SweepOutput:
+    """What :func:`sweep` returns: one entry per structure of the grid, in grid order."""
+
+    @property
+    def theta(self) -> _F: ...
+    @property
+    def rss_est(self) -> _F: ...
+    @property
+    def rss_val(self) -> _F: ...
+    @property
+    def rms_sim_est(self) -> _F: ...
+    @property
+    def rms_sim_val(self) -> _F: ...
+    @property
+    def n_sim_est(self) -> _F: ...
+    @property
+    def n_sim_val(self) -> _F: ...
+    @property
+    def norm_sim_est(self) -> _F: ...
+    @property
+    def norm_sim_val(self) -> _F: ...
+    @property
+    def diverged_est(self) -> _B: ...
+    @property
+    def diverged_val(self) -> _B: ...
+    @property
+    def errors(self) -> list[str | None]: ...
+    @property
+    def n_est(self) -> int: ...
+    @property
+    def n_val(self) -> int: ...
+    @property
+    def first_lag(self) -> int: ...
+    @property
+    def envelope(self) -> _Orders: ...
 
 def fit(
     y: _F,
@@ -19,7 +90,7 @@ def fit(
     first_lag: int = 0,
     n_threads: int = 0,
     rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
-) -> dict[str, Any]: ...
+) -> FitOutput: ...
 def predict(
     y: _F,
     u: _F,
@@ -43,8 +114,11 @@ def sweep(
     starts_v: Sequence[int] | None = None,
     simulate_estimation: bool = True,
     horizon: int | None = None,
-    divergence_limit: float = 1e6,
     n_threads: int = 0,
     chunk: int = 64,
     progress: Callable[[int], object] | None = None,
-) -> dict[str, Any]: ...
+) -> SweepOutput: ...
+def grid_envelope(structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]) -> tuple[int, _Orders]: ...
+def max_lag(na: int, nb: Sequence[int], nk: Sequence[int], output_terms: Sequence[_Term]) -> int: ...
+def sweep_memory(n_structures: int, p_max: int, q: int, n_est: int, n_val: int, n_cols: int, n_threads: int) -> int: ...
+def divergence_limit(y: _F) -> float: ...

@@ -17,6 +17,15 @@ from typing import Sequence
 
 import numpy as np
 
+from ._format import format_value, json_safe, text_table
+from ._version import __version__
+from .analysis import DEFAULT_SPLIT, Analysis, analyse, choose
+from .data import IOData
+from .exceptions import ArxidError, DataError
+from .model import arx
+from .orders import DEFAULT_GRID, sweep
+from .report.html import render_html
+
 __all__ = ["main", "load_data", "parse_range"]
 
 EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
@@ -88,9 +97,6 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
     In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
     """
-    from .data import IOData
-    from .exceptions import DataError
-
     p = Path(path)
     if not p.is_file():
         raise DataError(f"data file {path!r} does not exist")
@@ -155,15 +161,21 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
         v.add_argument("--validation", metavar="VAL.csv", help="separate validation file with the same columns")
         v.add_argument("--split", type=float, metavar="F", default=None,
                        help="estimation fraction of DATA when no --validation is given "
-                            + ("(default 0.7)" if split_default else "(default: no validation, fit on all of DATA)"))
+                            + (f"(default {DEFAULT_SPLIT})" if split_default else "(default: no validation, fit on all of DATA)"))
 
 
-def _order_args(p: argparse.ArgumentParser, grid_default: bool) -> None:
-    p.add_argument("--orders", metavar="NA,NB,NK", help="one fixed structure, e.g. 2,1,8")
-    d = " (default %(default)s)" if grid_default else ""
-    p.add_argument("--na", metavar="RANGE", default="1:4" if grid_default else None, help="na grid, e.g. 1:4 (inclusive)" + d)
-    p.add_argument("--nb", metavar="RANGE", default="1:3" if grid_default else None, help="nb grid, e.g. 1:3" + d)
-    p.add_argument("--nk", metavar="RANGE", default="0:10" if grid_default else None, help="nk grid, e.g. 0:10" + d)
+def _range_text(r: Sequence[int]) -> str:
+    return f"{min(r)}:{max(r)}"
+
+
+_GRID_HELP = {"na": "poles", "nb": "input coefficients", "nk": "input delays in samples"}
+
+
+def _order_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--orders", metavar="NA,NB,NK", help="one fixed structure, e.g. 2,1,8 (instead of a sweep)")
+    for k, what in _GRID_HELP.items():
+        p.add_argument(f"--{k}", metavar="RANGE", default=None,
+                       help=f"{k} grid ({what}), e.g. 1:4 (inclusive) or 1,2,5 (default {_range_text(DEFAULT_GRID[k])})")
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -183,18 +195,20 @@ def _load(args, need_validation: bool = True):
     split = getattr(args, "split", None)
     if split is None and not need_validation:
         return data, None
-    split = 0.7 if split is None else split
+    split = DEFAULT_SPLIT if split is None else split
     if not 0 < split < 1:
-        raise UsageError(f"--split {split} must be a fraction between 0 and 1, e.g. 0.7")
+        raise UsageError(f"--split {split} must be a fraction between 0 and 1, e.g. {DEFAULT_SPLIT}")
     return data.split(split)
 
 
 def _grid(args) -> dict | None:
+    """The sweep grid from --na/--nb/--nk (each defaulting to DEFAULT_GRID), or None with --orders."""
+    given = {k: getattr(args, k, None) for k in ("na", "nb", "nk")}
     if getattr(args, "orders", None):
-        if any(getattr(args, k, None) not in (None, d) for k, d in (("na", "1:4"), ("nb", "1:3"), ("nk", "0:10"))):
+        if any(v is not None for v in given.values()):
             raise UsageError("give either --orders NA,NB,NK or the grid --na/--nb/--nk, not both")
         return None
-    return {k: parse_range(getattr(args, k) or d, k) for k, d in (("na", "1:4"), ("nb", "1:3"), ("nk", "0:10"))}
+    return {k: parse_range(v, k) if v is not None else list(DEFAULT_GRID[k]) for k, v in given.items()}
 
 
 def _progress(args) -> bool:
@@ -202,39 +216,11 @@ def _progress(args) -> bool:
 
 
 def _print_json(obj) -> None:
-    from .report import json_safe
-
     sys.stdout.write(json.dumps(json_safe(obj), allow_nan=False, indent=2) + "\n")
-
-
-def _fmt(v, digits: int = 4) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, (bool, np.bool_)):
-        return "yes" if v else "no"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return str(v)
-    return "-" if not math.isfinite(f) else f"{f:.{digits}g}"
-
-
-def format_table(headers: Sequence[str], rows: Sequence[Sequence], title: str = "") -> str:
-    """Plain-text table with right-aligned numbers (first column left-aligned)."""
-    cells = [[_fmt(c) if not isinstance(c, str) else c for c in r] for r in rows]
-    widths = [max([len(h)] + [len(r[i]) for r in cells]) for i, h in enumerate(headers)]
-    def line(r):
-        return "  ".join((c.ljust(w) if i == 0 else c.rjust(w)) for i, (c, w) in enumerate(zip(r, widths)))
-    out = ([title] if title else []) + [line(headers), "  ".join("-" * w for w in widths)] + [line(r) for r in cells]
-    return "\n".join(out)
 
 
 # ---------------------------------------------------------------------------------------- commands
 def cmd_fit(args) -> int:
-    from .model import arx
-
     est, val = _load(args, need_validation=False)
     orders = _parse_orders(args.orders) if args.orders else None
     if orders is None:
@@ -259,117 +245,68 @@ def cmd_fit(args) -> int:
         rows += [[f"{what} RMS on validation", out["rms_sim_val"]], ["one-step RMS on validation", out["rms_pred_val"]],
                  [f"{what} fit on validation [%]", out["fit_val"]]]
     print()
-    print(format_table(["measure", "value"], rows))
+    print(text_table(["measure", "value"], rows))
     if args.save:
         print(f"\nmodel saved to {args.save}")
     return EXIT_OK
 
 
-def _sweep_records(table, top: int) -> list[dict]:
-    cols = [c for c in table.columns if c not in ("theta", "parameters")]
-    return table[cols].head(top).reset_index().to_dict(orient="records")
-
-
 def cmd_sweep(args) -> int:
-    from .report import run_sweep
-
     est, val = _load(args)
     grid = _grid(args)
     if grid is None:
         o = _parse_orders(args.orders)
         grid = {"na": [o[0]], "nb": [o[1]], "nk": [o[2]]}
     t0 = time.perf_counter()
-    res, table, best, rejected = run_sweep(est, val, grid, progress=_progress(args), expect=args.expect,
-                                           horizon=args.horizon)
+    res = sweep(est, validation=val, progress=_progress(args), expect=args.expect, horizon=args.horizon, **grid)
+    best, choice = choose(res)
     elapsed = time.perf_counter() - t0
-    row = table[table["structure"] == best.structure_name()].iloc[0]
-    out = {"n_structures": int(len(table)), "seconds": elapsed, "grid": grid, "measure": res.measure,
-           "horizon": res.horizon, "integrating": res.integrating,
-           "best": {"structure": best.structure_name(), "na": best.na, "nb": list(best.nb), "nk": list(best.nk),
+    rows = res.summary(top=max(args.top, choice.rank + 1))["structures"]
+    row = rows[choice.rank]
+    out = {"n_structures": len(res), "seconds": elapsed, "grid": grid, "measure": res.measure,
+           "horizon": res.horizon, "integrating": res.integrating, "choice": choice.to_dict(),
+           "best": {"structure": best.structure_name(), "na": best.na_, "nb": list(best.nb_), "nk": list(best.nk_),
                     "rms_val": row["rms_val"], "fit_val": row["fit_val"], "parameters": best.parameters_},
-           "rejected": rejected, "table": _sweep_records(table, args.top)}
+           "rejected": dict(choice.skipped), "table": rows[: args.top]}
     if args.json:
         _print_json(out)
         return EXIT_OK
     print(res.table(args.top))
-    print(f"\n{len(table)} structures in {elapsed:.2f} s")
-    for name, why in rejected.items():
+    print(f"\n{len(res)} structures in {elapsed:.2f} s")
+    for name, why in choice.skipped[:8]:
         print(f"skipped {name}: {why}")
-    print(f"best sane structure: {best.structure_name()}  (validation RMS {_fmt(row['rms_val'])}, "
-          f"fit {_fmt(row['fit_val'])} %, {res.measure})")
+    print(f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
+          f"fit {format_value(row['fit_val'])} %, {res.measure})")
     return EXIT_OK
 
 
-def _diagnosis_text(d: dict) -> str:
-    m, b = d.get("model", {}), d.get("baseline", {})
-    h = b.get("horizon")
-    what = "free-run" if h is None else f"{h}-step"
-    lines = [f"model: ARX(na={m.get('na')}, nb={m.get('nb')}, nk={m.get('nk')})"
-             + (f" + {', '.join(m.get('effects') or [])}" if m.get("effects") else ""),
-             f"validation: {what} RMS {_fmt(b.get('rms_sim_val'))}, one-step RMS {_fmt(b.get('rms_pred_val'))}, "
-             f"fit {_fmt(b.get('fit_val'))} %", ""]
-    flat = []
-    def walk(prefix, obj):
-        if isinstance(obj, dict):
-            for k, v in obj.items():
-                walk(f"{prefix}.{k}" if prefix else str(k), v)
-        elif not isinstance(obj, (list, tuple)):
-            flat.append([prefix, obj])
-    walk("", d.get("residual_tests") or {})
-    if flat:
-        lines += [format_table(["residual test", "value"], flat), ""]
-    sus = d.get("suspects") or []
-    if sus:
-        rows = [[str(i), s.get("effect"), s.get("score"), s.get("p_value"), bool(s.get("significant")),
-                 s.get("rms_sim_val_after")] for i, s in enumerate(sus[:12], start=1)]
-        lines += [format_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows,
-                               title="suspects (missing effects, ranked):"), ""]
-    sig = [s for s in sus if s.get("significant")]
-    lines.append(f"missing effect: {sig[0]['effect']}" if sig else "no significant missing effect")
-    lad = d.get("ladder") or []
-    if lad:
-        first = lad[0].get("rms_sim_val")
-        rows = []
-        for i, s in enumerate(lad):
-            v = s.get("rms_sim_val")
-            fall = f"{(1 - v / first) * 100:.1f} %" if first and v is not None else "-"
-            rows.append([str(i), "ARX" if not s.get("effects") else "+ " + ", ".join(s["effects"]), v, fall])
-        lines += ["", format_table(["step", "model", f"val. {what} RMS", "fall"], rows, title="error ladder:")]
-    return "\n".join(lines)
+def _analyse(args) -> Analysis:
+    est, val = _load(args)
+    orders = _parse_orders(args.orders) if args.orders else None
+    return analyse(est, val, orders=orders, grid=_grid(args), horizon=args.horizon, expect=args.expect,
+                   max_steps=args.max_steps, progress=_progress(args))
 
 
 def cmd_diagnose(args) -> int:
-    from .diagnose import diagnose_report
-
-    est, val = _load(args)
-    orders = _parse_orders(args.orders) if args.orders else None
-    grid = None if orders else _grid(args)
-    d = diagnose_report(est, val, orders=orders, grid=grid, horizon=args.horizon, max_steps=args.max_steps,
-                        progress=_progress(args))
+    a = _analyse(args)
     if args.json:
-        _print_json(d)
+        _print_json(a.to_dict())
     else:
-        print(_diagnosis_text(d))
+        print(a)
     return EXIT_OK
 
 
 def cmd_report(args) -> int:
-    from .report import build_report
-
-    est, val = _load(args)
-    orders = _parse_orders(args.orders) if args.orders else None
-    grid = None if orders else _grid(args)
     t0 = time.perf_counter()
-    rep = build_report(est, val, orders=orders, grid=grid, horizon=args.horizon, max_steps=args.max_steps,
-                       progress=_progress(args), expect=args.expect, title=args.title,
-                       source=f"{Path(args.data).name}" + (f" + {Path(args.validation).name}" if args.validation else ""))
-    path = rep.save(args.o)
-    a = rep.analysis
+    a = _analyse(args)
+    source = Path(args.data).name + (f" + {Path(args.validation).name}" if args.validation else "")
+    path = Path(args.o)
+    path.write_text(render_html(a, title=args.title, source=source), encoding="utf-8")
     if args.json:
         _print_json({"report": str(path), "bytes": path.stat().st_size, "seconds": time.perf_counter() - t0,
-                     "diagnosis": a.diagnosis})
+                     **a.to_dict()})
     else:
-        print(_diagnosis_text(a.diagnosis))
+        print(a)
         print(f"\nreport written to {path} ({path.stat().st_size / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")
     return EXIT_OK
 
@@ -408,8 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
                    epilog="examples:\n  arxid demo\n  arxid sweep data.csv --output y --inputs u --ts 0.01\n"
                           "  arxid diagnose data.csv --output y --inputs u --extra vbat --ts 0.01 --json\n"
                           "run 'arxid COMMAND --help' for each command's options.")
-    import arxid
-    root.add_argument("--version", action="version", version=f"arxid {arxid.__version__}")
+    root.add_argument("--version", action="version", version=f"arxid {__version__}")
     sub = root.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     kw = {"formatter_class": argparse.RawDescriptionHelpFormatter}
 
@@ -426,7 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sweep", help="fit and validate every (na, nb, nk) of a grid", epilog=_EXAMPLES["sweep"],
                        description="Exhaustive order sweep, ranked by validation error; step sanity checks.", **kw)
     _data_args(p)
-    _order_args(p, grid_default=True)
+    _order_args(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--top", type=int, default=20, metavar="N", help="rows to print (default %(default)s)")
@@ -436,16 +372,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("diagnose", help="rank the missing physical effect and climb the error ladder",
                        epilog=_EXAMPLES["diagnose"], description="Diagnose a model: residual tests, suspects, ladder.", **kw)
     _data_args(p)
-    _order_args(p, grid_default=False)
+    _order_args(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
+    p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     _common(p)
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("report", help="write a self-contained HTML report", epilog=_EXAMPLES["report"],
                        description="Sweep, choose, diagnose and write one HTML file with every plot embedded.", **kw)
     _data_args(p)
-    _order_args(p, grid_default=False)
+    _order_args(p)
     p.add_argument("-o", metavar="REPORT.html", default="report.html", help="output file (default %(default)s)")
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
@@ -467,8 +404,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``arxid`` command line; returns the exit code (0 ok, 2 bad arguments or data)."""
-    from .exceptions import ArxidError
-
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

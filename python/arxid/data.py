@@ -5,9 +5,10 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,9 +21,13 @@ def _as_float(name: str, values, ndim: int) -> np.ndarray:
     try:
         arr = np.asarray(values)
     except Exception as exc:  # ragged lists and the like
-        raise DataError(f"{name} could not be read as a numeric array ({exc}); pass a list or numpy array of numbers") from None
+        raise DataError(
+            f"{name} could not be read as a numeric array ({exc}); pass a list or numpy array of numbers"
+        ) from None
     if arr.dtype == object or arr.dtype.kind in "USV":
-        raise DataError(f"{name} has dtype {arr.dtype}; it must hold numbers (convert it with numpy.asarray(..., dtype=float))")
+        raise DataError(
+            f"{name} has dtype {arr.dtype}; it must hold numbers (convert it with numpy.asarray(..., dtype=float))"
+        )
     if arr.dtype.kind == "c":
         raise DataError(f"{name} is complex; arxid identifies real-valued signals")
     if arr.dtype.kind == "b":
@@ -39,6 +44,72 @@ def _as_float(name: str, values, ndim: int) -> np.ndarray:
         idx = int(np.argwhere(np.isinf(arr))[0][0])
         raise DataError(f"{name} holds an infinite value at sample {idx}; mark missing samples with NaN instead")
     return arr
+
+
+def _read_csv_rows(path: Path, delimiter: str | None) -> list[list[str]]:
+    """Rows of a UTF-8 CSV file (BOM allowed), the delimiter sniffed from the header when None."""
+    if not path.is_file():
+        raise DataError(f"CSV file {str(path)!r} does not exist")
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            text = fh.read()
+    except UnicodeDecodeError as exc:
+        raise DataError(
+            f"{path.name} is not a UTF-8 text CSV file ({exc.reason} at byte {exc.start}); "
+            f"export it as CSV with a header row"
+        ) from None
+    lines = text.splitlines()
+    if not lines:
+        raise DataError(f"CSV file {str(path)!r} is empty")
+    if delimiter is None:
+        head = lines[0]
+        delimiter = max([",", ";", "\t", " "], key=head.count) if any(c in head for c in ",;\t ") else ","
+    return list(csv.reader(lines, delimiter=delimiter))
+
+
+def _clean_header(raw_header: list[str]) -> tuple[list[str], dict[str, str], dict[str, str]]:
+    """Signal names of CSV header cells (``""`` for a cell without one), the units given in
+    brackets (``vbat[V]``), and the map from raw header text to signal name."""
+    header: list[str] = []
+    header_units: dict[str, str] = {}
+    rename: dict[str, str] = {}
+    for h in raw_header:
+        m = re.fullmatch(r"(.*?)\s*\[(.*)\]", h)
+        base = m[1] if m else h
+        clean = re.sub(r"\W+", "_", base).strip("_") if base else ""
+        if clean and clean[0].isdigit():
+            clean = "_" + clean
+        header.append(clean)
+        rename[h] = clean
+        if m and clean:
+            header_units[clean] = m[2]
+    return header, header_units, rename
+
+
+def _numeric_columns(header: list[str], rows: list[list[str]], needed: set, source: str) -> dict[str, np.ndarray]:
+    """Named CSV columns as float arrays (empty, ``nan``, ``na``, ``null``: NaN). A cell that is not a
+    number is NaN too, unless its column is ``needed``: then it is a DataError."""
+    body = [r for r in rows if any(c.strip() for c in r)]
+    columns = {}
+    for j, name in enumerate(header):
+        if not name:
+            continue
+        vals = []
+        for i, r in enumerate(body):
+            cell = r[j].strip() if j < len(r) else ""
+            if cell == "" or cell.lower() in ("nan", "na", "null"):
+                vals.append(math.nan)
+                continue
+            try:
+                vals.append(float(cell))
+            except ValueError:
+                if name in needed:
+                    raise DataError(
+                        f"{source}: column {name!r} row {i + 2} holds {cell!r}, which is not a number"
+                    ) from None
+                vals.append(math.nan)
+        columns[name] = np.array(vals, dtype=float)
+    return columns
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +166,10 @@ class IOData:
         if n == 0:
             raise DataError("the data are empty (0 samples); pass at least a few hundred samples")
         if u.shape[0] != n:
-            raise DataError(f"y has {n} samples but u has {u.shape[0]}; y and u must have the same length (for several inputs pass u with shape (n_samples, n_inputs))")
+            raise DataError(
+                f"y has {n} samples but u has {u.shape[0]}; y and u must have the same length "
+                "(for several inputs pass u with shape (n_samples, n_inputs))"
+            )
         try:
             ts = float(self.ts)
         except (TypeError, ValueError):
@@ -120,7 +194,7 @@ class IOData:
         if dup:
             raise DataError(f"signal names must be unique; repeated: {sorted(dup)}")
         starts = tuple(int(s) for s in self.experiment_starts) or (0,)
-        if starts[0] != 0 or any(b <= a for a, b in zip(starts, starts[1:])) or starts[-1] >= n:
+        if starts[0] != 0 or any(b <= a for a, b in zip(starts, starts[1:], strict=False)) or starts[-1] >= n:
             raise DataError(f"experiment_starts must begin with 0 and increase inside the data, got {starts}")
         for arr in (y, u, *extra.values()):
             arr.setflags(write=False)
@@ -136,13 +210,34 @@ class IOData:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def from_arrays(cls, y, u, ts, **kwargs) -> "IOData":
-        """Same as the constructor; for symmetry with :meth:`from_pandas` and :meth:`from_csv`."""
+    def from_arrays(cls, y, u, ts, **kwargs) -> IOData:
+        """Same as the constructor; for symmetry with :meth:`from_pandas` and :meth:`from_csv`.
+
+        Parameters
+        ----------
+        y, u, ts
+            Output, inputs and sampling time as in :class:`IOData`.
+        **kwargs
+            The other :class:`IOData` fields (``output_name``, ``extra``, ...).
+
+        Returns
+        -------
+        IOData
+        """
         return cls(y, u, ts, **kwargs)
 
     @classmethod
-    def from_pandas(cls, df, *, output: str, inputs: Sequence[str], extra: Sequence[str] = (),
-                    ts: float | None = None, time: str | None = None, units: Mapping[str, str] | None = None) -> "IOData":
+    def from_pandas(
+        cls,
+        df,
+        *,
+        output: str,
+        inputs: Sequence[str],
+        extra: Sequence[str] = (),
+        ts: float | None = None,
+        time: str | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> IOData:
         """Build from a pandas DataFrame by column names.
 
         Parameters
@@ -160,15 +255,34 @@ class IOData:
             Time column (seconds).
         units : mapping of str to str, optional
             Unit of each column, by name.
+
+        Returns
+        -------
+        IOData
         """
         columns = {str(c): np.asarray(df[c]) for c in df.columns}
-        return cls._from_columns(columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source="DataFrame")
+        return cls._from_columns(
+            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source="DataFrame"
+        )
 
     @classmethod
-    def from_csv(cls, path, *, output: str, inputs: Sequence[str], extra: Sequence[str] = (),
-                 ts: float | None = None, time: str | None = None, delimiter: str | None = None,
-                 units: Mapping[str, str] | None = None) -> "IOData":
+    def from_csv(
+        cls,
+        path,
+        *,
+        output: str,
+        inputs: Sequence[str],
+        extra: Sequence[str] = (),
+        ts: float | None = None,
+        time: str | None = None,
+        delimiter: str | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> IOData:
         """Read a CSV file with a header row.
+
+        Empty cells and ``nan`` are missing samples (NaN). A header ``vbat[V]`` names the signal
+        ``vbat`` with unit ``V``; other characters that cannot appear in an effect are replaced by
+        ``_`` (the raw header text is accepted too when selecting columns).
 
         Parameters
         ----------
@@ -180,67 +294,28 @@ class IOData:
         units : mapping of str to str, optional
             Unit of each column, by name.
 
-        Empty cells and ``nan`` are missing samples (NaN). A header ``vbat[V]`` names the signal
-        ``vbat`` with unit ``V``; other characters that cannot appear in an effect are replaced by
-        ``_`` (the raw header text is accepted too when selecting columns).
+        Returns
+        -------
+        IOData
         """
         path = Path(path)
-        if not path.is_file():
-            raise DataError(f"CSV file {str(path)!r} does not exist")
-        try:
-            with path.open(newline="", encoding="utf-8-sig") as fh:
-                text = fh.read()
-        except UnicodeDecodeError as exc:
-            raise DataError(f"{path.name} is not a UTF-8 text CSV file ({exc.reason} at byte {exc.start}); "
-                            f"export it as CSV with a header row") from None
-        lines = text.splitlines()
-        if not lines:
-            raise DataError(f"CSV file {str(path)!r} is empty")
-        if delimiter is None:
-            head = lines[0]
-            delimiter = max([",", ";", "\t", " "], key=head.count) if any(c in head for c in ",;\t ") else ","
-        rows = list(csv.reader(lines, delimiter=delimiter))
-        raw_header = [h.strip() for h in rows[0]]
+        rows = _read_csv_rows(path, delimiter)
         # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
         # the raw header text is still accepted in output=/inputs=/extra=/time=.
-        header, header_units, rename = [], {}, {}
-        for h in raw_header:
-            m = re.fullmatch(r"(.*?)\s*\[(.*)\]", h)
-            base = m[1] if m else h
-            clean = re.sub(r"\W+", "_", base).strip("_") if base else ""
-            if clean and clean[0].isdigit():
-                clean = "_" + clean
-            header.append(clean)
-            rename[h] = clean
-            if m and clean:
-                header_units[clean] = m[2]
+        header, header_units, rename = _clean_header([h.strip() for h in rows[0]])
         output = rename.get(output, output)
         time = rename.get(time, time) if time else time
         inputs = [rename.get(c, c) for c in ([inputs] if isinstance(inputs, str) else inputs)]
         extra = [rename.get(c, c) for c in ([extra] if isinstance(extra, str) else extra)]
         units = {**header_units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
-        body = [r for r in rows[1:] if any(c.strip() for c in r)]
-        columns = {}
-        for j, name in enumerate(header):
-            if not name:
-                continue
-            vals = []
-            for i, r in enumerate(body):
-                cell = r[j].strip() if j < len(r) else ""
-                if cell == "" or cell.lower() in ("nan", "na", "null"):
-                    vals.append(math.nan)
-                    continue
-                try:
-                    vals.append(float(cell))
-                except ValueError:
-                    vals.append(None)
-                    if name in (output, time, *inputs, *extra):
-                        raise DataError(f"{path.name}: column {name!r} row {i + 2} holds {cell!r}, which is not a number") from None
-            columns[name] = np.array([v if v is not None else math.nan for v in vals], dtype=float)
-        return cls._from_columns(columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source=path.name)
+        needed = {output, *inputs, *extra} | ({time} if time else set())
+        columns = _numeric_columns(header, rows[1:], needed, path.name)
+        return cls._from_columns(
+            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source=path.name
+        )
 
     @classmethod
-    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source) -> "IOData":
+    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source) -> IOData:
         if isinstance(inputs, str):
             inputs = [inputs]
         if isinstance(extra, str):
@@ -260,7 +335,10 @@ class IOData:
                 raise DataError(f"time column {time!r} must be finite and hold at least two samples")
             ts = float(np.median(dt))
             if ts <= 0 or np.max(np.abs(dt - ts)) > 1e-6 * max(abs(ts), 1.0) + 1e-3 * ts:
-                raise DataError(f"time column {time!r} is not uniformly sampled (steps from {dt.min():g} to {dt.max():g}); resample the data first")
+                raise DataError(
+                    f"time column {time!r} is not uniformly sampled (steps from {dt.min():g} to {dt.max():g}); "
+                    "resample the data first"
+                )
         units = dict(units or {})
         return cls(
             columns[output],
@@ -277,21 +355,24 @@ class IOData:
     # ------------------------------------------------------------------ shape and lookup
     @property
     def n_samples(self) -> int:
+        """Number of samples (all experiments together)."""
         return int(self.y.shape[0])
 
     @property
     def n_inputs(self) -> int:
+        """Number of model inputs (columns of ``u``)."""
         return int(self.u.shape[1])
 
     @property
     def n_experiments(self) -> int:
+        """Number of experiments (entries of ``experiment_starts``)."""
         return len(self.experiment_starts)
 
     @property
     def segments(self) -> list[tuple[int, int]]:
         """Half-open sample ranges of the experiments."""
         ends = list(self.experiment_starts[1:]) + [self.n_samples]
-        return list(zip(self.experiment_starts, ends))
+        return list(zip(self.experiment_starts, ends, strict=True))
 
     @property
     def time(self) -> np.ndarray:
@@ -308,10 +389,23 @@ class IOData:
 
     @property
     def signal_names(self) -> tuple[str, ...]:
+        """Output, input and extra signal names, in that order."""
         return (self.output_name,) + self.input_names + tuple(self.extra)
 
     def signal(self, name: str) -> np.ndarray:
-        """The output, an input or an extra signal by name (``"y"``, ``"u1"`` also work)."""
+        """The output, an input or an extra signal by name.
+
+        Parameters
+        ----------
+        name : str
+            A signal name; ``"y"`` is the output and ``"u1"``, ``"u2"``, ... the inputs whatever
+            their names.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The samples (read-only).
+        """
         if name == self.output_name or name == "y":
             return self.y
         if name in self.input_names:
@@ -323,6 +417,18 @@ class IOData:
         raise DataError(f"no signal named {name!r}; the data have {list(self.signal_names)}")
 
     def unit(self, name: str) -> str:
+        """Unit of a signal.
+
+        Parameters
+        ----------
+        name : str
+            Signal name (``"y"`` is the output).
+
+        Returns
+        -------
+        str
+            The unit, ``""`` when none was given.
+        """
         if name in (self.output_name, "y"):
             return self.output_unit
         if name in self.input_names:
@@ -330,11 +436,16 @@ class IOData:
         return self.extra_units.get(name, "")
 
     # ------------------------------------------------------------------ transformations
-    def _take(self, idx: np.ndarray, starts: Iterable[int]) -> "IOData":
-        return replace(self, y=self.y[idx], u=self.u[idx], extra={k: v[idx] for k, v in self.extra.items()},
-                       experiment_starts=tuple(starts))
+    def _take(self, idx: np.ndarray, starts: Iterable[int]) -> IOData:
+        return replace(
+            self,
+            y=self.y[idx],
+            u=self.u[idx],
+            extra={k: v[idx] for k, v in self.extra.items()},
+            experiment_starts=tuple(starts),
+        )
 
-    def __getitem__(self, key) -> "IOData":
+    def __getitem__(self, key) -> IOData:
         """Samples by slice (step 1): ``data[1000:5000]``. Experiment boundaries are kept."""
         if not isinstance(key, slice) or key.step not in (None, 1):
             raise DataError("index IOData with a slice of samples, e.g. data[100:2000]")
@@ -344,16 +455,37 @@ class IOData:
         starts = [0] + [s - a for s in self.experiment_starts if a < s < b]
         return self._take(np.arange(a, b), starts)
 
-    def time_slice(self, start: float | None = None, stop: float | None = None) -> "IOData":
-        """Samples with ``start <= time < stop`` (seconds, single experiment data)."""
+    def time_slice(self, start: float | None = None, stop: float | None = None) -> IOData:
+        """Samples with ``start <= time < stop`` of single-experiment data.
+
+        Parameters
+        ----------
+        start, stop : float, optional
+            Times in seconds (default: the first and past the last sample).
+
+        Returns
+        -------
+        IOData
+        """
         if self.n_experiments > 1:
             raise DataError("time_slice works on a single experiment; slice by sample index instead")
         a = 0 if start is None else int(math.ceil(start / self.ts - 1e-9))
         b = self.n_samples if stop is None else int(math.ceil(stop / self.ts - 1e-9))
-        return self[max(a, 0):min(b, self.n_samples)]
+        return self[max(a, 0) : min(b, self.n_samples)]
 
-    def split(self, fraction: float = 0.7) -> tuple["IOData", "IOData"]:
-        """Split at a fraction of the samples into (estimation, validation)."""
+    def split(self, fraction: float = 0.7) -> tuple[IOData, IOData]:
+        """Split at a fraction of the samples into estimation and validation data.
+
+        Parameters
+        ----------
+        fraction : float
+            Share of the samples in the estimation part, strictly between 0 and 1.
+
+        Returns
+        -------
+        (IOData, IOData)
+            Estimation data (the first samples) and validation data (the rest).
+        """
         if not 0 < fraction < 1:
             raise DataError(f"split fraction must be between 0 and 1, got {fraction}")
         k = int(round(self.n_samples * fraction))
@@ -361,9 +493,20 @@ class IOData:
             raise DataError(f"split at {fraction} leaves an empty part of {self.n_samples} samples")
         return self[:k], self[k:]
 
-    def detrend(self, kind: str = "mean") -> "IOData":
-        """Remove the mean (``"mean"``) or a straight line (``"linear"``) from the output and inputs,
-        per experiment, ignoring NaN. Extra signals are left as they are (they carry physics)."""
+    def detrend(self, kind: str = "mean") -> IOData:
+        """Remove the mean or a straight line from the output and inputs, per experiment.
+
+        Extra signals are left as they are (they carry physics).
+
+        Parameters
+        ----------
+        kind : {"mean", "linear"}
+            What to remove, fitted to the finite samples (NaN stays NaN).
+
+        Returns
+        -------
+        IOData
+        """
         if kind not in ("mean", "linear"):
             raise DataError(f"detrend kind must be 'mean' or 'linear', got {kind!r}")
         y = self.y.copy()
@@ -384,9 +527,23 @@ class IOData:
                         col -= np.polyval(coef, t)
         return replace(self, y=y, u=u)
 
-    def with_signals(self, *, u=None, input_names=None, input_units=None, extra=None) -> "IOData":
-        """A copy with other inputs and/or extra signals (same output, ts and experiments)."""
-        kw = {}
+    def with_signals(self, *, u=None, input_names=None, input_units=None, extra=None) -> IOData:
+        """A copy with other inputs and/or extra signals (same output, ts and experiments).
+
+        Parameters
+        ----------
+        u : array_like of shape (n_samples,) or (n_samples, n_inputs), optional
+            New inputs (None: keep the inputs, their names and units).
+        input_names, input_units : sequence of str, optional
+            Names and units of the new inputs (defaults as in :class:`IOData`).
+        extra : mapping of str to array_like, optional
+            New extra signals, replacing all of them (None: keep them).
+
+        Returns
+        -------
+        IOData
+        """
+        kw: dict[str, Any] = {}
         if u is not None:
             kw.update(u=u, input_names=tuple(input_names or ()), input_units=tuple(input_units or ()))
         if extra is not None:
@@ -394,8 +551,19 @@ class IOData:
         return replace(self, **kw)
 
     @staticmethod
-    def merge(datasets: Sequence["IOData"]) -> "IOData":
-        """Several experiments in one object; no regressor ever straddles an experiment boundary."""
+    def merge(datasets: Sequence[IOData]) -> IOData:
+        """Several experiments in one object; no regressor ever straddles an experiment boundary.
+
+        Parameters
+        ----------
+        datasets : sequence of IOData
+            Experiments with the same sampling time, output, inputs and extra signals.
+
+        Returns
+        -------
+        IOData
+            The samples one after the other, with ``experiment_starts`` marking each experiment.
+        """
         datasets = list(datasets)
         if not datasets:
             raise DataError("merge needs at least one IOData")
@@ -405,7 +573,11 @@ class IOData:
                 raise DataError(f"merge takes IOData objects, got {type(d).__name__}")
             if not math.isclose(d.ts, first.ts, rel_tol=1e-9):
                 raise DataError(f"cannot merge experiments sampled at ts={first.ts} and ts={d.ts}; resample first")
-            if d.input_names != first.input_names or d.output_name != first.output_name or set(d.extra) != set(first.extra):
+            if (
+                d.input_names != first.input_names
+                or d.output_name != first.output_name
+                or set(d.extra) != set(first.extra)
+            ):
                 raise DataError("merged experiments must have the same output, inputs and extra signals")
         starts, off = [], 0
         for d in datasets:
@@ -420,7 +592,13 @@ class IOData:
         )
 
     def to_pandas(self):
-        """A DataFrame with time, output, inputs and extra signals."""
+        """The data as a pandas DataFrame.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``time``, the output, the inputs and the extra signals.
+        """
         try:
             import pandas as pd
         except ImportError:  # pragma: no cover
@@ -434,6 +612,7 @@ class IOData:
         def unit(name):
             u = self.unit(name)
             return f" [{u}]" if u else ""
+
         dur = self.n_samples * self.ts
         parts = [
             f"IOData: {self.n_samples} samples, ts = {self.ts:g} s ({dur:g} s), "

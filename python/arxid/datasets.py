@@ -4,24 +4,57 @@ Both simulators are deterministic for a seed and expose their true parameters
 (:class:`QuadrotorParameters`), so every identification in :mod:`arxid.quadrotor` can be checked
 against the truth. They produce the embedded default data of ``arxid demo``: arxid ships no
 third-party data.
+
+The flight simulator
+--------------------
+:func:`quadrotor_flight` flies a plus frame, motor 1 front, 2 right, 3 back, 4 left (seed 004).
+Rotational dynamics (eqs. 13-17)::
+
+    Ixx p' = k l (w4^2 - w2^2) + (Iyy - Izz) q r - Ir q W
+    Iyy q' = k l (w3^2 - w1^2) + (Izz - Ixx) p r + Ir p W
+    Izz r' = b (-w1^2 + w2^2 - w3^2 + w4^2) + (Ixx - Iyy) p q,   W = -w1 + w2 - w3 + w4
+
+with Euler-angle kinematics, integrated by semi-implicit Euler at ``ts``. The logged attitude is a
+complementary filter's estimate (gyro integrated, pulled towards the accelerometer tilt with
+``estimator_time_constant``), delayed with the gyro by ``delay_samples - 1`` samples; the
+controller flies on these logged values. Motors follow ``w' = a0 vbat d - a1 w - a2 w^2``,
+integrated exactly over each sample. A PID attitude controller (on the delayed measurements) and an
+altitude loop tracking seed 001's eq. 15 compute thrust and torques, allocate them to squared
+speeds with the nominal parameters and turn those into duty assuming ``nominal_voltage`` (no
+battery compensation). The battery's open-circuit voltage falls linearly with charge drawn; the
+terminal voltage sags by ``R * I`` with ``I`` from the propellers' mechanical power.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from .data import IOData
 from .exceptions import DataError
 
-__all__ = ["QuadrotorParameters", "DEFAULT_EFFECTS", "quadrotor_flight", "quadrotor_axis",
-           "thrust_stand", "thrust_stand_static"]
+__all__ = [
+    "QuadrotorParameters",
+    "DEFAULT_EFFECTS",
+    "FLIGHT_SIGNALS",
+    "quadrotor_flight",
+    "quadrotor_axis",
+    "thrust_stand",
+    "thrust_stand_static",
+]
 
 #: Hidden effects of :func:`quadrotor_flight` and their defaults.
-DEFAULT_EFFECTS = {"battery_sag": True, "motor_mismatch": False, "gyroscopic": True, "delay": True,
-                   "noise": True, "turbulence": True}
+DEFAULT_EFFECTS = {
+    "battery_sag": True,
+    "motor_mismatch": False,
+    "gyroscopic": True,
+    "delay": True,
+    "noise": True,
+    "turbulence": True,
+}
 
 _G = 9.81
 PWM_FULL_SCALE = 65535.0
@@ -180,8 +213,10 @@ def _check_timing(duration, ts):
     if n < 100:
         raise DataError(f"duration {duration} s at ts {ts} s gives {n} samples; ask for at least 100")
     if n > MAX_SAMPLES:
-        raise DataError(f"duration {duration:g} s at ts {ts} s gives {n} samples; ask for at most {MAX_SAMPLES} "
-                        f"({MAX_SAMPLES * ts:g} s)")
+        raise DataError(
+            f"duration {duration:g} s at ts {ts} s gives {n} samples; ask for at most {MAX_SAMPLES} "
+            f"({MAX_SAMPLES * ts:g} s)"
+        )
     return n
 
 
@@ -193,8 +228,37 @@ def _rng(seed):
         raise DataError(f"seed must be a non-negative integer, got {seed!r}") from None
 
 
-def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, effects=None,
-                     output: str = "roll", parameters: QuadrotorParameters | None = None) -> IOData:
+#: Signals of :func:`quadrotor_flight` and their units (any of them can be the output).
+FLIGHT_SIGNALS = {
+    "roll": "rad",
+    "pitch": "rad",
+    "yaw": "rad",
+    "p": "rad/s",
+    "q": "rad/s",
+    "r": "rad/s",
+    **{f"w{i + 1}": "rad/s" for i in range(4)},
+    "vbat": "V",
+    "thrust": "N",
+    "az": "m/s^2",
+    "z": "m",
+    "tau_x": "N m",
+    "tau_y": "N m",
+    "tau_z": "N m",
+    "roll_ref": "rad",
+    "pitch_ref": "rad",
+    "yaw_ref": "rad",
+    "current": "A",
+}
+
+
+def quadrotor_flight(
+    seed: int = 0,
+    duration: float = 20.0,
+    ts: float = 0.002,
+    effects: Mapping[str, bool] | None = None,
+    output: str = "roll",
+    parameters: QuadrotorParameters | None = None,
+) -> IOData:
     """Simulate a closed-loop quadrotor flight with pilot-like excitation.
 
     Parameters
@@ -225,7 +289,7 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
             A broadband gust torque on every axis (``parameters.turbulence`` RMS, correlation
             time ``turbulence_time_constant``), about 0.25 degrees of hover jitter.
     output : str
-        Which logged signal becomes the output (``"roll"``, ``"pitch"``, ``"yaw"``, ``"az"``, ...).
+        Which signal of :data:`FLIGHT_SIGNALS` becomes the output (``"roll"``, ``"az"``, ...).
     parameters : QuadrotorParameters, optional
         True parameters (default :class:`QuadrotorParameters()`).
 
@@ -240,22 +304,8 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
 
     Notes
     -----
-    Plus frame, motor 1 front, 2 right, 3 back, 4 left (seed 004). Rotational dynamics (eqs. 13-17)::
-
-        Ixx p' = k l (w4^2 - w2^2) + (Iyy - Izz) q r - Ir q W
-        Iyy q' = k l (w3^2 - w1^2) + (Izz - Ixx) p r + Ir p W
-        Izz r' = b (-w1^2 + w2^2 - w3^2 + w4^2) + (Ixx - Iyy) p q,   W = -w1 + w2 - w3 + w4
-
-    with Euler-angle kinematics, integrated by semi-implicit Euler at ``ts``. The logged attitude
-    is a complementary filter's estimate (gyro integrated, pulled towards the accelerometer tilt
-    with ``estimator_time_constant``), delayed with the gyro by ``delay_samples - 1`` samples; the
-    controller flies on these logged values. Motors follow
-    ``w' = a0 vbat d - a1 w - a2 w^2``, integrated exactly over each sample. A PID attitude
-    controller (on the delayed measurements) and an altitude loop tracking seed 001's eq. 15
-    compute thrust and torques, allocate them to squared speeds with the nominal parameters and
-    turn those into duty assuming ``nominal_voltage`` (no battery compensation). The battery's
-    open-circuit voltage falls linearly with charge drawn; the terminal voltage sags by
-    ``R * I`` with ``I`` from the propellers' mechanical power.
+    The simulated aircraft, controller, sensors and battery are described in the docstring of
+    :mod:`arxid.datasets` ("The flight simulator").
 
     Examples
     --------
@@ -267,183 +317,349 @@ def quadrotor_flight(seed: int = 0, duration: float = 20.0, ts: float = 0.002, e
     eff = _effects(effects)
     par = parameters or QuadrotorParameters()
     n = _check_timing(duration, ts)
+    if output not in FLIGHT_SIGNALS:
+        raise DataError(f"unknown output {output!r}; choose from {sorted(FLIGHT_SIGNALS)}")
     rng = _rng(seed)
-    t = np.arange(n) * ts
+    # the draw order is fixed (references, then noise): switching an effect never changes the
+    # other random signals
+    ref = _pilot_references(rng, np.arange(n) * ts, par)
+    noise = _sensor_noise(rng, n, ts, par, eff)
+    air = _Airframe.of(par, eff)
+    log = _fly(ref, noise, air, par, ts)
+    return _flight_data(log, ref, noise, air, par, output, ts)
 
-    # references: roll/pitch/yaw sums of sines, altitude from seed 001 eq. 15
+
+@dataclass(frozen=True)
+class _References:
+    """Pilot references of a simulated flight (arrays of shape (n,)): angles [rad] and rates
+    [rad/s], altitude [m] with its first two derivatives."""
+
+    roll: np.ndarray
+    roll_rate: np.ndarray
+    pitch: np.ndarray
+    pitch_rate: np.ndarray
+    yaw: np.ndarray
+    yaw_rate: np.ndarray
+    z: np.ndarray
+    z_rate: np.ndarray
+    z_acc: np.ndarray
+
+
+def _pilot_references(rng: np.random.Generator, t: np.ndarray, par: QuadrotorParameters) -> _References:
+    """Roll, pitch and yaw references as sums of sines (drawn from ``rng`` in that order), altitude
+    from seed 001 eq. 15."""
     (a_r, a_p, a_y), (lo, hi) = par.pilot_amplitude, par.pilot_band
     phr, phrd = _sum_of_sines(rng, t, a_r, lo, hi, par.pilot_sines)
     thr, thrd = _sum_of_sines(rng, t, a_p, lo, hi, par.pilot_sines)
     psr, psrd = _sum_of_sines(rng, t, a_y, 0.05, 0.5)
     zr, zrd, zrdd = _eq15(t)
+    return _References(phr, phrd, thr, thrd, psr, psrd, zr, zrd, zrdd)
 
-    # noise, drawn up front so the loop stays lean and the log is the same with noise off
-    # (the draw order is fixed: switching an effect never changes the other random signals)
-    ns = 1.0 if eff["noise"] else 0.0
-    raw = {k: rng.standard_normal((n, 3) if k in ("tilt", "gyro") else ((n, 4) if k == "w" else n))
-           for k in ("tilt", "gyro", "w", "vbat", "az")}
-    turb = rng.standard_normal((n, 3))
-    gyro_noise = ns * par.gyro_noise * raw["gyro"]
-    # attitude estimate: a complementary filter integrates the gyro and pulls towards the
-    # accelerometer's tilt with time constant estimator_time_constant; its error is the gyro noise
-    # integrated and the tilt noise low-passed (the linearised filter, exact for noise off)
-    beta = math.exp(-ts / par.estimator_time_constant)
+
+@dataclass(frozen=True)
+class _Noise:
+    """Random signals of a simulated flight, drawn up front so that the loop stays lean and the
+    log is the same with noise off (``scale`` 0: every sensor noise is zero)."""
+
+    scale: float
+    raw: dict[str, np.ndarray]  # unit normal draws: tilt, gyro (n, 3), w (n, 4), vbat, az (n,)
+    gyro: np.ndarray  # gyro noise (n, 3) [rad/s]
+    attitude: np.ndarray  # error of the attitude estimate (n, 3) [rad]
+    turbulence: np.ndarray  # gust torque (n, 3) [N m]
+
+
+def _sensor_noise(rng: np.random.Generator, n: int, ts: float, par: QuadrotorParameters, eff: dict) -> _Noise:
+    """Sensor noise and turbulence of ``n`` samples.
+
+    The attitude estimate is a complementary filter: it integrates the gyro and pulls towards the
+    accelerometer's tilt with time constant ``estimator_time_constant``, so its error is the gyro
+    noise integrated plus the tilt noise low-passed (the linearised filter, exact for noise off).
+    The turbulence torque is first-order low-passed white noise of RMS ``par.turbulence``.
+    """
     from scipy.signal import lfilter
 
+    ns = 1.0 if eff["noise"] else 0.0
+    raw = {
+        k: rng.standard_normal((n, 3) if k in ("tilt", "gyro") else ((n, 4) if k == "w" else n))
+        for k in ("tilt", "gyro", "w", "vbat", "az")
+    }
+    turb = rng.standard_normal((n, 3))
+    gyro_noise = ns * par.gyro_noise * raw["gyro"]
+    beta = math.exp(-ts / par.estimator_time_constant)
     att_err = lfilter([1.0], [1.0, -beta], ts * gyro_noise + (1 - beta) * ns * par.tilt_noise * raw["tilt"], axis=0)
-    # turbulence torque: first-order low-pass white noise of RMS par.turbulence [N m]
     alpha = math.exp(-ts / par.turbulence_time_constant)
     turb_f = lfilter([math.sqrt(1 - alpha * alpha)], [1.0, -alpha], turb, axis=0)
     turb_f *= par.turbulence if eff["turbulence"] else 0.0
+    return _Noise(ns, raw, gyro_noise, att_err, turb_f)
 
-    ixx, iyy, izz = par.inertia
-    ir = par.rotor_inertia if eff["gyroscopic"] else 0.0
-    gyro = 1.0 if eff["gyroscopic"] else 0.0
-    kt, kq, arm, mass = par.thrust_coefficient, par.drag_coefficient, par.arm, par.mass
-    a0, a1, a2 = par.motor
-    mis = np.asarray(par.mismatch, float) if eff["motor_mismatch"] else np.zeros(4)
-    a0_i = a0 * (1 + mis)
-    kt_i = kt * (1 + mis * 0.5)
-    dm = max(par.delay_samples - 1, 0) if eff["delay"] else 0
-    vnom = par.nominal_voltage
-    cap = par.capacity_mah * 3.6  # coulomb
-    sag = eff["battery_sag"]
 
-    # gains (acceleration commands): PID on roll/pitch, PD on yaw, PID on altitude
+@dataclass(frozen=True)
+class _Airframe:
+    """Constants of the flight loop: the true parameters with the effects switched in or out."""
+
+    ixx: float
+    iyy: float
+    izz: float
+    ir: float  # rotor inertia (0 without the gyroscopic effect)
+    gyro: float  # 1 with the gyroscopic effect, else 0
+    kt: float
+    kq: float
+    arm: float
+    mass: float
+    a0: float
+    a1: float
+    a2: float
+    a0_i: np.ndarray  # a0 of each motor (motor mismatch)
+    kt_i: np.ndarray  # thrust coefficient of each motor
+    dm: int  # samples by which the logged attitude and rates lag the true ones
+    vnom: float
+    cap: float  # battery capacity [C]
+    sag: bool
+
+    @classmethod
+    def of(cls, par: QuadrotorParameters, eff: dict) -> _Airframe:
+        """The constants of ``par`` under the effects ``eff``."""
+        mis = np.asarray(par.mismatch, float) if eff["motor_mismatch"] else np.zeros(4)
+        a0, a1, a2 = par.motor
+        ixx, iyy, izz = par.inertia
+        return cls(
+            ixx=ixx,
+            iyy=iyy,
+            izz=izz,
+            ir=par.rotor_inertia if eff["gyroscopic"] else 0.0,
+            gyro=1.0 if eff["gyroscopic"] else 0.0,
+            kt=par.thrust_coefficient,
+            kq=par.drag_coefficient,
+            arm=par.arm,
+            mass=par.mass,
+            a0=a0,
+            a1=a1,
+            a2=a2,
+            a0_i=a0 * (1 + mis),
+            kt_i=par.thrust_coefficient * (1 + mis * 0.5),
+            dm=max(par.delay_samples - 1, 0) if eff["delay"] else 0,
+            vnom=par.nominal_voltage,
+            cap=par.capacity_mah * 3.6,
+            sag=eff["battery_sag"],
+        )
+
+
+class _FlightLog:
+    """Per-sample records of :func:`_fly` (true attitude and rates, speeds, duty, battery, forces)."""
+
+    def __init__(self, n: int):
+        self.ang = np.zeros((n, 3))
+        self.rate = np.zeros((n, 3))
+        self.w = np.zeros((n, 4))
+        self.duty = np.zeros((n, 4))
+        self.vbat = np.zeros(n)
+        self.thrust = np.zeros(n)
+        self.torque = np.zeros((n, 3))
+        self.z = np.zeros(n)
+        self.current = np.zeros(n)
+
+    def measured(self, k: int, noise: _Noise, dm: int) -> tuple[float, float, float, float, float, float]:
+        """Delayed, noisy attitude and rates at sample ``k`` as the controller sees (and logs) them."""
+        ang, rate, nang, nrate = self.ang, self.rate, noise.attitude, noise.gyro
+        j = k - dm if k >= dm else 0
+        return (
+            ang[j, 0] + nang[k, 0],
+            ang[j, 1] + nang[k, 1],
+            ang[j, 2] + nang[k, 2],
+            rate[j, 0] + nrate[k, 0],
+            rate[j, 1] + nrate[k, 1],
+            rate[j, 2] + nrate[k, 2],
+        )
+
+
+class _Controller:
+    """PID on roll and pitch, PD on yaw, PID on altitude (acceleration commands), flying on the
+    delayed measurements, allocating with the nominal parameters and turning squared speeds into
+    duty at the nominal voltage (no battery compensation)."""
+
     kp, kd, ki = 36.0, 12.0, 5.0
     kpy, kdy = 9.0, 6.0
     kpz, kdz, kiz = 9.0, 6.0, 3.0
 
-    ang = np.zeros((n, 3))
-    rate = np.zeros((n, 3))
-    W = np.zeros((n, 4))
-    D = np.zeros((n, 4))
-    vb_log = np.zeros(n)
-    T_log = np.zeros(n)
-    tau_log = np.zeros((n, 3))
-    z_log = np.zeros(n)
-    cur_log = np.zeros(n)
+    def __init__(self, ref: _References, air: _Airframe, ts: float):
+        self.ref, self.air, self.ts = ref, air, ts
+        self.iphi = self.ith = self.iz = 0.0
 
-    phi = th = psi = 0.0
-    p = q = r = 0.0
-    z = zd = 0.0
-    iphi = ith = iz = 0.0
-    w_hover = math.sqrt(mass * _G / (4 * kt))
-    w = np.full(4, w_hover)
-    drawn = 0.0
-    current = 0.0
-    nang = att_err
-    nrate = gyro_noise
-    sin, cos, tan, sqrt, exp = math.sin, math.cos, math.tan, math.sqrt, math.exp
-    wl = [w_hover] * 4
-    for k in range(n):
-        ang[k] = (phi, th, psi)
-        rate[k] = (p, q, r)
-        # delayed, noisy measurements for the controller (the same values are logged)
-        j = k - dm if k >= dm else 0
-        phm = ang[j, 0] + nang[k, 0]
-        thm = ang[j, 1] + nang[k, 1]
-        psm = ang[j, 2] + nang[k, 2]
-        pm = rate[j, 0] + nrate[k, 0]
-        qm = rate[j, 1] + nrate[k, 1]
-        rm = rate[j, 2] + nrate[k, 2]
-        eph = phr[k] - phm
-        eth = thr[k] - thm
-        iphi += eph * ts
-        ith += eth * ts
-        tx = ixx * (kp * eph + kd * (phrd[k] - pm) + ki * iphi)
-        ty = iyy * (kp * eth + kd * (thrd[k] - qm) + ki * ith)
-        tz = izz * (kpy * (psr[k] - psm) + kdy * (psrd[k] - rm))
-        ez = zr[k] - z
-        iz += ez * ts
-        tcmd = mass * (_G + kpz * ez + kdz * (zrd[k] - zd) + kiz * iz + zrdd[k]) / max(cos(phm) * cos(thm), 0.5)
-        # allocation with nominal parameters (plus frame), then duty at the nominal voltage
-        s4 = tcmd / (4 * kt)
-        rr = tx / (2 * kt * arm)
-        pp = ty / (2 * kt * arm)
-        yy = tz / (4 * kq)
-        wsq = (s4 - pp - yy, s4 - rr + yy, s4 + pp - yy, s4 + rr + yy)
-        duty = []
-        for ws in wsq:
-            wd = sqrt(ws) if ws > 0 else 0.0
-            dd = (a1 * wd + a2 * wd * wd) / (a0 * vnom)
-            duty.append(1.0 if dd > 1 else (0.0 if dd < 0 else dd))
-        # battery: open-circuit voltage from charge drawn, sag from last sample's current
-        if sag:
-            vb = par.battery_full - (par.battery_full - par.battery_empty) * min(drawn / cap, 1.0) \
-                - par.internal_resistance * current
-        else:
-            vb = vnom
-        # forces from the present speeds
-        w1, w2, w3, w4 = wl
-        f1, f2, f3, f4 = kt_i[0] * w1 * w1, kt_i[1] * w2 * w2, kt_i[2] * w3 * w3, kt_i[3] * w4 * w4
-        thrust = f1 + f2 + f3 + f4
-        bx = arm * (f4 - f2) + turb_f[k, 0]
-        by = arm * (f3 - f1) + turb_f[k, 1]
-        bz = kq * (-w1 * w1 + w2 * w2 - w3 * w3 + w4 * w4) + turb_f[k, 2]
-        W[k] = wl
-        D[k] = duty
-        vb_log[k] = vb
-        T_log[k] = thrust
-        tau_log[k] = (bx, by, bz)
-        z_log[k] = z
-        cur_log[k] = current
-        # motors: exact step of the Riccati equation with the voltage held
-        new = []
-        for i in range(4):
-            v = vb * duty[i]
-            root = sqrt(a1 * a1 + 4 * a0_i[i] * a2 * v)
-            rp = (root - a1) / (2 * a2)
-            rmn = (-a1 - root) / (2 * a2)
-            wi = wl[i]
-            rho = (wi - rp) / (wi - rmn) * exp(-root * ts)
-            new.append((rp - rho * rmn) / (1 - rho))
-        # rigid body (seed 004 eqs. 13-17), semi-implicit Euler
-        om = -w1 + w2 - w3 + w4
+    def duty(self, k: int, meas: tuple, z: float, zd: float) -> list[float]:
+        """Duty of the four motors at sample ``k`` (integrators advance by one sample)."""
+        ref, air, ts = self.ref, self.air, self.ts
+        kp, kd, ki = self.kp, self.kd, self.ki
+        phm, thm, psm, pm, qm, rm = meas
+        eph = ref.roll[k] - phm
+        eth = ref.pitch[k] - thm
+        self.iphi += eph * ts
+        self.ith += eth * ts
+        tx = air.ixx * (kp * eph + kd * (ref.roll_rate[k] - pm) + ki * self.iphi)
+        ty = air.iyy * (kp * eth + kd * (ref.pitch_rate[k] - qm) + ki * self.ith)
+        tz = air.izz * (self.kpy * (ref.yaw[k] - psm) + self.kdy * (ref.yaw_rate[k] - rm))
+        ez = ref.z[k] - z
+        self.iz += ez * ts
+        acc = _G + self.kpz * ez + self.kdz * (ref.z_rate[k] - zd) + self.kiz * self.iz + ref.z_acc[k]
+        tcmd = air.mass * acc / max(math.cos(phm) * math.cos(thm), 0.5)
+        return _allocate(air, tx, ty, tz, tcmd)
+
+
+def _allocate(air: _Airframe, tx: float, ty: float, tz: float, tcmd: float) -> list[float]:
+    """Plus-frame allocation of torques and thrust to squared speeds, then duty at ``vnom`` in [0, 1]."""
+    kt, arm, a1, a2 = air.kt, air.arm, air.a1, air.a2
+    s4 = tcmd / (4 * kt)
+    rr = tx / (2 * kt * arm)
+    pp = ty / (2 * kt * arm)
+    yy = tz / (4 * air.kq)
+    duty = []
+    for ws in (s4 - pp - yy, s4 - rr + yy, s4 + pp - yy, s4 + rr + yy):
+        wd = math.sqrt(ws) if ws > 0 else 0.0
+        dd = (a1 * wd + a2 * wd * wd) / (air.a0 * air.vnom)
+        duty.append(1.0 if dd > 1 else (0.0 if dd < 0 else dd))
+    return duty
+
+
+def _battery_voltage(par: QuadrotorParameters, drawn: float, current: float, cap: float) -> float:
+    """Terminal voltage: open-circuit voltage from the charge ``drawn`` of capacity ``cap`` [C], sag
+    from the last ``current``."""
+    full, empty = par.battery_full, par.battery_empty
+    return full - (full - empty) * min(drawn / cap, 1.0) - par.internal_resistance * current
+
+
+def _forces(air: _Airframe, wl: list, gust: np.ndarray) -> tuple[float, tuple[float, float, float]]:
+    """Total thrust and body torques (with the gust torque) from the present motor speeds."""
+    w1, w2, w3, w4 = wl
+    kt_i, arm = air.kt_i, air.arm
+    f1, f2, f3, f4 = kt_i[0] * w1 * w1, kt_i[1] * w2 * w2, kt_i[2] * w3 * w3, kt_i[3] * w4 * w4
+    bx = arm * (f4 - f2) + gust[0]
+    by = arm * (f3 - f1) + gust[1]
+    bz = air.kq * (-w1 * w1 + w2 * w2 - w3 * w3 + w4 * w4) + gust[2]
+    return f1 + f2 + f3 + f4, (bx, by, bz)
+
+
+def _motor_speeds(air: _Airframe, wl: list, duty: list[float], vb: float, ts: float) -> list:
+    """Speeds one sample on: exact step of each motor's Riccati equation with the voltage held."""
+    a1, a2, a0_i = air.a1, air.a2, air.a0_i
+    new = []
+    for i in range(4):
+        v = vb * duty[i]
+        root = math.sqrt(a1 * a1 + 4 * a0_i[i] * a2 * v)
+        rp = (root - a1) / (2 * a2)
+        rmn = (-a1 - root) / (2 * a2)
+        wi = wl[i]
+        rho = (wi - rp) / (wi - rmn) * math.exp(-root * ts)
+        new.append((rp - rho * rmn) / (1 - rho))
+    return new
+
+
+class _RigidBody:
+    """Attitude, body rates and altitude, advanced by semi-implicit Euler (seed 004 eqs. 13-17 with
+    Euler-angle kinematics)."""
+
+    def __init__(self) -> None:
+        self.phi = self.th = self.psi = 0.0
+        self.p = self.q = self.r = 0.0
+        self.z = self.zd = 0.0
+
+    def step(self, air: _Airframe, torque: tuple, om: float, thrust: float, ts: float) -> None:
+        """Advance one sample under body ``torque``, rotor speed sum ``om`` and total ``thrust``."""
+        bx, by, bz = torque
+        ixx, iyy, izz, gyro, ir = air.ixx, air.iyy, air.izz, air.gyro, air.ir
+        p, q, r, phi, th = self.p, self.q, self.r, self.phi, self.th
         pd_ = (bx + gyro * (iyy - izz) * q * r - ir * q * om) / ixx
         qd_ = (by + gyro * (izz - ixx) * p * r + ir * p * om) / iyy
         rd_ = (bz + gyro * (ixx - iyy) * p * q) / izz
         p += ts * pd_
         q += ts * qd_
         r += ts * rd_
-        sph, cph, cth = sin(phi), cos(phi), cos(th)
-        phi += ts * (p + tan(th) * (sph * q + cph * r))
-        th += ts * (cph * q - sph * r)
-        psi += ts * ((sph * q + cph * r) / cth)
-        zd += ts * (thrust * cph * cth / mass - _G)
-        z += ts * zd
+        sph, cph, cth = math.sin(phi), math.cos(phi), math.cos(th)
+        self.phi = phi + ts * (p + math.tan(th) * (sph * q + cph * r))
+        self.th = th + ts * (cph * q - sph * r)
+        self.psi += ts * ((sph * q + cph * r) / cth)
+        self.zd += ts * (thrust * cph * cth / air.mass - _G)
+        self.z += ts * self.zd
+        self.p, self.q, self.r = p, q, r
+
+
+def _fly(ref: _References, noise: _Noise, air: _Airframe, par: QuadrotorParameters, ts: float) -> _FlightLog:
+    """The closed loop, sample by sample: measure, control, battery, forces, log, motors, body."""
+    n = ref.roll.shape[0]
+    log = _FlightLog(n)
+    body = _RigidBody()
+    ctl = _Controller(ref, air, ts)
+    wl = [math.sqrt(air.mass * _G / (4 * air.kt))] * 4  # hover
+    drawn = current = 0.0
+    for k in range(n):
+        log.ang[k] = (body.phi, body.th, body.psi)
+        log.rate[k] = (body.p, body.q, body.r)
+        duty = ctl.duty(k, log.measured(k, noise, air.dm), body.z, body.zd)
+        vb = _battery_voltage(par, drawn, current, air.cap) if air.sag else air.vnom
+        thrust, torque = _forces(air, wl, noise.turbulence[k])
+        log.w[k], log.duty[k], log.vbat[k], log.thrust[k] = wl, duty, vb, thrust
+        log.torque[k], log.z[k], log.current[k] = torque, body.z, current
+        new = _motor_speeds(air, wl, duty, vb, ts)
+        w1, w2, w3, w4 = wl
+        body.step(air, torque, -w1 + w2 - w3 + w4, thrust, ts)
         # load current: propellers' mechanical power / efficiency / voltage
-        pmech = kq * (w1 ** 3 + w2 ** 3 + w3 ** 3 + w4 ** 3)
+        pmech = air.kq * (w1**3 + w2**3 + w3**3 + w4**3)
         current = pmech / (par.efficiency * vb) + par.avionics_current
         drawn += current * ts
         wl = new
+    return log
 
-    idx = np.maximum(np.arange(n) - dm, 0)
-    ang_m = ang[idx] + att_err
-    rate_m = rate[idx] + gyro_noise
-    sig_out = {
-        "roll": ang_m[:, 0], "pitch": ang_m[:, 1], "yaw": ang_m[:, 2],
-        "p": rate_m[:, 0], "q": rate_m[:, 1], "r": rate_m[:, 2],
-        **{f"w{i + 1}": W[:, i] + ns * par.speed_noise * raw["w"][:, i] for i in range(4)},
-        "vbat": vb_log + ns * par.vbat_noise * raw["vbat"], "thrust": T_log,
-        "az": T_log / mass + ns * par.accel_noise * raw["az"],
-        "z": z_log, "tau_x": tau_log[:, 0], "tau_y": tau_log[:, 1], "tau_z": tau_log[:, 2],
-        "roll_ref": phr, "pitch_ref": thr, "yaw_ref": psr, "current": cur_log,
+
+def _flight_data(
+    log: _FlightLog,
+    ref: _References,
+    noise: _Noise,
+    air: _Airframe,
+    par: QuadrotorParameters,
+    output: str,
+    ts: float,
+) -> IOData:
+    """The logged signals (delayed, with sensor noise) as :class:`IOData` with ``output`` as output."""
+    n = log.ang.shape[0]
+    ns, raw = noise.scale, noise.raw
+    idx = np.maximum(np.arange(n) - air.dm, 0)
+    ang_m = log.ang[idx] + noise.attitude
+    rate_m = log.rate[idx] + noise.gyro
+    signals = {
+        "roll": ang_m[:, 0],
+        "pitch": ang_m[:, 1],
+        "yaw": ang_m[:, 2],
+        "p": rate_m[:, 0],
+        "q": rate_m[:, 1],
+        "r": rate_m[:, 2],
+        **{f"w{i + 1}": log.w[:, i] + ns * par.speed_noise * raw["w"][:, i] for i in range(4)},
+        "vbat": log.vbat + ns * par.vbat_noise * raw["vbat"],
+        "thrust": log.thrust,
+        "az": log.thrust / air.mass + ns * par.accel_noise * raw["az"],
+        "z": log.z,
+        "tau_x": log.torque[:, 0],
+        "tau_y": log.torque[:, 1],
+        "tau_z": log.torque[:, 2],
+        "roll_ref": ref.roll,
+        "pitch_ref": ref.pitch,
+        "yaw_ref": ref.yaw,
+        "current": log.current,
     }
-    units = {"roll": "rad", "pitch": "rad", "yaw": "rad", "p": "rad/s", "q": "rad/s", "r": "rad/s",
-             **{f"w{i + 1}": "rad/s" for i in range(4)}, "vbat": "V", "thrust": "N", "az": "m/s^2",
-             "z": "m", "tau_x": "N m", "tau_y": "N m", "tau_z": "N m", "roll_ref": "rad",
-             "pitch_ref": "rad", "yaw_ref": "rad", "current": "A"}
-    if output not in sig_out:
-        raise DataError(f"unknown output {output!r}; choose from {sorted(sig_out)}")
-    y = sig_out.pop(output)
-    return IOData(y, D, ts, output_name=output, input_names=("d1", "d2", "d3", "d4"),
-                  output_unit=units[output], input_units=("1",) * 4, extra=sig_out,
-                  extra_units={k: units[k] for k in sig_out})
+    y = signals.pop(output)
+    return IOData(
+        y,
+        log.duty,
+        ts,
+        output_name=output,
+        input_names=("d1", "d2", "d3", "d4"),
+        output_unit=FLIGHT_SIGNALS[output],
+        input_units=("1",) * 4,
+        extra=signals,
+        extra_units={k: FLIGHT_SIGNALS[k] for k in signals},
+    )
 
 
-def quadrotor_axis(data: IOData, axis: str = "roll", frame: str = "plus",
-                   extra=("vbat", "thrust", "roll", "pitch", "yaw")) -> IOData:
+def quadrotor_axis(
+    data: IOData, axis: str = "roll", frame: str = "plus", extra=("vbat", "thrust", "roll", "pitch", "yaw")
+) -> IOData:
     """Identification data set of one axis: logged angle against its mixer pseudo-torque.
 
     Parameters
@@ -470,10 +686,18 @@ def quadrotor_axis(data: IOData, axis: str = "roll", frame: str = "plus",
     for name in extra:
         if name != axis:
             keep[name] = data.signal(name)
-    src = IOData(angle, np.column_stack([data.signal(f"w{i}") for i in range(1, 5)]), data.ts,
-                 output_name=axis, input_names=("w1", "w2", "w3", "w4"), output_unit="rad",
-                 input_units=("rad/s",) * 4, extra=keep,
-                 extra_units={k: data.unit(k) for k in keep}, experiment_starts=data.experiment_starts)
+    src = IOData(
+        angle,
+        np.column_stack([data.signal(f"w{i}") for i in range(1, 5)]),
+        data.ts,
+        output_name=axis,
+        input_names=("w1", "w2", "w3", "w4"),
+        output_unit="rad",
+        input_units=("rad/s",) * 4,
+        extra=keep,
+        extra_units={k: data.unit(k) for k in keep},
+        experiment_starts=data.experiment_starts,
+    )
     mixed = Mixer(frame).apply(src, channels=(f"{axis}_torque",))
     ex = {k: v for k, v in mixed.extra.items() if k not in ("w1", "w2", "w3", "w4")}
     return mixed.with_signals(extra=ex)
@@ -489,7 +713,7 @@ def _stand_pwm(profile, t, rng):
         k = 0
         while k < t.size:
             hold = int(rng.uniform(0.3, 1.0) / (t[1] - t[0])) + 1
-            out[k:k + hold] = rng.uniform(0.15, 1.0) * 65535
+            out[k : k + hold] = rng.uniform(0.15, 1.0) * 65535
             k += hold
         return out
     if profile == "sines":  # seed 001 eq. 15 shape on the command, around 55 % throttle
@@ -501,9 +725,15 @@ def _stand_pwm(profile, t, rng):
     raise DataError(f"unknown profile {profile!r}; use 'ramp', 'steps' or 'sines'")
 
 
-def thrust_stand(seed: int = 0, duration: float = 60.0, ts: float = 0.01, profile: str = "sines",
-                 supply: float | None = None, effects=None,
-                 parameters: QuadrotorParameters | None = None) -> IOData:
+def thrust_stand(
+    seed: int = 0,
+    duration: float = 60.0,
+    ts: float = 0.01,
+    profile: str = "sines",
+    supply: float | None = None,
+    effects=None,
+    parameters: QuadrotorParameters | None = None,
+) -> IOData:
     """Simulate the whole quadrotor on a load cell, all four motors on one PWM command.
 
     Parameters
@@ -533,13 +763,20 @@ def thrust_stand(seed: int = 0, duration: float = 60.0, ts: float = 0.01, profil
     par = parameters or QuadrotorParameters()
     n = _check_timing(duration, ts)
     rng = _rng(seed)
-    t = np.arange(n) * ts
-    pwm = _stand_pwm(profile, t, rng)
+    pwm = _stand_pwm(profile, np.arange(n) * ts, rng)
     duty = pwm / PWM_FULL_SCALE
-    a0, a1, a2 = par.motor
     mis = np.asarray(par.mismatch, float) if eff["motor_mismatch"] else np.zeros(4)
-    a0_i = a0 * (1 + mis)
-    kt_i = par.thrust_coefficient * (1 + 0.5 * mis)
+    w, vbat, current = _stand_run(par, duty, par.motor[0] * (1 + mis), supply, ts)
+    return _stand_data(rng, pwm, duty, w, vbat, current, par.thrust_coefficient * (1 + 0.5 * mis), par, eff, ts)
+
+
+def _stand_run(
+    par: QuadrotorParameters, duty: np.ndarray, a0_i: np.ndarray, supply: float | None, ts: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Motor speeds (n, 4), supply voltage and current (n,) of the four motors on one duty signal,
+    from the battery (``supply`` None) or a constant supply."""
+    n = duty.shape[0]
+    _, a1, a2 = par.motor
     cap = par.capacity_mah * 3.6
     W = np.zeros((n, 4))
     vb_log = np.zeros(n)
@@ -547,11 +784,7 @@ def thrust_stand(seed: int = 0, duration: float = 60.0, ts: float = 0.01, profil
     w = np.zeros(4)
     drawn = current = 0.0
     for k in range(n):
-        if supply is None:
-            vb = par.battery_full - (par.battery_full - par.battery_empty) * min(drawn / cap, 1.0) \
-                - par.internal_resistance * current
-        else:
-            vb = float(supply)
+        vb = _battery_voltage(par, drawn, current, cap) if supply is None else float(supply)
         W[k] = w
         vb_log[k] = vb
         cur_log[k] = current
@@ -563,22 +796,63 @@ def thrust_stand(seed: int = 0, duration: float = 60.0, ts: float = 0.01, profil
         w = (rp - rho * rmn) / (1 - rho)
         current = par.drag_coefficient * float((W[k] ** 3).sum()) / (par.efficiency * vb) + par.avionics_current
         drawn += current * ts
+    return W, vb_log, cur_log
+
+
+def _stand_data(
+    rng: np.random.Generator,
+    pwm: np.ndarray,
+    duty: np.ndarray,
+    W: np.ndarray,
+    vbat: np.ndarray,
+    current: np.ndarray,
+    kt_i: np.ndarray,
+    par: QuadrotorParameters,
+    eff: dict,
+    ts: float,
+) -> IOData:
+    """The stand's log: load cell thrust and torque, speeds and voltage with their sensor noise."""
+    n = W.shape[0]
     ns = 1.0 if eff["noise"] else 0.0
     thrust = (kt_i * W**2).sum(1) + ns * 0.002 * rng.standard_normal(n)
     torque1 = par.drag_coefficient * W[:, 0] ** 2 + ns * 2e-6 * rng.standard_normal(n)
     wm = W + ns * 5.0 * rng.standard_normal((n, 4))
-    extra = {"duty": duty, "vbat": vb_log + ns * 5e-3 * rng.standard_normal(n),
-             **{f"w{i + 1}": wm[:, i] for i in range(4)},
-             **{f"rpm{i + 1}": wm[:, i] * 60 / (2 * np.pi) for i in range(4)},
-             "torque1": torque1, "current": cur_log}
-    units = {"duty": "1", "vbat": "V", **{f"w{i + 1}": "rad/s" for i in range(4)},
-             **{f"rpm{i + 1}": "rpm" for i in range(4)}, "torque1": "N m", "current": "A"}
-    return IOData(thrust, pwm, ts, output_name="thrust", input_names=("pwm",), output_unit="N",
-                  input_units=("1",), extra=extra, extra_units=units)
+    extra = {
+        "duty": duty,
+        "vbat": vbat + ns * 5e-3 * rng.standard_normal(n),
+        **{f"w{i + 1}": wm[:, i] for i in range(4)},
+        **{f"rpm{i + 1}": wm[:, i] * 60 / (2 * np.pi) for i in range(4)},
+        "torque1": torque1,
+        "current": current,
+    }
+    units = {
+        "duty": "1",
+        "vbat": "V",
+        **{f"w{i + 1}": "rad/s" for i in range(4)},
+        **{f"rpm{i + 1}": "rpm" for i in range(4)},
+        "torque1": "N m",
+        "current": "A",
+    }
+    return IOData(
+        thrust,
+        pwm,
+        ts,
+        output_name="thrust",
+        input_names=("pwm",),
+        output_unit="N",
+        input_units=("1",),
+        extra=extra,
+        extra_units=units,
+    )
 
 
-def thrust_stand_static(seed: int = 0, pwm_levels=None, supply_levels=(3.5, 3.7, 3.9, 4.1),
-                        thrust_noise: float = 0.002, parameters: QuadrotorParameters | None = None) -> IOData:
+def thrust_stand_static(
+    seed: int = 0,
+    pwm_levels=None,
+    supply_levels=(3.5, 3.7, 3.9, 4.1),
+    thrust_noise: float = 0.002,
+    parameters: QuadrotorParameters | None = None,
+) -> IOData:
     """Static thrust-stand table: settled thrust and torque per (PWM, supply voltage) point.
 
     Parameters
@@ -612,6 +886,13 @@ def thrust_stand_static(seed: int = 0, pwm_levels=None, supply_levels=(3.5, 3.7,
     w = motor.steady_speed(duty * vb)
     thrust = 4 * par.thrust_coefficient * w**2 + thrust_noise * rng.uniform(-1, 1, w.size)
     torque = par.drag_coefficient * w**2 + thrust_noise * 0.005 * rng.uniform(-1, 1, w.size)
-    return IOData(thrust, pw, 1.0, output_name="thrust", input_names=("pwm",), output_unit="N",
-                  extra={"duty": duty, "vbat": vb, "w": w, "torque1": torque},
-                  extra_units={"vbat": "V", "w": "rad/s", "torque1": "N m"})
+    return IOData(
+        thrust,
+        pw,
+        1.0,
+        output_name="thrust",
+        input_names=("pwm",),
+        output_unit="N",
+        extra={"duty": duty, "vbat": vb, "w": w, "torque1": torque},
+        extra_units={"vbat": "V", "w": "rad/s", "torque1": "N m"},
+    )

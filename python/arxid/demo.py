@@ -29,14 +29,15 @@ from typing import TextIO
 
 import numpy as np
 
+from ._format import format_value, horizon_label, text_table
+from .analysis import Analysis, analyse
 from .data import IOData
+from .report.html import render_html
 
 __all__ = ["DemoResult", "demo_data", "run_demo"]
 
 DURATION = 20.0
 TAKEOFF_S = 1.0
-#: Sweep grid of the demo: the thrust path has a one-sample delay and first- or second-order dynamics.
-GRID = {"na": range(1, 5), "nb": range(1, 4), "nk": range(0, 5)}
 
 
 def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
@@ -81,7 +82,7 @@ def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
     return data, facts
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class DemoResult:
     """What ``arxid demo`` found.
 
@@ -98,6 +99,8 @@ class DemoResult:
         Wall time of each stage and in total.
     facts : dict
         Simulation facts (battery range, samples).
+    analysis : Analysis
+        Everything the story was told from.
     """
 
     structure: str
@@ -106,6 +109,7 @@ class DemoResult:
     report: str
     seconds: dict = field(default_factory=dict)
     facts: dict = field(default_factory=dict)
+    analysis: Analysis | None = field(default=None, repr=False, compare=False)
 
     @property
     def error_fall(self) -> float | None:
@@ -125,9 +129,64 @@ class DemoResult:
         return f"DemoResult: {self.structure}, missing effect {self.missing_effect}, ladder {lad}, report {self.report}"
 
 
+def _say(out: TextIO, text: str = "") -> None:
+    print(text, file=out, flush=True)
+
+
+def _tell_flight(out: TextIO, facts: dict, seed: int) -> None:
+    _say(out, "arxid demo: a simulated quadrotor flight whose battery drains, and the effect the model is missing")
+    _say(out)
+    _say(out, f"1. Flight: {facts['duration']:g} s at {1 / facts['ts']:g} Hz, seed {seed} ({facts['n_samples']} samples "
+              f"after the {facts['skipped_s']:g} s take-off); battery {facts['vbat_start']:.2f} V -> "
+              f"{facts['vbat_end']:.2f} V (sags to {facts['vbat_min']:.2f} V under load).")
+    _say(out, f"   Input: motor speeds from the PWM duty by the motor model at the nominal {facts['nominal_voltage']:g} V "
+              f"(the log has no speed sensor), mixed into the collective thrust channel sum(w^2).")
+    _say(out, "   Output: the accelerometer az. Logged but not in the model: vbat (battery voltage), z (altitude).")
+
+
+def _tell_analysis(out: TextIO, a: Analysis) -> None:
+    grid = ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in (a.grid or {}).items())
+    n = len(a.sweep) if a.sweep is not None else 1
+    d = a.diagnosis
+    _say(out)
+    _say(out, f"2. Sweep: {n} structures ({grid}) in {a.timings.get('sweep', 0):.2f} s; chosen "
+              f"{a.model.structure_name()} ({a.choice.reason}).")
+    for name, why in a.choice.skipped[:3]:
+        _say(out, f"   rejected {name}: {why}")
+    _say(out, f"   Validation: {horizon_label(a.horizon)} RMS error {format_value(d.rms_sim_val)} m/s^2, "
+              f"fit {format_value(d.fit_val, 3)} %.")
+    _say(out)
+    rows = [[str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
+            for i, s in enumerate(d.suspects[:8], start=1)]
+    _say(out, f"3. Diagnose ({a.timings.get('diagnose', 0):.1f} s): which effect is missing?")
+    if rows:
+        table = text_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows)
+        _say(out, "   " + table.replace("\n", "\n   "))
+    missing = a.missing_effect
+    if missing:
+        battery = "vbat" in missing
+        _say(out, f"   Missing effect: {missing}" + (" -- the battery voltage: the same command gives less thrust as "
+                                                    "the battery drains." if battery else "."))
+    else:
+        _say(out, "   No significant missing effect was found.")
+
+
+def _tell_ladder(out: TextIO, a: Analysis) -> None:
+    _say(out)
+    _say(out, "4. Error ladder (validation, " + horizon_label(a.horizon) + "):")
+    _say(out, "   " + str(a.ladder).split("\n", 1)[1].replace("\n", "\n   "))
+    errors = a.ladder.errors
+    if a.error_fall is not None and len(errors) > 1:
+        _say(out, f"   before {errors[0]:.4g} m/s^2 -> after {errors[-1]:.4g} m/s^2 "
+                  f"({100 * a.error_fall:.0f} % of the error removed).")
+
+
 def run_demo(output: str | Path = "arxid-demo-report.html", seed: int = 0, duration: float | None = None,
              progress: bool = False, stream: TextIO | None = None) -> DemoResult:
     """Run the demo story, print it to ``stream`` and write the HTML report to ``output``.
+
+    The story is :func:`arxid.analyse` with its defaults (:data:`arxid.DEFAULT_GRID`) on the demo's
+    flight, so ``arxid diagnose`` on the same data finds the same structure and the same effect.
 
     Parameters
     ----------
@@ -141,75 +200,29 @@ def run_demo(output: str | Path = "arxid-demo-report.html", seed: int = 0, durat
         Progress bars on stderr.
     stream : text stream, optional
         Where the story is printed (default stdout).
+
+    Returns
+    -------
+    DemoResult
     """
-    from .cli import format_table
-    from .report import analyse, render_html
-
     out = stream if stream is not None else sys.stdout
-    def say(text: str = "") -> None:
-        print(text, file=out, flush=True)
-
     t_all = time.perf_counter()
-    seconds = {}
-    t0 = time.perf_counter()
     data, facts = demo_data(seed, DURATION if duration is None else duration)
-    seconds["simulate"] = time.perf_counter() - t0
-    say("arxid demo: a simulated quadrotor flight whose battery drains, and the effect the model is missing")
-    say()
-    say(f"1. Flight: {facts['duration']:g} s at {1 / facts['ts']:g} Hz, seed {seed} ({facts['n_samples']} samples after "
-        f"the {facts['skipped_s']:g} s take-off); "
-        f"battery {facts['vbat_start']:.2f} V -> {facts['vbat_end']:.2f} V (sags to {facts['vbat_min']:.2f} V under load).")
-    say(f"   Input: motor speeds from the PWM duty by the motor model at the nominal {facts['nominal_voltage']:g} V "
-        f"(the log has no speed sensor), mixed into the collective thrust channel sum(w^2).")
-    say("   Output: the accelerometer az. Logged but not in the model: vbat (battery voltage), z (altitude).")
-    est, val = data.split(0.6)
-    a = analyse(est, val, grid=GRID, max_steps=2, progress=progress)
+    seconds = {"simulate": time.perf_counter() - t_all}
+    _tell_flight(out, facts, seed)
+    a = analyse(data, max_steps=2, progress=progress)
     seconds.update(a.timings)
-    n_struct = len(a.table) if a.table is not None else 1
-    say()
-    say(f"2. Sweep: {n_struct} structures (na 1..4, nb 1..3, nk 0..4) in {a.timings.get('sweep', 0):.2f} s; "
-        f"best sane structure {a.model.structure_name()}.")
-    for name, why in list(a.rejected.items())[:3]:
-        say(f"   rejected {name}: {why}")
-    d = a.diagnosis
-    base = d.get("baseline", {})
-    h = base.get("horizon")
-    what = "free-run" if h is None else f"{h}-step"
-    say(f"   Validation: {what} RMS error {base.get('rms_sim_val', float('nan')):.4g} m/s^2, fit {base.get('fit_val', float('nan')):.1f} %.")
-    say()
-    sus = d.get("suspects") or []
-    rows = [[str(i), s.get("effect"), s.get("score"), s.get("p_value"), bool(s.get("significant")),
-             s.get("rms_sim_val_after")] for i, s in enumerate(sus[:8], start=1)]
-    say(f"3. Diagnose ({a.timings.get('diagnose', 0):.1f} s): which effect is missing?")
-    if rows:
-        say("   " + format_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows).replace("\n", "\n   "))
-    sig = [s for s in sus if s.get("significant")]
-    missing = sig[0]["effect"] if sig else None
-    if missing:
-        battery = "vbat" in missing
-        say(f"   Missing effect: {missing}" + (" -- the battery voltage: the same command gives less thrust as the "
-                                               "battery drains." if battery else "."))
-    else:
-        say("   No significant missing effect was found.")
-    say()
-    ladder = [(tuple(s.get("effects") or ()), s.get("rms_sim_val")) for s in a.ladder]
-    if ladder:
-        first = ladder[0][1]
-        lrows = [[str(i), "ARX" if not e else "+ " + ", ".join(e), v,
-                  f"{(1 - v / first) * 100:.1f} %" if first and v is not None else "-"] for i, (e, v) in enumerate(ladder)]
-        say("4. Error ladder (validation, " + what + "):")
-        say("   " + format_table(["step", "model", "RMS error", "fall"], lrows).replace("\n", "\n   "))
-        if len(ladder) > 1 and first and ladder[-1][1] is not None:
-            say(f"   before {first:.4g} m/s^2 -> after {ladder[-1][1]:.4g} m/s^2 "
-                f"({(1 - ladder[-1][1] / first) * 100:.0f} % of the error removed).")
+    _tell_analysis(out, a)
+    _tell_ladder(out, a)
     t0 = time.perf_counter()
-    html = render_html(a, title="arxid demo: the quadrotor's hidden battery effect",
-                       source=f"simulated quadrotor flight (arxid.datasets.quadrotor_flight, seed {seed}, battery sag on)")
     path = Path(output)
-    path.write_text(html, encoding="utf-8")
+    path.write_text(render_html(a, title="arxid demo: the quadrotor's hidden battery effect",
+                                source=f"simulated quadrotor flight (arxid.datasets.quadrotor_flight, seed {seed}, "
+                                       f"battery sag on)"), encoding="utf-8")
     seconds["report"] = time.perf_counter() - t0
     seconds["total"] = time.perf_counter() - t_all
-    say()
-    say(f"5. Report: {path} ({path.stat().st_size / 1e6:.1f} MB, self-contained, opens offline). "
-        f"Total {seconds['total']:.1f} s.")
-    return DemoResult(a.model.structure_name(), missing, ladder, str(path), seconds, facts)
+    _say(out)
+    _say(out, f"5. Report: {path} ({path.stat().st_size / 1e6:.1f} MB, self-contained, opens offline). "
+              f"Total {seconds['total']:.1f} s.")
+    ladder = [(s.effects, s.rms_sim_val) for s in a.ladder.steps]
+    return DemoResult(a.model.structure_name(), a.missing_effect, ladder, str(path), seconds, facts, a)

@@ -23,8 +23,8 @@ are re-evaluated on the simulated output in free run.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -59,6 +59,7 @@ class Effect:
 
     @property
     def special(self) -> str | None:
+        """``"const"`` or ``"time"`` for those two effects, else None."""
         return self.text if self.text in ("const", "time") else None
 
 
@@ -68,6 +69,18 @@ def _split_product(text: str) -> list[str]:
 
 def parse_effect(text: str, data: IOData) -> Effect:
     """Parse ``text`` against the signals of ``data``.
+
+    Parameters
+    ----------
+    text : str
+        An effect such as ``"u1^2"``, ``"u1*vbat"``, ``"y^3"`` or ``"sign(dy)"`` (see the grammar in
+        :mod:`arxid.effects`).
+    data : IOData
+        The data whose signals the effect may name.
+
+    Returns
+    -------
+    Effect
 
     Raises
     ------
@@ -103,7 +116,9 @@ def parse_effect(text: str, data: IOData) -> Effect:
                     raise OrderError(f"effect {text!r}: powers must be >= 1")
                 f = Factor(name, "pow", p)
         if f.signal not in names:
-            raise OrderError(f"effect {text!r} uses signal {f.signal!r}, which the data do not have; signals: {sorted(names)}")
+            raise OrderError(
+                f"effect {text!r} uses signal {f.signal!r}, which the data do not have; signals: {sorted(names)}"
+            )
         factors.append(f)
     if not factors:
         raise OrderError(f"cannot read effect {text!r}")
@@ -133,7 +148,7 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
         return np.sign(x)
     d = np.zeros_like(x)
     for a, b in data.segments:
-        d[a + 1:b] = np.diff(x[a:b])
+        d[a + 1 : b] = np.diff(x[a:b])
     return np.sign(d) if f.op == "signdiff" else d
 
 
@@ -174,71 +189,99 @@ def _check_range(text: str, value: np.ndarray) -> None:
         i = int(np.argmax(bad))
         raise DataError(
             f"effect {text!r} overflows the float range at sample {i} (its signals are finite there but too large for "
-            f"the term); scale the signals (other units, or divide by a typical value) or use a lower power")
+            f"the term); scale the signals (other units, or divide by a typical value) or use a lower power"
+        )
 
 
 def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
-    """Turn effect strings into extra regressor columns and output terms for ``data``."""
+    """Turn effect strings into extra regressor columns and output terms for ``data``.
+
+    Parameters
+    ----------
+    effects : sequence of str
+        Effect strings (each at most once).
+    data : IOData
+        The data the model is fitted on.
+    nb, nk : sequence of int
+        Orders and delays of the model's inputs, one per input.
+
+    Returns
+    -------
+    EffectLayout
+        The inputs followed by the effect columns, with their lags and the output terms.
+    """
     m = data.n_inputs
     cols = [data.u]
-    out_nb, out_nk, tie = list(nb), list(nk), [i for i in range(m)]
+    out_nb, out_nk = list(nb), list(nk)
+    tie: list[int | None] = list(range(m))
     labels = list(data.input_names)
     eff_col: list[str | None] = [None] * m
-    terms, eff_term = [], []
-    carriers = []
-    used_nk = [k for b, k in zip(nb, nk) if b > 0]
+    terms: list[tuple[str, int, int]] = []
+    eff_term: list[str] = []
+    used_nk = [k for b, k in zip(nb, nk, strict=False) if b > 0]
     min_nk = min(used_nk) if used_nk else 0
+
+    def add(col: np.ndarray, b: int, k: int, source: int | None, label: str, effect: str | None) -> None:
+        cols.append(col.reshape(-1, 1))
+        out_nb.append(b)
+        out_nk.append(k)
+        tie.append(source)
+        labels.append(label)
+        eff_col.append(effect)
+
     seen = set()
     for text in effects:
         e = parse_effect(text, data)
         if e.text in seen:
             raise OrderError(f"effect {e.text!r} is listed twice")
         seen.add(e.text)
-        if e.special == "const":
-            cols.append(np.ones((data.n_samples, 1)))
-            out_nb.append(1), out_nk.append(0), tie.append(None)
-            labels.append("const"), eff_col.append(e.text)
-            continue
-        if e.special == "time":
-            cols.append(data.time.reshape(-1, 1))
-            out_nb.append(1), out_nk.append(0), tie.append(None)
-            labels.append("time"), eff_col.append(e.text)
+        if e.special is not None:
+            add(np.ones(data.n_samples) if e.special == "const" else data.time, 1, 0, None, e.special, e.text)
             continue
         y_factors = [f for f in e.factors if _is_output(f.signal, data)]
         others = [f for f in e.factors if not _is_output(f.signal, data)]
         if len(y_factors) > 1:
             raise OrderError(f"effect {text!r}: at most one factor may involve the output")
-        prod = None
-        with np.errstate(over="ignore", invalid="ignore"):
-            for f in others:
-                x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
-                _check_range(text, x)
-                prod = x if prod is None else prod * x
-                _check_range(text, prod)
+        prod = _input_product(text, others, data)
         if y_factors:
             kind, power = _output_term(y_factors[0], text)
-            # The core evaluates the term on y(t-1); check it on the measured output here.
-            with np.errstate(over="ignore", invalid="ignore"):
-                g = _apply(Factor("y", kind, power), data.y, data)
-                _check_range(text, g)
-                if prod is not None:
-                    _check_range(text, g * prod)
+            _check_output_term(text, kind, power, prod, data)
             mult = -1
             if prod is not None:
                 mult = len(out_nb)
-                cols.append(prod.reshape(-1, 1))
-                out_nb.append(0), out_nk.append(0), tie.append(None)
-                labels.append(f"carrier:{e.text}"), eff_col.append(None)
-                carriers.append(mult)
+                add(prod, 0, 0, None, f"carrier:{e.text}", None)
             terms.append((kind, power, mult))
             eff_term.append(e.text)
             continue
+        assert prod is not None  # an effect has at least one factor (parse_effect)
         src = next((_input_index(f.signal, data) for f in others if _input_index(f.signal, data) is not None), None)
-        cols.append(prod.reshape(-1, 1))
         if src is not None:
-            out_nb.append(nb[src]), out_nk.append(nk[src]), tie.append(src)
+            add(prod, nb[src], nk[src], src, e.text, e.text)
         else:
-            out_nb.append(1), out_nk.append(min_nk), tie.append(None)
-        labels.append(e.text), eff_col.append(e.text)
+            add(prod, 1, min_nk, None, e.text, e.text)
     u = np.ascontiguousarray(np.hstack(cols), dtype=float)
-    return EffectLayout(u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term))
+    return EffectLayout(
+        u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term)
+    )
+
+
+def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
+    """Product of the factors that do not involve the output (None when there are none), refusing
+    overflow."""
+    prod = None
+    with np.errstate(over="ignore", invalid="ignore"):
+        for f in factors:
+            x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
+            _check_range(text, x)
+            prod = x if prod is None else prod * x
+            _check_range(text, prod)
+    return prod
+
+
+def _check_output_term(text: str, kind: str, power: int, prod: np.ndarray | None, data: IOData) -> None:
+    """The core evaluates an output term on y(t-1); refuse overflow on the measured output here."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        g = _apply(Factor("y", kind, power), data.y, data)
+        _check_range(text, g)
+        if prod is not None:
+            _check_range(text, g * prod)

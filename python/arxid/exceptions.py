@@ -6,7 +6,7 @@ so that ``except ValueError`` keeps working. Messages say what is wrong and how 
 
 from __future__ import annotations
 
-__all__ = ["ArxidError", "DataError", "OrderError", "IdentifiabilityError", "NotFittedError"]
+__all__ = ["ArxidError", "DataError", "OrderError", "IdentifiabilityError", "NotFittedError", "ArxidWarning"]
 
 
 class ArxidError(ValueError):
@@ -39,3 +39,8 @@ class IdentifiabilityError(ArxidError):
 
 class NotFittedError(ArxidError, AttributeError):
     """A fitted attribute was used before the model was fitted."""
+
+
+class ArxidWarning(UserWarning):
+    """Something the user should know that does not stop the work (a structure skipped by the step
+    sanity check, an optional dependency missing). Filter it with ``warnings.simplefilter``."""

@@ -5,17 +5,19 @@ from __future__ import annotations
 import json
 import math
 import numbers
-from typing import Sequence
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from . import _core
+from . import _metrics as metrics
 from .data import IOData
 from .effects import EffectLayout, compile_effects
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
-from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names
+from .regressors import dependent_partners, regressor_matrix, regressor_names
 
-__all__ = ["ArxModel", "arx"]
+__all__ = ["ArxModel", "FittedLayout", "arx"]
 
 _JSON_FORMAT = "arxid.ArxModel"
 _JSON_VERSION = 1
@@ -62,6 +64,136 @@ def _format_poly(coefs: Sequence[float], var: str = "z", start: int = 0) -> str:
     return out
 
 
+@dataclass(frozen=True)
+class FittedLayout:
+    """What every parameter of a fitted model multiplies: the columns of its effect layout.
+
+    Attributes
+    ----------
+    nb, nk : tuple of int
+        Orders and delays per column (the inputs, then input-derived effect columns).
+    output_terms : tuple of (kind, power, carrier)
+        Output-derived effect terms, one parameter each.
+    column_labels : tuple of str
+        Name of each column (an input name or the effect that built it).
+    effect_of_column : tuple of (str or None)
+        The effect each column belongs to (None for the model's inputs).
+    effect_of_term : tuple of str
+        The effect each output term belongs to.
+    """
+
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+    output_terms: tuple[tuple[str, int, int], ...]
+    column_labels: tuple[str, ...]
+    effect_of_column: tuple[str | None, ...]
+    effect_of_term: tuple[str, ...]
+
+    @classmethod
+    def of(cls, layout: EffectLayout) -> FittedLayout:
+        """The fitted part of an :class:`~arxid.effects.EffectLayout` (no data arrays).
+
+        Parameters
+        ----------
+        layout : EffectLayout
+
+        Returns
+        -------
+        FittedLayout
+        """
+        return cls(tuple(layout.nb), tuple(layout.nk), tuple(tuple(t) for t in layout.output_terms),  # type: ignore[misc]
+                   tuple(layout.column_labels), tuple(layout.effect_of_column), tuple(layout.effect_of_term))
+
+    def to_dict(self) -> dict:
+        """JSON-ready.
+
+        Returns
+        -------
+        dict
+        """
+        return {"nb": list(self.nb), "nk": list(self.nk), "output_terms": [list(t) for t in self.output_terms],
+                "column_labels": list(self.column_labels), "effect_of_column": list(self.effect_of_column),
+                "effect_of_term": list(self.effect_of_term)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], input_names: Sequence[str], effects: Sequence[str]) -> FittedLayout:
+        """Read :meth:`to_dict`; files written before the labels were stored get generic labels.
+
+        Parameters
+        ----------
+        d : mapping
+        input_names : sequence of str
+        effects : sequence of str
+
+        Returns
+        -------
+        FittedLayout
+        """
+        nb, terms = tuple(int(v) for v in d["nb"]), tuple((str(k), int(p), int(c)) for k, p, c in d["output_terms"])
+        m = len(input_names)
+        labels = d.get("column_labels") or list(input_names) + [f"effect{j}" for j in range(m, len(nb))]
+        of_column = d.get("effect_of_column") or [None] * len(nb)
+        of_term = d.get("effect_of_term") or [f"term{j}" for j in range(len(terms))]
+        return cls(nb, tuple(int(v) for v in d["nk"]), terms, tuple(labels), tuple(of_column), tuple(of_term))
+
+
+def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> int:
+    """The parameter count, after checking the data leave enough regression rows for it.
+
+    Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
+    """
+    p = na + sum(layout.nb) + len(layout.output_terms)
+    if p == 0:
+        raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
+    lag = max(first_lag, int(_core.max_lag(na, list(layout.nb), list(layout.nk), list(layout.output_terms))))
+    usable = sum(max(0, b - a - lag) for a, b in data.segments)
+    if usable < p + 1:
+        raise DataError(
+            f"too few samples for the orders: {p} parameters need at least {p + 1} regression rows, "
+            f"but {data.n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
+            f"lower na/nb/nk or use more data"
+        )
+    return p
+
+
+def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
+    """A constant input cannot identify its coefficients: say which one, before the core sees it."""
+    for i, b in enumerate(nb):
+        if b == 0:
+            continue
+        x = data.u[:, i]
+        x = x[np.isfinite(x)]
+        if x.size == 0 or np.ptp(x) == 0:
+            raise IdentifiabilityError(
+                f"input {data.input_names[i]!r} is constant ({x[0] if x.size else 'NaN'}): it does not excite the "
+                f"system, so its coefficients cannot be identified; use data where it varies, or set nb=0 for it",
+                (data.input_names[i],),
+            )
+
+
+def _solve(data: IOData, na: int, layout: EffectLayout, names: list[str], first_lag: int, n_threads: int,
+           rows_like: tuple[int, Sequence[int], Sequence[int]] | None) -> Any:
+    """The core's QR solve; a rank-deficient regressor is named with the columns it depends on."""
+    y = np.ascontiguousarray(data.y)
+    try:
+        res = _core.fit(y, layout.u, list(data.experiment_starts), na, list(layout.nb), list(layout.nk),
+                        list(layout.output_terms), first_lag=first_lag, n_threads=n_threads,
+                        rows_like=rows_like)
+    except IdentifiabilityError as exc:
+        col = getattr(exc, "column", None)
+        if col is None:
+            raise
+        phi, _, _ = regressor_matrix(data, na, layout, first_lag)
+        partners = dependent_partners(phi, col, names)
+        raise IdentifiabilityError(
+            f"regressor {names[col]} is a linear combination of {', '.join(partners) or 'the regressors before it'} "
+            f"on these data (collinear regressors): remove one of them, lower the orders, or use data that excite them "
+            f"independently",
+            tuple(partners) + (names[col],),
+        ) from None
+    return res
+
+
 class ArxModel:
     """An ARX model, possibly with effect terms, in MATLAB's sign convention.
 
@@ -106,139 +238,173 @@ class ArxModel:
         self.effects = tuple(effects)
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, data: IOData, *, first_lag: int = 0, n_threads: int = 0, rows_like=None) -> "ArxModel":
-        """Least squares by Householder QR in the Rust core. Returns ``self``.
+    def fit(self, data: IOData, *, first_lag: int = 0, n_threads: int = 0,
+            rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None) -> ArxModel:
+        """Least squares by Householder QR in the Rust core.
 
-        ``first_lag`` starts the regression rows that far into each experiment (at least the
-        model's own largest lag); sweeps use it to compare structures on the same rows.
-        ``rows_like = (na, nb, nk)``, orders per column of the effect layout, also leaves out the
-        rows where that larger structure's regressors touch a NaN (a sweep passes its grid's
-        envelope, so that on data with NaN the refit uses exactly the sweep's rows).
+        Parameters
+        ----------
+        data : IOData
+            Estimation data.
+        first_lag : int
+            Start the regression rows this far into each experiment (at least the model's own
+            largest lag); sweeps use it to compare structures on the same rows.
+        n_threads : int
+            Threads for the QR reduction (0 = all cores).
+        rows_like : (na, nb, nk), optional
+            Orders per column of the effect layout of a larger structure: rows where its
+            regressors touch a NaN are left out too (a sweep passes its grid's envelope, so that
+            on data with NaN the refit uses exactly the sweep's rows).
+
+        Returns
+        -------
+        ArxModel
+            ``self``, fitted.
         """
         if not isinstance(data, IOData):
             raise DataError(f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)")
         m = data.n_inputs
-        na = _order("na", self.na)
-        nb = _per_input("nb", self.nb, m)
-        nk = _per_input("nk", self.nk, m)
+        na, nb, nk = _order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
         first_lag = _order("first_lag", first_lag)
         layout = compile_effects(self.effects, data, nb, nk)
-        # Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
-        p = na + sum(layout.nb) + len(layout.output_terms)
-        if p == 0:
-            raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
-        lag = max(first_lag, max_lag(na, layout))
-        usable = sum(max(0, b - a - lag) for a, b in data.segments)
-        if usable < p + 1:
-            raise DataError(
-                f"too few samples for the orders: {p} parameters need at least {p + 1} regression rows, "
-                f"but {data.n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
-                f"lower na/nb/nk or use more data"
-            )
+        _check_size(na, layout, data, first_lag)
+        _check_excitation(data, nb)
         names = regressor_names(data.output_name, na, layout)
-        for i in range(m):
-            if nb[i] > 0:
-                x = data.u[:, i]
-                x = x[np.isfinite(x)]
-                if x.size == 0 or np.ptp(x) == 0:
-                    raise IdentifiabilityError(
-                        f"input {data.input_names[i]!r} is constant ({x[0] if x.size else 'NaN'}): it does not excite the "
-                        f"system, so its coefficients cannot be identified; use data where it varies, or set nb=0 for it",
-                        (data.input_names[i],),
-                    )
-        y = np.ascontiguousarray(data.y)
-        try:
-            res = _core.fit(y, layout.u, list(data.experiment_starts), na, list(layout.nb), list(layout.nk),
-                            list(layout.output_terms), first_lag=first_lag, n_threads=_order("n_threads", n_threads),
-                            rows_like=rows_like)
-        except IdentifiabilityError as exc:
-            col = getattr(exc, "column", None)
-            if col is None:
-                raise
-            phi, _, _ = regressor_matrix(data, na, layout, first_lag)
-            partners = dependent_partners(phi, col, names)
-            raise IdentifiabilityError(
-                f"regressor {names[col]} is a linear combination of {', '.join(partners) or 'the regressors before it'} "
-                f"on these data (collinear regressors): remove one of them, lower the orders, or use data that excite them "
-                f"independently",
-                tuple(partners) + (names[col],),
-            ) from None
-        n, theta = int(res["n_rows"]), np.asarray(res["theta"])
-        rss = float(res["rss"])
-        self.na, self.nb, self.nk = na, nb, nk
-        self.ts = data.ts
-        self.output_name = data.output_name
-        self.input_names = data.input_names
-        self.output_unit = data.output_unit
-        self.input_units = data.input_units
-        self.parameters_ = theta
-        self.regressor_names_ = tuple(names)
-        self.n_rows_ = n
-        self.n_skipped_ = int(res["n_skipped"])
-        self.first_lag_ = first_lag
-        self.rss_ = rss
-        dof = max(n - p, 1)
-        self.noise_variance_ = rss / dof
-        self.covariance_ = self.noise_variance_ * np.asarray(res["inv_gram"])
-        self.loss_ = rss / n
-        self._layout_meta = (layout.nb, layout.nk, layout.output_terms)
-        self._data = data
-        pred = self.predict(data, horizon=1)
-        self.fit_percent_ = self._fit_percent(data.y, pred)
+        res = _solve(data, na, layout, names, first_lag, _order("n_threads", n_threads), rows_like)
+        self._store(data, (na, nb, nk), layout, names, first_lag, res)
         return self
 
-    def _check_fitted(self):
-        if not hasattr(self, "parameters_"):
+    def _store(self, data: IOData, orders: tuple, layout: EffectLayout, names: list[str], first_lag: int,
+               res: Any) -> None:
+        """Fitted state from the core's result (constructor arguments stay as given)."""
+        self.na_, self.nb_, self.nk_ = orders
+        self.ts_ = data.ts
+        self.output_name_, self.input_names_ = data.output_name, data.input_names
+        self.output_unit_, self.input_units_ = data.output_unit, data.input_units
+        self.layout_ = FittedLayout.of(layout)
+        self.parameters_ = np.asarray(res.theta)
+        self.covariance_ = np.asarray(res.inv_gram)
+        self.regressor_names_ = tuple(names)
+        self.n_rows_ = int(res.n_rows)
+        self.n_skipped_ = int(res.n_skipped)
+        self.first_lag_ = first_lag
+        self.rss_ = float(res.rss)
+        self.covariance_ = self.noise_variance_ * self.covariance_
+        self.data_ = data
+        self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
+
+    def check_fitted(self) -> None:
+        """Raise :class:`NotFittedError` unless the model is fitted (or loaded from JSON).
+
+        Returns
+        -------
+        None
+        """
+        if "parameters_" not in self.__dict__:
             raise NotFittedError("this ArxModel is not fitted yet: call .fit(data) or use arxid.arx(data, na, nb, nk)")
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:
         if name.endswith("_") and not name.startswith("__"):
             raise NotFittedError(f"{name} is not available: this ArxModel is not fitted yet; call .fit(data) first")
         raise AttributeError(name)
 
+    # ------------------------------------------------------------------ what the data named
+    @property
+    def ts(self) -> float:
+        """Sampling time in seconds (of the estimation data)."""
+        return float(self.ts_)
+
+    @property
+    def output_name(self) -> str:
+        """Name of the output signal."""
+        return str(self.output_name_)
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """Names of the input signals."""
+        return tuple(self.input_names_)
+
+    @property
+    def output_unit(self) -> str:
+        """Unit of the output ('' when unknown)."""
+        return str(self.output_unit_)
+
+    @property
+    def input_units(self) -> tuple[str, ...]:
+        """Units of the inputs ('' when unknown)."""
+        return tuple(self.input_units_)
+
     # ------------------------------------------------------------------ statistics
     @property
     def n_params(self) -> int:
-        self._check_fitted()
+        """Number of estimated parameters."""
+        self.check_fitted()
         return len(self.parameters_)
+
+    @property
+    def loss_(self) -> float:
+        """Loss V = RSS / N of the one-step residual on the estimation rows."""
+        return self.rss_ / self.n_rows_
+
+    @property
+    def noise_variance_(self) -> float:
+        """Unbiased noise variance RSS / (N − p)."""
+        return self.rss_ / max(self.n_rows_ - self.n_params, 1)
 
     @property
     def standard_errors_(self) -> np.ndarray:
         """Standard error of each parameter, √diag(covariance)."""
-        self._check_fitted()
+        self.check_fitted()
         return np.sqrt(np.diag(self.covariance_))
 
     @property
     def fpe_(self) -> float:
-        """Akaike's final prediction error, loss · (1 + p/N) / (1 − p/N)."""
-        n, p = self.n_rows_, self.n_params
-        return self.loss_ * (n + p) / max(n - p, 1)
+        """Akaike's final prediction error (see :mod:`arxid._metrics`)."""
+        return float(metrics.fpe(self.rss_, self.n_rows_, self.n_params))
 
     @property
     def aic_(self) -> float:
-        """AIC as MATLAB computes it: N log(loss) + 2p + N (log 2π + 1)."""
-        n, p = self.n_rows_, self.n_params
-        return n * math.log(self.loss_) + 2 * p + n * (math.log(2 * math.pi) + 1) if self.loss_ > 0 else -math.inf
+        """AIC as MATLAB computes it: N log V + 2p + N (log 2π + 1)."""
+        return float(metrics.aic(self.rss_, self.n_rows_, self.n_params))
+
+    @property
+    def aicc_(self) -> float:
+        """Small-sample corrected AIC, AIC + 2p (p + 1) / (N − p − 1)."""
+        return float(metrics.aicc(self.rss_, self.n_rows_, self.n_params))
+
+    @property
+    def naic_(self) -> float:
+        """MATLAB's normalised AIC, log V + 2p / N."""
+        return float(metrics.naic(self.rss_, self.n_rows_, self.n_params))
 
     @property
     def bic_(self) -> float:
-        """BIC: N log(loss) + p log N + N (log 2π + 1)."""
-        n, p = self.n_rows_, self.n_params
-        return n * math.log(self.loss_) + p * math.log(n) + n * (math.log(2 * math.pi) + 1) if self.loss_ > 0 else -math.inf
+        """BIC: N log V + p log N + N (log 2π + 1)."""
+        return float(metrics.bic(self.rss_, self.n_rows_, self.n_params))
 
     # ------------------------------------------------------------------ polynomials
     @property
     def a(self) -> np.ndarray:
         """Denominator A(z⁻¹) = [1, a1, ..., a_na]."""
-        self._check_fitted()
-        return np.concatenate([[1.0], self.parameters_[: self.na]])
+        self.check_fitted()
+        return np.concatenate([[1.0], self.parameters_[: self.na_]])
 
     @property
     def b(self) -> list[np.ndarray]:
         """Numerators B_i(z⁻¹) per input, with ``nk`` leading zeros (MATLAB's layout)."""
-        self._check_fitted()
-        out, c = [], self.na
-        for nb, nk in zip(self.nb, self.nk):
+        return self.layout_numerators()[: len(self.input_names_)]
+
+    def layout_numerators(self) -> list[np.ndarray]:
+        """Numerators of every column of the effect layout (inputs, then input-derived effects),
+        with their delays as leading zeros.
+
+        Returns
+        -------
+        list of ndarray
+        """
+        self.check_fitted()
+        out, c = [], self.na_
+        for nb, nk in zip(self.layout_.nb, self.layout_.nk):
             out.append(np.concatenate([np.zeros(nk), self.parameters_[c:c + nb]]))
             c += nb
         return out
@@ -246,36 +412,44 @@ class ArxModel:
     @property
     def effect_parameters(self) -> dict[str, np.ndarray]:
         """Coefficients of each effect term, by effect name."""
-        self._check_fitted()
-        nb, _, terms = self._layout_meta
-        m = len(self.input_names)
-        out, c = {}, self.na + sum(self.nb)
-        layout = self._layout(self._data) if self._data is not None else None
-        labels = layout.effect_of_column[m:] if layout else [e for e in self.effects]
-        for j, b in enumerate(nb[m:]):
-            name = labels[j] if j < len(labels) else None
+        self.check_fitted()
+        lay, m = self.layout_, len(self.input_names_)
+        out, c = {}, self.na_ + sum(self.nb_)
+        for name, b in zip(lay.effect_of_column[m:], lay.nb[m:]):
             if name is not None:
                 out[name] = self.parameters_[c:c + b]
             c += b
-        effect_terms = layout.effect_of_term if layout else ()
-        for j in range(len(terms)):
-            out[effect_terms[j] if effect_terms else f"term{j}"] = self.parameters_[c:c + 1]
-            c += 1
+        for j, name in enumerate(lay.effect_of_term or [f"term{j}" for j in range(len(lay.output_terms))]):
+            out[name] = self.parameters_[c + j:c + j + 1]
         return out
 
     @property
     def is_linear(self) -> bool:
         """True without output-derived effects (those have no transfer function)."""
-        return not self._layout_meta[2]
+        return not self.layout_.output_terms
 
     def poles(self) -> np.ndarray:
-        """Roots of z^na A(z⁻¹)."""
-        return np.roots(self.a) if self.na else np.zeros(0)
+        """Roots of z^na A(z⁻¹).
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return np.roots(self.a) if self.na_ else np.zeros(0)
 
     def zeros(self, input: int = 0) -> np.ndarray:
-        """Roots of the numerator of ``input`` (delays excluded)."""
-        b = self.b[input][self.nk[input]:]
-        b = np.trim_zeros(b, "f")
+        """Roots of the numerator of ``input`` (delays excluded).
+
+        Parameters
+        ----------
+        input : int
+            Input index.
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        b = np.trim_zeros(self.b[input][self.nk_[input]:], "f")
         return np.roots(b) if len(b) > 1 else np.zeros(0)
 
     @property
@@ -284,19 +458,28 @@ class ArxModel:
         return bool(np.all(np.abs(self.poles()) < 1.0))
 
     def dc_gain(self) -> np.ndarray:
-        """Static gain from each input, B_i(1)/A(1) (inf for an integrator)."""
+        """Static gain from each input, B_i(1)/A(1) (±inf for an integrator).
+
+        Returns
+        -------
+        ndarray of shape (n_inputs,)
+        """
         a1 = self.a.sum()
-        with np.errstate(divide="ignore"):
-            return np.array([b.sum() / a1 if a1 != 0 else math.copysign(math.inf, b.sum() or 1.0) for b in self.b])
+        return np.array([b.sum() / a1 if a1 != 0 else math.copysign(math.inf, b.sum() or 1.0) for b in self.b])
 
     # ------------------------------------------------------------------ simulation
     def _layout(self, data: IOData) -> EffectLayout:
-        if data.n_inputs != len(self.input_names):
-            raise DataError(f"the model has {len(self.input_names)} inputs {list(self.input_names)} but the data have {data.n_inputs}")
-        return compile_effects(self.effects, data, self.nb, self.nk)
+        if data.n_inputs != len(self.input_names_):
+            raise DataError(f"the model has {len(self.input_names_)} inputs {list(self.input_names_)} but the data "
+                            f"have {data.n_inputs}")
+        return compile_effects(self.effects, data, self.nb_, self.nk_)
 
     def predict(self, data: IOData, horizon: int | None = None) -> np.ndarray:
-        """Predicted output, shape (n_samples,), NaN where no prediction exists (initial samples).
+        """Predicted output, NaN where no prediction exists (initial samples).
+
+        Each experiment's first ``max(first_lag_, largest lag)`` samples are initial conditions: a
+        structure chosen from a sweep starts where the sweep started it, so its errors are the
+        sweep's.
 
         Parameters
         ----------
@@ -304,8 +487,12 @@ class ArxModel:
         horizon : int or None
             1: one-step prediction; k: k-step-ahead; None: free-run simulation (MATLAB ``compare``).
             Output-derived effect terms use the simulated output beyond the first step.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
         """
-        self._check_fitted()
+        self.check_fitted()
         if not isinstance(data, IOData):
             raise DataError(f"predict needs an arxid.IOData, got {type(data).__name__}")
         if horizon is not None:
@@ -313,61 +500,65 @@ class ArxModel:
             if horizon < 1:
                 raise OrderError("horizon must be >= 1 (or None for free-run simulation)")
         layout = self._layout(data)
-        return np.asarray(_core.predict(np.ascontiguousarray(data.y), layout.u, list(data.experiment_starts), self.na,
+        return np.asarray(_core.predict(np.ascontiguousarray(data.y), layout.u, list(data.experiment_starts), self.na_,
                                         list(layout.nb), list(layout.nk), list(layout.output_terms),
-                                        np.ascontiguousarray(self.parameters_, dtype=float), horizon=horizon))
-
-    @staticmethod
-    def _diverged(y: np.ndarray, pred: np.ndarray) -> bool:
-        """A simulation that overflowed: the core lets inf (then NaN) propagate instead of restarting."""
-        return bool(np.isinf(pred).any())
-
-    @staticmethod
-    def _fit_percent(y: np.ndarray, pred: np.ndarray) -> float:
-        if ArxModel._diverged(y, pred):
-            return -math.inf
-        ok = np.isfinite(y) & np.isfinite(pred)
-        if not ok.any():
-            return math.nan
-        with np.errstate(over="ignore", invalid="ignore"):
-            e = np.linalg.norm(y[ok] - pred[ok])
-        d = np.linalg.norm(y[ok] - y[ok].mean())
-        return float(100.0 * (1.0 - e / d)) if d > 0 else math.nan
+                                        np.ascontiguousarray(self.parameters_, dtype=float), horizon=horizon,
+                                        first_lag=self.first_lag_))
 
     def fit_percent(self, data: IOData, horizon: int | None = None) -> float:
-        """NRMSE fit in percent, 100 (1 − ‖y − ŷ‖ / ‖y − mean y‖), of the prediction with ``horizon``
-        (``-inf`` when a free-run simulation diverges)."""
-        return self._fit_percent(data.y, self.predict(data, horizon))
-
-    def rms(self, data: IOData, horizon: int | None = None) -> float:
-        """Root mean square of measured − predicted output over the predicted samples (``inf`` when a
-        free-run simulation diverges)."""
-        pred = self.predict(data, horizon)
-        if self._diverged(data.y, pred):
-            return math.inf
-        ok = np.isfinite(pred) & np.isfinite(data.y)
-        if not ok.any():
-            return math.nan
-        with np.errstate(over="ignore", invalid="ignore"):
-            return float(np.sqrt(np.mean((data.y[ok] - pred[ok]) ** 2)))
-
-    def simulate(self, u, initial=None, extra=None) -> np.ndarray:
-        """Free-run response to the inputs ``u`` (shape (N,) or (N, n_inputs)).
+        """NRMSE fit in percent of the prediction with ``horizon`` (see :mod:`arxid._metrics`).
 
         Parameters
         ----------
-        u : array_like
+        data : IOData
+        horizon : int or None
+            None: free run; k: k-step-ahead prediction.
+
+        Returns
+        -------
+        float
+            ``-inf`` when the prediction diverges.
+        """
+        return metrics.fit_percent(data.y, self.predict(data, horizon))
+
+    def rms(self, data: IOData, horizon: int | None = None) -> float:
+        """RMS of measured − predicted output over the predicted samples.
+
+        Parameters
+        ----------
+        data : IOData
+        horizon : int or None
+            None: free run; k: k-step-ahead prediction.
+
+        Returns
+        -------
+        float
+            ``inf`` when the prediction diverges.
+        """
+        return metrics.prediction_rms(data.y, self.predict(data, horizon))
+
+    def simulate(self, u: Any, initial: Any = None, extra: Mapping[str, Any] | None = None) -> np.ndarray:
+        """Free-run response to the inputs ``u``.
+
+        Parameters
+        ----------
+        u : array_like of shape (N,) or (N, n_inputs)
         initial : array_like, optional
             Outputs before the first sample, oldest first (default zeros: the system at rest).
         extra : mapping, optional
             Extra signals effect terms need (same length as ``u``).
+
+        Returns
+        -------
+        ndarray of shape (N,)
         """
-        self._check_fitted()
+        self.check_fitted()
         u = np.asarray(u, dtype=float)
         if u.ndim == 1:
             u = u.reshape(-1, 1)
-        nb, nk, terms = self._layout_meta
-        lag = max(self.na, max((b + k - 1 for b, k in zip(nb, nk) if b > 0), default=0), 2 if terms else 0)
+        lay = self.layout_
+        lag = max(self.na_, max((b + k - 1 for b, k in zip(lay.nb, lay.nk) if b > 0), default=0),
+                  2 if lay.output_terms else 0, self.first_lag_)
         init = np.zeros(lag) if initial is None else np.asarray(initial, dtype=float)
         if init.shape != (lag,):
             raise DataError(f"initial must hold the {lag} outputs before the first sample, got shape {init.shape}")
@@ -378,123 +569,118 @@ class ArxModel:
         return self.predict(d, None)[lag:]
 
     def step(self, n_samples: int, amplitude: float = 1.0, input: int = 0) -> np.ndarray:
-        """Response to a step of ``amplitude`` on ``input`` from rest, shape (n_samples,)."""
-        self._check_fitted()
-        u = np.zeros((_order("n_samples", n_samples), len(self.input_names)))
+        """Response to a step of ``amplitude`` on ``input`` from rest.
+
+        Parameters
+        ----------
+        n_samples : int
+        amplitude : float
+        input : int
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+        """
+        self.check_fitted()
+        u = np.zeros((_order("n_samples", n_samples), len(self.input_names_)))
         u[:, input] = amplitude
         return self.simulate(u)
 
     # ------------------------------------------------------------------ refit
-    def with_effects(self, effects: Sequence[str], data: IOData | None = None) -> "ArxModel":
-        """The same orders refitted with ``effects`` added, on ``data`` (default: the estimation data)."""
-        self._check_fitted()
-        data = data if data is not None else self._data
+    def with_effects(self, effects: Sequence[str], data: IOData | None = None) -> ArxModel:
+        """The same orders refitted with ``effects`` added.
+
+        Parameters
+        ----------
+        effects : sequence of str
+        data : IOData, optional
+            Estimation data (default: the data the model was fitted on, ``data_``).
+
+        Returns
+        -------
+        ArxModel
+        """
+        self.check_fitted()
+        data = data if data is not None else self.data_
         if data is None:
             raise ArxidError("this model was loaded without its data: pass data=... to refit it with effects")
         new = [e for e in effects if e not in self.effects]
-        return ArxModel(na=self.na, nb=self.nb, nk=self.nk, effects=self.effects + tuple(new)).fit(data, first_lag=self.first_lag_)
+        return ArxModel(na=self.na_, nb=self.nb_, nk=self.nk_, effects=self.effects + tuple(new)).fit(
+            data, first_lag=self.first_lag_)
 
     # ------------------------------------------------------------------ export
-    def _tf_coefficients(self):
-        """(numerators, denominator) in descending powers of z, all of one length."""
-        if not self.is_linear:
-            raise ArxidError(f"the effects {list(self.effects)} involve the output: the model is nonlinear and has no transfer function")
-        nb, nk, _ = self._layout_meta
-        num_z1 = []
-        c = self.na
-        for b, k in zip(nb, nk):
-            num_z1.append(np.concatenate([np.zeros(k), self.parameters_[c:c + b]]))
-            c += b
-        n = max([self.na] + [len(x) - 1 for x in num_z1])
-        den = np.zeros(n + 1)
-        den[: self.na + 1] = self.a
-        nums = []
-        for x in num_z1:
-            v = np.zeros(n + 1)
-            v[: len(x)] = x
-            nums.append(v)
-        return nums, den
+    def input_labels(self) -> list[str]:
+        """Names of the layout's columns: the inputs, then each input-derived effect column.
 
-    def _input_labels(self):
-        m = len(self.input_names)
-        labels = list(self.input_names)
-        if self._data is not None:
-            layout = self._layout(self._data)
-            labels += [lab for lab, b in zip(layout.column_labels[m:], layout.nb[m:])]
-        nb = self._layout_meta[0]
-        return labels + [f"effect{j}" for j in range(len(labels), len(nb))]
-
-    def to_control(self, continuous: bool = False, input: int | None = None):
-        """python-control transfer function with ``dt = ts`` (descending powers of z).
-
-        One input gives a ``TransferFunction``; several inputs (including input-derived effect
-        columns) a list with one SISO ``TransferFunction`` per input (MIMO conversions in
-        python-control need slycot), or the one picked with ``input``. With ``continuous=True`` the
-        zero-order-hold sampling is inverted (matrix logarithm); the input delay of
-        ``(nk − 1)·ts`` that ZOH sampling of a strictly proper system does not explain is returned in
-        the attribute ``dead_time`` of the result (seconds).
+        Returns
+        -------
+        list of str
         """
-        self._check_fitted()
-        try:
-            import control
-        except ImportError:  # pragma: no cover
-            raise ImportError("to_control needs python-control: pip install 'arxid[control]'") from None
-        nums, den = self._tf_coefficients()
-        labels = self._input_labels()
-        idx = range(len(nums)) if input is None else [input]
-        if continuous:
-            return _d2c(self, [nums[i] for i in idx], den, [self._layout_meta[1][i] for i in idx], [labels[i] for i in idx])
-        tfs = [control.TransferFunction(nums[i], den, self.ts, inputs=[labels[i]], outputs=[self.output_name]) for i in idx]
-        return tfs[0] if len(tfs) == 1 else tfs
+        return list(self.input_names_) + list(self.layout_.column_labels[len(self.input_names_):])
 
-    def to_scipy(self):
-        """``scipy.signal.dlti``: a transfer function for one input, a state-space model for several."""
-        from scipy import signal
+    def to_control(self, continuous: bool = False, input: int | None = None) -> Any:
+        """python-control transfer function(s); see :func:`arxid.convert.to_control`.
 
-        nums, den = self._tf_coefficients()
-        if len(nums) == 1:
-            # Leading zeros of the numerator are the delay; scipy warns about them, so drop them.
-            num = np.trim_zeros(nums[0], "f")
-            return signal.dlti(num if len(num) else [0.0], den, dt=self.ts)
-        # Observable canonical form shares A and C across inputs.
-        n = len(den) - 1
-        a = np.zeros((n, n))
-        a[:, 0] = -den[1:]
-        a[: n - 1, 1:] = np.eye(n - 1)
-        b = np.column_stack([num[1:] - num[0] * den[1:] for num in nums])
-        c = np.zeros((1, n))
-        c[0, 0] = 1.0
-        dmat = np.array([[num[0] for num in nums]])
-        return signal.dlti(a, b, c, dmat, dt=self.ts)
+        Parameters
+        ----------
+        continuous : bool
+            Invert the zero-order-hold sampling (matrix logarithm); the dead time is in ``.dead_time``.
+        input : int, optional
+            Only this input's transfer function.
+
+        Returns
+        -------
+        control.TransferFunction or list of them
+        """
+        from .convert import to_control
+
+        return to_control(self, continuous=continuous, input=input)
+
+    def to_scipy(self) -> Any:
+        """``scipy.signal.dlti``; see :func:`arxid.convert.to_scipy`.
+
+        Returns
+        -------
+        scipy.signal.dlti
+        """
+        from .convert import to_scipy
+
+        return to_scipy(self)
 
     def to_dict(self) -> dict:
-        self._check_fitted()
-        nb, nk, terms = self._layout_meta
+        """Everything needed to rebuild the fitted model (the JSON content).
+
+        Returns
+        -------
+        dict
+        """
+        self.check_fitted()
         return {
-            "format": _JSON_FORMAT,
-            "version": _JSON_VERSION,
-            "na": self.na,
-            "nb": list(self.nb),
-            "nk": list(self.nk),
-            "effects": list(self.effects),
-            "ts": self.ts,
-            "output_name": self.output_name,
-            "input_names": list(self.input_names),
-            "output_unit": self.output_unit,
-            "input_units": list(self.input_units),
+            "format": _JSON_FORMAT, "version": _JSON_VERSION,
+            "na": self.na_, "nb": list(self.nb_), "nk": list(self.nk_), "effects": list(self.effects),
+            "ts": self.ts_, "output_name": self.output_name_, "input_names": list(self.input_names_),
+            "output_unit": self.output_unit_, "input_units": list(self.input_units_),
             "parameters": [float(x) for x in self.parameters_],
             "covariance": [[float(x) for x in row] for row in self.covariance_],
             "regressor_names": list(self.regressor_names_),
-            "n_rows": self.n_rows_,
-            "n_skipped": self.n_skipped_,
-            "first_lag": self.first_lag_,
-            "rss": self.rss_,
+            "n_rows": self.n_rows_, "n_skipped": self.n_skipped_, "first_lag": self.first_lag_, "rss": self.rss_,
             "fit_percent": self.fit_percent_,
-            "layout": {"nb": list(nb), "nk": list(nk), "output_terms": [list(t) for t in terms]},
+            "layout": self.layout_.to_dict(),
         }
 
-    def to_json(self, path=None, indent: int | None = 2) -> str:
-        """Plain JSON (no pickle); floats round-trip exactly. Writes to ``path`` when given."""
+    def to_json(self, path: str | None = None, indent: int | None = 2) -> str:
+        """Plain JSON (no pickle); floats round-trip exactly.
+
+        Parameters
+        ----------
+        path : str, optional
+            Also write it to this file.
+        indent : int or None
+
+        Returns
+        -------
+        str
+        """
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
             with open(path, "w") as fh:
@@ -502,8 +688,19 @@ class ArxModel:
         return text
 
     @classmethod
-    def from_json(cls, text_or_path) -> "ArxModel":
-        """Load a model written by :meth:`to_json` (a JSON string or a file path)."""
+    def from_json(cls, text_or_path: str) -> ArxModel:
+        """Load a model written by :meth:`to_json`; it behaves as the fitted one, except that
+        refitting (``with_effects``, ``diagnose``) needs the estimation data passed explicitly.
+
+        Parameters
+        ----------
+        text_or_path : str
+            A JSON string or a file path.
+
+        Returns
+        -------
+        ArxModel
+        """
         text = text_or_path
         if not (isinstance(text, str) and text.lstrip().startswith("{")):
             try:
@@ -512,136 +709,108 @@ class ArxModel:
             except OSError as exc:
                 raise DataError(f"cannot read model file {text_or_path!r}: {exc}") from None
         try:
-            d = json.loads(text)
-            if not isinstance(d, dict) or d.get("format") != _JSON_FORMAT:
-                raise ValueError(f"not an arxid model (format {d.get('format') if isinstance(d, dict) else type(d).__name__!r})")
-            if d.get("version") != _JSON_VERSION:
-                raise ValueError(f"unsupported version {d.get('version')!r}")
-            model = cls(na=d["na"], nb=tuple(d["nb"]), nk=tuple(d["nk"]), effects=tuple(d["effects"]))
-            model.na = _order("na", d["na"])
-            model.nb = tuple(_order("nb", v) for v in d["nb"])
-            model.nk = tuple(_order("nk", v) for v in d["nk"])
-            model.ts = float(d["ts"])
-            model.output_name = str(d["output_name"])
-            model.input_names = tuple(map(str, d["input_names"]))
-            model.output_unit = str(d.get("output_unit", ""))
-            model.input_units = tuple(d.get("input_units", ("",) * len(model.input_names)))
-            model.parameters_ = np.array(d["parameters"], dtype=float)
-            model.covariance_ = np.array(d["covariance"], dtype=float).reshape(len(model.parameters_), len(model.parameters_))
-            model.regressor_names_ = tuple(d["regressor_names"])
-            model.n_rows_ = int(d["n_rows"])
-            model.n_skipped_ = int(d["n_skipped"])
-            model.first_lag_ = int(d["first_lag"])
-            model.rss_ = float(d["rss"])
-            model.fit_percent_ = float(d["fit_percent"])
-            p = len(model.parameters_)
-            model.noise_variance_ = model.rss_ / max(model.n_rows_ - p, 1)
-            model.loss_ = model.rss_ / model.n_rows_
-            lay = d["layout"]
-            model._layout_meta = (tuple(lay["nb"]), tuple(lay["nk"]), tuple(tuple(t) for t in lay["output_terms"]))
-            model._data = None
-            if len(model.nb) != len(model.input_names) or len(model.regressor_names_) != p:
-                raise ValueError("orders, inputs and parameters do not agree")
-            if p != model.na + sum(model._layout_meta[0]) + len(model._layout_meta[2]):
-                raise ValueError("the parameter count does not match the model structure")
+            return _model_from_dict(cls, json.loads(text))
         except DataError:
             raise
-        except (ValueError, KeyError, TypeError, json.JSONDecodeError, OrderError) as exc:
+        except (ValueError, KeyError, TypeError, OrderError) as exc:
             raise DataError(f"corrupt model file: {exc}; write models with ArxModel.to_json()") from None
-        return model
 
     # ------------------------------------------------------------------ printing
     def structure_name(self) -> str:
-        nb = self.nb[0] if len(set(self.nb)) == 1 else list(self.nb)
-        nk = self.nk[0] if len(set(self.nk)) == 1 else list(self.nk)
-        s = f"ARX({self.na},{nb},{nk})"
-        return s + (" + " + " + ".join(self.effects) if self.effects else "")
+        """``ARX(na,nb,nk)`` plus the effects (per-input lists for several inputs).
+
+        Returns
+        -------
+        str
+        """
+        na, nb, nk = (self.na_, self.nb_, self.nk_) if "parameters_" in self.__dict__ else \
+            (self.na, _as_tuple(self.nb), _as_tuple(self.nk))
+        b = nb[0] if len(set(nb)) == 1 else list(nb)
+        k = nk[0] if len(set(nk)) == 1 else list(nk)
+        return f"ARX({na},{b},{k})" + (" + " + " + ".join(self.effects) if self.effects else "")
 
     def __str__(self) -> str:
-        if not hasattr(self, "parameters_"):
+        if "parameters_" not in self.__dict__:
             return f"ArxModel(na={self.na}, nb={self.nb}, nk={self.nk}, effects={list(self.effects)}) (not fitted)"
+        lines = [f"{self.structure_name()}   ts = {self.ts:g} s"] + self._fraction_lines() + self._term_lines()
+        lines.append(
+            f"  fit {self.fit_percent_:.2f}% (one-step, estimation), noise variance {self.noise_variance_:.4g}, "
+            f"FPE {self.fpe_:.4g}, {self.n_rows_} rows" + (f", {self.n_skipped_} rows skipped (NaN)" if self.n_skipped_ else "")
+        )
+        if self.output_unit:
+            lines.append(f"  output unit: {self.output_unit}")
+        return "\n".join(lines)
+
+    def _fraction_lines(self) -> list[str]:
+        """y(z) = B(z)/A(z) u(z) z^-nk, one fraction per input or effect column (as a published
+        quadrotor study, Sarıoğlu & Kural, writes it)."""
         den = _format_poly(self.a)
-        lines = [f"{self.structure_name()}   ts = {self.ts:g} s"]
-        out = self.output_name + (f" [{self.output_unit}]" if self.output_unit else "")
-        nb, nk, terms = self._layout_meta
-        labels = self._input_labels()
-        c = self.na
-        for j, (b, k) in enumerate(zip(nb, nk)):
+        labels, lines, c = self.input_labels(), [], self.na_
+        lhs = f"{self.output_name}(z) = "
+        pad = " " * len(lhs)
+        for j, (b, k) in enumerate(zip(self.layout_.nb, self.layout_.nk)):
             if b == 0:
                 continue
             coefs = self.parameters_[c:c + b]
             c += b
             num = _format_poly(coefs) if b > 1 else f"{coefs[0]:.4g}"
-            delay = f" z^-{k}" if k else ""
             width = max(len(num), len(den))
-            # Seed 004 eq. (29): y(z) = B(z)/A(z) u(z) z^-nk, one fraction per input or effect column.
-            lhs = f"{self.output_name}(z) = "
-            pad = " " * len(lhs)
             lines.append(pad + num.center(width))
-            lines.append((lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z){delay}")
+            lines.append((lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z)" + (f" z^-{k}" if k else ""))
             lines.append(pad + den.center(width))
-        for kind, power, mult in terms:
-            coef = self.parameters_[c]
-            c += 1
-            lines.append(f"      {'+' if coef >= 0 else '-'} {abs(coef):.4g}/A(z) · {self._term_text(kind, power, mult)}")
-        lines.append(
-            f"  fit {self.fit_percent_:.2f}% (one-step, estimation), noise variance {self.noise_variance_:.4g}, "
-            f"FPE {self.fpe_:.4g}, {self.n_rows_} rows" + (f", {self.n_skipped_} rows skipped (NaN)" if self.n_skipped_ else "")
-        )
-        if out != self.output_name:
-            lines.append(f"  output unit: {self.output_unit}")
-        return "\n".join(lines)
+        return lines
 
-    def _term_text(self, kind, power, mult) -> str:
-        g = {"pow": f"{self.output_name}(t-1)^{power}" if power != 1 else f"{self.output_name}(t-1)",
-             "abs": f"|{self.output_name}(t-1)|", "signdiff": f"sign(d{self.output_name}(t-1))"}[kind]
+    def _term_lines(self) -> list[str]:
+        c = self.na_ + sum(self.layout_.nb)
+        out = []
+        for j, (kind, power, mult) in enumerate(self.layout_.output_terms):
+            coef = self.parameters_[c + j]
+            out.append(f"      {'+' if coef >= 0 else '-'} {abs(coef):.4g}/A(z) · {self._term_text(kind, power, mult)}")
+        return out
+
+    def _term_text(self, kind: str, power: int, mult: int) -> str:
+        y = self.output_name
+        g = {"pow": f"{y}(t-1)^{power}" if power != 1 else f"{y}(t-1)", "abs": f"|{y}(t-1)|",
+             "signdiff": f"sign(d{y}(t-1))"}[kind]
         return g + (" · carrier(t-1)" if mult >= 0 else "")
 
     def __repr__(self) -> str:
-        if not hasattr(self, "parameters_"):
+        if "parameters_" not in self.__dict__:
             return f"ArxModel(na={self.na}, nb={self.nb}, nk={self.nk}, effects={list(self.effects)})"
         return f"<ArxModel {self.structure_name()} ts={self.ts:g} fit={self.fit_percent_:.2f}%>"
 
 
-def _d2c(model: ArxModel, nums, den, nks, labels):
-    """Continuous-time model whose ZOH sampling is the discrete model (input delays split off)."""
-    import control
-    from scipy.linalg import logm
+def _as_tuple(v: Any) -> tuple:
+    return tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else (v,)
 
-    results = []
-    for num, nk, label in zip(nums, nks, labels):
-        # Pure delay beyond the one sample ZOH sampling of a strictly proper system implies.
-        shift = max(nk - 1, 0)
-        n = np.trim_zeros(num, "f")
-        n = np.concatenate([np.zeros(len(num) - len(n) - shift), n]) if shift else num
-        n = np.concatenate([n, np.zeros(len(num) - len(n))])[: len(num)]
-        dd = np.trim_zeros(den, "b")
-        trimmed = len(den) - len(dd)
-        n = n[: len(n) - trimmed] if trimmed else n
-        # Remove common trailing zeros (poles and zeros at the origin) from both.
-        while len(dd) > 1 and dd[-1] == 0 and n[-1] == 0:
-            dd, n = dd[:-1], n[:-1]
-        if len(dd) > 1 and dd[-1] == 0:
-            raise ArxidError("the model has a pole at z = 0 that cannot be a zero-order-hold sample of a continuous system")
-        sys_d = control.tf2ss(control.TransferFunction(n, dd, model.ts))
-        a, b, c, d = (np.asarray(x) for x in (sys_d.A, sys_d.B, sys_d.C, sys_d.D))
-        k = a.shape[0]
-        big = np.zeros((k + 1, k + 1))
-        big[:k, :k], big[:k, k:] = a, b
-        big[k, k] = 1.0
-        with np.errstate(all="ignore"):
-            lg = logm(big)
-        if np.iscomplexobj(lg):
-            if np.max(np.abs(lg.imag)) > 1e-8 * max(1.0, np.max(np.abs(lg.real))):
-                raise ArxidError("the model has poles on the negative real axis: it is not the zero-order-hold sample of a real continuous system")
-            lg = lg.real
-        lg = lg / model.ts
-        sys_c = control.ss(lg[:k, :k], lg[:k, k:], c, d)
-        tf_c = control.ss2tf(sys_c)
-        tf_c = control.TransferFunction(tf_c.num[0][0], tf_c.den[0][0], inputs=[label], outputs=[model.output_name])
-        tf_c.dead_time = shift * model.ts
-        results.append(tf_c)
-    return results[0] if len(results) == 1 else results
+
+def _model_from_dict(cls: type[ArxModel], d: Any) -> ArxModel:
+    if not isinstance(d, dict) or d.get("format") != _JSON_FORMAT:
+        raise ValueError(f"not an arxid model (format {d.get('format') if isinstance(d, dict) else type(d).__name__!r})")
+    if d.get("version") != _JSON_VERSION:
+        raise ValueError(f"unsupported version {d.get('version')!r}")
+    na, nb, nk = _order("na", d["na"]), tuple(_order("nb", v) for v in d["nb"]), tuple(_order("nk", v) for v in d["nk"])
+    model = cls(na=na, nb=nb, nk=nk, effects=tuple(d["effects"]))
+    model.na_, model.nb_, model.nk_ = na, nb, nk
+    model.ts_, model.output_name_ = float(d["ts"]), str(d["output_name"])
+    model.input_names_ = tuple(map(str, d["input_names"]))
+    model.output_unit_ = str(d.get("output_unit", ""))
+    model.input_units_ = tuple(d.get("input_units", ("",) * len(model.input_names_)))
+    model.parameters_ = np.array(d["parameters"], dtype=float)
+    p = len(model.parameters_)
+    model.covariance_ = np.array(d["covariance"], dtype=float).reshape(p, p)
+    model.regressor_names_ = tuple(d["regressor_names"])
+    model.n_rows_, model.n_skipped_ = int(d["n_rows"]), int(d["n_skipped"])
+    model.first_lag_, model.rss_ = int(d["first_lag"]), float(d["rss"])
+    model.fit_percent_ = float(d["fit_percent"])
+    model.layout_ = FittedLayout.from_dict(d["layout"], model.input_names_, model.effects)
+    model.data_ = None
+    if len(nb) != len(model.input_names_) or len(model.regressor_names_) != p:
+        raise ValueError("orders, inputs and parameters do not agree")
+    if p != na + sum(model.layout_.nb) + len(model.layout_.output_terms):
+        raise ValueError("the parameter count does not match the model structure")
+    return model
+
 
 
 def arx(data: IOData, na: int, nb, nk, effects: Sequence[str] = (), *, n_threads: int = 0) -> ArxModel:

@@ -7,7 +7,7 @@ reference the core must match.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -22,8 +22,22 @@ def _lag(k: int) -> str:
 
 
 def max_lag(na: int, layout: EffectLayout) -> int:
+    """Largest lag any regressor of the model reaches back.
+
+    Parameters
+    ----------
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects (:func:`arxid.effects.compile_effects`).
+
+    Returns
+    -------
+    int
+        The first row of an experiment that has every regressor.
+    """
     lag = na
-    for b, k in zip(layout.nb, layout.nk):
+    for b, k in zip(layout.nb, layout.nk, strict=True):
         if b > 0:
             lag = max(lag, b + k - 1)
     for kind, _, _ in layout.output_terms:
@@ -32,9 +46,23 @@ def max_lag(na: int, layout: EffectLayout) -> int:
 
 
 def regressor_names(output_name: str, na: int, layout: EffectLayout) -> list[str]:
-    """Names of the regressors in parameter order, e.g. ``roll(t-1)``, ``u1(t-8)``, ``y^3(t-1)``."""
+    """Names of the regressors in parameter order, e.g. ``roll(t-1)``, ``u1(t-8)``, ``y^3(t-1)``.
+
+    Parameters
+    ----------
+    output_name : str
+        Name of the output signal.
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects.
+
+    Returns
+    -------
+    list of str
+    """
     names = [f"{output_name}({_lag(i)})" for i in range(1, na + 1)]
-    for label, b, k in zip(layout.column_labels, layout.nb, layout.nk):
+    for label, b, k in zip(layout.column_labels, layout.nb, layout.nk, strict=True):
         if label in ("const", "time"):
             names += [label] * b
         else:
@@ -43,24 +71,47 @@ def regressor_names(output_name: str, na: int, layout: EffectLayout) -> list[str
     return names
 
 
-def regressor_matrix(data: IOData, na: int, layout: EffectLayout, first_lag: int = 0,
-                     signs: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def regressor_matrix(
+    data: IOData, na: int, layout: EffectLayout, first_lag: int = 0, signs: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Regressor matrix Φ (rows × p), output y on those rows, and the row indices.
 
     Rows start ``max(first_lag, lag)`` into each experiment and skip any row touching a NaN, exactly
-    as the Rust core does. With ``signs`` the output lags enter as ``-y(t-i)`` (MATLAB convention).
+    as the Rust core does.
+
+    Parameters
+    ----------
+    data : IOData
+        The data.
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects (its ``u`` holds the input columns).
+    first_lag : int
+        Start every experiment at least this many samples in (to share rows between structures).
+    signs : bool
+        Enter the output lags as ``-y(t-i)`` (MATLAB convention) rather than ``y(t-i)``.
+
+    Returns
+    -------
+    phi : ndarray of shape (n_rows, n_params)
+    y : ndarray of shape (n_rows,)
+    rows : ndarray of int, shape (n_rows,)
+        Sample index of each row.
     """
     y = data.y
     u = layout.u
     lag = max(first_lag, max_lag(na, layout))
-    rows = np.concatenate([np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]).astype(int)
+    rows = np.concatenate(
+        [np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]
+    ).astype(int)
     cols = []
     s = -1.0 if signs else 1.0
     for i in range(1, na + 1):
         cols.append(s * y[rows - i])
-    for j, (b, k) in enumerate(zip(layout.nb, layout.nk)):
-        for l in range(b):
-            cols.append(u[rows - k - l, j])
+    for j, (b, k) in enumerate(zip(layout.nb, layout.nk, strict=True)):
+        for lag_j in range(b):
+            cols.append(u[rows - k - lag_j, j])
     for kind, power, mult in layout.output_terms:
         y1 = y[rows - 1]
         if kind == "pow":
@@ -78,7 +129,23 @@ def regressor_matrix(data: IOData, na: int, layout: EffectLayout, first_lag: int
 
 
 def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:
-    """Regressors before ``column`` that together reproduce it (largest normalised weights first)."""
+    """Regressors before ``column`` that together reproduce it (largest normalised weights first).
+
+    Parameters
+    ----------
+    phi : ndarray of shape (n_rows, n_params)
+        Regressor matrix.
+    column : int
+        The dependent column.
+    names : sequence of str
+        Regressor names, one per column.
+    top : int
+        At most this many partners.
+
+    Returns
+    -------
+    list of str
+    """
     if column == 0:
         return []
     a = phi[:, :column]

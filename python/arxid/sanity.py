@@ -114,23 +114,50 @@ class StepSanity:
 
     def __str__(self) -> str:
         head = f"{self.structure}: step sanity " + ("ok" if self.ok else "FLAGGED")
-        lines = [head + f" (peak {self.amplitude:.4g} vs output range {self.output_range:.4g}, "
-                        f"{self.horizon} samples, expect={self.expect})"]
+        lines = [
+            head + f" (peak {self.amplitude:.4g} vs output range {self.output_range:.4g}, "
+            f"{self.horizon} samples, expect={self.expect})"
+        ]
         lines += [f"  - {r}" for r in self.reasons]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
+        """The verdict as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            The fields of the verdict and ``ok``.
+        """
         d = asdict(self)
         d["ok"] = self.ok
         return d
 
     def to_json(self) -> str:
+        """The verdict as JSON.
+
+        Returns
+        -------
+        str
+            :meth:`to_dict` serialised.
+        """
         return json.dumps(self.to_dict())
 
 
 def typical_amplitudes(data: IOData) -> np.ndarray:
-    """Typical step amplitude per input: the standard deviation of the measured input
-    (its largest absolute value when it is constant), shape (n_inputs,)."""
+    """Typical step amplitude per input.
+
+    Parameters
+    ----------
+    data : IOData
+        Measured data.
+
+    Returns
+    -------
+    ndarray of shape (n_inputs,)
+        The standard deviation of each measured input (its largest absolute value when it is
+        constant; 1 when it is zero).
+    """
     u = data.u
     amp = np.nanstd(u, axis=0)
     flat = ~(amp > 0)
@@ -140,7 +167,18 @@ def typical_amplitudes(data: IOData) -> np.ndarray:
 
 
 def output_range(data: IOData) -> float:
-    """Measured output range, 99th minus 1st percentile (robust to a few spikes)."""
+    """Measured output range, 99th minus 1st percentile (robust to a few spikes).
+
+    Parameters
+    ----------
+    data : IOData
+        Measured data.
+
+    Returns
+    -------
+    float
+        NaN when the output has no finite sample.
+    """
     y = data.y[np.isfinite(data.y)]
     if y.size == 0:
         return math.nan
@@ -149,10 +187,24 @@ def output_range(data: IOData) -> float:
 
 
 def growth_horizon(response: np.ndarray, out_range: float) -> int:
-    """Samples over which an integrating step response is judged: until it first leaves the measured
-    output range (beyond it the data say nothing, and an estimated integrator's pole a hair inside
-    the unit circle levels the response off over a long record), but at least ``2 * dead time + 8``
-    samples, and at most the whole response."""
+    """Samples over which an integrating step response is judged.
+
+    Until the response first leaves the measured output range (beyond it the data say nothing, and
+    an estimated integrator's pole a hair inside the unit circle levels the response off over a
+    long record), but at least ``2 * dead time + 8`` samples, and at most the whole response.
+
+    Parameters
+    ----------
+    response : ndarray of shape (n,)
+        Step response.
+    out_range : float
+        Measured output range (:func:`output_range`).
+
+    Returns
+    -------
+    int
+        The horizon in samples, between 1 and ``n``.
+    """
     n = len(response)
     moving = np.flatnonzero(response != 0)
     if not moving.size or not out_range > 0:
@@ -162,74 +214,168 @@ def growth_horizon(response: np.ndarray, out_range: float) -> int:
     return int(min(n, max(h, 2 * int(moving[0]) + 8)))
 
 
-def check_responses(structure: str, positive: list[np.ndarray], negative: list[np.ndarray], poles: np.ndarray,
-                    *, out_range: float, amplitudes, expect: str | None, limits: SanityLimits) -> StepSanity:
-    """Apply the checks to given step responses (one positive and one negative per input)."""
+def check_responses(
+    structure: str,
+    positive: list[np.ndarray],
+    negative: list[np.ndarray],
+    poles: np.ndarray,
+    *,
+    out_range: float,
+    amplitudes,
+    expect: str | None,
+    limits: SanityLimits,
+) -> StepSanity:
+    """Apply the checks to given step responses (one positive and one negative per input).
+
+    Parameters
+    ----------
+    structure : str
+        Name of the model, for the verdict.
+    positive, negative : list of ndarray
+        Responses to the positive and the negative step, one per input, of equal length.
+    poles : ndarray
+        Poles of the model.
+    out_range : float
+        Measured output range (:func:`output_range`).
+    amplitudes : sequence of float
+        Step amplitude of each input.
+    expect : {None, "stable", "integrating", "double-integrating"}
+    limits : SanityLimits
+
+    Returns
+    -------
+    StepSanity
+    """
     if expect not in EXPECTATIONS:
         raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
-    flags: list[str] = []
-    reasons: list[str] = []
-
-    def flag(code: str, why: str):
-        if code not in flags:
-            flags.append(code)
-            reasons.append(why)
-
-    integrating = expect in ("integrating", "double-integrating")
+    found: dict[str, str] = {}  # flag -> its first reason, in the order the flags were raised
     peak_all = 0.0
     horizon = 0
     with np.errstate(all="ignore"):
-        for i, (pos, neg) in enumerate(zip(positive, negative)):
+        for i, (pos, neg) in enumerate(zip(positive, negative, strict=True)):
             horizon = len(pos)
-            finite = np.isfinite(pos).all() and np.isfinite(neg).all()
-            peak = float(np.max(np.abs(pos))) if finite else math.inf
-            peak_all = max(peak_all, peak)
             label = f"input {i + 1}" if len(positive) > 1 else "the input"
-            if finite and peak > 0:
-                mismatch = float(np.max(np.abs(pos + neg))) / peak
-                if mismatch > limits.antisymmetry:
-                    flag("not-antisymmetric", f"the responses to +/- steps on {label} differ by {100 * mismatch:.0f}% of the "
-                                              f"peak (limit {100 * limits.antisymmetry:.0f}%): offset or nonlinearity")
-            if out_range > 0:
-                if peak < limits.small * out_range:
-                    flag("too-small", f"step amplitude {peak:.3g} on {label} is implausibly small against the measured "
-                                      f"output range {out_range:.3g} (limit {limits.small:g} x range)")
-                if not integrating and peak > limits.large * out_range:
-                    flag("too-large", f"step amplitude {peak:.3g} on {label} is implausibly large against the measured "
-                                      f"output range {out_range:.3g} (limit {limits.large:g} x range)")
-            if not finite:
-                end = math.inf
-                sign_end = float(np.sign(pos[np.isfinite(pos)][-1])) if np.isfinite(pos).any() else 0.0
-            else:
-                end = abs(float(pos[-1]))
-                sign_end = float(np.sign(pos[-1]))
-            if integrating and horizon >= 4:
-                h = growth_horizon(pos, out_range) if finite else horizon
-                g_end = abs(float(pos[h - 1])) if finite else end
-                mid = abs(float(pos[h // 2]))
-                need = limits.growth if expect == "integrating" else limits.growth_double
-                if not (g_end >= need * mid) or g_end == 0:
-                    flag("not-growing", f"expect={expect!r} but the step response on {label} is not growing "
-                                        f"(|s({h})| = {g_end:.3g}, |s({h // 2})| = {mid:.3g}, need x{need:g})")
-                if finite and peak > 0:
-                    big = np.flatnonzero(np.abs(pos) >= limits.sign_tolerance * peak)
-                    if big.size:
-                        first_sign = np.sign(pos[big[0]])
-                        after = pos[big[0]:]
-                        if np.any(first_sign * after < -limits.sign_tolerance * peak):
-                            flag("sign-change", f"the step response on {label} changes sign, which "
-                                                f"{'an' if expect == 'integrating' else 'a'} {expect} plant rules out")
-            if limits.sign is not None and sign_end != 0 and sign_end != np.sign(limits.sign):
-                flag("wrong-sign", f"a positive step on {label} ends {'negative' if sign_end < 0 else 'positive'}, "
-                                   f"the expected sign is {'+' if limits.sign > 0 else '-'}")
+            peak, flags = _input_flags(pos, neg, label, out_range=out_range, expect=expect, limits=limits)
+            peak_all = max(peak_all, peak)
+            for code, why in flags:
+                found.setdefault(code, why)
     if expect == "stable" and poles.size and np.max(np.abs(poles)) >= 1.0:
-        flag("unstable", f"expect='stable' but the largest pole magnitude is {np.max(np.abs(poles)):.4f} (>= 1)")
-    return StepSanity(structure, tuple(flags), tuple(reasons), peak_all, float(out_range),
-                      tuple(float(a) for a in amplitudes), int(horizon), expect)
+        found.setdefault(
+            "unstable", f"expect='stable' but the largest pole magnitude is {np.max(np.abs(poles)):.4f} (>= 1)"
+        )
+    return StepSanity(
+        structure,
+        tuple(found),
+        tuple(found.values()),
+        peak_all,
+        float(out_range),
+        tuple(float(a) for a in amplitudes),
+        int(horizon),
+        expect,
+    )
 
 
-def step_sanity(model, data: IOData, expect: str | None = None, limits: SanityLimits | None = None,
-                horizon: int | None = None) -> StepSanity:
+def _input_flags(
+    pos: np.ndarray, neg: np.ndarray, label: str, *, out_range: float, expect: str | None, limits: SanityLimits
+) -> tuple[float, list[tuple[str, str]]]:
+    """Peak |response| to the positive step on one input (inf if it overflowed) and the
+    ``(flag, reason)`` pairs of that input, in check order."""
+    integrating = expect in ("integrating", "double-integrating")
+    flags: list[tuple[str, str]] = []
+    finite = np.isfinite(pos).all() and np.isfinite(neg).all()
+    peak = float(np.max(np.abs(pos))) if finite else math.inf
+    if finite and peak > 0:
+        mismatch = float(np.max(np.abs(pos + neg))) / peak
+        if mismatch > limits.antisymmetry:
+            flags.append(
+                (
+                    "not-antisymmetric",
+                    f"the responses to +/- steps on {label} differ by {100 * mismatch:.0f}% of the "
+                    f"peak (limit {100 * limits.antisymmetry:.0f}%): offset or nonlinearity",
+                )
+            )
+    if out_range > 0:
+        if peak < limits.small * out_range:
+            flags.append(
+                (
+                    "too-small",
+                    f"step amplitude {peak:.3g} on {label} is implausibly small against the measured "
+                    f"output range {out_range:.3g} (limit {limits.small:g} x range)",
+                )
+            )
+        if not integrating and peak > limits.large * out_range:
+            flags.append(
+                (
+                    "too-large",
+                    f"step amplitude {peak:.3g} on {label} is implausibly large against the measured "
+                    f"output range {out_range:.3g} (limit {limits.large:g} x range)",
+                )
+            )
+    if not finite:
+        end = math.inf
+        sign_end = float(np.sign(pos[np.isfinite(pos)][-1])) if np.isfinite(pos).any() else 0.0
+    else:
+        end = abs(float(pos[-1]))
+        sign_end = float(np.sign(pos[-1]))
+    if integrating and len(pos) >= 4:
+        flags += _growth_flags(
+            pos, label, finite=finite, peak=peak, end=end, out_range=out_range, expect=expect, limits=limits
+        )
+    if limits.sign is not None and sign_end != 0 and sign_end != np.sign(limits.sign):
+        flags.append(
+            (
+                "wrong-sign",
+                f"a positive step on {label} ends {'negative' if sign_end < 0 else 'positive'}, "
+                f"the expected sign is {'+' if limits.sign > 0 else '-'}",
+            )
+        )
+    return peak, flags
+
+
+def _growth_flags(
+    pos: np.ndarray,
+    label: str,
+    *,
+    finite: bool,
+    peak: float,
+    end: float,
+    out_range: float,
+    expect: str | None,
+    limits: SanityLimits,
+) -> list[tuple[str, str]]:
+    """``not-growing`` and ``sign-change`` of an integrating plant's response to a positive step."""
+    flags: list[tuple[str, str]] = []
+    h = growth_horizon(pos, out_range) if finite else len(pos)
+    g_end = abs(float(pos[h - 1])) if finite else end
+    mid = abs(float(pos[h // 2]))
+    need = limits.growth if expect == "integrating" else limits.growth_double
+    if not (g_end >= need * mid) or g_end == 0:
+        flags.append(
+            (
+                "not-growing",
+                f"expect={expect!r} but the step response on {label} is not growing "
+                f"(|s({h})| = {g_end:.3g}, |s({h // 2})| = {mid:.3g}, need x{need:g})",
+            )
+        )
+    if finite and peak > 0:
+        big = np.flatnonzero(np.abs(pos) >= limits.sign_tolerance * peak)
+        if big.size:
+            first_sign = np.sign(pos[big[0]])
+            after = pos[big[0] :]
+            if np.any(first_sign * after < -limits.sign_tolerance * peak):
+                flags.append(
+                    (
+                        "sign-change",
+                        f"the step response on {label} changes sign, which "
+                        f"{'an' if expect == 'integrating' else 'a'} {expect} plant rules out",
+                    )
+                )
+    return flags
+
+
+def step_sanity(
+    model, data: IOData, expect: str | None = None, limits: SanityLimits | None = None, horizon: int | None = None
+) -> StepSanity:
     """Step sanity checks of a fitted :class:`~arxid.ArxModel` against measured ``data``.
 
     Parameters
@@ -257,12 +403,20 @@ def step_sanity(model, data: IOData, expect: str | None = None, limits: SanityLi
     pos, neg = [], []
     m = data.n_inputs
     for i in range(m):
-        if model.nb[i] == 0:
+        if model.nb_[i] == 0:
             continue
         u = np.zeros((horizon, m))
         u[:, i] = amps[i]
         with np.errstate(all="ignore"):
             pos.append(model.simulate(u, extra=extra))
             neg.append(model.simulate(-u, extra=extra))
-    return check_responses(model.structure_name(), pos, neg, model.poles(), out_range=output_range(data),
-                           amplitudes=amps, expect=expect, limits=limits)
+    return check_responses(
+        model.structure_name(),
+        pos,
+        neg,
+        model.poles(),
+        out_range=output_range(data),
+        amplitudes=amps,
+        expect=expect,
+        limits=limits,
+    )

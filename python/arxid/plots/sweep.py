@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 __all__ = ["plot_sweep"]
 
 
-def plot_sweep(result, nb_input: int = 0):
+def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any:
     """Heat map of the validation error of every structure over (na, nk), one panel per nb.
 
     Parameters
@@ -16,17 +18,19 @@ def plot_sweep(result, nb_input: int = 0):
     nb_input : int
         For several inputs: whose nb and nk span the panels and the columns; each cell shows the
         best structure over the other inputs' orders.
+    chosen : int, optional
+        Rank of the chosen structure, marked with a star.
 
     Returns
     -------
     matplotlib.figure.Figure
-        Diverged or unfitted cells are grey; the best cell of each panel is marked.
+        Diverged or unfitted cells are grey; the chosen structure is marked.
     """
     try:
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover
         raise ImportError("plot needs matplotlib: pip install 'arxid[plot]'") from None
-    score = result._score().astype(float)
+    score = result.ranking_score().astype(float)
     score = np.where(result.diverged_val | result.diverged_est, np.nan, score)
     nas = np.unique(result.na)
     nbs = np.unique(result.nb[:, nb_input])
@@ -57,9 +61,12 @@ def plot_sweep(result, nb_input: int = 0):
         g = np.ma.masked_invalid(grids[b])
         image = ax.imshow(g, origin="lower", aspect="auto", cmap=cmap, norm=norm,
                           extent=(nks[0] - 0.5, nks[-1] + 0.5, nas[0] - 0.5, nas[-1] + 0.5))
-        if np.isfinite(grids[b]).any():
-            r, c = np.unravel_index(np.nanargmin(grids[b]), grids[b].shape)
-            ax.plot(nks[c], nas[r], marker="*", color="red", markersize=10)
+        if chosen is not None and int(result.nb[chosen, nb_input]) == b:
+            ax.plot(int(result.nk[chosen, nb_input]), int(result.na[chosen]), marker="*", color="red", markersize=12,
+                    ls="none", label=f"chosen: {result.structure_name(chosen)}")
+            ax.legend(fontsize=7, loc="upper right")
+        ax.set_xticks(nks)
+        ax.set_yticks(nas)
         ax.set_title(f"nb = {b}")
         ax.set_xlabel("nk")
         ax.set_ylabel("na")

@@ -7,8 +7,8 @@ combinations of squared speeds that drive each axis, so that each axis becomes a
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -93,6 +93,8 @@ class Mixer:
 
     @property
     def n_motors(self) -> int:
+        """Number of motors."""
+        assert self.positions is not None  # set by __post_init__
         return len(self.positions)
 
     @property
@@ -140,8 +142,9 @@ class Mixer:
             raise DataError(f"channels have shape {c.shape}; expected (n_samples, 4)")
         return c @ np.linalg.pinv(self.matrix).T
 
-    def apply(self, data: IOData, speeds: Sequence[str] = ("w1", "w2", "w3", "w4"),
-              channels: Sequence[str] = CHANNELS) -> IOData:
+    def apply(
+        self, data: IOData, speeds: Sequence[str] = ("w1", "w2", "w3", "w4"), channels: Sequence[str] = CHANNELS
+    ) -> IOData:
         """Replace the inputs of ``data`` by mixer channels computed from its logged motor speeds.
 
         Parameters
@@ -179,11 +182,18 @@ class Mixer:
                 extra[f"{name}_logged"] = data.extra[name]
         speed_unit = data.unit(speeds[0])
         unit = f"({speed_unit})^2" if speed_unit else ""
-        return IOData(data.y, mixed[:, cols], data.ts, output_name=data.output_name,
-                      input_names=tuple(channels), output_unit=data.output_unit,
-                      input_units=(unit,) * len(cols), extra=extra,
-                      extra_units={n: data.unit(n[:-7] if n.endswith("_logged") else n) for n in extra},
-                      experiment_starts=data.experiment_starts)
+        return IOData(
+            data.y,
+            mixed[:, cols],
+            data.ts,
+            output_name=data.output_name,
+            input_names=tuple(channels),
+            output_unit=data.output_unit,
+            input_units=(unit,) * len(cols),
+            extra=extra,
+            extra_units={n: data.unit(n[:-7] if n.endswith("_logged") else n) for n in extra},
+            experiment_starts=data.experiment_starts,
+        )
 
 
 def mix(speeds, frame: str = "plus", **kwargs):

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _metrics as metrics
 from ..data import IOData
 from ..exceptions import DataError, IdentifiabilityError
 
@@ -18,11 +19,25 @@ __all__ = ["MotorModel", "MotorFit", "identify_motor", "speeds_from_pwm", "fit_p
 
 
 def fit_percent(measured, simulated) -> float:
-    """NRMSE fit in percent, as MATLAB ``compare`` and seed 003 report it:
-    ``100 * (1 - ||y - yhat|| / ||y - mean(y)||)``."""
-    y = np.asarray(measured, dtype=float)
-    e = y - np.asarray(simulated, dtype=float)
-    return float(100.0 * (1.0 - np.linalg.norm(e) / np.linalg.norm(y - y.mean())))
+    """NRMSE fit in percent, as MATLAB ``compare`` and seed 003 report it.
+
+    ``100 * (1 - ||y - yhat|| / ||y - mean(y)||)`` over the samples where both exist (NaN marks a
+    missing sample): :func:`arxid._metrics.fit_percent`, the definition every arxid report uses.
+
+    Parameters
+    ----------
+    measured : array_like of shape (n_samples,)
+        Measured signal ``y``.
+    simulated : array_like of shape (n_samples,)
+        Simulated or predicted signal ``yhat``.
+
+    Returns
+    -------
+    float
+        Fit in percent (100: perfect); ``-inf`` when the simulation diverged, NaN when no sample
+        has both values or ``y`` is constant there.
+    """
+    return metrics.fit_percent(measured, simulated)
 
 
 def _step(w: np.ndarray, v: np.ndarray, a0: float, a1: float, a2: float, ts: float) -> np.ndarray:
@@ -70,14 +85,38 @@ class MotorModel:
     a2: float
 
     def steady_speed(self, voltage):
-        """Equilibrium speed for a constant armature voltage, array_like -> same shape."""
+        """Equilibrium speed for a constant armature voltage.
+
+        Parameters
+        ----------
+        voltage : array_like
+            Armature voltage ``V = vbat * duty`` [V].
+
+        Returns
+        -------
+        ndarray, same shape as ``voltage``
+            Speed at which ``dw/dt = 0``.
+        """
         v = np.asarray(voltage, dtype=float)
         if self.a2 <= 1e-15:
             return self.a0 * v / self.a1
         return (-self.a1 + np.sqrt(self.a1**2 + 4 * self.a0 * self.a2 * np.maximum(v, 0))) / (2 * self.a2)
 
     def duty_for_speed(self, speed, vbat):
-        """Duty that holds ``speed`` in steady state at battery voltage ``vbat`` (clipped to [0, 1])."""
+        """Duty that holds ``speed`` in steady state at battery voltage ``vbat``.
+
+        Parameters
+        ----------
+        speed : array_like
+            Motor speed.
+        vbat : array_like
+            Battery voltage [V] (broadcast against ``speed``).
+
+        Returns
+        -------
+        ndarray
+            Duty, clipped to [0, 1].
+        """
         w = np.asarray(speed, dtype=float)
         return np.clip((self.a1 * w + self.a2 * w * w) / (self.a0 * np.asarray(vbat, dtype=float)), 0.0, 1.0)
 
@@ -157,20 +196,25 @@ class MotorFit:
 
     @property
     def a0(self) -> float:
+        """``a0`` of :attr:`model`."""
         return self.model.a0
 
     @property
     def a1(self) -> float:
+        """``a1`` of :attr:`model`."""
         return self.model.a1
 
     @property
     def a2(self) -> float:
+        """``a2`` of :attr:`model`."""
         return self.model.a2
 
     def __str__(self) -> str:
-        return (f"motor model  {self.model}\n"
-                f"  free-run fit {self.fit_percent:.2f} %  (rms {self.rms:.4g}), {self.n_samples} samples\n"
-                f"  regression   {self.regression}  (fit {self.regression_fit_percent:.2f} %)")
+        return (
+            f"motor model  {self.model}\n"
+            f"  free-run fit {self.fit_percent:.2f} %  (rms {self.rms:.4g}), {self.n_samples} samples\n"
+            f"  regression   {self.regression}  (fit {self.regression_fit_percent:.2f} %)"
+        )
 
 
 def _check(duty, vbat, speed):
@@ -178,15 +222,19 @@ def _check(duty, vbat, speed):
     vb = np.asarray(vbat, dtype=float).reshape(-1)
     w = np.asarray(speed, dtype=float).reshape(-1)
     if not (d.shape == vb.shape == w.shape):
-        raise DataError(f"duty, vbat and speed must have the same length, got {d.shape[0]}, {vb.shape[0]}, {w.shape[0]}")
+        raise DataError(
+            f"duty, vbat and speed must have the same length, got {d.shape[0]}, {vb.shape[0]}, {w.shape[0]}"
+        )
     if d.shape[0] < 20:
         raise DataError(f"only {d.shape[0]} samples; the motor model needs at least 20 (a few time constants)")
     for name, a in (("duty", d), ("vbat", vb), ("speed", w)):
         if not np.all(np.isfinite(a)):
             raise DataError(f"{name} holds NaN or inf; remove those samples first")
     if d.min() < 0 or d.max() > 1.0 + 1e-9:
-        raise DataError(f"duty spans [{d.min():g}, {d.max():g}] but must lie in [0, 1]; "
-                        "pass duty = pwm / 65535 (or your PWM's full scale)")
+        raise DataError(
+            f"duty spans [{d.min():g}, {d.max():g}] but must lie in [0, 1]; "
+            "pass duty = pwm / 65535 (or your PWM's full scale)"
+        )
     return d, vb, w
 
 
@@ -227,9 +275,11 @@ def identify_motor(duty, vbat, speed, ts: float, refine: bool = True) -> MotorFi
     phi = np.column_stack([v[:-1], -(w[1:] + w[:-1]) / 2, -(w[1:] ** 2 + w[:-1] ** 2) / 2])
     scale = np.abs(phi).max(axis=0)
     if np.any(scale == 0) or np.linalg.matrix_rank(phi / scale) < 3:
-        raise IdentifiabilityError("the data do not excite the motor: duty or speed is constant; "
-                                   "log throttle steps or ramps that span the operating range",
-                                   regressors=("V", "w", "w^2"))
+        raise IdentifiabilityError(
+            "the data do not excite the motor: duty or speed is constant; "
+            "log throttle steps or ramps that span the operating range",
+            regressors=("V", "w", "w^2"),
+        )
     theta = np.linalg.lstsq(phi / scale, dw, rcond=None)[0] / scale
     regression = MotorModel(*(float(t) for t in theta))
     sim0 = regression.simulate(d, vb, ts, w0=w[0])
@@ -244,17 +294,36 @@ def identify_motor(duty, vbat, speed, ts: float, refine: bool = True) -> MotorFi
             r = sim - w
             return np.where(np.isfinite(r), r, 1e6)
 
-        sol = least_squares(residual, x0, bounds=([0.0, 0.0, 0.0], [np.inf, np.inf, np.inf]),
-                            x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
+        sol = least_squares(
+            residual,
+            x0,
+            bounds=([0.0, 0.0, 0.0], [np.inf, np.inf, np.inf]),
+            x_scale=1.0,
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+            max_nfev=200,
+        )
         model = MotorModel(*(float(t) for t in sol.x * ref))
     sim = model.simulate(d, vb, ts, w0=w[0])
-    return MotorFit(model=model, regression=regression, fit_percent=fit_percent(w, sim),
-                    rms=float(np.sqrt(np.mean((w - sim) ** 2))), regression_fit_percent=float(fit0),
-                    n_samples=int(w.shape[0]))
+    return MotorFit(
+        model=model,
+        regression=regression,
+        fit_percent=fit_percent(w, sim),
+        rms=metrics.prediction_rms(w, sim),
+        regression_fit_percent=float(fit0),
+        n_samples=int(w.shape[0]),
+    )
 
 
-def speeds_from_pwm(data: IOData, model: MotorModel, duty=("d1", "d2", "d3", "d4"), vbat: str = "vbat",
-                    names=("w1", "w2", "w3", "w4"), pwm_full_scale: float = 1.0) -> IOData:
+def speeds_from_pwm(
+    data: IOData,
+    model: MotorModel,
+    duty=("d1", "d2", "d3", "d4"),
+    vbat: str = "vbat",
+    names=("w1", "w2", "w3", "w4"),
+    pwm_full_scale: float = 1.0,
+) -> IOData:
     """Add simulated motor speeds to logged flight data that have PWM and battery voltage only.
 
     Parameters
@@ -281,10 +350,12 @@ def speeds_from_pwm(data: IOData, model: MotorModel, duty=("d1", "d2", "d3", "d4
         raise DataError(f"{len(duty)} duty signals but {len(names)} speed names")
     dmat = np.column_stack([data.signal(n) for n in duty]) / float(pwm_full_scale)
     if dmat.min() < 0 or dmat.max() > 1.0 + 1e-9:
-        raise DataError(f"duty spans [{dmat.min():g}, {dmat.max():g}]; set pwm_full_scale "
-                        "(65535 for Crazyflie PWM) so that duty lies in [0, 1]")
+        raise DataError(
+            f"duty spans [{dmat.min():g}, {dmat.max():g}]; set pwm_full_scale "
+            "(65535 for Crazyflie PWM) so that duty lies in [0, 1]"
+        )
     w = np.empty_like(dmat)
-    for a, b in [(s, e) for s, e in zip(data.experiment_starts, data.experiment_starts[1:] + (data.n_samples,))]:
+    for a, b in data.segments:
         w[a:b] = model.simulate(dmat[a:b], data.signal(vbat)[a:b], data.ts)
     extra = {**data.extra, **{n: w[:, i] for i, n in enumerate(names)}}
     return data.with_signals(extra=extra)

@@ -9,10 +9,12 @@ reaches this least-squares estimate, which QR gives directly.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _metrics as metrics
 from ..exceptions import DataError, IdentifiabilityError
 
 __all__ = ["LeastSquaresEstimate", "structured_lstsq", "thrust_torque_coefficients", "inertia_from_rotation"]
@@ -43,15 +45,34 @@ class LeastSquaresEstimate:
         return float(self.values[self.names.index(name)])
 
     def relative_error(self, truth: dict) -> dict:
-        """``{name: (estimate - truth) / truth}`` for the names in ``truth``."""
+        """Relative error of the estimates against known values.
+
+        Parameters
+        ----------
+        truth : dict of str to float
+            True value of some parameters, by name.
+
+        Returns
+        -------
+        dict of str to float
+            ``{name: (estimate - truth) / truth}`` for the names in ``truth``.
+        """
         return {k: (self[k] - v) / v for k, v in truth.items()}
 
     def to_dict(self) -> dict:
-        return {n: float(v) for n, v in zip(self.names, self.values)}
+        """The estimates by name.
+
+        Returns
+        -------
+        dict of str to float
+        """
+        return {n: float(v) for n, v in zip(self.names, self.values, strict=True)}
 
     def __str__(self) -> str:
-        rows = [f"  {n:<8s} {v: .6g}  +- {s:.2g}  ({100 * s / abs(v) if v else np.inf:.2f} %)"
-                for n, v, s in zip(self.names, self.values, self.stderr)]
+        rows = [
+            f"  {n:<8s} {v: .6g}  +- {s:.2g}  ({100 * s / abs(v) if v else np.inf:.2f} %)"
+            for n, v, s in zip(self.names, self.values, self.stderr, strict=True)
+        ]
         return "\n".join(rows + [f"  residual rms {self.rms:.4g}, {self.n_samples} rows"])
 
 
@@ -80,19 +101,27 @@ def structured_lstsq(phi, y, names) -> LeastSquaresEstimate:
         raise DataError(f"{n} usable rows for {p} parameters; log more samples")
     scale = np.linalg.norm(phi, axis=0)
     if np.any(scale == 0):
-        raise IdentifiabilityError(f"regressor {names[int(np.argmin(scale))]} is zero in every row; "
-                                   "the data do not excite it", regressors=tuple(names))
+        raise IdentifiabilityError(
+            f"regressor {names[int(np.argmin(scale))]} is zero in every row; the data do not excite it",
+            regressors=tuple(names),
+        )
     q, r = np.linalg.qr(phi / scale)
     if np.abs(np.diag(r)).min() < 1e-10 * np.abs(np.diag(r)).max():
-        raise IdentifiabilityError("the regressors are collinear; excite the axes independently",
-                                   regressors=tuple(names))
+        raise IdentifiabilityError(
+            "the regressors are collinear; excite the axes independently", regressors=tuple(names)
+        )
     theta = np.linalg.solve(r, q.T @ y)
     e = y - (phi / scale) @ theta
     sigma2 = e @ e / (n - p)
     rinv = np.linalg.inv(r)
     cov = sigma2 * rinv @ rinv.T
-    return LeastSquaresEstimate(names=tuple(names), values=theta / scale,
-                                stderr=np.sqrt(np.diag(cov)) / scale, rms=float(np.sqrt(e @ e / n)), n_samples=n)
+    return LeastSquaresEstimate(
+        names=tuple(names),
+        values=theta / scale,
+        stderr=np.sqrt(np.diag(cov)) / scale,
+        rms=metrics.rms(e),
+        n_samples=n,
+    )
 
 
 def thrust_torque_coefficients(speed, thrust, torque=None) -> tuple:
@@ -120,8 +149,16 @@ def thrust_torque_coefficients(speed, thrust, torque=None) -> tuple:
     return k, b
 
 
-def inertia_from_rotation(rates, accelerations=None, torques=None, rotor_speed_sum=None, *, ts: float | None = None,
-                          smoothing: int | None = None, delay: int = 0) -> LeastSquaresEstimate:
+def inertia_from_rotation(
+    rates,
+    accelerations=None,
+    torques=None,
+    rotor_speed_sum=None,
+    *,
+    ts: float | None = None,
+    smoothing: int | None = None,
+    delay: int = 0,
+) -> LeastSquaresEstimate:
     """Principal inertias from Newton-Euler rotational data (seed 004 eqs. 13-17).
 
     Parameters
@@ -165,12 +202,31 @@ def inertia_from_rotation(rates, accelerations=None, torques=None, rotor_speed_s
     Solving the axes together uses the gyroscopic coupling as information, as seed 002's sparse
     network does.
     """
+    om, acc_in, tau, W = _rotation_data(rates, accelerations, torques, rotor_speed_sum, ts, int(delay))
+    smooth = _smoother(smoothing, om.shape[0])
+    if acc_in is not None:
+        acc = smooth(acc_in)
+    else:
+        # derivative of the smoothed rates = smoothed derivative (the filter commutes with d/dt),
+        # so both sides of the relation see the same filter
+        acc = np.gradient(smooth(om), float(ts or 0.0), axis=0)
+    phi, names = _newton_euler_regressors(om, acc, W, smooth)
+    tau = smooth(tau)
+    return structured_lstsq(phi, np.concatenate([tau[:, 0], tau[:, 1], tau[:, 2]]), names)
+
+
+def _rotation_data(
+    rates, accelerations, torques, rotor_speed_sum, ts: float | None, delay: int
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
+    """Checked rates, accelerations (None: to differentiate), torques and rotor speed sum, the rates
+    and accelerations shifted back by ``delay`` samples onto the torques."""
     om = np.asarray(rates, dtype=float)
-    tau = np.asarray(torques, dtype=float) if torques is not None else None
-    if tau is None:
+    if torques is None:
         raise DataError("torques are required: shape (n_samples, 3), e.g. k l (w4^2 - w2^2) from the motor speeds")
+    tau = np.asarray(torques, dtype=float)
     if om.ndim != 2 or om.shape[1] != 3 or om.shape != tau.shape:
         raise DataError(f"rates and torques must both have shape (n_samples, 3), got {om.shape}, {tau.shape}")
+    acc_in = None
     if accelerations is None:
         if not ts or ts <= 0:
             raise DataError("give accelerations, or ts (the sampling time) to differentiate the rates")
@@ -179,7 +235,6 @@ def inertia_from_rotation(rates, accelerations=None, torques=None, rotor_speed_s
         if acc_in.shape != om.shape:
             raise DataError(f"accelerations must have the rates' shape {om.shape}, got {acc_in.shape}")
     W = None if rotor_speed_sum is None else np.asarray(rotor_speed_sum, dtype=float).reshape(-1)
-    delay = int(delay)
     if delay < 0 or delay >= om.shape[0] - 3:
         raise DataError(f"delay must be between 0 and the record length, got {delay}")
     if delay:
@@ -187,29 +242,39 @@ def inertia_from_rotation(rates, accelerations=None, torques=None, rotor_speed_s
         om = om[delay:]
         tau = tau[: tau.shape[0] - delay]
         W = None if W is None else W[: W.size - delay]
-        if accelerations is not None:
-            acc_in = acc_in[delay:]
-    if smoothing is not None:
-        from scipy.signal import savgol_filter
+        acc_in = None if acc_in is None else acc_in[delay:]
+    return om, acc_in, tau, W
 
-        win = int(smoothing) | 1
-        if win < 5 or win >= om.shape[0]:
-            raise DataError(f"smoothing must be an odd window of at least 5 samples and shorter than the record, got {smoothing}")
 
-        def smooth(x):
-            return savgol_filter(x, win, 2, axis=0, mode="interp")
+def _smoother(smoothing: int | None, n: int) -> Callable[[np.ndarray], np.ndarray]:
+    """The quadratic Savitzky-Golay filter of ``smoothing`` samples along axis 0 (identity for None),
+    checked against a record of ``n`` samples."""
+    if smoothing is None:
+        return _identity
+    from scipy.signal import savgol_filter
 
-        # derivative of the smoothed rates = smoothed derivative (the filter commutes with d/dt),
-        # so both sides of the relation see the same filter
-        acc = np.gradient(smooth(om), float(ts), axis=0) if accelerations is None else smooth(acc_in)
-    else:
-        def smooth(x):
-            return x
+    win = int(smoothing) | 1
+    if win < 5 or win >= n:
+        raise DataError(
+            f"smoothing must be an odd window of at least 5 samples and shorter than the record, got {smoothing}"
+        )
 
-        acc = np.gradient(om, float(ts), axis=0) if accelerations is None else acc_in
+    def smooth(x: np.ndarray) -> np.ndarray:
+        return savgol_filter(x, win, 2, axis=0, mode="interp")
+
+    return smooth
+
+
+def _identity(x: np.ndarray) -> np.ndarray:
+    return x
+
+
+def _newton_euler_regressors(
+    om: np.ndarray, acc: np.ndarray, W: np.ndarray | None, smooth: Callable[[np.ndarray], np.ndarray]
+) -> tuple[np.ndarray, list[str]]:
+    """Regressors of the three stacked axes (x rows, then y, then z) and the parameter names."""
     p, q, r = om.T
     pd, qd, rd = acc.T
-    z = np.zeros_like(p)
     rows_x = [pd, smooth(-q * r), smooth(q * r)]
     rows_y = [smooth(p * r), qd, smooth(-p * r)]
     rows_z = [smooth(-p * q), smooth(p * q), rd]
@@ -217,8 +282,6 @@ def inertia_from_rotation(rates, accelerations=None, torques=None, rotor_speed_s
     if W is not None:
         rows_x.append(smooth(q * W))
         rows_y.append(smooth(-p * W))
-        rows_z.append(z)
+        rows_z.append(np.zeros_like(p))
         names.append("Ir")
-    tau = smooth(tau)
-    phi = np.vstack([np.column_stack(rows_x), np.column_stack(rows_y), np.column_stack(rows_z)])
-    return structured_lstsq(phi, np.concatenate([tau[:, 0], tau[:, 1], tau[:, 2]]), names)
+    return np.vstack([np.column_stack(rows_x), np.column_stack(rows_y), np.column_stack(rows_z)]), names

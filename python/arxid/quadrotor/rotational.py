@@ -15,15 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _metrics as metrics
 from ..data import IOData
 from ..exceptions import DataError, IdentifiabilityError
 
 __all__ = ["RotationalModel", "RotationalFit", "identify_rotational"]
-
-
-def _segments(data: IOData):
-    starts = list(data.experiment_starts) + [data.n_samples]
-    return list(zip(starts[:-1], starts[1:]))
 
 
 def _windows(y, u, delay, window, ts):
@@ -85,13 +81,26 @@ class RotationalModel:
         return self.gain * self.ts**2
 
     def predict(self, data: IOData, window: int = 100) -> np.ndarray:
-        """Response over windows of ``window`` samples, each from its own least-squares initial
-        angle and rate (MATLAB ``compare`` with estimated initial conditions); shape
-        (n_samples,), NaN at samples no window covers. The double integrator drifts in free run,
-        so whole-record simulation is meaningless on closed-loop data."""
+        """Response over windows, each from its own least-squares initial angle and rate.
+
+        MATLAB ``compare`` with estimated initial conditions. The double integrator drifts in free
+        run, so whole-record simulation is meaningless on closed-loop data.
+
+        Parameters
+        ----------
+        data : IOData
+            Output the angle, first input the pseudo-torque.
+        window : int
+            Window length in samples.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The predicted angle, NaN at samples no window covers.
+        """
         out = np.full(data.n_samples, np.nan)
         u = data.u[:, 0]
-        for a, b in _segments(data):
+        for a, b in data.segments:
             yw, sw, idx = _windows(data.y[a:b], u[a:b], self.delay, window, self.ts)
             if idx.size:
                 resid = _project(yw - self.gain * sw - self.offset * _const(window, self.ts), window)
@@ -99,33 +108,62 @@ class RotationalModel:
         return out
 
     def simulate(self, u, y0: float = 0.0, rate0: float = 0.0) -> np.ndarray:
-        """Free-run response, shape (n_samples,), to input ``u`` of shape (n_samples,), from angle
-        ``y0`` and rate ``rate0`` (input before the start taken as zero)."""
+        """Free-run response to an input (the input before the start taken as zero).
+
+        Parameters
+        ----------
+        u : array_like of shape (n_samples,)
+            Input (pseudo-torque).
+        y0 : float
+            Initial angle [rad].
+        rate0 : float
+            Initial rate [rad/s].
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+        """
         u = np.asarray(u, dtype=float)
         g = np.zeros(u.size)
         if self.delay < u.size:
-            g[self.delay:] = self.gain * self.ts**2 * u[: u.size - self.delay]
+            g[self.delay :] = self.gain * self.ts**2 * u[: u.size - self.delay]
         g += self.offset * self.ts**2
         g[0] = 0.0
         inc = rate0 * self.ts + np.cumsum(g)  # y[t] - y[t-1]
         inc[0] = 0.0
         return y0 + np.cumsum(inc)
 
-    def evaluate(self, data: IOData, window: int = 100) -> "RotationalScore":
-        """RMS and fit percent of :meth:`predict` on ``data`` (e.g. pitch data for a roll model:
-        the symmetry check of seeds 003 and 004)."""
+    def evaluate(self, data: IOData, window: int = 100) -> RotationalScore:
+        """RMS and fit percent of :meth:`predict` on ``data``.
+
+        For example pitch data for a roll model: the symmetry check of seeds 003 and 004.
+
+        Parameters
+        ----------
+        data : IOData
+            Output the angle, first input the pseudo-torque.
+        window : int
+            Window length in samples.
+
+        Returns
+        -------
+        RotationalScore
+            Over the samples that a window covers.
+        """
         yhat = self.predict(data, window)
-        ok = np.isfinite(yhat) & np.isfinite(data.y)
-        y = data.y[ok]
-        e = y - yhat[ok]
-        fit = 100.0 * (1.0 - np.linalg.norm(e) / np.linalg.norm(y - y.mean()))
-        return RotationalScore(rms=float(np.sqrt(np.mean(e**2))), fit_percent=float(fit),
-                               window=int(window), n_samples=int(ok.sum()))
+        return RotationalScore(
+            rms=metrics.prediction_rms(data.y, yhat),
+            fit_percent=metrics.fit_percent(data.y, yhat),
+            window=int(window),
+            n_samples=int((np.isfinite(yhat) & np.isfinite(data.y)).sum()),
+        )
 
     def __str__(self) -> str:
         off = f" + {self.offset:.4g}" if self.offset else ""
-        return (f"y'' = {self.gain:.6g} * u(t - {self.delay} samples){off}   "
-                f"[ARX(2,1,{self.delay}): b = {self.b:.4g}, A = 1 - 2 z^-1 + z^-2]")
+        return (
+            f"y'' = {self.gain:.6g} * u(t - {self.delay} samples){off}   "
+            f"[ARX(2,1,{self.delay}): b = {self.b:.4g}, A = 1 - 2 z^-1 + z^-2]"
+        )
 
 
 @dataclass(frozen=True)
@@ -138,7 +176,9 @@ class RotationalScore:
     n_samples: int
 
     def __str__(self) -> str:
-        return f"{self.window}-sample window rms {self.rms:.4g}, fit {self.fit_percent:.2f} % ({self.n_samples} samples)"
+        return (
+            f"{self.window}-sample window rms {self.rms:.4g}, fit {self.fit_percent:.2f} % ({self.n_samples} samples)"
+        )
 
 
 @dataclass(frozen=True)
@@ -165,15 +205,18 @@ class RotationalFit:
     losses: tuple
 
     def __str__(self) -> str:
-        rows = "\n".join(f"    {d:3d}  {l:.4g}{'  <' if d == self.model.delay else ''}"
-                         for d, l in zip(self.delays, self.losses))
-        return (f"rotational model  {self.model}\n"
-                f"  gain {self.model.gain:.6g} +- {self.gain_stderr:.2g}, {self.score}\n"
-                f"  delay  mean squared error ({self.score.window}-sample windows)\n{rows}")
+        rows = "\n".join(
+            f"    {d:3d}  {loss:.4g}{'  <' if d == self.model.delay else ''}"
+            for d, loss in zip(self.delays, self.losses, strict=True)
+        )
+        return (
+            f"rotational model  {self.model}\n"
+            f"  gain {self.model.gain:.6g} +- {self.gain_stderr:.2g}, {self.score}\n"
+            f"  delay  mean squared error ({self.score.window}-sample windows)\n{rows}"
+        )
 
 
-def identify_rotational(data: IOData, delays=range(0, 16), window: int = 100,
-                        offset: bool = False) -> RotationalFit:
+def identify_rotational(data: IOData, delays=range(0, 16), window: int = 100, offset: bool = False) -> RotationalFit:
     """Identify gain and delay of ``y'' = c u(t - delay)`` by prediction-error minimisation.
 
     Parameters
@@ -213,33 +256,45 @@ def identify_rotational(data: IOData, delays=range(0, 16), window: int = 100,
         raise DataError(f"window must be at least 3 samples, got {window}")
     u = data.u[:, 0]
     if np.nanstd(u) == 0:
-        raise IdentifiabilityError("the pseudo-torque is constant; the gain cannot be identified",
-                                   regressors=(data.input_names[0],))
+        raise IdentifiabilityError(
+            "the pseudo-torque is constant; the gain cannot be identified", regressors=(data.input_names[0],)
+        )
     losses, fits = [], []
     for d in delays:
-        ys, ss = [], []
-        for a, b in _segments(data):
-            yw, sw, _ = _windows(data.y[a:b], u[a:b], d, window, data.ts)
-            ys.append(yw), ss.append(sw)
-        yw, sw = np.concatenate(ys), np.concatenate(ss)
-        ok = np.all(np.isfinite(yw), axis=1) & np.all(np.isfinite(sw), axis=1)
-        if ok.sum() < 2:
-            raise DataError(f"fewer than 2 complete windows of {window} samples for delay {d}; "
-                            "log longer or use a shorter window")
-        py = _project(yw[ok], window).ravel()
-        cols = [_project(sw[ok], window).ravel()]
-        if offset:
-            cols.append(np.tile(_project(_const(window, data.ts)[None, :], window)[0], int(ok.sum())))
-        phi = np.column_stack(cols)
-        q, r = np.linalg.qr(phi)
-        theta = np.linalg.solve(r, q.T @ py)
-        e = py - phi @ theta
-        dof = max(e.size - 2 * ok.sum() - phi.shape[1], 1)
-        rinv = np.linalg.inv(r)
-        se = np.sqrt(e @ e / dof * (rinv @ rinv.T)[0, 0])
-        losses.append(float(e @ e / e.size))
-        fits.append((float(theta[0]), float(se), float(theta[1]) if offset else 0.0))
+        loss, fit = _fit_delay(data, d, window, offset)
+        losses.append(loss)
+        fits.append(fit)
     best = int(np.argmin(losses))
     model = RotationalModel(gain=fits[best][0], delay=delays[best], ts=data.ts, offset=fits[best][2])
-    return RotationalFit(model=model, gain_stderr=fits[best][1], score=model.evaluate(data, window),
-                         delays=delays, losses=tuple(losses))
+    return RotationalFit(
+        model=model, gain_stderr=fits[best][1], score=model.evaluate(data, window), delays=delays, losses=tuple(losses)
+    )
+
+
+def _fit_delay(data: IOData, delay: int, window: int, offset: bool) -> tuple[float, tuple[float, float, float]]:
+    """Mean squared window prediction error of the best gain for one delay, and that gain with its
+    standard error and the offset (0 without ``offset``)."""
+    u = data.u[:, 0]
+    ys, ss = [], []
+    for a, b in data.segments:
+        yw, sw, _ = _windows(data.y[a:b], u[a:b], delay, window, data.ts)
+        ys.append(yw)
+        ss.append(sw)
+    yw, sw = np.concatenate(ys), np.concatenate(ss)
+    ok = np.all(np.isfinite(yw), axis=1) & np.all(np.isfinite(sw), axis=1)
+    if ok.sum() < 2:
+        raise DataError(
+            f"fewer than 2 complete windows of {window} samples for delay {delay}; log longer or use a shorter window"
+        )
+    py = _project(yw[ok], window).ravel()
+    cols = [_project(sw[ok], window).ravel()]
+    if offset:
+        cols.append(np.tile(_project(_const(window, data.ts)[None, :], window)[0], int(ok.sum())))
+    phi = np.column_stack(cols)
+    q, r = np.linalg.qr(phi)
+    theta = np.linalg.solve(r, q.T @ py)
+    e = py - phi @ theta
+    dof = max(e.size - 2 * ok.sum() - phi.shape[1], 1)
+    rinv = np.linalg.inv(r)
+    se = np.sqrt(e @ e / dof * (rinv @ rinv.T)[0, 0])
+    return metrics.mean_square(e), (float(theta[0]), float(se), float(theta[1]) if offset else 0.0)

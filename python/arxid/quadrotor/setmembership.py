@@ -15,8 +15,18 @@ import numpy as np
 
 from ..exceptions import ArxidError, DataError
 
-__all__ = ["ParameterBox", "EmptyFeasibleSetError", "parameter_box", "smallest_epsilon", "levels_box",
-           "linear_in_voltage_box", "rotated_box", "RotatedBox", "inertia_intervals", "InertiaIntervals"]
+__all__ = [
+    "ParameterBox",
+    "EmptyFeasibleSetError",
+    "parameter_box",
+    "smallest_epsilon",
+    "levels_box",
+    "linear_in_voltage_box",
+    "rotated_box",
+    "RotatedBox",
+    "inertia_intervals",
+    "InertiaIntervals",
+]
 
 
 class EmptyFeasibleSetError(ArxidError):
@@ -55,23 +65,38 @@ class ParameterBox:
 
     @property
     def width(self) -> np.ndarray:
+        """Width of the box along each parameter."""
         return self.upper - self.lower
 
     @property
     def center(self) -> np.ndarray:
+        """Centre of the box."""
         return (self.upper + self.lower) / 2
 
     @property
     def volume(self) -> float:
+        """Product of the widths (an area for two parameters)."""
         return float(np.prod(self.width))
 
     def contains(self, theta, tol: float = 1e-9) -> bool:
+        """Whether a parameter vector lies in the box.
+
+        Parameters
+        ----------
+        theta : array_like of shape (n_params,)
+        tol : float
+            Relative tolerance on the bounds (the LP solutions are exact to about this).
+
+        Returns
+        -------
+        bool
+        """
         t = np.asarray(theta, dtype=float)
         pad = tol * np.maximum(np.abs(self.upper), np.abs(self.lower))
         return bool(np.all(t >= self.lower - pad) and np.all(t <= self.upper + pad))
 
     def __str__(self) -> str:
-        rows = [f"  {n:<6s} [{lo:.6g}, {hi:.6g}]" for n, lo, hi in zip(self.names, self.lower, self.upper)]
+        rows = [f"  {n:<6s} [{lo:.6g}, {hi:.6g}]" for n, lo, hi in zip(self.names, self.lower, self.upper, strict=True)]
         return f"parameter box (eps = {self.epsilon:.4g}):\n" + "\n".join(rows)
 
 
@@ -91,6 +116,10 @@ def smallest_epsilon(phi, y, nonnegative: bool = False) -> float:
     y : array_like of shape (n_rows,)
     nonnegative : bool
         Restrict ``theta >= 0`` (seed 000 eqs. 11-12).
+
+    Returns
+    -------
+    float
     """
     phi = np.atleast_2d(np.asarray(phi, dtype=float))
     y = np.asarray(y, dtype=float).reshape(-1)
@@ -152,7 +181,10 @@ def parameter_box(phi, y, epsilon: float, names=None, nonnegative: bool = False)
             raise EmptyFeasibleSetError(
                 f"no parameter explains all {n} samples within eps = {epsilon:.4g}; the smallest error "
                 f"bound that does is eps = {e_min:.4g}. Raise epsilon to at least that (seed 000 "
-                "Assumption 7: the bound must cover measurement and structural error)", epsilon, e_min)
+                "Assumption 7: the bound must cover measurement and structural error)",
+                epsilon,
+                e_min,
+            )
         r_hi = _linprog(-c, A, b, bounds)
         if r_lo.status != 0 or r_hi.status != 0:
             raise DataError(f"parameter {names[i]} is unbounded by the data; excite it or add constraints")
@@ -191,7 +223,20 @@ def levels_box(u, y, levels, epsilon: float, offset: float = 0.0):
 
 
 def linear_in_voltage_box(levels, lower, upper) -> ParameterBox:
-    """Seed 000 eqs. 13-16, 25: box of ``(p1, p2)`` with ``lower_i <= p1 e_i + p2 <= upper_i``."""
+    """Seed 000 eqs. 13-16, 25: box of ``(p1, p2)`` with ``lower_i <= p1 e_i + p2 <= upper_i``.
+
+    Parameters
+    ----------
+    levels : array_like of shape (n_levels,)
+        Voltage levels ``e_i``.
+    lower, upper : array_like of shape (n_levels,)
+        Interval of ``b`` at each level (from :func:`levels_box`).
+
+    Returns
+    -------
+    ParameterBox
+        Bounds of ``p1`` and ``p2`` (``epsilon`` NaN).
+    """
     e = np.asarray(levels, dtype=float)
     phi = np.column_stack([e, np.ones_like(e)])
     lo, hi = np.asarray(lower, float), np.asarray(upper, float)
@@ -212,8 +257,11 @@ def _interval_box(phi, lo, hi, names) -> ParameterBox:
         r_lo = _linprog(c, A, b, [(None, None)] * p)
         r_hi = _linprog(-c, A, b, [(None, None)] * p)
         if r_lo.status == 2:
-            raise EmptyFeasibleSetError("the per-level intervals admit no straight line b(e) = p1 e + p2; "
-                                        "widen epsilon or use a richer b(e)", float("nan"), float("nan"))
+            raise EmptyFeasibleSetError(
+                "the per-level intervals admit no straight line b(e) = p1 e + p2; widen epsilon or use a richer b(e)",
+                float("nan"),
+                float("nan"),
+            )
         if r_lo.status != 0 or r_hi.status != 0:
             raise DataError(f"parameter {names[i]} is unbounded; give at least two voltage levels")
         lower[i], upper[i] = r_lo.x[i], r_hi.x[i]
@@ -251,18 +299,38 @@ class RotatedBox:
         return self.area / self.original.volume
 
     def contains(self, p, tol: float = 1e-9) -> bool:
+        """Whether a point ``(p1, p2)`` lies in the rotated box.
+
+        Parameters
+        ----------
+        p : array_like of shape (2,)
+        tol : float
+            Relative tolerance on the bounds of ``q``.
+
+        Returns
+        -------
+        bool
+        """
         q = np.linalg.solve(self.rotation, np.asarray(p, dtype=float) - self.center)
         return self.box.contains(q, tol)
 
     def corners(self) -> np.ndarray:
-        """The four corners in the original coordinates, shape (4, 2)."""
+        """The corners of the rotated box.
+
+        Returns
+        -------
+        ndarray of shape (4, 2)
+            The four corners in the original coordinates ``(p1, p2)``, in order around the box.
+        """
         lo, hi = self.box.lower, self.box.upper
         qs = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
         return self.center + qs @ self.rotation.T
 
     def __str__(self) -> str:
-        return (f"rotated box: area {self.area:.4g} = {100 * self.shrink_ratio:.2f} % of the axis-aligned "
-                f"box\n  corners (p1, p2):\n" + "\n".join(f"    ({a:.6g}, {b:.6g})" for a, b in self.corners()))
+        return (
+            f"rotated box: area {self.area:.4g} = {100 * self.shrink_ratio:.2f} % of the axis-aligned "
+            f"box\n  corners (p1, p2):\n" + "\n".join(f"    ({a:.6g}, {b:.6g})" for a, b in self.corners())
+        )
 
 
 def rotated_box(levels, lower, upper) -> RotatedBox:
@@ -271,6 +339,17 @@ def rotated_box(levels, lower, upper) -> RotatedBox:
     The axis-aligned box of ``(p1, p2)`` is loose because the feasible set is a thin sliver along
     a diagonal (slope and intercept trade off). Re-parametrise ``p = center + R q`` with ``R``
     from eq. 27 (columns along the box's diagonals) and bound ``q`` by LPs again.
+
+    Parameters
+    ----------
+    levels : array_like of shape (n_levels,)
+        Voltage levels ``e_i``.
+    lower, upper : array_like of shape (n_levels,)
+        Interval of ``b`` at each level (from :func:`levels_box`).
+
+    Returns
+    -------
+    RotatedBox
     """
     e = np.asarray(levels, dtype=float)
     lo, hi = np.asarray(lower, float), np.asarray(upper, float)
@@ -293,13 +372,16 @@ class InertiaIntervals:
     arm: tuple
 
     def __str__(self) -> str:
-        return (f"I_xy in [{self.ixy[0]:.6g}, {self.ixy[1]:.6g}] kg m^2\n"
-                f"I_z  in [{self.iz[0]:.6g}, {self.iz[1]:.6g}] kg m^2\n"
-                f"l    in [{self.arm[0]:.6g}, {self.arm[1]:.6g}] m")
+        return (
+            f"I_xy in [{self.ixy[0]:.6g}, {self.ixy[1]:.6g}] kg m^2\n"
+            f"I_z  in [{self.iz[0]:.6g}, {self.iz[1]:.6g}] kg m^2\n"
+            f"l    in [{self.arm[0]:.6g}, {self.arm[1]:.6g}] m"
+        )
 
 
-def inertia_intervals(body_mass=(0.464, 0.466), body_length=(0.09, 0.11), arm=(0.23, 0.25),
-                      motor_mass=(0.065, 0.067)) -> InertiaIntervals:
+def inertia_intervals(
+    body_mass=(0.464, 0.466), body_length=(0.09, 0.11), arm=(0.23, 0.25), motor_mass=(0.065, 0.067)
+) -> InertiaIntervals:
     """Intervals of ``I_xy = 2 m_s l^2 + m_M l_M^2 / 12`` and ``I_z = 4 m_s l^2 + m_M l_M^2 / 6``.
 
     Parameters
@@ -317,16 +399,15 @@ def inertia_intervals(body_mass=(0.464, 0.466), body_length=(0.09, 0.11), arm=(0
     Both inertias increase in every argument, so the interval ends are attained at the lower and
     upper ends of all intervals (eqs. 23-24); no optimisation is needed.
     """
-    for name, iv in (("body_mass", body_mass), ("body_length", body_length), ("arm", arm),
-                     ("motor_mass", motor_mass)):
+    for name, iv in (("body_mass", body_mass), ("body_length", body_length), ("arm", arm), ("motor_mass", motor_mass)):
         if len(iv) != 2 or not 0 <= iv[0] <= iv[1]:
             raise DataError(f"{name} must be an interval (low, high) with 0 <= low <= high, got {iv}")
 
-    def ixy(mM, lM, l, ms):
-        return 2 * ms * l**2 + mM * lM**2 / 12
+    def ixy(mM, lM, length, ms):
+        return 2 * ms * length**2 + mM * lM**2 / 12
 
-    def iz(mM, lM, l, ms):
-        return 4 * ms * l**2 + mM * lM**2 / 6
+    def iz(mM, lM, length, ms):
+        return 4 * ms * length**2 + mM * lM**2 / 6
 
     lo = (body_mass[0], body_length[0], arm[0], motor_mass[0])
     hi = (body_mass[1], body_length[1], arm[1], motor_mass[1])

@@ -14,19 +14,39 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _metrics as metrics
 from ..data import IOData
 from ..exceptions import DataError
 
-__all__ = ["ThrustModel", "ThrustClassRow", "ThrustClassTable", "fit_thrust_model", "thrust_model_class",
-           "thrust_from_accelerometer", "SEED001_MODEL_IDS"]
+__all__ = [
+    "ThrustModel",
+    "ThrustClassRow",
+    "ThrustClassTable",
+    "fit_thrust_model",
+    "thrust_model_class",
+    "thrust_from_accelerometer",
+    "SEED001_MODEL_IDS",
+]
 
 #: Seed 001 Table I: model id for each (nu, nbeta).
-SEED001_MODEL_IDS = {(0, 0): 1, (0, 1): 2, (1, 0): 3, (1, 1): 4, (0, 2): 5, (2, 0): 6, (1, 2): 7, (2, 1): 8,
-                     (2, 2): 9}
+SEED001_MODEL_IDS = {(0, 0): 1, (0, 1): 2, (1, 0): 3, (1, 1): 4, (0, 2): 5, (2, 0): 6, (1, 2): 7, (2, 1): 8, (2, 2): 9}
 
 
 def thrust_from_accelerometer(az, mass: float) -> np.ndarray:
-    """Total thrust ``F_T = m a_z`` from the body-z accelerometer (seed 001 eq. 13)."""
+    """Total thrust ``F_T = m a_z`` from the body-z accelerometer (seed 001 eq. 13).
+
+    Parameters
+    ----------
+    az : array_like
+        Body-z specific force [m/s^2].
+    mass : float
+        Vehicle mass [kg].
+
+    Returns
+    -------
+    ndarray, same shape as ``az``
+        Thrust [N].
+    """
     return float(mass) * np.asarray(az, dtype=float)
 
 
@@ -87,14 +107,40 @@ class ThrustModel:
         return (self.nu + 1) * (self.nb + 1) + 1
 
     def static(self, u, beta) -> np.ndarray:
-        """Steady-state thrust ``sum alpha_jk v_jk`` for commands (n, n_motors) and voltage (n,)."""
+        """Steady-state thrust ``sum alpha_jk v_jk``.
+
+        Parameters
+        ----------
+        u : array_like of shape (n_samples,) or (n_samples, n_motors)
+            Motor commands.
+        beta : array_like of shape (n_samples,)
+            Battery voltage [V].
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+        """
         u = np.asarray(u, dtype=float)
         u = u[:, None] if u.ndim == 1 else u
         phi, _ = _features(u, np.asarray(beta, dtype=float), self.nu, self.nb)
         return phi @ self.alpha
 
     def simulate(self, u, beta, f0=None) -> np.ndarray:
-        """Free-run thrust, shape (n_samples,), from commands (n_samples, n_motors) and voltage."""
+        """Free-run thrust.
+
+        Parameters
+        ----------
+        u : array_like of shape (n_samples,) or (n_samples, n_motors)
+            Motor commands.
+        beta : array_like of shape (n_samples,)
+            Battery voltage [V].
+        f0 : float, optional
+            Initial thrust (default: the steady-state thrust of the first sample).
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+        """
         target = self.static(u, beta)
         a = np.exp(-self.ts / self.tau)
         f0 = target[0] if f0 is None else f0
@@ -102,12 +148,13 @@ class ThrustModel:
 
     def __str__(self) -> str:
         _, names = _features(np.ones((1, 1)), np.ones(1), self.nu, self.nb)
-        terms = ", ".join(f"{n}={v:.4g}" for n, v in zip(names, self.alpha))
+        terms = ", ".join(f"{n}={v:.4g}" for n, v in zip(names, self.alpha, strict=True))
         return f"thrust model nu={self.nu} nb={self.nb}: tau={self.tau:.4g} s, {terms}"
 
 
-def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: str = "vbat",
-                     refine: bool = True, tau_bounds=None) -> ThrustModel:
+def fit_thrust_model(
+    data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: str = "vbat", refine: bool = True, tau_bounds=None
+) -> ThrustModel:
     """Fit one member of the class.
 
     Parameters
@@ -155,8 +202,9 @@ def fit_thrust_model(data: IOData, nu: int = 1, nb: int = 1, inputs=None, vbat: 
     if refine:
         tau_bounds = (0.1 * ts, 50 * ts) if tau_bounds is None else tau_bounds
         lo, hi = np.log(tau_bounds[0]), np.log(tau_bounds[1])
-        res = minimize_scalar(lambda lt: free_run(np.exp(lt))[0], bounds=(lo, hi), method="bounded",
-                              options={"xatol": 1e-4})
+        res = minimize_scalar(
+            lambda lt: free_run(np.exp(lt))[0], bounds=(lo, hi), method="bounded", options={"xatol": 1e-4}
+        )
         tau = float(np.exp(res.x))
         alpha = free_run(tau)[1]
     return ThrustModel(nu=nu, nb=nb, tau=float(tau), alpha=np.asarray(alpha, dtype=float), ts=ts)
@@ -185,33 +233,78 @@ class ThrustClassTable:
     rows: tuple
 
     def row(self, nu: int, nb: int) -> ThrustClassRow:
+        """The row of one model.
+
+        Parameters
+        ----------
+        nu, nb : int
+            Orders in the command and in the battery voltage.
+
+        Returns
+        -------
+        ThrustClassRow
+
+        Raises
+        ------
+        KeyError
+            When the table has no such model.
+        """
         for r in self.rows:
             if (r.nu, r.nb) == (nu, nb):
                 return r
         raise KeyError((nu, nb))
 
     def best(self) -> ThrustClassRow:
-        """Fewest parameters among the models within 5 % of the smallest validation RMS."""
+        """The simplest good model.
+
+        Returns
+        -------
+        ThrustClassRow
+            Fewest parameters among the models within 5 % of the smallest validation RMS.
+        """
         best = min(r.rms for r in self.rows)
         return min((r for r in self.rows if r.rms <= 1.05 * best), key=lambda r: (r.n_params, r.rms))
 
     def to_pandas(self):
+        """The table as a pandas DataFrame.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per model: id, orders, parameter count, time constant and the scores.
+        """
         import pandas as pd
 
-        return pd.DataFrame([{k: getattr(r, k) for k in ("model_id", "nu", "nb", "n_params", "tau", "rms",
-                                                          "median_abs_error", "fit_percent")} for r in self.rows])
+        return pd.DataFrame(
+            [
+                {
+                    k: getattr(r, k)
+                    for k in ("model_id", "nu", "nb", "n_params", "tau", "rms", "median_abs_error", "fit_percent")
+                }
+                for r in self.rows
+            ]
+        )
 
     def __str__(self) -> str:
         head = " id  nu  nb  params   tau [s]    rms        median|e|   fit %"
-        lines = [head] + [f"{r.model_id:3d} {r.nu:3d} {r.nb:3d} {r.n_params:6d}  {r.tau:9.4g}  {r.rms:9.4g}  "
-                          f"{r.median_abs_error:9.4g}  {r.fit_percent:7.2f}" for r in self.rows]
+        lines = [head] + [
+            f"{r.model_id:3d} {r.nu:3d} {r.nb:3d} {r.n_params:6d}  {r.tau:9.4g}  {r.rms:9.4g}  "
+            f"{r.median_abs_error:9.4g}  {r.fit_percent:7.2f}"
+            for r in self.rows
+        ]
         b = self.best()
         lines.append(f"simplest model within 5 % of the best: id {b.model_id} (nu={b.nu}, nb={b.nb})")
         return "\n".join(lines)
 
 
-def thrust_model_class(estimation: IOData, validation: IOData, orders=(0, 1, 2), inputs=None,
-                       vbat: str = "vbat", skip_constant: bool = True) -> ThrustClassTable:
+def thrust_model_class(
+    estimation: IOData,
+    validation: IOData,
+    orders=(0, 1, 2),
+    inputs=None,
+    vbat: str = "vbat",
+    skip_constant: bool = True,
+) -> ThrustClassTable:
     """Fit every ``(nu, nb)`` in ``orders x orders`` and score it in free run on validation data.
 
     Parameters
@@ -238,10 +331,18 @@ def thrust_model_class(estimation: IOData, validation: IOData, orders=(0, 1, 2),
                 continue
             m = fit_thrust_model(estimation, nu, nb, inputs=inputs, vbat=vbat)
             sim = m.simulate(uv, bv, f0=fv[0])
-            e = fv - sim
-            rows.append(ThrustClassRow(
-                model_id=SEED001_MODEL_IDS.get((nu, nb), 0), nu=nu, nb=nb, n_params=m.n_params, tau=m.tau,
-                rms=float(np.sqrt(np.mean(e**2))), median_abs_error=float(np.median(np.abs(e))),
-                fit_percent=float(100 * (1 - np.linalg.norm(e) / np.linalg.norm(fv - fv.mean()))), model=m))
+            rows.append(
+                ThrustClassRow(
+                    model_id=SEED001_MODEL_IDS.get((nu, nb), 0),
+                    nu=nu,
+                    nb=nb,
+                    n_params=m.n_params,
+                    tau=m.tau,
+                    rms=metrics.prediction_rms(fv, sim),
+                    median_abs_error=float(np.median(np.abs(fv - sim))),
+                    fit_percent=metrics.fit_percent(fv, sim),
+                    model=m,
+                )
+            )
     rows.sort(key=lambda r: (r.model_id, r.nu, r.nb))
     return ThrustClassTable(rows=tuple(rows))

@@ -14,8 +14,10 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.diagnose import INTEGRATING_HORIZON, Diagnosis, Ladder, auto_candidates, diagnose, diagnose_report
-from arxid.diagnostics import error_rms
+from arxid.analysis import analyse
+from arxid.ladder import Ladder
+from arxid.missing import INTEGRATING_HORIZON, Diagnosis, auto_candidates, diagnose
+from arxid.validation import error_rms
 
 
 def _held(rng, n, lo, hi, hold):
@@ -251,7 +253,7 @@ def test_validation_too_short_for_a_prediction_is_an_error_not_a_k_step_switch()
     with pytest.raises(arxid.DataError, match="validation"):
         diagnose(m, est, val[:1])  # one sample: no prediction, so no baseline to judge suspects by
     with pytest.raises(arxid.DataError, match="validation"):
-        diagnose_report(est, val[:1], orders=(1, 1, 1))
+        analyse(est, val[:1], orders=(1, 1, 1))
 
 
 def test_diagnosis_outputs(tmp_path):
@@ -271,13 +273,13 @@ def test_to_dict_is_exactly_the_cli_contract():
     d = diagnose(arxid.arx(est, 1, 1, 1), est, val)
     out = json.loads(json.dumps(d.to_dict(), allow_nan=False))  # strict JSON: no NaN/inf
     assert set(out) == {"model", "baseline", "residual_tests", "suspects", "ladder"}
-    assert out["model"] == {"na": 1, "nb": [1], "nk": [1], "effects": []}
+    assert out["model"] == {"na": 1, "nb": [1], "nk": [1], "effects": [], "structure": "ARX(1,1,1)"}
     assert set(out["baseline"]) == {"rms_sim_val", "rms_pred_val", "fit_val", "horizon"}
     assert out["baseline"]["horizon"] is None
     assert out["baseline"]["rms_sim_val"] == pytest.approx(d.model.rms(val))
     assert out["baseline"]["rms_pred_val"] == pytest.approx(d.model.rms(val, 1))
     for s in out["suspects"]:
-        assert set(s) == {"effect", "score", "p_value", "significant", "rms_sim_val_after"}
+        assert {"effect", "score", "p_value", "significant", "rms_sim_val_after"} <= set(s)
     assert out["suspects"][0]["effect"] == "u1*vbat" and out["suspects"][0]["significant"] is True
     assert out["ladder"] == [{"effects": [], "rms_sim_val": out["baseline"]["rms_sim_val"]}]
     assert "ljung_box" in out["residual_tests"] and "vbat" in out["residual_tests"]["cross_correlation"]
@@ -304,7 +306,7 @@ def test_ladder_two_hidden_effects_error_falls_each_step(tmp_path):
     assert np.all(np.diff(err[:3]) < 0) and err[2] < 0.2 * err[0]
     assert len(ladder.diagnoses) == len(ladder.steps)
     assert ladder.final_model.effects[:2] == ("u1^2", "sign(dy)")
-    assert "u1^2" in str(ladder) and ladder.to_list()[0] == {"effects": [], "rms_sim_val": err[0]}
+    assert "u1^2" in str(ladder) and ladder.to_list()[0]["effects"] == [] and ladder.to_list()[0]["rms_sim_val"] == err[0]
     ladder.plot().savefig(tmp_path / "ladder.png")
     assert len(ladder.to_pandas()) == len(ladder)
 
@@ -319,36 +321,47 @@ def test_ladder_by_hand():
     assert lad.steps[1].effects == ("y^3",) and lad.steps[1].structure == "ARX(2,1,1) + y^3"
 
 
-def test_diagnose_report_with_orders_and_with_a_grid():
+def test_analyse_with_orders_and_with_a_grid():
     data = battery_gain(seed=2)
     est, val = data.split(0.6)
-    rep = diagnose_report(est, val, orders=(1, 1, 1), max_steps=2)
-    assert set(rep) == {"model", "baseline", "residual_tests", "suspects", "ladder"}
+    rep = analyse(est, val, orders=(1, 1, 1), max_steps=2).to_dict()
+    assert {"model", "baseline", "residual_tests", "suspects", "ladder", "choice"} <= set(rep)
     assert rep["suspects"][0]["effect"] == "u1*vbat"
     assert rep["ladder"][1]["effects"] == ["u1*vbat"]
     assert rep["ladder"][1]["rms_sim_val"] < 0.2 * rep["ladder"][0]["rms_sim_val"]
-    json.dumps(rep, allow_nan=False)
-    rep2 = diagnose_report(data, None, grid={"na": [1, 2], "nb": [1], "nk": [0, 1, 2]}, max_steps=1)
+    json.dumps(arxid.analysis.json_safe(rep), allow_nan=False)
+    rep2 = analyse(data, grid={"na": [1, 2], "nb": [1], "nk": [0, 1, 2]}, max_steps=1).to_dict()
     assert rep2["model"]["nk"] == [1]
     assert "vbat" in rep2["suspects"][0]["effect"]
     with pytest.raises(arxid.OrderError, match="orders"):
-        diagnose_report(est, val, orders=(1, 1))
+        analyse(est, val, orders=(1, 1))
 
 
-def test_diagnose_report_chooses_the_best_sane_structure_like_sweep_and_report():
+def test_diagnose_report_is_a_deprecated_alias_of_analyse():
+    from arxid.analysis import diagnose_report
+
+    est, val = battery_gain(seed=2).split(0.6)
+    with pytest.warns(DeprecationWarning, match="analyse"):
+        rep = diagnose_report(est, val, orders=(1, 1, 1), max_steps=1)
+    assert rep["suspects"][0]["effect"] == analyse(est, val, orders=(1, 1, 1), max_steps=1).missing_effect
+
+
+def test_analyse_chooses_the_best_sane_structure_like_sweep():
     """Without orders, the diagnosed model is the best structure that passes the step sanity check,
-    the one ``arxid sweep`` and ``arxid report`` choose on the same grid (on this roll axis the best
-    by validation error, ARX(3,2,7), has an implausible step)."""
+    the one ``arxid sweep`` chooses on the same grid (on this roll axis the best by validation error,
+    ARX(3,2,7), has an implausible step)."""
+    from arxid.analysis import choose
     from arxid.datasets import quadrotor_axis, quadrotor_flight
-    from arxid.report import run_sweep
 
     roll = quadrotor_axis(quadrotor_flight(seed=1, duration=20.0), "roll")
     est, val = roll.split(0.5)
     grid = {"na": [2, 3, 4], "nb": [1, 2], "nk": list(range(11))}
-    res, _, sane, _ = run_sweep(est, val, grid)
+    res = arxid.sweep(est, validation=val, progress=False, **grid)
+    sane, choice = choose(res)
     assert res.best().structure_name() != sane.structure_name()  # the case this test is about
-    rep = diagnose_report(est, val, grid=grid, max_steps=1)
-    assert (rep["model"]["na"], rep["model"]["nb"], rep["model"]["nk"]) == (sane.na, list(sane.nb), list(sane.nk))
+    assert choice.skipped and choice.skipped[0][0] == res.best().structure_name()
+    a = analyse(est, val, grid=grid, max_steps=1)
+    assert a.model.structure_name() == sane.structure_name() and a.choice == choice
 
 
 # ---------------------------------------------------------------------------------------------
@@ -435,17 +448,27 @@ def test_simulated_quadrotor_flight_battery_sag():
     assert explained and all(s.p_value < 0.01 and s.improvement >= 0.05 for s in explained)
 
 
-def test_arxid_diagnose_is_callable_whatever_the_import_order():
+def test_functions_and_modules_have_distinct_names():
+    """``arxid.sweep`` and ``arxid.diagnose`` are the functions; their modules are arxid.orders and
+    arxid.missing, so importing a submodule never rebinds a function."""
     import importlib
 
-    module = importlib.import_module("arxid.diagnose")
-    from arxid.sweep import SweepResult  # noqa: F401  (importing submodules must not rebind the functions)
-
+    orders = importlib.import_module("arxid.orders")
+    missing = importlib.import_module("arxid.missing")
     est, val = quadratic_thrust().split(0.6)
     d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
     assert isinstance(d, Diagnosis) and d.top.effect == "speed^2"
-    assert module.Ladder is Ladder and arxid.Diagnosis is Diagnosis
-    assert callable(arxid.sweep) and arxid.sweep is importlib.import_module("arxid.sweep").sweep
+    assert arxid.diagnose is missing.diagnose and arxid.sweep is orders.sweep and arxid.Ladder is Ladder
+
+
+def test_old_diagnostics_module_is_a_deprecated_alias():
+    import importlib
+    import sys
+
+    sys.modules.pop("arxid.diagnostics", None)
+    with pytest.warns(DeprecationWarning, match="arxid.validation"):
+        old = importlib.import_module("arxid.diagnostics")
+    assert old.compare is arxid.compare
 
 
 def test_docs_examples_run():

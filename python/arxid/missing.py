@@ -32,14 +32,16 @@ from typing import Sequence
 import numpy as np
 
 from .data import IOData
-from .diagnostics import (_check_data, _check_horizon, _check_model, _finite_or_none, _pandas, _table, error_rms,
-                          fit_percent, horizon_label, prediction_error, residuals)
+from . import _metrics as metrics
+from ._checks import check_data, check_horizon, check_model
+from ._format import finite_or_none, horizon_label, require_pandas, text_table
+from .validation import ResidualAnalysis, error_rms, prediction_error, residuals
 from .effects import compile_effects, parse_effect
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel, arx
 from .regressors import max_lag, regressor_matrix, regressor_names
 
-__all__ = ["diagnose", "Diagnosis", "Suspect", "Ladder", "LadderStep", "auto_candidates", "diagnose_report"]
+__all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
 
 #: k used for the validation error of a plant with an integrator (free run drifts).
 INTEGRATING_HORIZON = 10
@@ -72,6 +74,18 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     each input (Coulomb friction, backlash); ``const``; ``time``. Dynamics: ``na+1``, ``nb+1`` and
     ``nk±1`` (per input, written ``nb(name)+1`` when there are several inputs). Candidates already
     in the model are left out.
+
+    Parameters
+    ----------
+    model : ArxModel
+        The fitted model to extend (its effects and orders ``nb_``, ``nk_``).
+    data : IOData
+        The data whose input, output and extra signals the candidates are built from.
+
+    Returns
+    -------
+    list of str
+        The effect strings first, then the structure changes (``na+1``, ``nb+1``, ``nk-1``, ...).
     """
     m = data.n_inputs
     # Effects are written in the grammar's words: a name that is not an identifier (``rpm[1/min]``)
@@ -100,9 +114,9 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     dyn = ["na+1"]
     for i, a in enumerate(ins):
         tag = "" if m == 1 else f"({a})"
-        if model.nb[i] > 0:
+        if model.nb_[i] > 0:
             dyn.append(f"nb{tag}+1")
-            if model.nk[i] > 0:
+            if model.nk_[i] > 0:
                 dyn.append(f"nk{tag}-1")
             dyn.append(f"nk{tag}+1")
     return eff + dyn
@@ -111,7 +125,7 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
 def _dynamics(label: str, model: ArxModel) -> _Candidate | None:
     import re
 
-    na, nb, nk = int(model.na), list(model.nb), list(model.nk)
+    na, nb, nk = model.na_, list(model.nb_), list(model.nk_)
     if label == "na+1":
         return _Candidate(label, (), na + 1, tuple(nb), tuple(nk), "dynamics")
     mt = re.fullmatch(r"(nb|nk)(?:\((?P<name>[^)]+)\))?(?P<sign>[+-])1", label)
@@ -146,7 +160,7 @@ def _parse_candidate(label: str, model: ArxModel, data: IOData) -> _Candidate:
     for p in parts:
         parse_effect(p, data)  # raises OrderError with a readable message
     kind = "pair" if len(parts) > 1 else "effect"
-    return _Candidate(label, parts, int(model.na), tuple(model.nb), tuple(model.nk), kind)
+    return _Candidate(label, parts, model.na_, model.nb_, model.nk_, kind)
 
 
 def _layout_for(c: _Candidate, model: ArxModel, data: IOData):
@@ -208,16 +222,26 @@ class Suspect:
 
     @property
     def refitted(self) -> bool:
+        """True when the model was refitted with the candidate (``rms_sim_val_after`` is not NaN)."""
         return not math.isnan(self.rms_sim_val_after)
 
     def to_dict(self) -> dict:
-        """The CLI contract: ``effect``, ``score``, ``p_value``, ``significant``, ``rms_sim_val_after``."""
+        """The CLI contract: ``effect``, ``score``, ``p_value``, ``significant``, ``rms_sim_val_after``.
+
+        Returns
+        -------
+        dict
+            Those keys plus ``kind``, ``improvement`` and ``note``; NaN and inf become None.
+        """
         return {
             "effect": self.effect,
-            "score": _finite_or_none(float(self.score)),
-            "p_value": _finite_or_none(float(self.p_value)),
+            "kind": self.kind,
+            "score": finite_or_none(float(self.score)),
+            "p_value": finite_or_none(float(self.p_value)),
             "significant": bool(self.significant),
-            "rms_sim_val_after": _finite_or_none(float(self.rms_sim_val_after)),
+            "rms_sim_val_after": finite_or_none(float(self.rms_sim_val_after)),
+            "improvement": finite_or_none(float(self.improvement)),
+            "note": self.note,
         }
 
 
@@ -275,14 +299,45 @@ class Diagnosis:
         return sig[0] if sig else None
 
     def suspect(self, effect: str) -> Suspect:
-        """The suspect for ``effect`` (e.g. ``"y^3"``)."""
+        """The suspect for ``effect`` (e.g. ``"y^3"``).
+
+        Parameters
+        ----------
+        effect : str
+            The suspect's name as listed (an effect, a pair or a structure change such as ``na+1``).
+
+        Returns
+        -------
+        Suspect
+
+        Raises
+        ------
+        ArxidError
+            When there is no such suspect.
+        """
         for s in self.suspects:
             if s.effect == effect:
                 return s
         raise ArxidError(f"no suspect {effect!r}; suspects: {[s.effect for s in self.suspects]}")
 
     def rank(self, effect: str) -> int:
-        """0-based rank of ``effect`` among the suspects."""
+        """0-based rank of ``effect`` among the suspects.
+
+        Parameters
+        ----------
+        effect : str
+            The suspect's name (see :meth:`suspect`).
+
+        Returns
+        -------
+        int
+            Its position in ``suspects`` (0 = best).
+
+        Raises
+        ------
+        ArxidError
+            When there is no such suspect.
+        """
         return self.suspects.index(self.suspect(effect))
 
     def apply(self, k: int | str = 0) -> ArxModel:
@@ -292,6 +347,16 @@ class Diagnosis:
         ----------
         k : int or str
             Rank (0 = best) or the suspect's name (``"y^3"``).
+
+        Returns
+        -------
+        ArxModel
+            The extended model (the refit made during the diagnosis when there was one).
+
+        Raises
+        ------
+        ArxidError
+            When there are no suspects, or ``k`` names or indexes none.
         """
         if isinstance(k, str):
             s = self.suspect(k)
@@ -320,8 +385,8 @@ class Diagnosis:
             rows.append((i, s.effect, s.score, s.p_value, s.rms_sim_val_after,
                          f"{100 * s.improvement:+.1f}%" if s.refitted and math.isfinite(s.improvement) else "",
                          "yes" if s.significant else "", s.note if len(s.note) <= 48 else s.note[:45] + "..."))
-        lines.append(_table(["#", "suspect", "score", "p (Holm)", "val rms after", "change", "significant", "note"],
-                            rows, ".3g"))
+        lines.append(text_table(["#", "suspect", "score", "p (Holm)", "val rms after", "change", "significant", "note"],
+                            rows, digits=3))
         if not self.significant:
             lines.append("no significant missing effect: no candidate passes both the corrected F-test "
                          f"(alpha {self.alpha}) and a {100 * self.min_improvement:.0f}% validation improvement")
@@ -337,19 +402,29 @@ class Diagnosis:
         horizon), ``residual_tests``, ``suspects`` (effect, score, p_value, significant,
         rms_sim_val_after) and ``ladder`` (effects, rms_sim_val); without ``ladder`` the ladder holds
         the diagnosed model only.
+
+        Parameters
+        ----------
+        ladder : Ladder, optional
+            Steps to report under ``ladder`` (see :meth:`Ladder.to_list`).
+
+        Returns
+        -------
+        dict
+            JSON-ready; NaN and inf become None.
         """
         m = self.model
         if ladder is None:
-            steps = [{"effects": list(m.effects), "rms_sim_val": _finite_or_none(float(self.rms_sim_val))}]
+            steps = [{"effects": list(m.effects), "rms_sim_val": finite_or_none(float(self.rms_sim_val))}]
         else:
             steps = ladder.to_list()
         return {
-            "model": {"na": int(m.na), "nb": [int(x) for x in m.nb], "nk": [int(x) for x in m.nk],
+            "model": {"na": m.na_, "nb": list(m.nb_), "nk": list(m.nk_), "structure": m.structure_name(),
                       "effects": list(m.effects)},
             "baseline": {
-                "rms_sim_val": _finite_or_none(float(self.rms_sim_val)),
-                "rms_pred_val": _finite_or_none(float(self.rms_pred_val)),
-                "fit_val": _finite_or_none(float(self.fit_val)),
+                "rms_sim_val": finite_or_none(float(self.rms_sim_val)),
+                "rms_pred_val": finite_or_none(float(self.rms_pred_val)),
+                "fit_val": finite_or_none(float(self.fit_val)),
                 "horizon": self.horizon,
             },
             "residual_tests": self.residual_tests.to_dict() if self.residual_tests is not None else {},
@@ -358,11 +433,31 @@ class Diagnosis:
         }
 
     def to_json(self, indent: int | None = 2, ladder: "Ladder | None" = None) -> str:
+        """JSON of :meth:`to_dict` (the ``arxid diagnose --json`` output).
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation of the JSON; None writes one line.
+        ladder : Ladder, optional
+            Steps to report under ``ladder``.
+
+        Returns
+        -------
+        str
+        """
         return json.dumps(self.to_dict(ladder), indent=indent)
 
     def to_pandas(self):
-        """One row per suspect: score, p-values, validation error after, improvement, significant."""
-        pd = _pandas()
+        """One row per suspect: score, p-values, validation error after, improvement, significant.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Rows in ranked order; columns ``suspect``, ``kind``, ``score``, ``f_statistic``,
+            ``p_value_raw``, ``p_value``, ``rms_sim_val_after``, ``improvement``, ``significant``, ``note``.
+        """
+        pd = require_pandas()
         return pd.DataFrame([
             {"suspect": s.effect, "kind": s.kind, "score": s.score, "f_statistic": s.f_statistic,
              "p_value_raw": s.p_value_raw, "p_value": s.p_value, "rms_sim_val_after": s.rms_sim_val_after,
@@ -371,7 +466,17 @@ class Diagnosis:
         ])
 
     def plot(self, n: int = 12):
-        """Scores and validation change of the top ``n`` suspects. Returns the Figure."""
+        """Scores and validation change of the top ``n`` suspects.
+
+        Parameters
+        ----------
+        n : int
+            Suspects to show, best first.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         from .plots.diagnostics import plot_diagnosis
 
         return plot_diagnosis(self, n)
@@ -380,39 +485,6 @@ class Diagnosis:
 # ---------------------------------------------------------------------------------------------
 # the procedure
 # ---------------------------------------------------------------------------------------------
-def _conditional_on_top(suspects: list, model: ArxModel, data: IOData, validation: IOData, horizon,
-                        min_improvement: float) -> list:
-    """Keep a suspect significant only if it still helps once the best suspect is in the model.
-
-    With a large missing effect, many candidates lower the validation error a little simply by
-    soaking up part of it (a drift, a correlated signal); they are not missing themselves. Each
-    significant suspect below the best one is refitted together with it and must lower the error
-    of the best one alone by ``min_improvement`` as well — otherwise it is "explained by" the best.
-    """
-    sig = [s for s in suspects if s.significant and s.refitted and math.isfinite(s.rms_sim_val_after)]
-    if len(sig) < 2:
-        return suspects
-    top = min(sig, key=lambda s: s.rms_sim_val_after)
-    out = []
-    for s in suspects:
-        if not s.significant or s is top:
-            out.append(s)
-            continue
-        na = max(top.na + s.na - model.na, 0)
-        nb = tuple(max(t + x - b, 0) for t, x, b in zip(top.nb, s.nb, model.nb))
-        nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, model.nk))
-        effects = tuple(dict.fromkeys(top.effects + s.effects))
-        both = _Candidate(f"{top.effect}+{s.effect}", effects, na, nb, nk, "pair")
-        try:
-            after = error_rms(_refit(model, data, both), validation, horizon)
-        except ArxidError:
-            after = math.nan
-        if not (math.isfinite(after) and after <= (1.0 - min_improvement) * top.rms_sim_val_after):
-            s = replace(s, significant=False, note=f"explained by {top.effect}: no gain once it is added")
-        out.append(s)
-    return out
-
-
 def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
     effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
@@ -530,41 +602,72 @@ def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | N
     >>> d.top.effect
     'u1^2'
     """
-    model = _check_model(model)
-    if data is None:
-        data = model._data
-        if data is None:
-            raise ArxidError("this model was loaded without its data: pass the estimation data to diagnose(model, data)")
-    data = _check_data(data)
-    same = validation is None
-    validation = data if same else _check_data(validation, "validation")
-    if validation.input_names != data.input_names:
-        raise DataError(f"validation inputs {list(validation.input_names)} differ from the estimation inputs {list(data.input_names)}")
-    horizon = _check_horizon(horizon)
+    model = check_model(model)
+    data, validation, same = _data_pair(model, data, validation)
+    horizon = check_horizon(horizon)
     if not 0 < alpha < 1:
         raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
+    base = _baseline(model, validation, horizon, residual_max_lag)
+    cands, auto = _candidate_list(candidates, model, data)
+    scored, notes = _Scoring(model, data, cands).run(alpha, n_pairs)
+    judge = _Judge(model, data, validation, base.horizon, base.rms, min_improvement)
+    suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
+    suspects = _demote_pairs(suspects, min_improvement)
+    suspects = judge.conditional_on_top(suspects)
+    suspects += _unscored(notes, cands, suspects)
+    suspects.sort(key=_rank_key)
+    return Diagnosis(model, data, validation, base.horizon, base.rms, base.rms_one_step, base.fit, tuple(suspects),
+                     base.residual_tests, alpha, min_improvement, len(scored), same)
 
-    # Baseline on validation data.
+
+# ---------------------------------------------------------------------------------------------
+# stages of the procedure
+# ---------------------------------------------------------------------------------------------
+def _data_pair(model: ArxModel, data: IOData | None, validation: IOData | None) -> tuple[IOData, IOData, bool]:
+    if data is None:
+        data = model.data_
+        if data is None:
+            raise ArxidError("this model was loaded without its data: pass the estimation data to diagnose(model, data)")
+    data = check_data(data)
+    same = validation is None
+    validation = data if same else check_data(validation, "validation")
+    if validation.input_names != data.input_names:
+        raise DataError(f"validation inputs {list(validation.input_names)} differ from the estimation inputs "
+                        f"{list(data.input_names)}")
+    return data, validation, same
+
+
+@dataclass(frozen=True)
+class _Baseline:
+    horizon: int | None
+    rms: float
+    rms_one_step: float
+    fit: float
+    residual_tests: ResidualAnalysis | None
+
+
+def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int) -> _Baseline:
+    """The model's validation errors; a free run that drifts or diverges is measured k steps ahead."""
     if horizon is None and _is_integrating(model):
         horizon = INTEGRATING_HORIZON
-    base_rms = error_rms(model, validation, horizon)
-    if math.isnan(base_rms):  # no sample of the validation data has a prediction
+    rms = error_rms(model, validation, horizon)
+    if math.isnan(rms):  # no sample of the validation data has a prediction
         raise DataError(f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
                         f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)")
-    if horizon is None and math.isinf(base_rms):  # the free run diverges
+    if horizon is None and math.isinf(rms):
         horizon = INTEGRATING_HORIZON
-        base_rms = error_rms(model, validation, horizon)
+        rms = error_rms(model, validation, horizon)
     pred, _, _ = prediction_error(model, validation, horizon)
-    base_fit = fit_percent(validation.y, pred)
-    base_pred = error_rms(model, validation, 1)
     try:
-        rtests = residuals(model, validation, max_lag=residual_max_lag)
+        rtests = residuals(model, validation, max_lag=max_lag)
     except ArxidError:
         rtests = None
+    return _Baseline(horizon, rms, error_rms(model, validation, 1), metrics.fit_percent(validation.y, pred), rtests)
 
-    # Candidates.
+
+def _candidate_list(candidates, model: ArxModel, data: IOData) -> tuple[list[_Candidate], bool]:
     auto = isinstance(candidates, str)
     if auto:
         if candidates != "auto":
@@ -574,376 +677,189 @@ def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | N
         labels = list(candidates)
         if not labels:
             raise ArxidError("candidates is empty: give 'auto' or at least one effect such as 'u1^2'")
-    cands: list[_Candidate] = []
-    notes: dict[str, str] = {}
+    cands = []
     for lab in labels:
         c = _parse_candidate(lab, model, data)
         if c.kind != "dynamics" and all(e in model.effects for e in c.effects):
             continue
         cands.append(c)
+    return cands, auto
 
-    # Common rows: every candidate's regressors exist on them.
-    base_layout = compile_effects(model.effects, data, model.nb, model.nk)
-    base_names = regressor_names(data.output_name, model.na, base_layout)
-    lag = max(model.first_lag_, max_lag(model.na, base_layout))
-    prepared = []
-    for c in cands:
-        try:
-            _, lay = _layout_for(c, model, data)
-        except (OrderError, DataError) as exc:
-            notes[c.label] = str(exc)
-            continue
-        lag = max(lag, max_lag(c.na, lay))
-        prepared.append((c, lay))
-    phi0, y0, rows0 = regressor_matrix(data, model.na, base_layout, lag)
-    if len(rows0) <= phi0.shape[1] + 2:
-        raise DataError(f"too few regression rows ({len(rows0)}) to diagnose a model with {phi0.shape[1]} parameters")
-    proj0 = _Projector(phi0, y0)
 
-    def columns(c: _Candidate, lay):
-        names = regressor_names(data.output_name, c.na, lay)
-        phi, y, rows = regressor_matrix(data, c.na, lay, lag)
-        new = [i for i, nm in enumerate(names) if nm not in base_names]
+class _Scoring:
+    """Added-variable tests of every candidate against the model's regressors on common rows."""
+
+    def __init__(self, model: ArxModel, data: IOData, cands: list[_Candidate]):
+        self.model, self.data, self.cands = model, data, cands
+        self.notes: dict[str, str] = {}
+        self.base_layout = compile_effects(model.effects, data, model.nb_, model.nk_)
+        self.base_names = set(regressor_names(data.output_name, model.na_, self.base_layout))
+        lag = max(model.first_lag_, max_lag(model.na_, self.base_layout))
+        self.prepared = []
+        for c in cands:
+            try:
+                _, lay = _layout_for(c, model, data)
+            except (OrderError, DataError) as exc:
+                self.notes[c.label] = str(exc)
+                continue
+            lag = max(lag, max_lag(c.na, lay))
+            self.prepared.append((c, lay))
+        self.lag = lag
+        self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
+        if len(self.rows0) <= self.phi0.shape[1] + 2:
+            raise DataError(f"too few regression rows ({len(self.rows0)}) to diagnose a model with "
+                            f"{self.phi0.shape[1]} parameters")
+        self.proj0 = _Projector(self.phi0, self.y0)
+        self.single_z: dict[str, np.ndarray] = {}
+
+    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
+        scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
+        if "const" not in self.model.effects and n_pairs > 0:
+            scored += self._pairs_with_offset(scored, alpha, n_pairs)
+        for s, pa in zip(scored, _holm(np.array([s["p"] for s in scored]))):
+            s["p_adj"] = float(pa)
+        return scored, self.notes
+
+    def _columns(self, c: _Candidate, lay) -> tuple[np.ndarray, np.ndarray]:
+        names = regressor_names(self.data.output_name, c.na, lay)
+        phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
+        new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         return phi[:, new], rows
 
-    scored: list[dict] = []
-    single_z = {}
-    for c, lay in prepared:
-        z, rows = columns(c, lay)
+    def _score(self, c: _Candidate, lay) -> dict | None:
+        z, rows = self._columns(c, lay)
         if z.shape[1] == 0:
-            notes[c.label] = "adds no regressor"
-            continue
-        if len(rows) == len(rows0) and np.array_equal(rows, rows0):
-            proj = proj0
-        else:  # a candidate with missing samples: test on the rows both have
-            common, i0, i1 = np.intersect1d(rows0, rows, return_indices=True)
-            if len(common) <= phi0.shape[1] + z.shape[1] + 2:
-                notes[c.label] = "too few rows where its signal exists"
-                continue
-            proj, z = _Projector(phi0[i0], y0[i0]), z[i1]
+            self.notes[c.label] = "adds no regressor"
+            return None
+        proj = self.proj0
+        if not (len(rows) == len(self.rows0) and np.array_equal(rows, self.rows0)):
+            # a candidate with missing samples: test on the rows both have
+            common, i0, i1 = np.intersect1d(self.rows0, rows, return_indices=True)
+            if len(common) <= self.phi0.shape[1] + z.shape[1] + 2:
+                self.notes[c.label] = "too few rows where its signal exists"
+                return None
+            proj, z = _Projector(self.phi0[i0], self.y0[i0]), z[i1]
         res, why = proj.test(z)
         if res is None:
-            notes[c.label] = why
-            continue
-        if proj is proj0:
-            single_z[c.label] = z
-        scored.append({"c": c, "score": res[0], "f": res[1], "p": res[2], "q": res[3]})
+            self.notes[c.label] = why
+            return None
+        if proj is self.proj0:
+            self.single_z[c.label] = z
+        return {"c": c, "score": res[0], "f": res[1], "p": res[2], "q": res[3]}
 
-    # Pairs with an offset for the strong effects (asymmetric Coulomb friction, an un-detrended
-    # output: the effect only helps together with a constant).
-    single_adj = _holm(np.array([s["p"] for s in scored]))
-    if "const" not in model.effects and n_pairs > 0:
-        eff = sorted((s for s, pa in zip(scored, single_adj) if pa < alpha and s["c"].kind == "effect"
-                      and s["c"].label not in ("const", "time") and s["c"].label in single_z), key=lambda s: s["p"])
+    def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
+        """Strong effects tried together with ``const`` (asymmetric Coulomb friction, an output
+        that was not detrended: the effect only helps together with a constant)."""
+        adj = _holm(np.array([s["p"] for s in scored]))
+        strong = sorted((s for s, pa in zip(scored, adj) if pa < alpha and s["c"].kind == "effect"
+                         and s["c"].label not in ("const", "time") and s["c"].label in self.single_z),
+                        key=lambda s: s["p"])
         have = {s["c"].label for s in scored}
-        for s in eff[:n_pairs]:
+        out = []
+        for s in strong[:n_pairs]:
             c = s["c"]
-            label = f"{c.label}+const"
-            if label in have:
+            if f"{c.label}+const" in have:
                 continue
-            z = np.column_stack([single_z[c.label], np.ones(len(rows0))])
-            res, why = proj0.test(z)
-            if res is None:
-                continue
-            pc = _Candidate(label, c.effects + ("const",), c.na, c.nb, c.nk, "pair")
-            scored.append({"c": pc, "score": res[0], "f": res[1], "p": res[2], "q": res[3]})
+            z = np.column_stack([self.single_z[c.label], np.ones(len(self.rows0))])
+            res, _ = self.proj0.test(z)
+            if res is not None:
+                pc = _Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
+                out.append({"c": pc, "score": res[0], "f": res[1], "p": res[2], "q": res[3]})
+        return out
 
-    p_raw = np.array([s["p"] for s in scored])
-    p_adj = _holm(p_raw)
-    for s, pa in zip(scored, p_adj):
-        s["p_adj"] = float(pa)
 
-    # Refit and judge on validation data: every candidate that passes the corrected test (only
-    # those can be significant), and the best n_refit by p-value so the table shows their effect.
-    order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
-    if auto:
-        chosen = set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
-    else:
-        chosen = set(range(len(scored)))
-    suspects = []
-    for i, s in enumerate(scored):
+class _Judge:
+    """Refits candidates and judges them by the validation error at the baseline's horizon."""
+
+    def __init__(self, model: ArxModel, data: IOData, validation: IOData, horizon: int | None, base_rms: float,
+                 min_improvement: float):
+        self.model, self.data, self.validation = model, data, validation
+        self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
+
+    def _improvement(self, after: float) -> float:
+        if math.isfinite(after) and math.isfinite(self.base_rms) and self.base_rms > 0:
+            return 1.0 - after / self.base_rms
+        return -math.inf if math.isinf(after) else math.nan
+
+    def suspects(self, scored: list[dict], notes: dict[str, str], alpha: float, n_refit: int | None) -> list[Suspect]:
+        """Every candidate that passes the corrected test is refitted (only those can be significant),
+        and the best ``n_refit`` by p-value so the table shows their effect (all when None)."""
+        order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
+        chosen = set(range(len(scored))) if n_refit is None else \
+            set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
+        return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
+
+    def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
         c = s["c"]
-        after, note, fitted = math.nan, notes.get(c.label, ""), None
-        if i in chosen:
+        after, fitted = math.nan, None
+        if refit:
             try:
-                fitted = _refit(model, data, c)
-                after = error_rms(fitted, validation, horizon)
+                fitted = _refit(self.model, self.data, c)
+                after = error_rms(fitted, self.validation, self.horizon)
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:
                 note = str(exc).split(":")[0]
-        if math.isfinite(after) and math.isfinite(base_rms) and base_rms > 0:
-            improvement = 1.0 - after / base_rms
-        elif math.isinf(after):
-            improvement = -math.inf
-        else:
-            improvement = math.nan
-        sig = bool(s["p_adj"] < alpha and math.isfinite(improvement) and improvement >= min_improvement)
-        suspects.append(Suspect(c.label, c.kind, c.effects, c.na, c.nb, c.nk, s["score"], s["f"], s["p"], s["p_adj"],
-                                s["q"], after, improvement, sig, note, fitted))
-    # A pair must earn its extra parameter: it stays significant only when it beats its single
-    # candidate's validation error by ``min_improvement`` as well (else the single is the suspect).
+        improvement = self._improvement(after)
+        sig = bool(s["p_adj"] < alpha and math.isfinite(improvement) and improvement >= self.min_improvement)
+        return Suspect(c.label, c.kind, c.effects, c.na, c.nb, c.nk, s["score"], s["f"], s["p"], s["p_adj"], s["q"],
+                       after, improvement, sig, note, fitted)
+
+    def conditional_on_top(self, suspects: list[Suspect]) -> list[Suspect]:
+        """Keep a suspect significant only if it still helps once the best suspect is in the model.
+
+        With a large missing effect, many candidates lower the validation error a little simply by
+        soaking up part of it (a drift, a correlated signal); they are not missing themselves. Each
+        significant suspect below the best one is refitted together with it and must lower the
+        error of the best one alone by ``min_improvement`` as well, else it is "explained by" it.
+        """
+        sig = [s for s in suspects if s.significant and s.refitted and math.isfinite(s.rms_sim_val_after)]
+        if len(sig) < 2:
+            return suspects
+        top = min(sig, key=lambda s: s.rms_sim_val_after)
+        return [s if not s.significant or s is top else self._given_top(s, top) for s in suspects]
+
+    def _given_top(self, s: Suspect, top: Suspect) -> Suspect:
+        m = self.model
+        na = max(top.na + s.na - m.na_, 0)
+        nb = tuple(max(t + x - b, 0) for t, x, b in zip(top.nb, s.nb, m.nb_))
+        nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
+        both = _Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
+        try:
+            after = error_rms(_refit(m, self.data, both), self.validation, self.horizon)
+        except ArxidError:
+            after = math.nan
+        if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
+            return s
+        return replace(s, significant=False, note=f"explained by {top.effect}: no gain once it is added")
+
+
+def _demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspect]:
+    """A pair must earn its extra parameter: it stays significant only when it beats its single
+    candidate's validation error by ``min_improvement`` as well (else the single is the suspect)."""
     by_label = {s.effect: s for s in suspects}
-    for i, s in enumerate(suspects):
-        if s.kind != "pair" or not s.significant:
-            continue
-        single = by_label.get(s.effect.rsplit("+", 1)[0])
+    out = []
+    for s in suspects:
+        single = by_label.get(s.effect.rsplit("+", 1)[0]) if s.kind == "pair" and s.significant else None
         if single is not None and single.refitted and math.isfinite(single.rms_sim_val_after) \
                 and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after:
-            suspects[i] = replace(s, significant=False, note=f"no better than {single.effect} alone")
-    suspects = _conditional_on_top(suspects, model, data, validation, horizon, min_improvement)
-    for lab, why in notes.items():
-        if not any(s.effect == lab for s in suspects):
-            c = next((c for c in cands if c.label == lab), None)
-            if c is not None:
-                suspects.append(Suspect(lab, c.kind, c.effects, c.na, c.nb, c.nk, math.nan, math.nan, math.nan,
-                                        math.nan, 0, math.nan, math.nan, False, why, None))
-
-    def key(s: Suspect):
-        after = s.rms_sim_val_after
-        refitted = not math.isnan(after)
-        p = s.p_value if math.isfinite(s.p_value) else 2.0
-        return (not s.significant, not refitted, after if refitted else 0.0, p, -np.nan_to_num(s.score))
-
-    suspects.sort(key=key)
-    return Diagnosis(model, data, validation, horizon, base_rms, base_pred, base_fit, tuple(suspects), rtests,
-                     alpha, min_improvement, len(scored), same)
+            s = replace(s, significant=False, note=f"no better than {single.effect} alone")
+        out.append(s)
+    return out
 
 
-# ---------------------------------------------------------------------------------------------
-# ladder
-# ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class LadderStep:
-    """One rung: the model after adding ``added`` and its validation error.
-
-    Attributes
-    ----------
-    added : str
-        What this step added (``""`` for the starting model).
-    model : ArxModel
-    effects : tuple of str
-        All effects of the model at this step.
-    structure : str
-        e.g. ``ARX(2,2,1) + y^3``.
-    rms_sim_val : float
-        Validation error at ``horizon`` (None = free run).
-    fit_val : float
-        Validation fit percent at ``horizon``.
-    horizon : int or None
-    """
-
-    added: str
-    model: ArxModel = field(repr=False)
-    effects: tuple[str, ...]
-    structure: str
-    rms_sim_val: float
-    fit_val: float
-    horizon: int | None
+def _unscored(notes: dict[str, str], cands: list[_Candidate], suspects: list[Suspect]) -> list[Suspect]:
+    """Candidates that could not be scored, with the reason, so the table says why they are absent."""
+    have = {s.effect for s in suspects}
+    by_label = {c.label: c for c in cands}
+    nan = math.nan
+    return [Suspect(lab, c.kind, c.effects, c.na, c.nb, c.nk, nan, nan, nan, nan, 0, nan, nan, False, why, None)
+            for lab, why in notes.items() if lab not in have and (c := by_label.get(lab)) is not None]
 
 
-class Ladder:
-    """The sequence of models as effects are added, with the validation error at each step.
-
-    Build it by hand with :meth:`add`, or greedily with :meth:`run`, which adds the best significant
-    suspect of :func:`diagnose` until nothing significant is left.
-
-    Examples
-    --------
-    >>> import numpy as np, arxid
-    >>> rng = np.random.default_rng(0)
-    >>> u = rng.uniform(0.5, 1.5, 3000)
-    >>> y = np.zeros(3000)
-    >>> for t in range(1, 3000):
-    ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
-    >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
-    >>> ladder = arxid.Ladder.run(arxid.arx(est, 1, 1, 1), est, val)
-    >>> [s.added for s in ladder.steps][:2]
-    ['', 'u1^2']
-    """
-
-    def __init__(self, validation: IOData | None = None, horizon: int | None = None):
-        self.validation = validation
-        self.horizon = _check_horizon(horizon)
-        self.steps: list[LadderStep] = []
-        self.diagnoses: list[Diagnosis] = []
-
-    def add(self, model: ArxModel, added: str = "", validation: IOData | None = None) -> LadderStep:
-        """Record ``model`` as the next step, measured on ``validation`` (default: the ladder's)."""
-        model = _check_model(model)
-        val = validation if validation is not None else self.validation
-        if val is None:
-            val = model._data
-        if val is None:
-            raise ArxidError("give validation data: Ladder(validation) or add(model, validation=...)")
-        self.validation = self.validation if self.validation is not None else val
-        pred, err, diverged = prediction_error(model, val, self.horizon)
-        ok = np.isfinite(err)
-        rms = math.inf if diverged else (float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan)
-        step = LadderStep(added, model, tuple(model.effects), model.structure_name(), rms,
-                          -math.inf if diverged else fit_percent(val.y, pred), self.horizon)
-        self.steps.append(step)
-        return step
-
-    @classmethod
-    def run(cls, model: ArxModel, data: IOData | None = None, validation: IOData | None = None, *,
-            max_steps: int = 3, horizon: int | None = None, **diagnose_kwargs) -> "Ladder":
-        """Greedy ladder: diagnose, add the best significant suspect, repeat.
-
-        Parameters
-        ----------
-        model : ArxModel
-            Starting model.
-        data, validation : IOData
-            Estimation and validation data (see :func:`diagnose`).
-        max_steps : int
-            Largest number of suspects added.
-        horizon : int or None
-            Validation error measure (the first diagnosis may switch a free run to k-step for an
-            integrating plant; the whole ladder then uses that horizon).
-        **diagnose_kwargs
-            Passed to :func:`diagnose` (``candidates``, ``alpha``, ``min_improvement`` ...).
-
-        Returns
-        -------
-        Ladder
-            ``steps`` (the starting model first) and the ``diagnoses`` made along the way.
-        """
-        model = _check_model(model)
-        data = data if data is not None else model._data
-        d = diagnose(model, data, validation, horizon=horizon, **diagnose_kwargs)
-        ladder = cls(d.validation, d.horizon)
-        ladder.add(model)
-        ladder.diagnoses.append(d)
-        for _ in range(int(max_steps)):
-            top = d.top
-            if top is None:
-                break
-            model = d.apply(top.effect)
-            ladder.add(model, top.effect)
-            d = diagnose(model, data, validation, horizon=d.horizon, **diagnose_kwargs)
-            ladder.diagnoses.append(d)
-        return ladder
-
-    @property
-    def final_model(self) -> ArxModel:
-        if not self.steps:
-            raise ArxidError("the ladder is empty")
-        return self.steps[-1].model
-
-    @property
-    def errors(self) -> np.ndarray:
-        return np.array([s.rms_sim_val for s in self.steps])
-
-    def __len__(self) -> int:
-        return len(self.steps)
-
-    def __str__(self) -> str:
-        rows = []
-        first = self.steps[0].rms_sim_val if self.steps else math.nan
-        for i, s in enumerate(self.steps):
-            change = f"{100 * (s.rms_sim_val / first - 1):+.1f}%" if i and math.isfinite(first) and first > 0 else ""
-            rows.append((i, s.added or "(start)", s.structure, s.rms_sim_val, s.fit_val, change))
-        return (f"ladder (validation error, {horizon_label(self.horizon)})\n"
-                + _table(["step", "added", "model", "rms", "fit %", "vs start"], rows))
-
-    def __repr__(self) -> str:
-        return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
-
-    def to_list(self) -> list[dict]:
-        """The CLI contract: one ``{"effects": [...], "rms_sim_val": x}`` per step."""
-        return [{"effects": list(s.effects), "rms_sim_val": _finite_or_none(float(s.rms_sim_val))} for s in self.steps]
-
-    def to_dict(self) -> dict:
-        return {"horizon": self.horizon,
-                "steps": [{"added": s.added, "structure": s.structure, "effects": list(s.effects),
-                           "rms_sim_val": _finite_or_none(float(s.rms_sim_val)),
-                           "fit_val": _finite_or_none(float(s.fit_val))} for s in self.steps]}
-
-    def to_json(self, indent: int | None = 2) -> str:
-        return json.dumps(self.to_dict(), indent=indent)
-
-    def to_pandas(self):
-        pd = _pandas()
-        return pd.DataFrame([{"added": s.added, "structure": s.structure, "rms_sim_val": s.rms_sim_val,
-                              "fit_val": s.fit_val} for s in self.steps])
-
-    def plot(self):
-        """Validation error per step (the error falling). Returns the Figure."""
-        from .plots.diagnostics import plot_ladder
-
-        return plot_ladder(self)
-
-
-# ---------------------------------------------------------------------------------------------
-# the CLI job
-# ---------------------------------------------------------------------------------------------
-def _range(v, default):
-    if v is None:
-        return list(default)
-    if isinstance(v, (int, np.integer)):
-        return [int(v)]
-    return [int(x) for x in v]
-
-
-def _select_orders(data: IOData, validation: IOData, grid: dict | None, horizon: int | None,
-                   progress: bool = False) -> ArxModel:
-    """The best structure of the grid that passes the step sanity check (as ``arxid sweep`` and
-    ``arxid report`` choose it)."""
-    from .sweep import sweep
-
-    grid = dict(grid or {})
-    na = _range(grid.get("na"), range(1, 5))
-    nb = _range(grid.get("nb"), range(1, 4))
-    nk = _range(grid.get("nk"), range(0, 6))
-    res = sweep(data, na=na, nb=nb, nk=nk, validation=validation, horizon=horizon, progress=progress)
-    return res.best(sane=True, explain=False)
-
-
-def diagnose_report(data: IOData, validation: IOData | None = None, orders=None, grid: dict | None = None,
-                    horizon: int | None = None, max_steps: int = 3, progress: bool = False,
-                    **diagnose_kwargs) -> dict:
-    """The whole ``arxid diagnose`` job: fit (or sweep), diagnose, climb the ladder; a JSON-ready dict.
-
-    Parameters
-    ----------
-    data : IOData
-        Estimation data.
-    validation : IOData, optional
-        Validation data (default: the last 30% of ``data``, the first 70% being used to estimate).
-    orders : (na, nb, nk), optional
-        Model orders; nb and nk may be sequences (one per input). Without them the structure with
-        the lowest validation error over ``grid`` that passes the step sanity check is used (the
-        choice of ``arxid sweep`` and ``arxid report``).
-    grid : dict, optional
-        ``{"na": [...], "nb": [...], "nk": [...]}`` (default na 1..4, nb 1..3, nk 0..5).
-    horizon : int or None
-        Validation error measure (None = free run; see :func:`diagnose`).
-    max_steps : int
-        Largest number of steps of the greedy ladder.
-    progress : bool
-        Progress bar of the sweep on stderr.
-    **diagnose_kwargs
-        Passed to :func:`diagnose` (``alpha``, ``min_improvement`` ...).
-
-    Returns
-    -------
-    dict
-        Keys ``model``, ``baseline``, ``residual_tests``, ``suspects``, ``ladder`` (see
-        :meth:`Diagnosis.to_dict`).
-    """
-    data = _check_data(data)
-    if validation is None:
-        data, validation = data.split(0.7)
-    validation = _check_data(validation, "validation")
-    horizon = _check_horizon(horizon)
-    if orders is not None:
-        try:
-            na, nb, nk = orders
-        except (TypeError, ValueError):
-            raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
-        model = arx(data, na, nb, nk)
-    else:
-        model = _select_orders(data, validation, grid, horizon, progress)
-    ladder = Ladder.run(model, data, validation, max_steps=max_steps, horizon=horizon, **diagnose_kwargs)
-    return ladder.diagnoses[0].to_dict(ladder)
+def _rank_key(s: Suspect) -> tuple:
+    """Significant first (lowest validation error first), then refitted by error, then by p-value."""
+    after = s.rms_sim_val_after
+    refitted = not math.isnan(after)
+    p = s.p_value if math.isfinite(s.p_value) else 2.0
+    return (not s.significant, not refitted, after if refitted else 0.0, p, -np.nan_to_num(s.score))

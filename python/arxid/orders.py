@@ -7,25 +7,28 @@ import itertools
 import json
 import math
 import numbers
-import os
 import sys
 import warnings
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from . import _core
+from . import _metrics as metrics
 from .data import IOData
 from .effects import compile_effects
-from .exceptions import ArxidError, DataError, OrderError
+from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from .model import ArxModel
-from .regressors import max_lag
 from .sanity import EXPECTATIONS, SanityLimits, StepSanity, check_responses, output_range, step_sanity, typical_amplitudes
 
-__all__ = ["sweep", "SweepResult", "Selection"]
+__all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
 SORT_KEYS = ("val_sim", "val_one_step", "est_sim", "est_one_step", "fpe", "aic", "bic")
+
+#: The order grid every sweep uses unless told otherwise: the API's :func:`sweep`, :func:`arxid.analyse`
+#: and every CLI command. na 1..4 poles, nb 1..3 input coefficients, nk 0..5 samples of delay.
+DEFAULT_GRID: dict[str, range] = {"na": range(1, 5), "nb": range(1, 4), "nk": range(0, 6)}
 
 #: A pole this close to 1 (or |A(1)| below this share of sum |a_i|) marks an integrating plant.
 INTEGRATOR_TOLERANCE = 1e-3
@@ -76,17 +79,6 @@ def _gib(b: float) -> str:
     return f"{b / 2**30:.2f} GiB" if b >= 2**28 else f"{b / 2**20:.1f} MiB"
 
 
-def _estimate_memory(n_structures: int, p_max: int, q: int, n_est: int, n_val: int, n_cols: int, threads: int) -> int:
-    """Bytes a sweep needs beyond the data arrays: results (Rust and numpy copies, the table),
-    TSQR block factors, column copies of the inputs, per-thread simulation buffers."""
-    per_structure = 2 * 8 * p_max + 8 * 16 + 600
-    blocks = (n_est + n_val) // 4096 + 2
-    tsqr = 2 * blocks * q * q * 8 + threads * 4096 * q * 8
-    inputs = 2 * (n_est + n_val) * n_cols * 8
-    sim = threads * 2 * max(n_est, n_val) * 8
-    return n_structures * per_structure + tsqr + inputs + sim
-
-
 # ---------------------------------------------------------------------------------------------- result
 @dataclass(frozen=True)
 class Selection:
@@ -100,7 +92,18 @@ class Selection:
         return self.describe()
 
     def describe(self, limit: int | None = 8) -> str:
-        """The choice and the skipped structures (the first ``limit`` of them; None for all)."""
+        """The choice and the skipped structures, as text.
+
+        Parameters
+        ----------
+        limit : int or None
+            Skipped structures to list (the best-ranked first); None lists all of them.
+
+        Returns
+        -------
+        str
+            One line for the chosen structure, then one per skipped structure with its failed checks.
+        """
         lines = [f"chose {self.structure} (rank {self.rank + 1})"]
         shown = self.skipped if limit is None else self.skipped[:limit]
         for rank, name, reasons in shown:
@@ -185,11 +188,44 @@ class SweepResult:
         return len(self.na)
 
     def structure_name(self, i: int) -> str:
-        """``ARX(na,nb,nk)`` of ranked structure ``i`` (per-input lists for MISO)."""
+        """``ARX(na,nb,nk)`` of ranked structure ``i`` (per-input lists for MISO).
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure (0 is the best).
+
+        Returns
+        -------
+        str
+            E.g. ``ARX(2,1,1)`` or ``ARX(2,[1, 2],[1, 0]) + const``; effect terms are appended.
+        """
         nb, nk = self.nb[i], self.nk[i]
         b = int(nb[0]) if len(set(nb.tolist())) == 1 else list(map(int, nb))
         k = int(nk[0]) if len(set(nk.tolist())) == 1 else list(map(int, nk))
         return f"ARX({int(self.na[i])},{b},{k})" + (" + " + " + ".join(self.effects) if self.effects else "")
+
+    @property
+    def ranking_text(self) -> str:
+        """What the ranking sorts by, in words (e.g. ``validation RMS (free-run simulation)``)."""
+        return f"{_SORT_TEXT[self.sort_by]} ({self.measure})"
+
+    def summary(self, top: int = 20) -> dict:
+        """JSON-ready summary: size, measure, ranking, integrator verdict and the best ``top`` rows.
+
+        Parameters
+        ----------
+        top : int
+            Ranked rows to include (with their step sanity verdicts).
+
+        Returns
+        -------
+        dict
+        """
+        out = self.to_dict(sanity=False)
+        out["n_structures"] = len(self)
+        out["structures"] = self._rows(top, sanity=True)
+        return out
 
     @property
     def measure(self) -> str:
@@ -219,7 +255,23 @@ class SweepResult:
     # ------------------------------------------------------------------ models
     def model(self, i: int = 0) -> "ArxModel":
         """The ranked structure ``i`` as a fitted :class:`~arxid.ArxModel`, refitted on the sweep's rows
-        (``first_lag``), so its parameters equal the sweep's."""
+        (``first_lag``), so its parameters equal the sweep's.
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure (0 is the best; negative counts from the worst).
+
+        Returns
+        -------
+        ArxModel
+            The fitted model (cached: the same object on every call).
+
+        Raises
+        ------
+        ArxidError
+            When ``i`` is outside the sweep.
+        """
         i = self._index(i)
         key = ("model", i)
         if key not in self._cache:
@@ -230,7 +282,19 @@ class SweepResult:
         return self._cache[key]
 
     def sanity(self, i: int) -> StepSanity:
-        """Step sanity verdict of ranked structure ``i`` (computed on first use, then cached)."""
+        """Step sanity verdict of ranked structure ``i`` (computed on first use, then cached).
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure (0 is the best).
+
+        Returns
+        -------
+        StepSanity
+            The checks of its step responses on the validation data (estimation data without it);
+            a structure that could not be fitted is flagged ``not-fitted``.
+        """
         i = self._index(i)
         key = ("sanity", i)
         if key not in self._cache:
@@ -271,10 +335,21 @@ class SweepResult:
 
     def _usable(self, i: int) -> bool:
         return self.errors[i] is None and not self.diverged_val[i] and not self.diverged_est[i] and \
-            np.isfinite(self._score()[i])
+            np.isfinite(self.ranking_score()[i])
 
     def select(self, sane: bool = True) -> Selection:
         """The best-ranked usable structure; with ``sane``, the best one whose step sanity passes.
+
+        Parameters
+        ----------
+        sane : bool
+            Also skip structures whose step sanity checks fail; without it, only structures that were
+            not fitted, diverged or have no finite ranking error are skipped.
+
+        Returns
+        -------
+        Selection
+            The chosen rank and structure, and the better-ranked structures skipped for failed checks.
 
         Raises
         ------
@@ -308,18 +383,35 @@ class SweepResult:
         sane : bool
             Skip structures flagged by the step sanity checks (see :mod:`arxid.sanity`).
         explain : bool
-            With ``sane``, print to stderr which better-ranked structures were skipped and why.
+            With ``sane``, warn (:class:`~arxid.ArxidWarning`) which better-ranked structures were
+            skipped and why.
             The same is in the model's attribute ``selection_`` (a :class:`Selection`).
+
+        Returns
+        -------
+        ArxModel
+            The chosen structure, fitted on the sweep's rows, with ``selection_`` set.
+
+        Raises
+        ------
+        ArxidError
+            When no structure qualifies (see :meth:`select`).
         """
         sel = self.select(sane)
         if sane and explain and sel.skipped:
-            print(f"arxid.sweep best(sane=True): {sel}", file=sys.stderr)
+            warnings.warn(f"arxid.sweep best(sane=True): {sel}", ArxidWarning, stacklevel=2)
         model = self.model(sel.rank)
         model.selection_ = sel
         return model
 
     # ------------------------------------------------------------------ tables
-    def _score(self) -> np.ndarray:
+    def ranking_score(self) -> np.ndarray:
+        """The column the ranking sorts by (``sort_by``), shape (S,).
+
+        Returns
+        -------
+        ndarray
+        """
         return _ranking_column(self, self.sort_by)
 
     def _rows(self, n: int | None, sanity: bool):
@@ -354,8 +446,24 @@ class SweepResult:
         return rows
 
     def to_pandas(self, sanity: bool = True):
-        """One row per structure in ranked order (``sanity=False`` skips the step checks, which cost
-        one step response per structure)."""
+        """One row per structure in ranked order.
+
+        Parameters
+        ----------
+        sanity : bool
+            Run the step sanity checks for the ``step_sanity`` column (one step response per
+            structure); False leaves it None.
+
+        Returns
+        -------
+        pandas.DataFrame
+            S rows indexed by ``rank`` (1 is the best): orders, errors, criteria, poles, parameters.
+
+        Raises
+        ------
+        ImportError
+            When pandas is not installed.
+        """
         try:
             import pandas as pd
         except ImportError:  # pragma: no cover
@@ -364,6 +472,19 @@ class SweepResult:
         return df.set_index("rank")
 
     def to_dict(self, sanity: bool = True) -> dict:
+        """JSON-ready dict of the sweep: measure, horizon, integrator verdict and every ranked structure.
+
+        Parameters
+        ----------
+        sanity : bool
+            Run the step sanity checks for each structure's ``step_sanity`` entry (else None).
+
+        Returns
+        -------
+        dict
+            ``format``, ``measure``, ``horizon``, ... and ``structures``, a list of S row dicts in
+            ranked order; NaN errors are None.
+        """
         return {
             "format": "arxid.SweepResult",
             "measure": self.measure,
@@ -380,7 +501,22 @@ class SweepResult:
         }
 
     def to_json(self, path=None, indent: int | None = None, sanity: bool = True) -> str:
-        """JSON of :meth:`to_dict`; NaN (diverged or not fitted) becomes null."""
+        """JSON of :meth:`to_dict`; NaN (diverged or not fitted) becomes null.
+
+        Parameters
+        ----------
+        path : str or path-like, optional
+            File to write the JSON to as well.
+        indent : int, optional
+            Indentation of the JSON; None writes one line.
+        sanity : bool
+            Run the step sanity checks (see :meth:`to_dict`).
+
+        Returns
+        -------
+        str
+            The JSON text.
+        """
         text = json.dumps(self.to_dict(sanity), indent=indent, allow_nan=False)
         if path is not None:
             with open(path, "w") as fh:
@@ -388,7 +524,20 @@ class SweepResult:
         return text
 
     def table(self, n: int = 12, sanity: bool = True) -> str:
-        """The top ``n`` rows as text, like seed 004's Table 1 plus more columns."""
+        """The top ``n`` rows as text, like seed 004's Table 1 plus more columns.
+
+        Parameters
+        ----------
+        n : int
+            Ranked rows to show.
+        sanity : bool
+            Run the step sanity checks for the ``step`` column (else ``-``).
+
+        Returns
+        -------
+        str
+            A header line (sizes, ranking measure, horizon), then an aligned table, one row per structure.
+        """
         k = "" if self.horizon is None else f" k={self.horizon}"
         head = ["#", "Model Configuration", f"RMS est{k}", f"RMS val{k}", "fit val %", "RMS val 1-step",
                 "FPE", "AIC", "BIC", "p", "stable", "step"]
@@ -429,11 +578,23 @@ class SweepResult:
     def __repr__(self) -> str:
         return f"<SweepResult {len(self)} structures, best {self.structure_name(0)}, {self.measure}>"
 
-    def plot(self, nb_input: int = 0):
-        """Heat map of the ranking error over (na, nk) for each nb (matplotlib Figure)."""
+    def plot(self, nb_input: int = 0, chosen: int | None = None) -> Any:
+        """Heat map of the ranking error over (na, nk) for each nb.
+
+        Parameters
+        ----------
+        nb_input : int
+            For several inputs: whose nb and nk span the panels.
+        chosen : int, optional
+            Rank of the chosen structure, marked with a star.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         from .plots.sweep import plot_sweep
 
-        return plot_sweep(self, nb_input=nb_input)
+        return plot_sweep(self, nb_input=nb_input, chosen=chosen)
 
 
 _SORT_TEXT = {
@@ -478,7 +639,7 @@ def _detect_integrator(na, theta, order) -> tuple[bool, str]:
     return False, ""
 
 
-def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, validation=None, sort_by: str = "val_sim",
+def sweep(data: IOData, na=DEFAULT_GRID["na"], nb=DEFAULT_GRID["nb"], nk=DEFAULT_GRID["nk"], *, validation=None, sort_by: str = "val_sim",
           n_threads: int = 0, progress: bool = True, effects: Sequence[str] = (), expect: str | None = None,
           horizon: int | None = None, max_memory: int | None = None, limits: SanityLimits | None = None,
           simulate_estimation: bool = True) -> SweepResult:
@@ -527,8 +688,9 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
     its free-run simulation starts there from measured outputs, so all errors compare on the same
     samples. The Rust core reduces ``[Φ_max | y]`` once to a triangular R by Householder QR and
     solves each structure from its columns of R; the simulation of linear structures runs several
-    structures with the same ``na`` side by side in SIMD lanes. A simulation that leaves ±1000 times
-    the largest measured output is stopped and reported as diverged.
+    structures with the same ``na`` side by side in SIMD lanes. A simulation that leaves
+    ±``DIVERGENCE_FACTOR`` (1000) times the largest measured output of its data set is stopped and
+    reported as diverged (the one divergence rule, see :mod:`arxid._metrics`).
 
     Examples
     --------
@@ -549,40 +711,64 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
         raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
     if expect not in EXPECTATIONS:
         raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
-    if isinstance(validation, IOData):
-        est, val = data, validation
-        if val.n_inputs != data.n_inputs:
-            raise DataError(f"validation data have {val.n_inputs} inputs, the estimation data {data.n_inputs}")
-    elif validation is None:
-        est, val = data, None
-    elif isinstance(validation, numbers.Real) and not isinstance(validation, bool):
-        if not 0 < validation < 1:
-            raise DataError(f"validation as a fraction must be between 0 and 1, got {validation}")
-        est, val = data.split(1 - float(validation))
-    else:
-        raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
+    est, val = _validation_split(data, validation)
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
     if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
         raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
-    n_threads = int(n_threads)
     m = est.n_inputs
-    nas = _order_range("na", na)
-    nbs = _per_input_ranges("nb", nb, m)
-    nks = _per_input_ranges("nk", nk, m)
+    nas, nbs, nks = _order_range("na", na), _per_input_ranges("nb", nb, m), _per_input_ranges("nk", nk, m)
     effects = tuple(effects)
+    _check_memory(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
+    g = _Grid.build(est, nas, nbs, nks, effects)
+    inputs = _core_inputs(est, val, g, effects)
+    first_lag, _ = _core.grid_envelope(g.layout, inputs.terms)
+    _check_validation_length(val, first_lag)
+    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation)
+    # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
+    # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
+    integrating = expect in ("integrating", "double-integrating")
+    reason = f"expect={expect!r}" if integrating else ""
+    k_default = int(horizon) if horizon is not None else max(10, 2 * first_lag)
+    k_step = k_default if integrating else (int(horizon) if horizon is not None else None)
+    res = run(k_step)
+    if expect is None and k_step is None:
+        p = g.layout[:, 0] + g.layout[:, 1:1 + g.n_columns].sum(axis=1) + len(inputs.terms)
+        fpe_pre = metrics.fpe(res.rss_est, res.n_est, p)
+        order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
+        integrating, reason = _detect_integrator(g.layout[:, 0], res.theta, order_pre)
+        if integrating:
+            k_step = k_default
+            res = run(k_step)
+    return _build_result(res, g.layout, g.user_nb, g.user_nk, inputs.terms, est, val, k_step, integrating, reason,
+                         sort_by, effects, expect, limits or SanityLimits(), m)
 
-    # Size and memory before building anything.
+
+def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
+    if isinstance(validation, IOData):
+        if validation.n_inputs != data.n_inputs:
+            raise DataError(f"validation data have {validation.n_inputs} inputs, the estimation data {data.n_inputs}")
+        return data, validation
+    if validation is None:
+        return data, None
+    if isinstance(validation, numbers.Real) and not isinstance(validation, bool):
+        if not 0 < validation < 1:
+            raise DataError(f"validation as a fraction must be between 0 and 1, got {validation}")
+        return data.split(1 - float(validation))
+    raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
+
+
+def _check_memory(est: IOData, val: IOData | None, nas: tuple[int, ...], nbs: list, nks: list,
+                  effects: tuple[str, ...], n_threads: int, max_memory: int | None) -> None:
+    """Size and memory before building anything (the core's own estimate)."""
     n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
     probe = compile_effects(effects, est[: min(est.n_samples, 8)], [max(r) for r in nbs], [max(r) for r in nks])
-    n_cols = len(probe.nb)
+    n_cols, n_terms = len(probe.nb), len(probe.output_terms)
     span = max(max(k) + max(b) - 1 - min(k) + 1 for b, k in zip(nbs, nks))
-    n_terms = len(probe.output_terms)
     p_max = max(nas) + n_cols * max(max(b) for b in nbs) + n_terms
     q = max(nas) + n_cols * span + n_terms + 1
-    cores = os.cpu_count() or 1
-    threads = min(n_threads, 4 * cores) or cores  # the core starts at most 4 threads per core
-    need = _estimate_memory(n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols, threads)
+    need = _core.sweep_memory(n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols,
+                              n_threads)
     limit = int(max_memory) if max_memory is not None else _available_memory() // 2
     if need > limit:
         raise DataError(
@@ -591,120 +777,105 @@ def sweep(data: IOData, na=range(1, 5), nb=range(1, 4), nk=range(0, 4), *, valid
             f"narrow the ranges or split the sweep into parts"
         )
 
-    # The grid: (na, nb_1..nb_M, nk_1..nk_M) over the layout's columns (effects tied to their input).
-    layouts: dict = {}
-    head = est[: min(est.n_samples, 8)]
 
-    def layout_orders(nbv, nkv):
-        key = (nbv, nkv)
-        if key not in layouts:
-            lay = compile_effects(effects, head, list(nbv), list(nkv)) if effects else None
-            layouts[key] = (tuple(lay.nb), tuple(lay.nk)) if lay else (nbv, nkv)
-        return layouts[key]
+@dataclass(frozen=True)
+class _Grid:
+    """Every structure as the user wrote it (per input) and as the core sees it (per layout column)."""
 
-    rows = []
-    user_nb, user_nk = [], []
-    for a in nas:
+    layout: np.ndarray  # (S, 1 + 2 n_columns): na, nb per column, nk per column
+    user_nb: list
+    user_nk: list
+    n_columns: int
+
+    @classmethod
+    def build(cls, est: IOData, nas: tuple[int, ...], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
+        head = est[: min(est.n_samples, 8)]
+        layouts: dict = {}
+        n_terms = len(compile_effects(effects, head, [max(r) for r in nbs], [max(r) for r in nks]).output_terms)
+        rows, user_nb, user_nk = [], [], []
         for nbv in itertools.product(*nbs):
             for nkv in itertools.product(*nks):
-                lnb, lnk = layout_orders(nbv, nkv)
-                if a + sum(lnb) + len(probe.output_terms) == 0:
-                    continue
-                rows.append((a, *lnb, *lnk))
-                user_nb.append(nbv)
-                user_nk.append(nkv)
-    if not rows:
-        raise OrderError("the grid has no structure with a parameter: use na >= 1 or nb >= 1")
-    grid = np.array(rows, dtype=np.int64)
-    # Without effects the core reads the inputs in place (no copy of the data).
-    lay_est = compile_effects(effects, est, list(user_nb[0]), list(user_nk[0])) if effects else None
-    lay_val = compile_effects(effects, val, list(user_nb[0]), list(user_nk[0])) if effects and val is not None else None
-    u_est = lay_est.u if lay_est is not None else np.ascontiguousarray(est.u, dtype=float)
-    u_val = None if val is None else (lay_val.u if lay_val is not None else np.ascontiguousarray(val.u, dtype=float))
-    terms = list(lay_est.output_terms) if lay_est is not None else []
-    first_lag = 0
-    for r in rows:
-        mc = (len(r) - 1) // 2
-        lag = max([r[0]] + [r[1 + j] + r[1 + mc + j] - 1 for j in range(mc) if r[1 + j] > 0]
-                  + [2 if k == "signdiff" else 1 for k, _, _ in terms])
-        first_lag = max(first_lag, lag)
-    if val is not None:
-        left = sum(max(0, b - a - first_lag) for a, b in val.segments)
-        if left == 0:
-            raise DataError(
-                f"the validation data have {val.n_samples} samples, but every structure starts at the grid's largest lag "
-                f"{first_lag} into each experiment, which leaves none to validate on; use longer validation data or "
-                f"smaller orders")
-        if not np.isfinite(val.y).any():
-            raise DataError("the validation data hold no finite output sample (all NaN); pass validation data with a "
-                            "measured output")
+                if (nbv, nkv) not in layouts:
+                    lay = compile_effects(effects, head, list(nbv), list(nkv)) if effects else None
+                    layouts[(nbv, nkv)] = (tuple(lay.nb), tuple(lay.nk)) if lay else (nbv, nkv)
+        for a in nas:
+            for nbv in itertools.product(*nbs):
+                for nkv in itertools.product(*nks):
+                    lnb, lnk = layouts[(nbv, nkv)]
+                    if a + sum(lnb) + n_terms == 0:
+                        continue
+                    rows.append((a, *lnb, *lnk))
+                    user_nb.append(nbv)
+                    user_nk.append(nkv)
+        if not rows:
+            raise OrderError("the grid has no structure with a parameter: use na >= 1 or nb >= 1")
+        grid = np.array(rows, dtype=np.int64)
+        return cls(grid, user_nb, user_nk, (grid.shape[1] - 1) // 2)
 
-    # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
-    # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
-    integrating, reason = False, ""
-    if expect in ("integrating", "double-integrating"):
-        integrating, reason = True, f"expect={expect!r}"
-    k_step = None
-    if integrating:
-        k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
-    elif horizon is not None:
-        k_step = int(horizon)  # an explicit horizon ranks by k-step error whatever the plant
 
-    y_scale = max(_peak(est.y), _peak(val.y) if val is not None else 0.0, 1e-300)
-    chunk = max(64, len(rows) // 100)
+@dataclass(frozen=True)
+class _CoreInputs:
+    u_est: np.ndarray
+    u_val: np.ndarray | None
+    terms: list
 
-    def run(k):
+
+def _core_inputs(est: IOData, val: IOData | None, g: _Grid, effects: tuple[str, ...]) -> _CoreInputs:
+    """Inputs with the effect columns; without effects the core reads the inputs in place (no copy)."""
+    if not effects:
+        return _CoreInputs(np.ascontiguousarray(est.u, dtype=float),
+                           None if val is None else np.ascontiguousarray(val.u, dtype=float), [])
+    nb0, nk0 = list(g.user_nb[0]), list(g.user_nk[0])
+    lay_est = compile_effects(effects, est, nb0, nk0)
+    u_val = None if val is None else compile_effects(effects, val, nb0, nk0).u
+    return _CoreInputs(lay_est.u, u_val, list(lay_est.output_terms))
+
+
+def _check_validation_length(val: IOData | None, first_lag: int) -> None:
+    if val is None:
+        return
+    if sum(max(0, b - a - first_lag) for a, b in val.segments) == 0:
+        raise DataError(
+            f"the validation data have {val.n_samples} samples, but every structure starts at the grid's largest lag "
+            f"{first_lag} into each experiment, which leaves none to validate on; use longer validation data or "
+            f"smaller orders")
+    if not np.isfinite(val.y).any():
+        raise DataError("the validation data hold no finite output sample (all NaN); pass validation data with a "
+                        "measured output")
+
+
+class _Runner:
+    """One call of the core's sweep at a given horizon, with an optional progress bar."""
+
+    def __init__(self, est: IOData, val: IOData | None, g: _Grid, inputs: _CoreInputs, n_threads: int,
+                 progress: bool, simulate_estimation: bool):
+        self.est, self.val, self.g, self.inputs = est, val, g, inputs
+        self.n_threads, self.progress, self.simulate_estimation = n_threads, progress, simulate_estimation
+
+    def __call__(self, k: int | None) -> Any:
+        n = len(self.g.layout)
         bar = None
-        if progress and sys.stderr.isatty():
+        if self.progress and sys.stderr.isatty():
             from tqdm.auto import tqdm
 
-            bar = tqdm(total=len(rows), desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
+            bar = tqdm(total=n, desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
 
-        def report(done: int):
+        def report(done: int) -> None:
             if done > bar.n:  # reports may arrive out of order from the worker threads
                 bar.update(done - bar.n)
 
+        val = self.val
         try:
             return _core.sweep(
-                np.ascontiguousarray(est.y), u_est, list(est.experiment_starts), grid, terms,
-                yv=np.ascontiguousarray(val.y) if val is not None else None,
-                uv=u_val,
+                np.ascontiguousarray(self.est.y), self.inputs.u_est, list(self.est.experiment_starts), self.g.layout,
+                self.inputs.terms, yv=np.ascontiguousarray(val.y) if val is not None else None, uv=self.inputs.u_val,
                 starts_v=list(val.experiment_starts) if val is not None else None,
-                simulate_estimation=bool(simulate_estimation), horizon=k, divergence_limit=1e3 * y_scale,
-                n_threads=n_threads, chunk=chunk, progress=report if bar is not None else None,
+                simulate_estimation=bool(self.simulate_estimation), horizon=k, n_threads=self.n_threads,
+                chunk=max(64, n // 100), progress=report if bar is not None else None,
             )
         finally:
             if bar is not None:
                 bar.close()
-
-    res = run(k_step)
-    if expect is None and k_step is None:
-        fpe_pre = _fpe(np.asarray(res["rss_est"]), int(res["n_est"]), grid, len(terms))
-        order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
-        integrating, reason = _detect_integrator(grid[:, 0], np.asarray(res["theta"]), order_pre)
-        if integrating:
-            k_step = int(horizon) if horizon is not None else max(10, 2 * first_lag)
-            res = run(k_step)
-    return _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_step, integrating, reason,
-                         sort_by, effects, expect, limits or SanityLimits(), m)
-
-
-def _peak(y: np.ndarray) -> float:
-    """Largest |y| (ignoring NaN) without a temporary copy of y."""
-    if not y.size:
-        return 0.0
-    with warnings.catch_warnings():  # all NaN: nanmax warns; the core then reports too few usable rows
-        warnings.simplefilter("ignore", RuntimeWarning)
-        peak = float(max(np.nanmax(y), -np.nanmin(y)))
-    return peak if math.isfinite(peak) else 0.0
-
-
-def _fpe(rss, n, grid, n_terms):
-    mc = (grid.shape[1] - 1) // 2
-    p = grid[:, 0] + grid[:, 1:1 + mc].sum(axis=1) + n_terms
-    loss = rss / n
-    with np.errstate(all="ignore"):
-        return loss * (n + p) / np.maximum(n - p, 1)
 
 
 def _scored_norm(d: IOData, lag: int) -> float:
@@ -745,48 +916,31 @@ def _max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return out
 
 
-def _envelope(grid: np.ndarray) -> tuple[int, tuple[int, ...], tuple[int, ...]]:
-    """(na, nb, nk) of the regressor holding every column of the grid (as the Rust core builds it)."""
-    mc = (grid.shape[1] - 1) // 2
-    nb, nk = grid[:, 1:1 + mc], grid[:, 1 + mc:]
-    env_nb, env_nk = [], []
-    for j in range(mc):
-        used = nb[:, j] > 0
-        if not used.any():
-            env_nb.append(0), env_nk.append(0)
-            continue
-        lo, hi = int(nk[used, j].min()), int((nk[used, j] + nb[used, j] - 1).max())
-        env_nb.append(hi - lo + 1), env_nk.append(lo)
-    return int(grid[:, 0].max()), tuple(env_nb), tuple(env_nk)
-
-
-def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_step, integrating, reason, sort_by,
+def _build_result(res: _core.SweepOutput, grid, user_nb, user_nk, terms, est, val, k_step, integrating, reason, sort_by,
                   effects, expect, limits, m) -> SweepResult:
     s = len(grid)
     mc = (grid.shape[1] - 1) // 2
     na = grid[:, 0].copy()
     p = na + grid[:, 1:1 + mc].sum(axis=1) + len(terms)
-    theta_all = np.asarray(res["theta"])
-    n_est, n_val = int(res["n_est"]), int(res["n_val"])
-    rss_est, rss_val = np.asarray(res["rss_est"]), np.asarray(res["rss_val"])
+    theta_all = res.theta
+    n_est, n_val, first_lag = res.n_est, res.n_val, res.first_lag
+    rss_est, rss_val = res.rss_est, res.rss_val
     with np.errstate(all="ignore"):
         loss = rss_est / n_est
         rms_est_one = np.sqrt(loss)
         rms_val_one = np.sqrt(rss_val / n_val) if n_val else np.full(s, np.nan)
-        fpe = loss * (n_est + p) / np.maximum(n_est - p, 1)
-        aic = np.where(loss > 0, n_est * np.log(loss) + 2 * p + n_est * (np.log(2 * np.pi) + 1), -np.inf)
-        bic = np.where(loss > 0, n_est * np.log(loss) + p * np.log(n_est) + n_est * (np.log(2 * np.pi) + 1), -np.inf)
-    div_est = np.asarray(res["diverged_est"], dtype=bool)
-    div_val = np.asarray(res["diverged_val"], dtype=bool)
-    rms_est = np.where(div_est, np.nan, np.asarray(res["rms_sim_est"]))
-    rms_val = np.where(div_val, np.nan, np.asarray(res["rms_sim_val"]))
-    errors = tuple(res["errors"])
+        fpe, aic, bic = (metrics.fpe(rss_est, n_est, p), metrics.aic(rss_est, n_est, p),
+                         metrics.bic(rss_est, n_est, p))
+    div_est, div_val = res.diverged_est, res.diverged_val
+    rms_est = np.where(div_est, np.nan, res.rms_sim_est)
+    rms_val = np.where(div_val, np.nan, res.rms_sim_val)
+    errors = tuple(res.errors)
     if val is not None:
         # With missing validation samples the core scores a subset per structure and gives its norm.
-        per_structure = np.asarray(res["norm_sim_val"])
+        per_structure = res.norm_sim_val
         norm = np.where(np.isfinite(per_structure), per_structure, _scored_norm(val, first_lag))
         with np.errstate(all="ignore"):
-            fit_val = 100.0 * (1.0 - rms_val * np.sqrt(np.asarray(res["n_sim_val"])) / norm)
+            fit_val = metrics.fit_percent_from_norms(rms_val * np.sqrt(res.n_sim_val), norm)
     else:
         fit_val = np.full(s, np.nan)
     key = sort_by
@@ -806,6 +960,7 @@ def _build_result(res, grid, user_nb, user_nk, terms, est, val, first_lag, k_ste
         rms_val=rms_val[order], fit_val=fit_val[order], fpe=fpe[order], aic=aic[order], bic=bic[order],
         diverged_est=div_est[order], diverged_val=div_val[order],
         errors=tuple(errors[i] for i in order), horizon=k_step, integrating=integrating, integrating_reason=reason,
-        sort_by=key, first_lag=first_lag, row_orders=_envelope(grid), n_est=n_est, n_val=n_val, effects=effects, expect=expect, limits=limits,
+        sort_by=key, first_lag=first_lag, row_orders=res.envelope, n_est=n_est, n_val=n_val, effects=effects,
+        expect=expect, limits=limits,
         estimation=est, validation=val,
     )

@@ -1,0 +1,173 @@
+"""The one definition of every error measure and model-order criterion arxid reports.
+
+Every module (model, sweep, validation, diagnosis, ladder, quadrotor tools, report, CLI) calls these
+functions; nothing else in the package computes an RMS, a fit percent, a divergence verdict or an
+information criterion.
+
+Definitions (MATLAB's System Identification Toolbox where it has one):
+
+* ``rms(e)`` — √(mean e²) over the finite samples of ``e`` (NaN marks a missing sample).
+* ``fit_percent(y, ŷ)`` — NRMSE fit, 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), over the samples where both exist
+  (MATLAB ``compare`` / ``goodnessOfFit`` with ``'NRMSE'``); −inf when the prediction diverged.
+* divergence — a prediction has diverged when any value is infinite or larger in magnitude than
+  ``DIVERGENCE_FACTOR`` times the largest measured |y|. The Rust core owns the rule (its free-run
+  lanes stop there) and exposes it, so the sweep and the Python layer always agree.
+* ``fpe``, ``aic``, ``aicc``, ``naic``, ``bic`` — from the loss V = RSS / N of the one-step residual on N
+  rows with p parameters: FPE = V (1 + p/N) / (1 − p/N); AIC = N log V + 2p + N (log 2π + 1);
+  AICc = AIC + 2p (p + 1) / (N − p − 1); nAIC = log V + 2p / N; BIC = N log V + p log N + N (log 2π + 1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _core
+
+__all__ = [
+    "DIVERGENCE_FACTOR",
+    "divergence_limit",
+    "diverged",
+    "mean_square",
+    "rms",
+    "prediction_rms",
+    "fit_percent",
+    "fit_percent_from_norms",
+    "rolling_rms",
+    "fpe",
+    "aic",
+    "aicc",
+    "naic",
+    "bic",
+]
+
+#: A prediction beyond this many times the largest measured |y| has diverged (owned by the Rust core).
+DIVERGENCE_FACTOR: float = float(_core.DIVERGENCE_FACTOR)
+
+_ArrayLike = npt.ArrayLike
+_Float = float | np.ndarray
+
+
+def divergence_limit(y: _ArrayLike) -> float:
+    """Magnitude beyond which a prediction of the measured output ``y`` counts as diverged."""
+    return float(_core.divergence_limit(np.ascontiguousarray(y, dtype=float)))
+
+
+def diverged(y: _ArrayLike, pred: _ArrayLike) -> bool:
+    """True when ``pred`` reaches inf or leaves ±:func:`divergence_limit` of ``y`` (NaN is missing data)."""
+    p = np.asarray(pred, dtype=float)
+    if np.isinf(p).any():
+        return True
+    finite = p[np.isfinite(p)]
+    return bool(finite.size and np.abs(finite).max() > divergence_limit(y))
+
+
+def mean_square(e: _ArrayLike) -> float:
+    """Mean of e² over the finite samples (NaN when there are none)."""
+    x = np.asarray(e, dtype=float)
+    x = x[np.isfinite(x)]
+    if not x.size:
+        return math.nan
+    with np.errstate(over="ignore"):
+        return float(np.mean(x * x))
+
+
+def rms(e: _ArrayLike) -> float:
+    """Root mean square of ``e`` over its finite samples (NaN when there are none)."""
+    return math.sqrt(mean_square(e))
+
+
+def prediction_rms(y: _ArrayLike, pred: _ArrayLike) -> float:
+    """RMS of ``y − pred`` where both exist; ``inf`` when the prediction diverged."""
+    if diverged(y, pred):
+        return math.inf
+    with np.errstate(invalid="ignore", over="ignore"):
+        return rms(np.asarray(y, dtype=float) - np.asarray(pred, dtype=float))
+
+
+def fit_percent_from_norms(error_norm: _Float, centred_norm: _Float) -> _Float:
+    """100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) from the two norms (element-wise for arrays; NaN when ‖y − ȳ‖ = 0)."""
+    with np.errstate(all="ignore"):
+        d = np.asarray(centred_norm, dtype=float)
+        out = np.where(d > 0, 100.0 * (1.0 - np.asarray(error_norm, dtype=float) / np.where(d > 0, d, 1.0)), np.nan)
+    return float(out) if out.ndim == 0 else out
+
+
+def fit_percent(y: _ArrayLike, pred: _ArrayLike) -> float:
+    """NRMSE fit in percent over the samples where ``y`` and ``pred`` both exist.
+
+    ``-inf`` when the prediction diverged, NaN when no sample has both or ``y`` is constant there.
+    """
+    y = np.asarray(y, dtype=float)
+    pred = np.asarray(pred, dtype=float)
+    if diverged(y, pred):
+        return -math.inf
+    ok = np.isfinite(y) & np.isfinite(pred)
+    if not ok.any():
+        return math.nan
+    with np.errstate(over="ignore", invalid="ignore"):
+        e = float(np.linalg.norm(y[ok] - pred[ok]))
+    d = float(np.linalg.norm(y[ok] - y[ok].mean()))
+    return float(fit_percent_from_norms(e, d))
+
+
+def rolling_rms(e: _ArrayLike, window: int) -> np.ndarray:
+    """Centred rolling RMS of ``e`` over ``window`` samples, ignoring NaN; NaN where fewer than half
+    the window's samples exist."""
+    x = np.asarray(e, dtype=float)
+    ok = np.isfinite(x)
+    ker = np.ones(max(int(window), 1))
+    s = np.convolve(np.where(ok, x * x, 0.0), ker, mode="same")
+    c = np.convolve(ok.astype(float), ker, mode="same")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.sqrt(s / c)
+    out[c < max(1, len(ker) // 2)] = np.nan
+    return out
+
+
+def _loss(rss: _Float, n: int) -> np.ndarray:
+    return np.asarray(rss, dtype=float) / n
+
+
+def _scalar(x: np.ndarray) -> _Float:
+    return float(x) if np.ndim(x) == 0 else x
+
+
+def fpe(rss: _Float, n: int, p: _Float) -> _Float:
+    """Akaike's final prediction error V (N + p) / (N − p) (MATLAB ``fpe``); inf when p ≥ N."""
+    with np.errstate(all="ignore"):
+        p = np.asarray(p, dtype=float)
+        return _scalar(np.where(p < n, _loss(rss, n) * (n + p) / (n - p), np.inf))
+
+
+def _log_loss(rss: _Float, n: int) -> np.ndarray:
+    with np.errstate(divide="ignore"):
+        return np.log(_loss(rss, n))
+
+
+def aic(rss: _Float, n: int, p: _Float) -> _Float:
+    """AIC as MATLAB's ``aic`` computes it: N log V + 2p + N (log 2π + 1) (−inf for a perfect fit)."""
+    p = np.asarray(p, dtype=float)
+    return _scalar(n * _log_loss(rss, n) + 2 * p + n * (math.log(2 * math.pi) + 1))
+
+
+def aicc(rss: _Float, n: int, p: _Float) -> _Float:
+    """Small-sample corrected AIC (MATLAB ``aic(..., 'AICc')``): AIC + 2p (p + 1) / (N − p − 1)."""
+    p = np.asarray(p, dtype=float)
+    with np.errstate(all="ignore"):
+        corr = np.where(n - p - 1 > 0, 2 * p * (p + 1) / (n - p - 1), np.inf)
+    return _scalar(np.asarray(aic(rss, n, p)) + corr)
+
+
+def naic(rss: _Float, n: int, p: _Float) -> _Float:
+    """Normalised AIC (MATLAB ``aic(..., 'nAIC')``): log V + 2p / N."""
+    p = np.asarray(p, dtype=float)
+    return _scalar(_log_loss(rss, n) + 2 * p / n)
+
+
+def bic(rss: _Float, n: int, p: _Float) -> _Float:
+    """BIC as MATLAB's ``aic(..., 'BIC')``: N log V + p log N + N (log 2π + 1)."""
+    p = np.asarray(p, dtype=float)
+    return _scalar(n * _log_loss(rss, n) + p * math.log(n) + n * (math.log(2 * math.pi) + 1))

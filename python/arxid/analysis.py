@@ -1,0 +1,380 @@
+"""The one analysis pipeline: sweep, choose, compare, test, locate, diagnose, climb the ladder.
+
+:func:`analyse` runs every stage once and returns a frozen :class:`Analysis` that holds the result
+objects themselves (the :class:`~arxid.SweepResult`, the chosen :class:`~arxid.ArxModel`, the
+:class:`~arxid.validation.Comparison`, :class:`~arxid.validation.ResidualAnalysis`,
+:class:`~arxid.validation.FailureAnalysis`, :class:`~arxid.Diagnosis` and :class:`~arxid.Ladder`).
+``arxid diagnose``, ``arxid report``, ``arxid demo`` and :func:`arxid.report.render_html` all render
+this object and compute nothing of their own, so every number they show is the API's.
+
+Examples
+--------
+>>> import numpy as np, arxid
+>>> rng = np.random.default_rng(0)
+>>> u = rng.uniform(0.5, 1.5, 3000)
+>>> y = np.zeros(3000)
+>>> for t in range(1, 3000):
+...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
+>>> a = arxid.analyse(arxid.IOData(y, u, ts=0.01), grid={"na": [1, 2], "nb": [1], "nk": [0, 1]}, max_steps=1)
+>>> a.model.structure_name(), a.ladder.steps[-1].added
+('ARX(1,1,1)', 'u1^2')
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+from ._checks import check_data, check_horizon
+from ._format import format_value, horizon_label, json_safe, text_table
+from .data import IOData
+from .exceptions import ArxidError, OrderError
+from .ladder import Ladder
+from .missing import Diagnosis
+from .model import ArxModel, arx
+from .orders import DEFAULT_GRID, SweepResult, sweep
+from .validation import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
+
+__all__ = ["Analysis", "Choice", "analyse", "choose", "grid_of", "DEFAULT_SPLIT", "diagnose_report"]
+
+#: Share of the data used for estimation when no separate validation data are given (the rest validates).
+DEFAULT_SPLIT = 0.7
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Which structure was chosen and why.
+
+    Attributes
+    ----------
+    structure : str
+        The chosen structure, e.g. ``ARX(2,1,3)``.
+    rank : int or None
+        Its 0-based rank in the sweep (None when the orders were given).
+    reason : str
+        One sentence: how it was chosen.
+    skipped : tuple of (str, str)
+        Better-ranked structures the step sanity check rejected, with the reason.
+    """
+
+    structure: str
+    rank: int | None
+    reason: str
+    skipped: tuple[tuple[str, str], ...] = ()
+
+    def to_dict(self) -> dict:
+        """JSON-ready: structure, rank (1-based, or None), reason, skipped (structure, why).
+
+        Returns
+        -------
+        dict
+        """
+        return {"structure": self.structure, "rank": None if self.rank is None else self.rank + 1,
+                "reason": self.reason, "skipped": [{"structure": s, "why": w} for s, w in self.skipped]}
+
+
+def grid_of(grid: Mapping[str, Any] | None = None) -> dict[str, tuple[int, ...]]:
+    """The order grid with every key present: ``grid`` completed from :data:`arxid.DEFAULT_GRID`.
+
+    Parameters
+    ----------
+    grid : mapping with keys among na, nb, nk, optional
+        Order ranges; missing keys take the default.
+
+    Returns
+    -------
+    dict of str to tuple of int
+    """
+    g = dict(grid or {})
+    unknown = set(g) - {"na", "nb", "nk"}
+    if unknown:
+        raise OrderError(f"grid keys must be na, nb, nk; got {sorted(unknown)}")
+    return {k: tuple(int(v) for v in _as_range(g.get(k, DEFAULT_GRID[k]))) for k in ("na", "nb", "nk")}
+
+
+def _as_range(v: Any) -> Sequence[int]:
+    return [v] if isinstance(v, int) else list(v)
+
+
+def choose(result: SweepResult) -> tuple[ArxModel, Choice]:
+    """The best-ranked structure of a sweep that passes the step sanity check, and why.
+
+    Parameters
+    ----------
+    result : SweepResult
+
+    Returns
+    -------
+    model : ArxModel
+        The structure refitted on the sweep's rows (its parameters equal the sweep's).
+    choice : Choice
+    """
+    sel = result.select(sane=True)
+    model = result.model(sel.rank)
+    reason = (f"the lowest {result.ranking_text} of {len(result)} structures among those whose step response "
+              f"passes the sanity check")
+    skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
+    return model, Choice(sel.structure, sel.rank, reason, skipped)
+
+
+@dataclass(frozen=True, eq=False)
+class Analysis:
+    """Everything arxid concludes about one data set, as result objects.
+
+    Attributes
+    ----------
+    estimation, validation : IOData
+        The data the models were fitted on and judged on.
+    grid : dict of str to tuple of int, or None
+        The order grid swept (None when the orders were given).
+    sweep : SweepResult or None
+        Every structure of the grid, ranked (None when the orders were given).
+    choice : Choice
+        Which structure was chosen and why.
+    model : ArxModel
+        The chosen structure, without added effects.
+    horizon : int or None
+        The validation error measure of every number below: None = free-run simulation, k =
+        k-step-ahead prediction (integrating plants, or a chosen model whose free run diverges).
+    diagnosis : Diagnosis
+        Suspects for the chosen model's error; holds the residual tests.
+    ladder : Ladder
+        The models as the significant suspects are added, with their validation errors.
+    comparison : Comparison
+        Measured output against the chosen model and (when effects were added) the final model.
+    failures : tuple of FailureAnalysis
+        Where each model of ``comparison`` fails, in the same order.
+    timings : dict of str to float
+        Seconds spent in each stage.
+    notes : tuple of str
+        What the reader should know (the measure switched to k-step, ...).
+    """
+
+    estimation: IOData
+    validation: IOData
+    grid: dict | None
+    sweep: SweepResult | None
+    choice: Choice
+    model: ArxModel
+    horizon: int | None
+    diagnosis: Diagnosis
+    ladder: Ladder
+    comparison: Comparison
+    failures: tuple[FailureAnalysis, ...]
+    timings: dict
+    notes: tuple[str, ...] = ()
+
+    @property
+    def final_model(self) -> ArxModel:
+        """The model of the ladder's last step (the chosen model when nothing was added)."""
+        return self.ladder.final_model
+
+    @property
+    def residual_tests(self) -> ResidualAnalysis | None:
+        """Residual tests of the chosen model on the validation data (those of the diagnosis)."""
+        return self.diagnosis.residual_tests
+
+    @property
+    def missing_effect(self) -> str | None:
+        """The best significant suspect, or None when nothing significant is missing."""
+        top = self.diagnosis.top
+        return None if top is None else top.effect
+
+    @property
+    def error_fall(self) -> float | None:
+        """Relative fall of the validation error from the first to the last ladder step (0..1)."""
+        errors = self.ladder.errors
+        if len(errors) < 2 or not (math.isfinite(errors[0]) and errors[0] > 0 and math.isfinite(errors[-1])):
+            return None
+        return float(1.0 - errors[-1] / errors[0])
+
+    def to_dict(self) -> dict:
+        """The machine-readable result (the ``arxid diagnose --json`` and ``report --json`` contract).
+
+        Keys ``model``, ``baseline``, ``residual_tests``, ``suspects`` and ``ladder`` as
+        :meth:`Diagnosis.to_dict`; ``choice``, ``grid``, ``sweep`` (summary and best rows),
+        ``comparison``, ``where_it_fails`` (one per compared model), ``notes``.
+
+        Returns
+        -------
+        dict
+        """
+        out = self.diagnosis.to_dict(self.ladder)
+        out.update({
+            "choice": self.choice.to_dict(),
+            "grid": None if self.grid is None else {k: list(v) for k, v in self.grid.items()},
+            "sweep": None if self.sweep is None else self.sweep.summary(),
+            "comparison": self.comparison.to_dict(),
+            "where_it_fails": [f.to_dict() for f in self.failures],
+            "notes": list(self.notes),
+        })
+        return out
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict` (NaN and inf become null).
+
+        Parameters
+        ----------
+        indent : int or None
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
+
+    def __str__(self) -> str:
+        return "\n".join(self.summary_lines())
+
+    def summary_lines(self, n_suspects: int = 12) -> list[str]:
+        """The text report of ``arxid diagnose``: model, choice, validation, residual tests,
+        suspects, verdict and ladder.
+
+        Parameters
+        ----------
+        n_suspects : int
+            Rows of the suspect table.
+
+        Returns
+        -------
+        list of str
+        """
+        d = self.diagnosis
+        what = horizon_label(self.horizon)
+        lines = [f"model: {self.model.structure_name()} ({self.choice.reason})"]
+        lines += [f"  skipped {s}: {w}" for s, w in self.choice.skipped[:3]]
+        lines.append(f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
+                     f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %")
+        lines += self.notes
+        if self.residual_tests is not None:
+            lines += ["", str(self.residual_tests)]
+        rows = [[str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
+                for i, s in enumerate(d.suspects[:n_suspects], start=1)]
+        if rows:
+            lines += ["", text_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows,
+                                     title="suspects (missing effects, ranked):")]
+        lines += ["", f"missing effect: {self.missing_effect}" if self.missing_effect else
+                  "no significant missing effect"]
+        if len(self.ladder):
+            lines += ["", str(self.ladder)]
+        return lines
+
+
+# ----------------------------------------------------------------------------------------- stages
+def _split(data: IOData, validation: IOData | None, split: float) -> tuple[IOData, IOData]:
+    data = check_data(data)
+    if validation is not None:
+        return data, check_data(validation, "validation")
+    if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
+        raise ArxidError(f"split must be the estimation fraction between 0 and 1, e.g. {DEFAULT_SPLIT}, got {split!r}")
+    return data.split(float(split))
+
+
+def _structure(est: IOData, val: IOData, orders: Sequence | None, grid: Mapping | None, horizon: int | None,
+               expect: str | None, progress: bool) -> tuple[SweepResult | None, ArxModel, Choice, dict | None]:
+    if orders is not None:
+        try:
+            na, nb, nk = orders
+        except (TypeError, ValueError):
+            raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
+        model = arx(est, na, nb, nk)
+        return None, model, Choice(model.structure_name(), None, "the orders were given"), None
+    g = grid_of(grid)
+    res = sweep(est, validation=val, horizon=horizon, expect=expect, progress=progress, **g)
+    model, choice = choose(res)
+    return res, model, choice, g
+
+
+def _checks(model: ArxModel, final: ArxModel, val: IOData, horizon: int | None
+            ) -> tuple[Comparison, tuple[FailureAnalysis, ...]]:
+    models = {model.structure_name(): model}
+    if final is not model:
+        models["+ " + ", ".join(final.effects)] = final
+    cmp = compare(models, val, horizon)
+    return cmp, tuple(where_it_fails(m, val, horizon) for m in models.values())
+
+
+def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
+    notes = []
+    if res is not None and res.integrating:
+        notes.append(f"The sweep found an integrating plant ({res.integrating_reason}); free-run error drifts, so "
+                     f"validation errors are {res.horizon}-step-ahead prediction errors.")
+    elif horizon != requested and horizon is not None:
+        notes.append(f"The chosen model's free run diverges or it has a pole at 1, so validation errors are "
+                     f"{horizon}-step-ahead prediction errors.")
+    return tuple(notes)
+
+
+def analyse(data: IOData, validation: IOData | None = None, *, split: float = DEFAULT_SPLIT,
+            orders: Sequence | None = None, grid: Mapping[str, Any] | None = None, horizon: int | None = None,
+            expect: str | None = None, max_steps: int = 3, progress: bool = False,
+            **diagnose_kwargs: Any) -> Analysis:
+    """Sweep (unless ``orders`` are given), choose, compare, test, diagnose and climb the ladder.
+
+    Parameters
+    ----------
+    data : IOData
+        Estimation data, or all data when ``validation`` is None (then split at ``split``).
+    validation : IOData, optional
+        Separate validation data.
+    split : float
+        Estimation share of ``data`` when no validation data are given (default 0.7).
+    orders : (na, nb, nk), optional
+        A fixed structure; skips the sweep.
+    grid : mapping with keys na, nb, nk, optional
+        Sweep grid; missing keys take :data:`arxid.DEFAULT_GRID`.
+    horizon : int, optional
+        Validation error measure: None = free run (k-step for an integrating plant, as the sweep
+        and the diagnosis detect it); k = k-step-ahead prediction.
+    expect : {None, "stable", "integrating", "double-integrating"}
+        What the physics says; passed to the sweep's step sanity check.
+    max_steps : int
+        Largest number of effects the ladder adds.
+    progress : bool
+        Progress bar of the sweep on stderr.
+    **diagnose_kwargs
+        Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
+
+    Returns
+    -------
+    Analysis
+    """
+    est, val = _split(data, validation, split)
+    requested = check_horizon(horizon)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    res, model, choice, g = _structure(est, val, orders, grid, requested, expect, progress)
+    measure = res.horizon if res is not None else requested
+    timings["sweep"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ladder = Ladder.run(model, est, val, max_steps=max_steps, horizon=measure, **diagnose_kwargs)
+    timings["diagnose"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cmp, failures = _checks(model, ladder.final_model, val, ladder.horizon)
+    timings["checks"] = time.perf_counter() - t0
+    return Analysis(est, val, g, res, choice, model, ladder.horizon, ladder.diagnoses[0], ladder, cmp, failures,
+                    timings, _notes(res, ladder.horizon, requested))
+
+
+def diagnose_report(data: IOData, validation: IOData | None = None, orders: Sequence | None = None,
+                    grid: Mapping[str, Any] | None = None, horizon: int | None = None, max_steps: int = 3,
+                    progress: bool = False, **diagnose_kwargs: Any) -> dict:
+    """Deprecated alias of ``analyse(...).to_dict()`` (the ``arxid diagnose --json`` result).
+
+    Parameters
+    ----------
+    data, validation, orders, grid, horizon, max_steps, progress, **diagnose_kwargs
+        As in :func:`analyse`.
+
+    Returns
+    -------
+    dict
+    """
+    warnings.warn("diagnose_report is deprecated: use arxid.analyse(...).to_dict()", DeprecationWarning, stacklevel=2)
+    return analyse(data, validation, orders=orders, grid=grid, horizon=horizon, max_steps=max_steps,
+                   progress=progress, **diagnose_kwargs).to_dict()
+

@@ -1,0 +1,266 @@
+"""The error ladder: models as effects are added, with the validation error at each step.
+
+:meth:`Ladder.run` adds the best significant suspect of :func:`arxid.diagnose`, re-diagnoses, and
+repeats until nothing significant is left, so the user watches the error fall step by step.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import _metrics as metrics
+from ._checks import check_horizon, check_model
+from ._format import finite_or_none, horizon_label, require_pandas, text_table
+from .data import IOData
+from .exceptions import ArxidError
+from .missing import Diagnosis, diagnose
+from .model import ArxModel
+from .validation import prediction_error
+
+__all__ = ["Ladder", "LadderStep"]
+
+
+@dataclass(frozen=True, eq=False)
+class LadderStep:
+    """One rung: the model after adding ``added`` and its validation error.
+
+    Attributes
+    ----------
+    added : str
+        What this step added (``""`` for the starting model).
+    model : ArxModel
+    effects : tuple of str
+        All effects of the model at this step.
+    structure : str
+        e.g. ``ARX(2,2,1) + y^3``.
+    rms_sim_val : float
+        Validation error at ``horizon`` (None = free run).
+    fit_val : float
+        Validation fit percent at ``horizon``.
+    horizon : int or None
+    """
+
+    added: str
+    model: ArxModel = field(repr=False)
+    effects: tuple[str, ...]
+    structure: str
+    rms_sim_val: float
+    fit_val: float
+    horizon: int | None
+
+
+class Ladder:
+    """The sequence of models as effects are added, with the validation error at each step.
+
+    Build it by hand with :meth:`add`, or greedily with :meth:`run`, which adds the best significant
+    suspect of :func:`diagnose` until nothing significant is left.
+
+    Parameters
+    ----------
+    validation : IOData, optional
+        Data every step is measured on; default: that of the first :meth:`add`, else the first
+        model's estimation data.
+    horizon : int, optional
+        Validation error measure: None = free-run simulation; k = k-step-ahead prediction.
+
+    Attributes
+    ----------
+    steps : list of LadderStep
+        The models in the order they were added.
+    diagnoses : list of Diagnosis
+        The diagnoses :meth:`run` made (empty for a ladder built by hand).
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.uniform(0.5, 1.5, 3000)
+    >>> y = np.zeros(3000)
+    >>> for t in range(1, 3000):
+    ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
+    >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
+    >>> ladder = arxid.Ladder.run(arxid.arx(est, 1, 1, 1), est, val)
+    >>> [s.added for s in ladder.steps][:2]
+    ['', 'u1^2']
+    """
+
+    def __init__(self, validation: IOData | None = None, horizon: int | None = None):
+        self.validation = validation
+        self.horizon = check_horizon(horizon)
+        self.steps: list[LadderStep] = []
+        self.diagnoses: list[Diagnosis] = []
+
+    def add(self, model: ArxModel, added: str = "", validation: IOData | None = None) -> LadderStep:
+        """Record ``model`` as the next step, measured on ``validation`` (default: the ladder's).
+
+        Parameters
+        ----------
+        model : ArxModel
+            A fitted model.
+        added : str
+            What this step added (an effect or a structure change; ``""`` for the starting model).
+        validation : IOData, optional
+            Data to measure this step on; default the ladder's, else the model's estimation data
+            (the first data given become the ladder's).
+
+        Returns
+        -------
+        LadderStep
+            The new step, with its validation RMS and fit percent at the ladder's ``horizon``.
+
+        Raises
+        ------
+        ArxidError
+            When there are no data to measure on.
+        """
+        model = check_model(model)
+        val = validation if validation is not None else self.validation
+        if val is None:
+            val = model.data_
+        if val is None:
+            raise ArxidError("give validation data: Ladder(validation) or add(model, validation=...)")
+        self.validation = self.validation if self.validation is not None else val
+        pred, _, _ = prediction_error(model, val, self.horizon)
+        step = LadderStep(added, model, tuple(model.effects), model.structure_name(),
+                          metrics.prediction_rms(val.y, pred), metrics.fit_percent(val.y, pred), self.horizon)
+        self.steps.append(step)
+        return step
+
+    @classmethod
+    def run(cls, model: ArxModel, data: IOData | None = None, validation: IOData | None = None, *,
+            max_steps: int = 3, horizon: int | None = None, **diagnose_kwargs) -> "Ladder":
+        """Greedy ladder: diagnose, add the best significant suspect, repeat.
+
+        Parameters
+        ----------
+        model : ArxModel
+            Starting model.
+        data, validation : IOData
+            Estimation and validation data (see :func:`diagnose`).
+        max_steps : int
+            Largest number of suspects added.
+        horizon : int or None
+            Validation error measure (the first diagnosis may switch a free run to k-step for an
+            integrating plant; the whole ladder then uses that horizon).
+        **diagnose_kwargs
+            Passed to :func:`diagnose` (``candidates``, ``alpha``, ``min_improvement`` ...).
+
+        Returns
+        -------
+        Ladder
+            ``steps`` (the starting model first) and the ``diagnoses`` made along the way.
+        """
+        model = check_model(model)
+        data = data if data is not None else model.data_
+        d = diagnose(model, data, validation, horizon=horizon, **diagnose_kwargs)
+        ladder = cls(d.validation, d.horizon)
+        ladder.add(model)
+        ladder.diagnoses.append(d)
+        for _ in range(int(max_steps)):
+            top = d.top
+            if top is None:
+                break
+            model = d.apply(top.effect)
+            ladder.add(model, top.effect)
+            d = diagnose(model, data, validation, horizon=d.horizon, **diagnose_kwargs)
+            ladder.diagnoses.append(d)
+        return ladder
+
+    @property
+    def final_model(self) -> ArxModel:
+        """The model of the last step (raises :class:`~arxid.ArxidError` when the ladder is empty)."""
+        if not self.steps:
+            raise ArxidError("the ladder is empty")
+        return self.steps[-1].model
+
+    @property
+    def errors(self) -> np.ndarray:
+        """Validation RMS of every step, shape (n_steps,)."""
+        return np.array([s.rms_sim_val for s in self.steps])
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def __str__(self) -> str:
+        rows = []
+        first = self.steps[0].rms_sim_val if self.steps else math.nan
+        for i, s in enumerate(self.steps):
+            change = f"{100 * (s.rms_sim_val / first - 1):+.1f}%" if i and math.isfinite(first) and first > 0 else ""
+            rows.append((i, s.added or "(start)", s.structure, s.rms_sim_val, s.fit_val, change))
+        return (f"error ladder (validation error, {horizon_label(self.horizon)})\n"
+                + text_table(["step", "added", "model", "rms", "fit %", "vs start"], rows))
+
+    def __repr__(self) -> str:
+        return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
+
+    def to_list(self) -> list[dict]:
+        """The CLI contract: one ``{"added", "structure", "effects", "rms_sim_val", "fit_val"}`` per step.
+
+        Returns
+        -------
+        list of dict
+        """
+        return [{"added": s.added, "structure": s.structure, "effects": list(s.effects),
+                 "rms_sim_val": finite_or_none(float(s.rms_sim_val)), "fit_val": finite_or_none(float(s.fit_val))}
+                for s in self.steps]
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: the horizon and the steps.
+
+        Returns
+        -------
+        dict
+            ``{"horizon": int or None, "steps": [...]}``, the steps as in :meth:`to_list`.
+        """
+        return {"horizon": self.horizon,
+                "steps": [{"added": s.added, "structure": s.structure, "effects": list(s.effects),
+                           "rms_sim_val": finite_or_none(float(s.rms_sim_val)),
+                           "fit_val": finite_or_none(float(s.fit_val))} for s in self.steps]}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation of the JSON; None writes one line.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def to_pandas(self):
+        """One row per step: what was added, the structure, validation RMS and fit.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``added``, ``structure``, ``rms_sim_val``, ``fit_val``.
+        """
+        pd = require_pandas()
+        return pd.DataFrame([{"added": s.added, "structure": s.structure, "rms_sim_val": s.rms_sim_val,
+                              "fit_val": s.fit_val} for s in self.steps])
+
+    def plot(self, ax: Any = None) -> Any:
+        """Validation error per step (the error falling).
+
+        Parameters
+        ----------
+        ax : Axes, optional
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from .plots.diagnostics import plot_ladder
+
+        return plot_ladder(self, ax=ax)
+
+
