@@ -61,7 +61,7 @@ def simulate(theta, na, nb, nk, yv, uv, lag):
     """Free run from measured initial outputs at `lag` (same start as arxid), RMS over the rest."""
     a = np.concatenate([[1.0], theta[:na]])
     b = np.concatenate([np.zeros(nk), theta[na:]])
-    zi = lfiltic(b, a, yv[lag - 1::-1][: na], uv[lag - 1::-1][: len(b) - 1])
+    zi = lfiltic(b, a, yv[lag - 1 :: -1][:na], uv[lag - 1 :: -1][: len(b) - 1])
     with np.errstate(all="ignore"):
         sim, _ = lfilter(b, a, uv[lag:], zi=zi)
         return float(np.sqrt(np.mean((yv[lag:] - sim) ** 2)))
@@ -137,8 +137,12 @@ def peak_rss_of_sweep() -> int:
 
     if not os.path.exists("/proc/self/statm"):
         return -1
-    out = subprocess.run([sys.executable, "-c", _PEAK_CHILD, os.path.dirname(os.path.abspath(__file__))],
-                         capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", _PEAK_CHILD, os.path.dirname(os.path.abspath(__file__))],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     return int(out.stdout.strip().splitlines()[-1])
 
 
@@ -155,8 +159,10 @@ def main():
     val = arxid.IOData(yv, uv, ts=0.01)
     structures = grid()
     lag = max(NA[-1], NB[-1] + NK[-1] - 1)
-    print(f"arxid sweep benchmark: {len(structures)} structures (na 1..10, nb 1..10, nk 0..10), SISO, "
-          f"{n:,} estimation + {n:,} validation samples, {os.cpu_count()} cores; medians")
+    print(
+        f"arxid sweep benchmark: {len(structures)} structures (na 1..10, nb 1..10, nk 0..10), SISO, "
+        f"{n:,} estimation + {n:,} validation samples, {os.cpu_count()} cores; medians"
+    )
 
     def run_arxid():
         return arxid.sweep(est, na=NA, nb=NB, nk=NK, validation=val, progress=False, simulate_estimation=False)
@@ -180,29 +186,40 @@ def main():
     ua, uva = u.reshape(-1, 1), uv.reshape(-1, 1)
     t_fit = median_time(lambda: _core.sweep(y, ua, [0], grid_arr, [], simulate_estimation=False), rep * 2)
     t_gram = median_time(lambda: gram_pass(y, u, lag), rep * 2)
-    t_gram_mm = median_time(lambda a=envelope(y, u, lag): a.T @ a, rep * 2)
-    t_core = median_time(lambda: _core.sweep(y, ua, [0], grid_arr, [], yv=yv, uv=uva, starts_v=[0],
-                                             simulate_estimation=False), rep)
+    t_gram_mm = median_time(lambda a=envelope(y, u, lag): a.T @ a, rep * 2)  # noqa: B008
+    t_core = median_time(
+        lambda: _core.sweep(y, ua, [0], grid_arr, [], yv=yv, uv=uva, starts_v=[0], simulate_estimation=False), rep
+    )
 
     print()
-    print(f"  arxid.sweep (fit + validation free run, ranked result) {t_arxid:8.3f} s   (Rust core alone {t_core:.3f} s)")
-    print(f"  (a) naive numpy: regressor + lstsq + lfilter          {t_naive:8.3f} s   "
-          f"(timed on {len(subset)} structures, extrapolated to {len(structures)})")
+    print(
+        f"  arxid.sweep (fit + validation free run, ranked result) {t_arxid:8.3f} s   (Rust core alone {t_core:.3f} s)"
+    )
+    print(
+        f"  (a) naive numpy: regressor + lstsq + lfilter          {t_naive:8.3f} s   "
+        f"(timed on {len(subset)} structures, extrapolated to {len(structures)})"
+    )
     print(f"  (b) vectorised numpy: Gram + Cholesky + lfilter       {t_vec:8.3f} s   (all structures)")
     print(f"  ratio vs (a): {t_naive / t_arxid:7.1f} x   (target >= 150 x)")
     print(f"  ratio vs (b): {t_vec / t_arxid:7.1f} x   (target >= 10 x)")
-    print(f"  validation RMS agreement with the baselines on {len(check)} structures: "
-          f"max rel. diff {worst:.1e} (lstsq), {worst_v:.1e} (Cholesky)")
+    print(
+        f"  validation RMS agreement with the baselines on {len(check)} structures: "
+        f"max rel. diff {worst:.1e} (lstsq), {worst_v:.1e} (Cholesky)"
+    )
     print()
     print(f"  fit part alone (1,100 parameter vectors + losses, TSQR) {t_fit:8.4f} s")
-    print(f"  one Gram pass of [Phi_max | y] (build + Phi^T Phi)      {t_gram:8.4f} s   (Phi^T Phi alone {t_gram_mm:.4f} s)")
+    print(
+        f"  one Gram pass of [Phi_max | y] (build + Phi^T Phi)      {t_gram:8.4f} s   (Phi^T Phi alone {t_gram_mm:.4f} s)"  # noqa: E501
+    )
     print(f"  fit / Gram pass: {t_fit / t_gram:5.2f}   (target < 3; vs Phi^T Phi alone {t_fit / t_gram_mm:.2f})")
     print()
-    inputs = (y.nbytes + u.nbytes + yv.nbytes + uv.nbytes)
+    inputs = y.nbytes + u.nbytes + yv.nbytes + uv.nbytes
     peak = peak_rss_of_sweep()
     if peak >= 0:
-        print(f"  peak memory of arxid.sweep above its inputs (fresh process): {peak / 2**20:.1f} MiB "
-              f"(inputs {inputs / 2**20:.1f} MiB; target < 2 x inputs + O(threads N))")
+        print(
+            f"  peak memory of arxid.sweep above its inputs (fresh process): {peak / 2**20:.1f} MiB "
+            f"(inputs {inputs / 2**20:.1f} MiB; target < 2 x inputs + O(threads N))"
+        )
     print()
     print("  scaling (arxid, same grid; 'solve' = fit part minus one TSQR of the largest regressor):")
     print(f"  {'N (est = val)':>14}  {'sweep':>9}  {'fit part':>9}  {'TSQR':>9}  {'solve/structure':>16}")
@@ -213,10 +230,12 @@ def main():
         yv2, uv2 = make_data(nn, 4)
         u2c, uv2c = u2.reshape(-1, 1), uv2.reshape(-1, 1)
         r = 1 if nn > 1_000_000 else rep
-        t_all = median_time(lambda: _core.sweep(y2, u2c, [0], grid_arr, [], yv=yv2, uv=uv2c, starts_v=[0],
-                                                simulate_estimation=False), r)
-        t_f = median_time(lambda: _core.sweep(y2, u2c, [0], grid_arr, [], simulate_estimation=False), r * 2)
-        t_q = median_time(lambda: _core.sweep(y2, u2c, [0], env, [], simulate_estimation=False), r * 2)
+        t_all = median_time(
+            lambda: _core.sweep(y2, u2c, [0], grid_arr, [], yv=yv2, uv=uv2c, starts_v=[0], simulate_estimation=False),  # noqa: B023
+            r,  # noqa: B023
+        )
+        t_f = median_time(lambda: _core.sweep(y2, u2c, [0], grid_arr, [], simulate_estimation=False), r * 2)  # noqa: B023
+        t_q = median_time(lambda: _core.sweep(y2, u2c, [0], env, [], simulate_estimation=False), r * 2)  # noqa: B023
         per = max(t_f - t_q, 0.0) / len(structures)
         print(f"  {nn:>14,}  {t_all:8.3f}s  {t_f:8.4f}s  {t_q:8.4f}s  {per * 1e6:13.1f} us")
 

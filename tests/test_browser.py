@@ -66,7 +66,8 @@ window.addEventListener('error', function (e) {
   window.__errors.push('error: ' + String(what).slice(0, 120));
 }, true);
 (function () { var ce = console.error; console.error = function () {
-  window.__errors.push('console.error: ' + Array.prototype.join.call(arguments, ' ')); ce.apply(console, arguments); }; })();
+  window.__errors.push('console.error: ' + Array.prototype.join.call(arguments, ' '));
+  ce.apply(console, arguments); }; })();
 window.addEventListener('load', function () {
   var imgs = Array.prototype.slice.call(document.images);
   var res = (performance.getEntriesByType('resource') || []).map(function (r) { return r.name; });
@@ -85,10 +86,23 @@ window.addEventListener('load', function () {
 
 
 def _run(browser: str, args: list[str], tmp_path: Path) -> subprocess.CompletedProcess:
-    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars",
-           "--no-first-run", "--no-default-browser-check", "--disable-extensions", "--disable-background-networking",
-           f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0", *args]
-    for attempt in range(2):  # headless Chromium occasionally crashes at start-up on a loaded machine
+    cmd = [
+        browser,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-dev-shm-usage",
+        "--hide-scrollbars",
+        "--no-first-run",
+        "--no-default-browser-check",
+        "--disable-extensions",
+        "--disable-background-networking",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--enable-logging=stderr",
+        "--v=0",
+        *args,
+    ]
+    for attempt in range(2):  # headless Chromium occasionally crashes at start-up on a loaded machine  # noqa: B007
         try:
             res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
         except subprocess.TimeoutExpired:
@@ -106,7 +120,9 @@ def test_report_renders_with_every_plot_loaded_and_no_errors(browser, report_fil
     assert res.returncode == 0, res.stderr[-2000:]
     m = re.search(r'<pre id="__probe">(.*?)</pre>', res.stdout, re.S)
     assert m, "the page's load handler did not run:\n" + res.stderr[-2000:]
-    probe = json.loads(m.group(1).replace("&quot;", '"').replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">"))
+    probe = json.loads(
+        m.group(1).replace("&quot;", '"').replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">")
+    )
     assert probe["n"] == html.count("<img "), probe
     assert probe["n"] >= 8
     assert probe["broken"] == [], f"plots that did not load: {probe['broken']}"
@@ -114,8 +130,11 @@ def test_report_renders_with_every_plot_loaded_and_no_errors(browser, report_fil
     assert probe["errors"] == [], probe["errors"]
     assert isinstance(probe["diagnosis"], int) and probe["diagnosis"] >= 1, probe["diagnosis"]  # embedded JSON parses
     # what the browser itself logged about the page (console messages carry the page's URL)
-    page_lines = [ln for ln in res.stderr.splitlines()
-                  if ("CONSOLE" in ln or "Uncaught" in ln or "Failed to load resource" in ln or "net::ERR" in ln)]
+    page_lines = [
+        ln
+        for ln in res.stderr.splitlines()
+        if ("CONSOLE" in ln or "Uncaught" in ln or "Failed to load resource" in ln or "net::ERR" in ln)
+    ]
     assert page_lines == [], "\n".join(page_lines)
 
 
@@ -123,12 +142,15 @@ def test_report_screenshot_is_not_blank(browser, report_file, tmp_path):
     from PIL import Image
 
     shot = tmp_path / "shot.png"
-    res = _run(browser, ["--window-size=1100,2400", "--virtual-time-budget=10000", f"--screenshot={shot}",
-                         report_file.as_uri()], tmp_path)
+    res = _run(
+        browser,
+        ["--window-size=1100,2400", "--virtual-time-budget=10000", f"--screenshot={shot}", report_file.as_uri()],
+        tmp_path,
+    )
     assert res.returncode == 0 and shot.is_file(), res.stderr[-2000:]
     img = np.asarray(Image.open(shot).convert("L"), dtype=float)
     assert img.shape[0] >= 2000 and img.shape[1] >= 1000
-    inked = (img < 200).mean()           # text, table lines and plots
+    inked = (img < 200).mean()  # text, table lines and plots
     assert inked > 0.02, f"only {inked:.2%} of the screenshot is drawn: the page looks blank"
     assert img.std() > 20
     # the plots are drawn, not only text: a band of the page holds mid-tone colours (lines, colour maps)

@@ -16,8 +16,10 @@ TRUE_A, TRUE_B, TRUE_NK = -0.8, 0.5, 2
 
 def _strict_json(text: str):
     """json.loads that refuses NaN/Infinity literals (they are not JSON)."""
+
     def bad(c):
         raise AssertionError(f"non-JSON constant {c} in output")
+
     return json.loads(text, parse_constant=bad)
 
 
@@ -74,8 +76,22 @@ def run(capsys, *argv):
 
 # ---------------------------------------------------------------------------------------- fit
 def test_fit_json_recovers_the_true_parameters(capsys, csv_file):
-    code, out, err = run(capsys, "fit", csv_file, "--output", "y", "--inputs", "u", "--ts", 0.01,
-                         "--orders", "1,1,2", "--split", 0.7, "--json")
+    code, out, err = run(
+        capsys,
+        "fit",
+        csv_file,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--ts",
+        0.01,
+        "--orders",
+        "1,1,2",
+        "--split",
+        0.7,
+        "--json",
+    )
     assert code == 0, err
     d = _strict_json(out)
     assert d["structure"] == "ARX(1,1,2)"
@@ -85,11 +101,13 @@ def test_fit_json_recovers_the_true_parameters(capsys, csv_file):
 
 def test_fit_table_time_column_and_save(capsys, csv_file, tmp_path):
     path = tmp_path / "m.json"
-    code, out, err = run(capsys, "fit", csv_file, "--output", "y", "--inputs", "u", "--time", "t",
-                         "--orders", "1,1,2", "--save", path)
+    code, out, err = run(
+        capsys, "fit", csv_file, "--output", "y", "--inputs", "u", "--time", "t", "--orders", "1,1,2", "--save", path
+    )
     assert code == 0, err
     assert "ARX(1,1,2)" in out and "one-step fit on estimation" in out
     import arxid
+
     m = arxid.ArxModel.from_json(path)
     np.testing.assert_allclose(m.parameters_, [TRUE_A, TRUE_B], atol=1e-9)
     assert m.ts == pytest.approx(0.01)
@@ -107,8 +125,24 @@ def test_fit_reads_npz_with_ts_inside(capsys, tmp_path):
 
 
 def test_fit_with_effect(capsys, battery_csv):
-    code, out, err = run(capsys, "fit", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
-                         "--ts", 0.01, "--orders", "1,1,1", "--effects", "u*vbat", "--json")
+    code, out, err = run(
+        capsys,
+        "fit",
+        battery_csv,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--extra",
+        "vbat",
+        "--ts",
+        0.01,
+        "--orders",
+        "1,1,1",
+        "--effects",
+        "u*vbat",
+        "--json",
+    )
     assert code == 0, err
     d = _strict_json(out)
     assert d["model"]["effects"] == ["u*vbat"]
@@ -118,8 +152,25 @@ def test_fit_with_effect(capsys, battery_csv):
 
 # ---------------------------------------------------------------------------------------- sweep
 def test_sweep_json_finds_the_true_structure(capsys, noisy_csv):
-    code, out, err = run(capsys, "sweep", noisy_csv, "--output", "y", "--inputs", "u", "--ts", 0.01,
-                         "--na", "1:2", "--nb", "1:2", "--nk", "0:3", "--json", "--no-progress")
+    code, out, err = run(
+        capsys,
+        "sweep",
+        noisy_csv,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--ts",
+        0.01,
+        "--na",
+        "1:2",
+        "--nb",
+        "1:2",
+        "--nk",
+        "0:3",
+        "--json",
+        "--no-progress",
+    )
     assert code == 0, err
     d = _strict_json(out)
     assert d["n_structures"] == 2 * 2 * 4
@@ -133,8 +184,25 @@ def test_sweep_json_finds_the_true_structure(capsys, noisy_csv):
 
 
 def test_sweep_table(capsys, csv_file):
-    code, out, err = run(capsys, "sweep", csv_file, "--output", "y", "--inputs", "u", "--ts", 0.01,
-                         "--na", "1", "--nb", "1", "--nk", "1,2", "--top", "5")
+    code, out, err = run(
+        capsys,
+        "sweep",
+        csv_file,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--ts",
+        0.01,
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1,2",
+        "--top",
+        "5",
+    )
     assert code == 0, err
     assert "2 structures" in out and "best sane structure: ARX(1,1,2)" in out
     assert "ARX(1,1,1)" in out  # the table lists both
@@ -142,8 +210,24 @@ def test_sweep_table(capsys, csv_file):
 
 # ---------------------------------------------------------------------------------------- diagnose
 def test_diagnose_json_contract_and_battery_found(capsys, battery_csv):
-    code, out, err = run(capsys, "diagnose", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
-                         "--ts", 0.01, "--orders", "1,1,1", "--split", 0.7, "--json")
+    code, out, err = run(
+        capsys,
+        "diagnose",
+        battery_csv,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--extra",
+        "vbat",
+        "--ts",
+        0.01,
+        "--orders",
+        "1,1,1",
+        "--split",
+        0.7,
+        "--json",
+    )
     assert code == 0, err
     d = _strict_json(out)  # exactly one JSON object on stdout
     assert {"model", "baseline", "residual_tests", "suspects", "ladder", "choice"} <= set(d)
@@ -159,8 +243,23 @@ def test_diagnose_json_contract_and_battery_found(capsys, battery_csv):
 
 
 def test_diagnose_tables(capsys, battery_csv):
-    code, out, err = run(capsys, "diagnose", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
-                         "--ts", 0.01, "--orders", "1,1,1", "--max-steps", 1)
+    code, out, err = run(
+        capsys,
+        "diagnose",
+        battery_csv,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--extra",
+        "vbat",
+        "--ts",
+        0.01,
+        "--orders",
+        "1,1,1",
+        "--max-steps",
+        1,
+    )
     assert code == 0, err
     assert "suspects" in out and "error ladder" in out and "missing effect:" in out
     with pytest.raises(json.JSONDecodeError):
@@ -170,16 +269,47 @@ def test_diagnose_tables(capsys, battery_csv):
 # ---------------------------------------------------------------------------------------- report, demo
 def test_report_writes_self_contained_html(capsys, battery_csv, tmp_path):
     path = tmp_path / "r.html"
-    code, out, err = run(capsys, "report", battery_csv, "--output", "y", "--inputs", "u", "--extra", "vbat",
-                         "--ts", 0.01, "--na", "1:2", "--nb", "1", "--nk", "0:2", "-o", path, "--max-steps", 1, "--json")
+    code, out, err = run(
+        capsys,
+        "report",
+        battery_csv,
+        "--output",
+        "y",
+        "--inputs",
+        "u",
+        "--extra",
+        "vbat",
+        "--ts",
+        0.01,
+        "--na",
+        "1:2",
+        "--nb",
+        "1",
+        "--nk",
+        "0:2",
+        "-o",
+        path,
+        "--max-steps",
+        1,
+        "--json",
+    )
     assert code == 0, err
     d = _strict_json(out)
     assert d["report"] == str(path) and d["bytes"] == path.stat().st_size
     html = path.read_text()
     assert html.count('<img src="data:image/png;base64,') >= 8
     assert "http://" not in html and "https://" not in html
-    for section in ("Data", "Order sweep", "Model equation", "Step-response checks", "Measured against simulated",
-                    "Residual tests", "Where it fails", "Which effect is missing", "Error ladder"):
+    for section in (
+        "Data",
+        "Order sweep",
+        "Model equation",
+        "Step-response checks",
+        "Measured against simulated",
+        "Residual tests",
+        "Where it fails",
+        "Which effect is missing",
+        "Error ladder",
+    ):
         assert section in html
 
 
@@ -213,27 +343,80 @@ def test_default_demo_under_60_s_tells_the_battery_story(capsys, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------- errors
-@pytest.mark.parametrize("argv, needle", [
-    (["fit", "{csv}", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "--output"),
-    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1"], "--orders"),
-    (["fit", "{csv}", "--output", "y", "--inputs", "nope", "--ts", "0.01", "--orders", "1,1,2"], "nope"),
-    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--orders", "1,1,2"], "ts"),
-    (["fit", "missing.csv", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "does not exist"),
-    (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--split", "1.5"], "split"),
-    (["diagnose", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--split", "0.9995"],
-     "validation"),
-    (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--na", "4:1"], "--na"),
-    (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--nk", "x"], "--nk"),
-    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "-1", "--orders", "1,1,2"], "ts"),
-    (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--effects", "bogus*"], "bogus"),
-    (["diagnose", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2", "--horizon", "0"], "horizon"),
-    (["frobnicate"], "frobnicate"),
-    (["demo", "--duration", "0"], "--duration"),
-    (["demo", "--duration", "nan"], "--duration"),
-    (["demo", "--duration", "1e9"], "at most"),
-    (["demo", "--seed", "-1"], "seed"),
-    ([], "command"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["fit", "{csv}", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"], "--output"),
+        (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1"], "--orders"),
+        (["fit", "{csv}", "--output", "y", "--inputs", "nope", "--ts", "0.01", "--orders", "1,1,2"], "nope"),
+        (["fit", "{csv}", "--output", "y", "--inputs", "u", "--orders", "1,1,2"], "ts"),
+        (
+            ["fit", "missing.csv", "--output", "y", "--inputs", "u", "--ts", "0.01", "--orders", "1,1,2"],
+            "does not exist",
+        ),
+        (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--split", "1.5"], "split"),
+        (
+            [
+                "diagnose",
+                "{csv}",
+                "--output",
+                "y",
+                "--inputs",
+                "u",
+                "--ts",
+                "0.01",
+                "--orders",
+                "1,1,2",
+                "--split",
+                "0.9995",
+            ],
+            "validation",
+        ),
+        (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--na", "4:1"], "--na"),
+        (["sweep", "{csv}", "--output", "y", "--inputs", "u", "--ts", "0.01", "--nk", "x"], "--nk"),
+        (["fit", "{csv}", "--output", "y", "--inputs", "u", "--ts", "-1", "--orders", "1,1,2"], "ts"),
+        (
+            [
+                "fit",
+                "{csv}",
+                "--output",
+                "y",
+                "--inputs",
+                "u",
+                "--ts",
+                "0.01",
+                "--orders",
+                "1,1,2",
+                "--effects",
+                "bogus*",
+            ],
+            "bogus",
+        ),
+        (
+            [
+                "diagnose",
+                "{csv}",
+                "--output",
+                "y",
+                "--inputs",
+                "u",
+                "--ts",
+                "0.01",
+                "--orders",
+                "1,1,2",
+                "--horizon",
+                "0",
+            ],
+            "horizon",
+        ),
+        (["frobnicate"], "frobnicate"),
+        (["demo", "--duration", "0"], "--duration"),
+        (["demo", "--duration", "nan"], "--duration"),
+        (["demo", "--duration", "1e9"], "at most"),
+        (["demo", "--seed", "-1"], "seed"),
+        ([], "command"),
+    ],
+)
 def test_bad_arguments_exit_2_with_one_line(capsys, csv_file, argv, needle):
     code, out, err = run(capsys, *[a.replace("{csv}", str(csv_file)) for a in argv])
     assert code == 2
@@ -254,20 +437,24 @@ def _bad_files(tmp_path):
     np.savez(tmp_path / "complex.npz", y=y, u=u + 1j, ts=0.01)
     np.savez(tmp_path / "ts_text.npz", y=y, u=u, ts="abc")
     np.savez(tmp_path / "nan_extra.npz", y=y, u=u, vbat=np.full(n, np.nan), ts=0.01)
-    np.savetxt(tmp_path / "nan_output.csv", np.column_stack([np.full(n, np.nan), u]), delimiter=",",
-               header="y,u", comments="")
+    np.savetxt(
+        tmp_path / "nan_output.csv", np.column_stack([np.full(n, np.nan), u]), delimiter=",", header="y,u", comments=""
+    )
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["fit", "binary.csv", "--orders", "1,1,1"], "binary.csv"),
-    (["fit", "array.npy", "--orders", "1,1,1"], "array.npy"),
-    (["fit", "twod.npz", "--orders", "1,1,1"], "'u'"),
-    (["fit", "text.npz", "--orders", "1,1,1"], "'u'"),
-    (["fit", "complex.npz", "--orders", "1,1,1"], "'u'"),
-    (["fit", "ts_text.npz", "--orders", "1,1,1"], "ts"),
-    (["diagnose", "nan_extra.npz", "--extra", "vbat", "--orders", "1,1,1"], "'vbat'"),
-    (["sweep", "nan_output.csv", "--na", "1:2", "--nb", "1", "--nk", "1"], "'y'"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["fit", "binary.csv", "--orders", "1,1,1"], "binary.csv"),
+        (["fit", "array.npy", "--orders", "1,1,1"], "array.npy"),
+        (["fit", "twod.npz", "--orders", "1,1,1"], "'u'"),
+        (["fit", "text.npz", "--orders", "1,1,1"], "'u'"),
+        (["fit", "complex.npz", "--orders", "1,1,1"], "'u'"),
+        (["fit", "ts_text.npz", "--orders", "1,1,1"], "ts"),
+        (["diagnose", "nan_extra.npz", "--extra", "vbat", "--orders", "1,1,1"], "'vbat'"),
+        (["sweep", "nan_output.csv", "--na", "1:2", "--nb", "1", "--nk", "1"], "'y'"),
+    ],
+)
 def test_bad_data_files_exit_2_with_one_line(tmp_path, argv, needle):
     """In a real process (warnings are not errors there): exit 2, one line naming the problem."""
     _bad_files(tmp_path)
@@ -307,10 +494,47 @@ def test_parse_range():
 
 def test_entry_point_process_exit_codes(csv_file):
     """The real process: exit 2 and one line on stderr for bad data, JSON on stdout on success."""
-    bad = subprocess.run([sys.executable, "-m", "arxid.cli", "fit", str(csv_file), "--output", "zz", "--inputs", "u",
-                          "--ts", "0.01", "--orders", "1,1,2"], capture_output=True, text=True, timeout=60)
+    bad = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arxid.cli",
+            "fit",
+            str(csv_file),
+            "--output",
+            "zz",
+            "--inputs",
+            "u",
+            "--ts",
+            "0.01",
+            "--orders",
+            "1,1,2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
-    ok = subprocess.run([sys.executable, "-m", "arxid.cli", "fit", str(csv_file), "--output", "y", "--inputs", "u",
-                         "--ts", "0.01", "--orders", "1,1,2", "--json"], capture_output=True, text=True, timeout=60)
+    ok = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arxid.cli",
+            "fit",
+            str(csv_file),
+            "--output",
+            "y",
+            "--inputs",
+            "u",
+            "--ts",
+            "0.01",
+            "--orders",
+            "1,1,2",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert ok.returncode == 0, ok.stderr
     assert _strict_json(ok.stdout)["structure"] == "ARX(1,1,2)"

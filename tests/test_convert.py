@@ -18,33 +18,43 @@ def fitted(na, nb, nk, a, b, n=3000, seed=0, noise=0.0):
     return arxid.arx(arxid.IOData(y, u, ts=0.01, output_name="roll", input_names=["torque"]), na, nb, nk)
 
 
-@pytest.mark.parametrize("na,nb,nk,a,b", [
-    (2, 1, 8, [-1.5, 0.7], [0.5]),
-    (1, 3, 0, [-0.6], [1.0, 0.5, 0.25]),   # nb > na, direct feedthrough
-    (2, 2, 3, [-1.2, 0.5], [0.3, 0.2]),
-])
+@pytest.mark.parametrize(
+    "na,nb,nk,a,b",
+    [
+        (2, 1, 8, [-1.5, 0.7], [0.5]),
+        (1, 3, 0, [-0.6], [1.0, 0.5, 0.25]),  # nb > na, direct feedthrough
+        (2, 2, 3, [-1.2, 0.5], [0.3, 0.2]),
+    ],
+)
 def test_to_control_matches_the_difference_equation(na, nb, nk, a, b):
     control = pytest.importorskip("control")
     model = fitted(na, nb, nk, a, b)
     tf = model.to_control()
     assert tf.dt == 0.01 and tf.input_labels == ["torque"] and tf.output_labels == ["roll"]
-    num, den = np.squeeze(tf.num_array[0, 0]), np.squeeze(tf.den_array[0, 0])
+    num, den = np.squeeze(tf.num_array[0, 0]), np.squeeze(tf.den_array[0, 0])  # noqa: F841
     n = max(na, nk + nb - 1)
     assert len(den) == n + 1 and den[0] == 1.0
     # Evaluate B(z⁻¹)/A(z⁻¹) and the TF at a few points on the unit circle.
     for w in (0.1, 0.7, 2.0):
         z = np.exp(1j * w)
-        direct = sum(model.b[0][k] * z**-k for k in range(len(model.b[0]))) / sum(model.a[k] * z**-k for k in range(na + 1))
+        direct = sum(model.b[0][k] * z**-k for k in range(len(model.b[0]))) / sum(
+            model.a[k] * z**-k for k in range(na + 1)
+        )
         assert complex(tf(z)) == pytest.approx(direct, rel=1e-10)
-    np.testing.assert_allclose(np.sort_complex(tf.poles()[np.abs(tf.poles()) > 1e-9]), np.sort_complex(model.poles()), atol=1e-9)
+    np.testing.assert_allclose(
+        np.sort_complex(tf.poles()[np.abs(tf.poles()) > 1e-9]), np.sort_complex(model.poles()), atol=1e-9
+    )
     assert np.squeeze(control.dcgain(tf)) == pytest.approx(model.dc_gain()[0], rel=1e-10)
 
 
-@pytest.mark.parametrize("na,nb,nk,a,b", [
-    (2, 1, 1, [-1.5, 0.7], [0.5]),
-    (2, 2, 3, [-1.2, 0.5], [0.3, 0.2]),
-    (1, 1, 0, [-0.6], [1.0]),
-])
+@pytest.mark.parametrize(
+    "na,nb,nk,a,b",
+    [
+        (2, 1, 1, [-1.5, 0.7], [0.5]),
+        (2, 2, 3, [-1.2, 0.5], [0.3, 0.2]),
+        (1, 1, 0, [-0.6], [1.0]),
+    ],
+)
 def test_continuous_model_resamples_to_the_discrete_one(na, nb, nk, a, b):
     control = pytest.importorskip("control")
     model = fitted(na, nb, nk, a, b)

@@ -23,8 +23,16 @@ def test_arrays_are_copied_and_read_only():
 def test_repr_summarises():
     y = np.zeros(100)
     y[5] = np.nan
-    d = arxid.IOData(y, np.ones((100, 2)), ts=0.002, output_name="roll", output_unit="rad",
-                     input_names=["a", "b"], extra={"vbat": np.full(100, 4.0)}, extra_units={"vbat": "V"})
+    d = arxid.IOData(
+        y,
+        np.ones((100, 2)),
+        ts=0.002,
+        output_name="roll",
+        output_unit="rad",
+        input_names=["a", "b"],
+        extra={"vbat": np.full(100, 4.0)},
+        extra_units={"vbat": "V"},
+    )
     text = repr(d)
     assert "100 samples" in text and "ts = 0.002 s" in text and "roll [rad]" in text
     assert "vbat [V]" in text and "1 samples hold NaN" in text

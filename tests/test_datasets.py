@@ -6,8 +6,14 @@ import numpy as np
 import pytest
 
 from arxid.data import IOData
-from arxid.datasets import (DEFAULT_EFFECTS, QuadrotorParameters, quadrotor_axis, quadrotor_flight,
-                            thrust_stand, thrust_stand_static)
+from arxid.datasets import (
+    DEFAULT_EFFECTS,
+    QuadrotorParameters,
+    quadrotor_axis,
+    quadrotor_flight,
+    thrust_stand,
+    thrust_stand_static,
+)
 from arxid.exceptions import DataError
 
 TRUTH = QuadrotorParameters()
@@ -51,14 +57,17 @@ def _diff(a, b, name):
     return float(np.sqrt(np.mean((a.signal(name) - b.signal(name)) ** 2)))
 
 
-@pytest.mark.parametrize("effect, signal, at_least", [
-    ("battery_sag", "vbat", 0.05),       # volts of sag and drain
-    ("gyroscopic", "roll", 2e-4),        # rad of roll changed by the coupling
-    ("delay", "roll", 1e-3),             # rad: the log lags by 7 samples more
-    ("motor_mismatch", "w1", 10.0),      # rad/s of motor-speed difference
-    ("noise", "roll", 5e-5),             # rad: the attitude estimate's error is small and slow
-    ("turbulence", "roll", 2e-3),        # rad: gusts move the vehicle about half a degree
-])
+@pytest.mark.parametrize(
+    "effect, signal, at_least",
+    [
+        ("battery_sag", "vbat", 0.05),  # volts of sag and drain
+        ("gyroscopic", "roll", 2e-4),  # rad of roll changed by the coupling
+        ("delay", "roll", 1e-3),  # rad: the log lags by 7 samples more
+        ("motor_mismatch", "w1", 10.0),  # rad/s of motor-speed difference
+        ("noise", "roll", 5e-5),  # rad: the attitude estimate's error is small and slow
+        ("turbulence", "roll", 2e-3),  # rad: gusts move the vehicle about half a degree
+    ],
+)
 def test_each_hidden_effect_is_switchable(effect, signal, at_least):
     on = quadrotor_flight(seed=5, duration=4.0, effects={effect: True})
     off = quadrotor_flight(seed=5, duration=4.0, effects={effect: False})
@@ -87,7 +96,7 @@ def test_delay_shows_in_the_log():
     ax = quadrotor_axis(d, "roll")
     y, u = ax.y, ax.u[:, 0]
     t = np.arange(20, y.size)
-    dd = y[t] - 2 * y[t - 1] + y[t - 2]        # second difference ~ c ts^2 u(t - nk)
+    dd = y[t] - 2 * y[t - 1] + y[t - 2]  # second difference ~ c ts^2 u(t - nk)
     rss = [np.linalg.lstsq(u[t - nk, None], dd, rcond=None)[1][0] for nk in range(0, 15)]
     assert int(np.argmin(rss)) == TRUTH.delay_samples
     # the gyro rate is one integration closer: p(t) - p(t-1) ~ c ts u(t - nk)
@@ -111,8 +120,7 @@ def test_unknown_effect_and_output_are_refused():
         quadrotor_flight(seed=-1, duration=1.0)
     with pytest.raises(DataError, match="seed"):
         thrust_stand(seed=-1, duration=2.0)
-    assert set(DEFAULT_EFFECTS) == {"battery_sag", "motor_mismatch", "gyroscopic", "delay", "noise",
-                                    "turbulence"}
+    assert set(DEFAULT_EFFECTS) == {"battery_sag", "motor_mismatch", "gyroscopic", "delay", "noise", "turbulence"}
 
 
 def test_quadrotor_axis_mixes_the_logged_speeds(flight):

@@ -40,4 +40,6 @@ def test_every_public_function_documents_its_parameters():
         for name in inspect.signature(fn).parameters:
             if name in ("self", "cls", "kwargs"):
                 continue
-            assert re.search(rf"^\s*{name}\b", doc, re.M) or name in doc, f"{fn.__qualname__}: parameter {name} undocumented"
+            assert re.search(rf"^\s*{name}\b", doc, re.M) or name in doc, (
+                f"{fn.__qualname__}: parameter {name} undocumented"
+            )

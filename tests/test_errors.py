@@ -50,14 +50,17 @@ def test_too_few_samples_for_the_orders(data):
         arxid.arx(data[:20], 10, 10, 5)
 
 
-@pytest.mark.parametrize("kw,match", [
-    (dict(na=-1, nb=1, nk=1), "na must be >= 0"),
-    (dict(na=1, nb=-2, nk=1), "nb must be >= 0"),
-    (dict(na=1, nb=1, nk=-1), "nk must be >= 0"),
-    (dict(na=1.5, nb=1, nk=1), "na must be a non-negative integer"),
-    (dict(na=1, nb=[1, 2], nk=1), "2 entries but the data have 1 inputs"),
-    (dict(na=0, nb=0, nk=0), "no parameters"),
-])
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        (dict(na=-1, nb=1, nk=1), "na must be >= 0"),
+        (dict(na=1, nb=-2, nk=1), "nb must be >= 0"),
+        (dict(na=1, nb=1, nk=-1), "nk must be >= 0"),
+        (dict(na=1.5, nb=1, nk=1), "na must be a non-negative integer"),
+        (dict(na=1, nb=[1, 2], nk=1), "2 entries but the data have 1 inputs"),
+        (dict(na=0, nb=0, nk=0), "no parameters"),
+    ],
+)
 def test_bad_orders(data, kw, match):
     with pytest.raises(OrderError, match=match):
         arxid.arx(data, **kw)
@@ -95,13 +98,16 @@ def test_bad_sampling_time(ts):
         arxid.IOData(np.zeros(10), np.zeros(10), ts=ts)
 
 
-@pytest.mark.parametrize("y,match", [
-    (np.array(["a", "b"]), "dtype"),
-    (np.zeros((3, 3)), "shape"),
-    (np.array([1 + 2j, 3j]), "complex"),
-    (np.zeros(0), "empty"),
-    ([[1, 2], [3]], "numeric array"),
-])
+@pytest.mark.parametrize(
+    "y,match",
+    [
+        (np.array(["a", "b"]), "dtype"),
+        (np.zeros((3, 3)), "shape"),
+        (np.array([1 + 2j, 3j]), "complex"),
+        (np.zeros(0), "empty"),
+        ([[1, 2], [3]], "numeric array"),
+    ],
+)
 def test_wrong_dtype_or_shape(y, match):
     with pytest.raises(DataError, match=match):
         arxid.IOData(y, np.zeros(len(y)) if len(y) else np.zeros(0), ts=1)
@@ -123,8 +129,16 @@ def test_unknown_effect(data):
         arxid.arx(data, 1, 1, 1, effects=["log(u1)"])
 
 
-@pytest.mark.parametrize("text", ["not json", "{}", '{"format": "arxid.ArxModel", "version": 1}', "[1, 2]",
-                                  '{"format": "arxid.ArxModel", "version": 99}'])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "not json",
+        "{}",
+        '{"format": "arxid.ArxModel", "version": 1}',
+        "[1, 2]",
+        '{"format": "arxid.ArxModel", "version": 99}',
+    ],
+)
 def test_corrupt_model_file(tmp_path, text):
     p = tmp_path / "m.json"
     p.write_text(text)
@@ -144,7 +158,7 @@ def test_model_file_with_inconsistent_parameters(data):
 def test_not_fitted():
     m = arxid.ArxModel(na=1, nb=1, nk=1)
     with pytest.raises(NotFittedError, match="not fitted"):
-        m.parameters_
+        m.parameters_  # noqa: B018
     with pytest.raises(NotFittedError):
         m.predict(None)
     assert "not fitted" in str(m)
@@ -163,21 +177,26 @@ def test_nonlinear_model_has_no_transfer_function(data):
         m.to_control()
 
 
-@pytest.mark.parametrize("call", [
-    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1, 2], []),          # nk count
-    lambda: _core.fit(np.zeros(5), np.zeros((4, 1)), [0], 1, [1], [1], []),              # rows
-    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0, 9], 1, [1], [1], []),           # starts
-    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [3], 1, [1], [1], []),              # first start
-    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [("pow", 2, 5)]),  # multiplier
-    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [("cube", 2, -1)]),
-    lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 40, [30], [20], []),           # too few
-    lambda: _core.fit(np.zeros(0), np.zeros((0, 1)), [], 1, [1], [1], []),
-    lambda: _core.predict(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [], np.zeros(7)),
-    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1]]), []),
-    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.zeros((0, 3), dtype=np.int64), []),
-    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, -1, 0]]), []),
-    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1, 0]]), [], yv=np.zeros(9), uv=np.zeros((9, 2))),
-])
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1, 2], []),  # nk count
+        lambda: _core.fit(np.zeros(5), np.zeros((4, 1)), [0], 1, [1], [1], []),  # rows
+        lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0, 9], 1, [1], [1], []),  # starts
+        lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [3], 1, [1], [1], []),  # first start
+        lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [("pow", 2, 5)]),  # multiplier
+        lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [("cube", 2, -1)]),
+        lambda: _core.fit(np.zeros(5), np.zeros((5, 1)), [0], 40, [30], [20], []),  # too few
+        lambda: _core.fit(np.zeros(0), np.zeros((0, 1)), [], 1, [1], [1], []),
+        lambda: _core.predict(np.zeros(5), np.zeros((5, 1)), [0], 1, [1], [1], [], np.zeros(7)),
+        lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1]]), []),
+        lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.zeros((0, 3), dtype=np.int64), []),
+        lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, -1, 0]]), []),
+        lambda: _core.sweep(
+            np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 1, 0]]), [], yv=np.zeros(9), uv=np.zeros((9, 2))
+        ),
+    ],
+)
 def test_pathological_core_calls_raise_arxid_errors_not_panics(call):
     with pytest.raises((ArxidError, TypeError)) as exc:
         call()
@@ -196,12 +215,15 @@ def test_sweep_refuses_a_thread_count_that_is_not_a_count(data, n_threads):
 _HUGE = 2**64 - 2
 
 
-@pytest.mark.parametrize("call", [
-    lambda: _core.fit(np.zeros(50), np.zeros((50, 1)), [0], _HUGE, [2], [1], []),       # na + nb overflows
-    lambda: _core.fit(np.zeros(50), np.zeros((50, 1)), [0], 1, [2], [_HUGE], []),       # nb + nk overflows
-    lambda: _core.predict(np.zeros(50), np.zeros((50, 1)), [0, 10], 1, [2], [_HUGE], [], np.zeros(3)),
-    lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 2, 2**63 - 1]]), []),
-])
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: _core.fit(np.zeros(50), np.zeros((50, 1)), [0], _HUGE, [2], [1], []),  # na + nb overflows
+        lambda: _core.fit(np.zeros(50), np.zeros((50, 1)), [0], 1, [2], [_HUGE], []),  # nb + nk overflows
+        lambda: _core.predict(np.zeros(50), np.zeros((50, 1)), [0, 10], 1, [2], [_HUGE], [], np.zeros(3)),
+        lambda: _core.sweep(np.zeros(50), np.zeros((50, 1)), [0], np.array([[1, 2, 2**63 - 1]]), []),
+    ],
+)
 def test_orders_whose_lags_overflow_are_order_errors_not_panics(call):
     with pytest.raises(OrderError, match="too large") as info:
         call()
@@ -260,8 +282,9 @@ def test_absurd_thread_counts_are_clamped_not_spawned(data):
     ref = arxid.arx(data, 2, 2, 1, n_threads=1).parameters_
     np.testing.assert_array_equal(arxid.arx(data, 2, 2, 1, n_threads=10**7).parameters_, ref)
     res = arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=10**7, progress=False)
-    assert res.structure_name(0) == arxid.sweep(data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=1,
-                                                progress=False).structure_name(0)
+    assert res.structure_name(0) == arxid.sweep(
+        data, na=range(1, 3), nb=1, nk=range(0, 3), n_threads=1, progress=False
+    ).structure_name(0)
 
 
 def test_model_file_with_absurd_order_is_corrupt(data):

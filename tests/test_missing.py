@@ -52,8 +52,14 @@ def coulomb_friction(seed=0, n=4000, offset=0.0):
     y = np.zeros(n)
     for t in range(2, n):
         dy = y[t - 1] - y[t - 2]
-        y[t] = (1.7 * y[t - 1] - 0.75 * y[t - 2] + 0.1 * u[t - 1] - 0.02 * np.sign(dy) + offset
-                + 0.001 * rng.standard_normal())
+        y[t] = (
+            1.7 * y[t - 1]
+            - 0.75 * y[t - 2]
+            + 0.1 * u[t - 1]
+            - 0.02 * np.sign(dy)
+            + offset
+            + 0.001 * rng.standard_normal()
+        )
     return arxid.IOData(y, u, 0.01)
 
 
@@ -177,13 +183,34 @@ def test_auto_candidates_follow_the_grammar():
     data = battery_gain()
     m = arxid.arx(data, 1, 1, 1)
     c = auto_candidates(m, data)
-    for want in ["vbat", "decoy", "u1*vbat", "u1*decoy", "u1*y", "u1^2", "u1^3", "y^2", "y^3", "abs(u1)",
-                 "abs(y)", "sign(dy)", "sign(du1)", "const", "time", "na+1", "nb+1", "nk-1", "nk+1"]:
+    for want in [
+        "vbat",
+        "decoy",
+        "u1*vbat",
+        "u1*decoy",
+        "u1*y",
+        "u1^2",
+        "u1^3",
+        "y^2",
+        "y^3",
+        "abs(u1)",
+        "abs(y)",
+        "sign(dy)",
+        "sign(du1)",
+        "const",
+        "time",
+        "na+1",
+        "nb+1",
+        "nk-1",
+        "nk+1",
+    ]:
         assert want in c
     m2 = arxid.arx(data, 1, 1, 1, effects=["const"])
     assert "const" not in auto_candidates(m2, data)
     # Positive-only signals get no abs(); names that are not identifiers use u1 / are skipped.
-    d3 = arxid.IOData(data.y, np.abs(data.u[:, 0]) + 1, 0.01, input_names=["pwm[%]"], extra={"v[V]": data.extra["vbat"]})
+    d3 = arxid.IOData(
+        data.y, np.abs(data.u[:, 0]) + 1, 0.01, input_names=["pwm[%]"], extra={"v[V]": data.extra["vbat"]}
+    )
     c3 = auto_candidates(arxid.arx(d3, 1, 1, 1), d3)
     assert "u1^2" in c3 and "abs(u1)" not in c3 and not any("v[V]" in x for x in c3)
 
@@ -295,8 +322,13 @@ def test_ladder_two_hidden_effects_error_falls_each_step(tmp_path):
     u = _held(rng, n, 0.2, 1.0, 25)
     y = np.zeros(n)
     for t in range(2, n):
-        y[t] = (1.7 * y[t - 1] - 0.75 * y[t - 2] + 0.1 * u[t - 1] ** 2 - 0.01 * np.sign(y[t - 1] - y[t - 2])
-                + 0.0005 * rng.standard_normal())
+        y[t] = (
+            1.7 * y[t - 1]
+            - 0.75 * y[t - 2]
+            + 0.1 * u[t - 1] ** 2
+            - 0.01 * np.sign(y[t - 1] - y[t - 2])
+            + 0.0005 * rng.standard_normal()
+        )
     est, val = arxid.IOData(y, u, 0.01).split(0.6)
     ladder = Ladder.run(arxid.arx(est, 2, 1, 1), est, val, max_steps=4)
     added = [s.added for s in ladder.steps]
@@ -306,7 +338,9 @@ def test_ladder_two_hidden_effects_error_falls_each_step(tmp_path):
     assert np.all(np.diff(err[:3]) < 0) and err[2] < 0.2 * err[0]
     assert len(ladder.diagnoses) == len(ladder.steps)
     assert ladder.final_model.effects[:2] == ("u1^2", "sign(dy)")
-    assert "u1^2" in str(ladder) and ladder.to_list()[0]["effects"] == [] and ladder.to_list()[0]["rms_sim_val"] == err[0]
+    assert (
+        "u1^2" in str(ladder) and ladder.to_list()[0]["effects"] == [] and ladder.to_list()[0]["rms_sim_val"] == err[0]
+    )
     ladder.plot().savefig(tmp_path / "ladder.png")
     assert len(ladder.to_pandas()) == len(ladder)
 

@@ -125,7 +125,8 @@ def test_criteria_match_matlab_formulas():
     assert metrics.aic(rss, n, p) == pytest.approx(n * np.log(v) + 2 * p + n * (np.log(2 * np.pi) + 1), rel=1e-15)
     assert metrics.naic(rss, n, p) == pytest.approx(np.log(v) + 2 * p / n, rel=1e-15)
     assert metrics.aicc(rss, n, p) == pytest.approx(metrics.aic(rss, n, p) + 2 * p * (p + 1) / (n - p - 1), rel=1e-15)
-    assert metrics.bic(rss, n, p) == pytest.approx(n * np.log(v) + p * np.log(n) + n * (np.log(2 * np.pi) + 1),
-                                                   rel=1e-15)
+    assert metrics.bic(rss, n, p) == pytest.approx(
+        n * np.log(v) + p * np.log(n) + n * (np.log(2 * np.pi) + 1), rel=1e-15
+    )
     np.testing.assert_allclose(metrics.fpe(np.array([rss, rss]), n, np.array([p, p])), metrics.fpe(rss, n, p))
     assert metrics.rms([3.0, np.nan, -4.0]) == pytest.approx(np.sqrt(12.5)) and np.isnan(metrics.rms([np.nan]))

@@ -6,10 +6,26 @@ import pytest
 from arxid.data import IOData
 from arxid.datasets import QuadrotorParameters, quadrotor_axis, quadrotor_flight, thrust_stand, thrust_stand_static
 from arxid.exceptions import DataError
-from arxid.quadrotor import (EmptyFeasibleSetError, Mixer, MotorModel, RotationalModel, fit_thrust_model,
-                             identify_motor, identify_rotational, inertia_from_rotation, inertia_intervals,
-                             levels_box, linear_in_voltage_box, mix, parameter_box, rotated_box,
-                             smallest_epsilon, speeds_from_pwm, thrust_model_class, thrust_torque_coefficients)
+from arxid.quadrotor import (
+    EmptyFeasibleSetError,
+    Mixer,
+    MotorModel,
+    RotationalModel,
+    fit_thrust_model,
+    identify_motor,
+    identify_rotational,
+    inertia_from_rotation,
+    inertia_intervals,
+    levels_box,
+    linear_in_voltage_box,
+    mix,
+    parameter_box,
+    rotated_box,
+    smallest_epsilon,
+    speeds_from_pwm,
+    thrust_model_class,
+    thrust_torque_coefficients,
+)
 
 TRUTH = QuadrotorParameters()
 
@@ -49,8 +65,9 @@ def test_mixer_on_iodata_names_channels(clean_flight):
     assert mixed.input_names == ("roll_torque", "pitch_torque", "yaw_torque", "thrust")
     assert mixed.output_name == "roll" and "d1" in mixed.extra and "vbat" in mixed.extra
     # thrust channel times k is the simulator's true total thrust (no mismatch, no noise)
-    np.testing.assert_allclose(mixed.signal("thrust") * TRUTH.thrust_coefficient,
-                               mixed.signal("thrust_logged"), rtol=1e-12)
+    np.testing.assert_allclose(
+        mixed.signal("thrust") * TRUTH.thrust_coefficient, mixed.signal("thrust_logged"), rtol=1e-12
+    )
 
 
 def test_mixer_errors_say_what_to_do():
@@ -89,14 +106,18 @@ def test_motor_parameters_recovered_from_noisy_speed():
 
 
 def test_motor_identified_from_flight_log(clean_flight):
-    fit = identify_motor(clean_flight.signal("d1"), clean_flight.signal("vbat"), clean_flight.signal("w1"),
-                         clean_flight.ts)
+    fit = identify_motor(
+        clean_flight.signal("d1"), clean_flight.signal("vbat"), clean_flight.signal("w1"), clean_flight.ts
+    )
     np.testing.assert_allclose([fit.a0, fit.a1, fit.a2], TRUTH.motor, rtol=1e-3)
 
 
 def test_speeds_from_pwm_reproduce_logged_speeds(clean_flight):
-    d = speeds_from_pwm(clean_flight.with_signals(extra={"vbat": clean_flight.signal("vbat")}),
-                        MotorModel(*TRUTH.motor), names=("s1", "s2", "s3", "s4"))
+    d = speeds_from_pwm(
+        clean_flight.with_signals(extra={"vbat": clean_flight.signal("vbat")}),
+        MotorModel(*TRUTH.motor),
+        names=("s1", "s2", "s3", "s4"),
+    )
     for i in range(1, 5):
         # after the start-up transient (the log starts at hover, the model at steady state)
         np.testing.assert_allclose(d.signal(f"s{i}")[500:], clean_flight.signal(f"w{i}")[500:], rtol=1e-3)
@@ -161,8 +182,8 @@ def test_thrust_model_recovers_time_constant_and_static_map():
 
 def test_battery_term_beats_no_battery_term(stand_split):
     table = thrust_model_class(*stand_split, inputs=["duty"])
-    assert table.row(1, 1).rms < 0.7 * table.row(1, 0).rms   # model 4 vs 3 (seed 001 claim 2)
-    assert table.row(2, 1).rms < 0.7 * table.row(2, 0).rms   # model 8 vs 6
+    assert table.row(1, 1).rms < 0.7 * table.row(1, 0).rms  # model 4 vs 3 (seed 001 claim 2)
+    assert table.row(2, 1).rms < 0.7 * table.row(2, 0).rms  # model 8 vs 6
     assert table.best().nb >= 1
     text = str(table)
     assert "id" in text and "simplest model" in text
@@ -222,7 +243,7 @@ def test_set_membership_on_static_stand():
     s = thrust_stand_static(seed=0)
     e_min = smallest_epsilon(np.column_stack([s.signal("duty") ** 2]), s.y)
     e, lo, hi = levels_box(s.signal("duty"), s.y, s.signal("vbat"), 3 * e_min)
-    assert np.all(np.diff(lo) > 0)   # more voltage, more thrust per duty^2
+    assert np.all(np.diff(lo) > 0)  # more voltage, more thrust per duty^2
     assert rotated_box(e, lo, hi).shrink_ratio < 1
 
 
@@ -230,7 +251,7 @@ def test_inertia_intervals_bound_every_admissible_body():
     iv = inertia_intervals()
     rng = np.random.default_rng(0)
     for _ in range(200):
-        mM, lM, l, ms = rng.uniform([0.464, 0.09, 0.23, 0.065], [0.466, 0.11, 0.25, 0.067])
+        mM, lM, l, ms = rng.uniform([0.464, 0.09, 0.23, 0.065], [0.466, 0.11, 0.25, 0.067])  # noqa: E741
         assert iv.ixy[0] <= 2 * ms * l**2 + mM * lM**2 / 12 <= iv.ixy[1]
         assert iv.iz[0] <= 4 * ms * l**2 + mM * lM**2 / 6 <= iv.iz[1]
     assert iv.ixy[0] == pytest.approx(2 * 0.065 * 0.23**2 + 0.464 * 0.09**2 / 12)
@@ -258,8 +279,9 @@ def test_inertias_from_noisy_gyro_need_smoothing_and_the_delay():
     truth = {"Ixx": TRUTH.inertia[0], "Iyy": TRUTH.inertia[1], "Izz": TRUTH.inertia[2]}
     raw = inertia_from_rotation(om, None, tau, ts=d.ts, delay=TRUTH.delay_samples - 1).relative_error(truth)
     assert raw["Izz"] < -0.5
-    smooth = inertia_from_rotation(om, None, tau, ts=d.ts, smoothing=51,
-                                   delay=TRUTH.delay_samples - 1).relative_error(truth)
+    smooth = inertia_from_rotation(om, None, tau, ts=d.ts, smoothing=51, delay=TRUTH.delay_samples - 1).relative_error(
+        truth
+    )
     assert abs(smooth["Ixx"]) < 0.005 and abs(smooth["Iyy"]) < 0.005 and abs(smooth["Izz"]) < 0.03
     with pytest.raises(DataError, match="ts"):
         inertia_from_rotation(om, None, tau)

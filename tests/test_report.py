@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import re
 
 import numpy as np
@@ -22,8 +21,9 @@ def _battery_data(n=2500, seed=5):
     y = np.zeros(n)
     for t in range(1, n):
         y[t] = 0.9 * y[t - 1] + 0.3 * u[t - 1] * vbat[t - 1] + 0.02 * rng.standard_normal()
-    return arxid.IOData(y, u, 0.01, output_name="y", input_names=("u",), extra={"vbat": vbat},
-                        extra_units={"vbat": "V"})
+    return arxid.IOData(
+        y, u, 0.01, output_name="y", input_names=("u",), extra={"vbat": vbat}, extra_units={"vbat": "V"}
+    )
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,8 @@ def test_analysis_picks_the_true_structure_and_finds_the_battery(analysis):
     assert analysis.ladder.errors[-1] < 0.5 * analysis.ladder.errors[0]
     # the final model's validation error is the ladder's last number, and the comparison's
     assert analysis.final_model.rms(analysis.validation, analysis.horizon) == pytest.approx(
-        analysis.ladder.errors[-1], rel=1e-12)
+        analysis.ladder.errors[-1], rel=1e-12
+    )
     assert analysis.comparison.rms[-1] == analysis.ladder.errors[-1]
     assert analysis.comparison.rms[0] == analysis.diagnosis.rms_sim_val == analysis.ladder.errors[0]
 
@@ -61,9 +62,18 @@ def test_html_is_self_contained_and_complete(analysis):
     assert len(srcs) >= 8 and all(s.startswith("data:image/png;base64,") for s in srcs)
     assert not re.search(r'(src|href)="(?!data:|#)', html), "a link or source that is not embedded"
     assert "@media print" in html
-    assert str(analysis.model) .splitlines()[0] in html  # the model equation
-    for head in ("Data", "Order sweep", "Model equation", "Step-response checks", "Measured against simulated output",
-                 "Residual tests", "Where it fails", "Which effect is missing", "Error ladder"):
+    assert str(analysis.model).splitlines()[0] in html  # the model equation
+    for head in (
+        "Data",
+        "Order sweep",
+        "Model equation",
+        "Step-response checks",
+        "Measured against simulated output",
+        "Residual tests",
+        "Where it fails",
+        "Which effect is missing",
+        "Error ladder",
+    ):
         assert f". {head}</h2>" in html
     embedded = re.search(r'<script type="application/json" id="diagnosis">(.*?)</script>', html, re.S).group(1)
     # A script element's text is raw: a browser does not decode entities in it, so the JSON must be
@@ -83,11 +93,17 @@ def test_build_report_with_fixed_orders_skips_the_sweep(tmp_path):
 
 def test_every_figure_renders_to_png(analysis):
     a = analysis
-    figs = [plots.data_overview(a.validation), plots.plot_sweep(a.sweep, chosen=a.choice.rank),
-            plots.step_checks([("a", np.ones(10))], 0.01, {"a": "too small"}), plots.plot_comparison(a.comparison),
-            plots.plot_residuals(a.residual_tests), plots.plot_failures(a.failures[0]),
-            plots.plot_error_by_signal(a.failures[0], a.failures[-1]), plots.plot_diagnosis(a.diagnosis),
-            plots.plot_ladder(a.ladder)]
+    figs = [
+        plots.data_overview(a.validation),
+        plots.plot_sweep(a.sweep, chosen=a.choice.rank),
+        plots.step_checks([("a", np.ones(10))], 0.01, {"a": "too small"}),
+        plots.plot_comparison(a.comparison),
+        plots.plot_residuals(a.residual_tests),
+        plots.plot_failures(a.failures[0]),
+        plots.plot_error_by_signal(a.failures[0], a.failures[-1]),
+        plots.plot_diagnosis(a.diagnosis),
+        plots.plot_ladder(a.ladder),
+    ]
     for f in figs:
         uri = plots.figure_to_data_uri(f, dpi=40)
         assert uri.startswith("data:image/png;base64,iVBOR")  # PNG magic
@@ -128,5 +144,3 @@ def test_demo_tells_the_battery_story(tmp_path):
     assert "Error ladder" in text and "before" in text
     assert (tmp_path / "demo.html").stat().st_size > 100_000
     json.dumps(json_safe(res.to_dict()), allow_nan=False)
-
-

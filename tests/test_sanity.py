@@ -62,12 +62,28 @@ def test_sign_change_and_wrong_sign():
     # A response that rises, then turns and grows with the opposite sign.
     t = np.arange(1000.0)
     s = 0.5 * t - 1e-3 * t**2
-    v = check_responses("X", [s], [-s], np.array([1.0, 1.0]), out_range=1.0, amplitudes=[1.0],
-                        expect="double-integrating", limits=SanityLimits())
+    v = check_responses(
+        "X",
+        [s],
+        [-s],
+        np.array([1.0, 1.0]),
+        out_range=1.0,
+        amplitudes=[1.0],
+        expect="double-integrating",
+        limits=SanityLimits(),
+    )
     assert "sign-change" in v.flags
     small_dip = 1e-3 * t**2 - 0.01 * np.minimum(t, 5)
-    v = check_responses("X", [small_dip], [-small_dip], np.array([1.0, 1.0]), out_range=1.0, amplitudes=[1.0],
-                        expect="double-integrating", limits=SanityLimits())
+    v = check_responses(
+        "X",
+        [small_dip],
+        [-small_dip],
+        np.array([1.0, 1.0]),
+        out_range=1.0,
+        amplitudes=[1.0],
+        expect="double-integrating",
+        limits=SanityLimits(),
+    )
     assert v.ok  # a dip below sign_tolerance of the peak is not a sign change
     d2 = _data([1, -1.0], [0.05], 1)
     m2 = arxid.arx(d2, 1, 1, 1)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import sys
-
 import warnings
 
 import numpy as np
@@ -93,7 +92,7 @@ def test_free_run_errors_match_an_explicit_simulation(small):
         sim = np.zeros(val.n_samples)
         sim[:lag] = val.y[:lag]
         for t in range(lag, val.n_samples):
-            sim[t] = -th[:na] @ sim[t - na:t][::-1] + th[na:] @ val.u[t - nk - np.arange(nb), 0]
+            sim[t] = -th[:na] @ sim[t - na : t][::-1] + th[na:] @ val.u[t - nk - np.arange(nb), 0]
         rms = np.sqrt(np.mean((val.y[lag:] - sim[lag:]) ** 2))
         assert res.rms_val[i] == pytest.approx(rms, rel=1e-9)
         fit = 100 * (1 - np.linalg.norm(val.y[lag:] - sim[lag:]) / np.linalg.norm(val.y[lag:] - val.y[lag:].mean()))
@@ -129,7 +128,9 @@ def test_table_json_and_pandas(small):
     assert len(d["structures"]) == len(res) and d["structures"][0]["structure"] == res.structure_name(0)
     df = res.to_pandas()
     assert list(df["structure"])[:3] == [res.structure_name(i) for i in range(3)]
-    assert {"rms_est", "rms_val", "fit_val", "fpe", "aic", "bic", "n_params", "stable", "step_sanity"} <= set(df.columns)
+    assert {"rms_est", "rms_val", "fit_val", "fpe", "aic", "bic", "n_params", "stable", "step_sanity"} <= set(
+        df.columns
+    )
 
 
 def test_plot_returns_a_figure(small):
@@ -195,8 +196,15 @@ def _roll_axis(seed, n=12000, delay=8, ts=0.002):
 
 def test_delayed_double_integrator_best_sane_structure_has_the_delay_and_grows(capsys):
     est, val = _roll_axis(11), _roll_axis(12)
-    res = arxid.sweep(est, na=range(1, 5), nb=range(1, 3), nk=range(0, 13), validation=val, progress=False,
-                      expect="double-integrating")
+    res = arxid.sweep(
+        est,
+        na=range(1, 5),
+        nb=range(1, 3),
+        nk=range(0, 13),
+        validation=val,
+        progress=False,
+        expect="double-integrating",
+    )
     assert res.integrating and res.horizon is not None
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
@@ -209,7 +217,7 @@ def test_delayed_double_integrator_best_sane_structure_has_the_delay_and_grows(c
     step = best.step(2000, amplitude=1.0)
     assert step[-1] > 0 and step[-1] > 3 * step[1000] > 0  # grows, with the sign of the torque
     # nothing flagged (for example implausibly small amplitude) is ever returned
-    for rank, _, reasons in best.selection_.skipped:
+    for rank, _, reasons in best.selection_.skipped:  # noqa: B007
         assert not res.sanity(rank).ok
     flagged_small = [i for i in range(len(res)) if "too-small" in res.sanity(i).flags]
     assert best.selection_.rank not in flagged_small
@@ -218,13 +226,13 @@ def test_delayed_double_integrator_best_sane_structure_has_the_delay_and_grows(c
 def test_best_sane_refuses_when_everything_is_flagged_and_says_why(small):
     est, val, _ = small
     # expect an integrator on a stable plant: every structure is flagged "not-growing"
-    res = arxid.sweep(est, na=range(1, 3), nb=1, nk=range(1, 4), validation=val, progress=False,
-                      expect="integrating")
+    res = arxid.sweep(est, na=range(1, 3), nb=1, nk=range(1, 4), validation=val, progress=False, expect="integrating")
     with pytest.raises(arxid.ArxidError, match="not growing"):
         res.best(sane=True)
     assert res.best(sane=False).na >= 1
-    strict = arxid.sweep(est, na=range(1, 3), nb=1, nk=range(1, 4), validation=val, progress=False,
-                         limits=SanityLimits(small=1e3))
+    strict = arxid.sweep(
+        est, na=range(1, 3), nb=1, nk=range(1, 4), validation=val, progress=False, limits=SanityLimits(small=1e3)
+    )
     with pytest.raises(arxid.ArxidError, match="implausibly small"):
         strict.best(sane=True)
 
@@ -236,8 +244,15 @@ def test_miso_grid_recovers_both_delays():
     y = lfilter([1], [1, -0.6], np.concatenate([[0, 0], u[:-2, 0]]) * 0.8 + np.concatenate([[0] * 4, u[:-4, 1]]) * -0.5)
     y = y + 0.01 * rng.standard_normal(n)
     d = arxid.IOData(y, u, ts=0.01)
-    res = arxid.sweep(d, na=range(1, 3), nb=[range(1, 3), range(1, 2)], nk=[range(0, 4), range(2, 6)],
-                      validation=0.3, progress=False, sort_by="bic")
+    res = arxid.sweep(
+        d,
+        na=range(1, 3),
+        nb=[range(1, 3), range(1, 2)],
+        nk=[range(0, 4), range(2, 6)],
+        validation=0.3,
+        progress=False,
+        sort_by="bic",
+    )
     assert len(res) == 2 * 2 * 1 * 4 * 4
     best = res.best()
     assert best.na_ == 1 and tuple(best.nk_) == (2, 4) and tuple(best.nb_) == (1, 1)
@@ -251,8 +266,9 @@ def test_miso_grid_recovers_both_delays():
 
 def test_effects_are_tied_to_their_input(small):
     est, val, _ = small
-    res = arxid.sweep(est, na=range(1, 3), nb=range(1, 3), nk=range(1, 3), validation=val, progress=False,
-                      effects=["u1^2", "const"])
+    res = arxid.sweep(
+        est, na=range(1, 3), nb=range(1, 3), nk=range(1, 3), validation=val, progress=False, effects=["u1^2", "const"]
+    )
     for i in range(len(res)):
         m = res.model(i)
         np.testing.assert_allclose(res.parameters[i], m.parameters_, rtol=1e-9, atol=1e-12)
@@ -275,7 +291,9 @@ def test_divergence_is_reported_not_a_number():
     y = lfilter([0, 1.0], [1, -1.9, 0.905], u) + 5 * rng.standard_normal(n)
     d = arxid.IOData(y, u, ts=0.01)
     val = arxid.IOData(lfilter([0, 1.0], [1, -1.9, 0.905], u[::-1]), u[::-1].copy(), ts=0.01)
-    res = arxid.sweep(d, na=range(1, 3), nb=range(1, 3), nk=range(0, 3), validation=val, progress=False, expect="stable")
+    res = arxid.sweep(
+        d, na=range(1, 3), nb=range(1, 3), nk=range(0, 3), validation=val, progress=False, expect="stable"
+    )
     # force one diverging structure through the core to check reporting end to end
     from arxid import _core
 

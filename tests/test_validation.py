@@ -106,7 +106,7 @@ def test_residual_statistics_match_the_formulas():
     n = len(e)
     assert r.n_samples == n
     ec = e - e.mean()
-    ref = np.array([np.dot(ec[k:], ec[:n - k]) for k in range(11)]) / np.dot(ec, ec)
+    ref = np.array([np.dot(ec[k:], ec[: n - k]) for k in range(11)]) / np.dot(ec, ec)
     np.testing.assert_allclose(r.autocorrelation, ref, rtol=1e-12, atol=1e-15)
     assert r.autocorrelation_bound == pytest.approx(2.5758293035489004 / math.sqrt(n))
     q = n * (n + 2) * np.sum(ref[1:] ** 2 / (n - np.arange(1, 11)))
@@ -117,7 +117,7 @@ def test_residual_statistics_match_the_formulas():
     u = d.u[1:, 0] - d.u[1:, 0].mean()
     den = math.sqrt(np.dot(ec, ec) * np.dot(u, u))
     for k in (-3, 0, 2, 5):
-        want = (np.dot(ec[k:], u[:n - k]) if k >= 0 else np.dot(ec[:n + k], u[-k:])) / den
+        want = (np.dot(ec[k:], u[: n - k]) if k >= 0 else np.dot(ec[: n + k], u[-k:])) / den
         assert r.cross_correlation["u1"][list(r.cross_lags).index(k)] == pytest.approx(want, rel=1e-10)
     # The missing u(t-2) shows at lag 2, and nowhere at negative lags.
     assert 2 in r.cross_outside("u1")
@@ -143,27 +143,28 @@ def test_cross_bound_uses_bartletts_formula_for_coloured_signals():
     nn = len(ec)
 
     def acf(x):
-        return np.array([np.dot(x[k:], x[:nn - k]) for k in range(21)]) / np.dot(x, x)
+        return np.array([np.dot(x[k:], x[: nn - k]) for k in range(21)]) / np.dot(x, x)
 
     re, rw = acf(ec), acf(wc)
     s = re[0] * rw[0] + 2 * np.sum(re[1:] * rw[1:])
     assert r.cross_bounds["w"] == pytest.approx(Z99 * math.sqrt(s / nn), rel=1e-10)
     assert r.cross_bounds["w"] > r.autocorrelation_bound  # colour of w widens the band
+
     # Independence p-value: Haugh's test on AR-prewhitened series (order by AIC up to 10).
     def whiten(x):
         x = x - x.mean()
-        lagged = np.column_stack([x[10 - k:len(x) - k] for k in range(11)])
+        lagged = np.column_stack([x[10 - k : len(x) - k] for k in range(11)])
         best = (np.log(np.mean(lagged[:, 0] ** 2)), 0, None)
         for p in range(1, 11):
-            a = np.linalg.lstsq(lagged[:, 1:p + 1], lagged[:, 0], rcond=None)[0]
-            aic = np.log(np.mean((lagged[:, 0] - lagged[:, 1:p + 1] @ a) ** 2)) + 2 * p / len(lagged)
+            a = np.linalg.lstsq(lagged[:, 1 : p + 1], lagged[:, 0], rcond=None)[0]
+            aic = np.log(np.mean((lagged[:, 0] - lagged[:, 1 : p + 1] @ a) ** 2)) + 2 * p / len(lagged)
             if aic < best[0]:
                 best = (aic, p, a)
         _, p, a = best
         out = x.copy()
         if p:
             out[:p] = np.nan
-            out[p:] = x[p:] - sum(a[i] * x[p - 1 - i:len(x) - 1 - i] for i in range(p))
+            out[p:] = x[p:] - sum(a[i] * x[p - 1 - i : len(x) - 1 - i] for i in range(p))
         return out
 
     ew, ww = whiten(ec), whiten(w[ok])
@@ -171,7 +172,7 @@ def test_cross_bound_uses_bartletts_formula_for_coloured_signals():
     ew, ww = ew[both] - ew[both].mean(), ww[both] - ww[both].mean()
     nw = len(ew)
     lags = np.arange(-20, 21)
-    rx = np.array([(np.dot(ew[k:], ww[:nw - k]) if k >= 0 else np.dot(ew[:nw + k], ww[-k:])) for k in lags])
+    rx = np.array([(np.dot(ew[k:], ww[: nw - k]) if k >= 0 else np.dot(ew[: nw + k], ww[-k:])) for k in lags])
     rx /= np.sqrt(np.dot(ew, ew) * np.dot(ww, ww))
     stat = nw * nw * np.sum(rx**2 / (nw - np.abs(lags)))
     assert r.cross_p_values["w"] == pytest.approx(stats.chi2.sf(stat, 41), rel=1e-6)
@@ -264,7 +265,7 @@ def test_residuals_never_cross_an_experiment_boundary():
     ok = np.isfinite(e)
     ec = np.where(ok, e - e[ok].mean(), 0.0)
     n = a.n_samples
-    ref = [sum(np.dot(seg[k:], seg[:len(seg) - k]) for seg in (ec[:n], ec[n:])) / np.dot(ec, ec) for k in range(6)]
+    ref = [sum(np.dot(seg[k:], seg[: len(seg) - k]) for seg in (ec[:n], ec[n:])) / np.dot(ec, ec) for k in range(6)]
     np.testing.assert_allclose(r.autocorrelation, ref, rtol=1e-12)
 
 
@@ -321,7 +322,7 @@ def test_where_it_fails_bins_a_cubic_spring_by_output_amplitude():
     assert "y" in sig and "junk" not in sig
     b = fa.bins("y")
     # The linear model errs most at the extremes of the output (where y^3 matters).
-    inner = b.rms[len(b.rms) // 2 - 1:len(b.rms) // 2 + 1].mean()
+    inner = b.rms[len(b.rms) // 2 - 1 : len(b.rms) // 2 + 1].mean()
     assert max(b.rms[0], b.rms[-1]) > 1.5 * inner
     assert b.counts.sum() == np.isfinite(fa.residual[2:]).sum()
     df = fa.to_pandas()

@@ -56,7 +56,7 @@ __all__ = [
     "effects",
 ]
 
-from ._version import __version__  # noqa: E402
+from ._version import __version__ as __version__  # noqa: E402
 
 # Subpackages with heavier or optional dependencies load on first use.
 _LAZY_MODULES = ("quadrotor", "datasets", "effects", "report", "cli", "plots", "demo", "convert")

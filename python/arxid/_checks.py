@@ -16,8 +16,9 @@ __all__ = ["check_model", "check_data", "check_horizon"]
 def check_model(model: Any) -> ArxModel:
     """``model`` if it is a fitted :class:`~arxid.ArxModel`, else a typed error saying what to pass."""
     if not isinstance(model, ArxModel):
-        raise ArxidError(f"expected a fitted arxid.ArxModel, got {type(model).__name__}; "
-                         f"fit one with arxid.arx(data, na, nb, nk)")
+        raise ArxidError(
+            f"expected a fitted arxid.ArxModel, got {type(model).__name__}; fit one with arxid.arx(data, na, nb, nk)"
+        )
     model.check_fitted()
     return model
 
@@ -25,8 +26,9 @@ def check_model(model: Any) -> ArxModel:
 def check_data(data: Any, what: str = "data") -> IOData:
     """``data`` if it is an :class:`~arxid.IOData`, else a :class:`DataError` naming ``what``."""
     if not isinstance(data, IOData):
-        raise DataError(f"{what} must be an arxid.IOData, got {type(data).__name__}; "
-                        f"build one with arxid.IOData(y, u, ts)")
+        raise DataError(
+            f"{what} must be an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
+        )
     return data
 
 

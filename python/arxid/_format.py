@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-__all__ = ["finite_or_none", "json_safe", "horizon_label", "horizon_text", "text_table", "format_value",
-           "require_pandas"]
+__all__ = [
+    "finite_or_none",
+    "json_safe",
+    "horizon_label",
+    "horizon_text",
+    "text_table",
+    "format_value",
+    "require_pandas",
+]
 
 
 def finite_or_none(x: Any) -> Any:

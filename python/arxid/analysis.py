@@ -17,7 +17,7 @@ Examples
 ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
 >>> a = arxid.analyse(arxid.IOData(y, u, ts=0.01), grid={"na": [1, 2], "nb": [1], "nk": [0, 1]}, max_steps=1)
 >>> a.model.structure_name(), a.ladder.steps[-1].added
-('ARX(1,1,1)', 'u1^2')
+('ARX(2,1,1)', 'u1^2')
 """
 
 from __future__ import annotations
@@ -26,8 +26,9 @@ import json
 import math
 import time
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from ._checks import check_data, check_horizon
 from ._format import format_value, horizon_label, json_safe, text_table
@@ -73,8 +74,12 @@ class Choice:
         -------
         dict
         """
-        return {"structure": self.structure, "rank": None if self.rank is None else self.rank + 1,
-                "reason": self.reason, "skipped": [{"structure": s, "why": w} for s, w in self.skipped]}
+        return {
+            "structure": self.structure,
+            "rank": None if self.rank is None else self.rank + 1,
+            "reason": self.reason,
+            "skipped": [{"structure": s, "why": w} for s, w in self.skipped],
+        }
 
 
 def grid_of(grid: Mapping[str, Any] | None = None) -> dict[str, tuple[int, ...]]:
@@ -115,8 +120,10 @@ def choose(result: SweepResult) -> tuple[ArxModel, Choice]:
     """
     sel = result.select(sane=True)
     model = result.model(sel.rank)
-    reason = (f"the lowest {result.ranking_text} of {len(result)} structures among those whose step response "
-              f"passes the sanity check")
+    reason = (
+        f"the lowest {result.ranking_text} of {len(result)} structures among those whose step response "
+        f"passes the sanity check"
+    )
     skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
     return model, Choice(sel.structure, sel.rank, reason, skipped)
 
@@ -204,14 +211,16 @@ class Analysis:
         dict
         """
         out = self.diagnosis.to_dict(self.ladder)
-        out.update({
-            "choice": self.choice.to_dict(),
-            "grid": None if self.grid is None else {k: list(v) for k, v in self.grid.items()},
-            "sweep": None if self.sweep is None else self.sweep.summary(),
-            "comparison": self.comparison.to_dict(),
-            "where_it_fails": [f.to_dict() for f in self.failures],
-            "notes": list(self.notes),
-        })
+        out.update(
+            {
+                "choice": self.choice.to_dict(),
+                "grid": None if self.grid is None else {k: list(v) for k, v in self.grid.items()},
+                "sweep": None if self.sweep is None else self.sweep.summary(),
+                "comparison": self.comparison.to_dict(),
+                "where_it_fails": [f.to_dict() for f in self.failures],
+                "notes": list(self.notes),
+            }
+        )
         return out
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -247,18 +256,30 @@ class Analysis:
         what = horizon_label(self.horizon)
         lines = [f"model: {self.model.structure_name()} ({self.choice.reason})"]
         lines += [f"  skipped {s}: {w}" for s, w in self.choice.skipped[:3]]
-        lines.append(f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
-                     f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %")
+        lines.append(
+            f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
+            f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"
+        )
         lines += self.notes
         if self.residual_tests is not None:
             lines += ["", str(self.residual_tests)]
-        rows = [[str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
-                for i, s in enumerate(d.suspects[:n_suspects], start=1)]
+        rows = [
+            [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
+            for i, s in enumerate(d.suspects[:n_suspects], start=1)
+        ]
         if rows:
-            lines += ["", text_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows,
-                                     title="suspects (missing effects, ranked):")]
-        lines += ["", f"missing effect: {self.missing_effect}" if self.missing_effect else
-                  "no significant missing effect"]
+            lines += [
+                "",
+                text_table(
+                    ["rank", "effect", "score", "p-value", "significant", "val. RMS after"],
+                    rows,
+                    title="suspects (missing effects, ranked):",
+                ),
+            ]
+        lines += [
+            "",
+            f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect",
+        ]
         if len(self.ladder):
             lines += ["", str(self.ladder)]
         return lines
@@ -274,8 +295,15 @@ def _split(data: IOData, validation: IOData | None, split: float) -> tuple[IODat
     return data.split(float(split))
 
 
-def _structure(est: IOData, val: IOData, orders: Sequence | None, grid: Mapping | None, horizon: int | None,
-               expect: str | None, progress: bool) -> tuple[SweepResult | None, ArxModel, Choice, dict | None]:
+def _structure(
+    est: IOData,
+    val: IOData,
+    orders: Sequence | None,
+    grid: Mapping | None,
+    horizon: int | None,
+    expect: str | None,
+    progress: bool,
+) -> tuple[SweepResult | None, ArxModel, Choice, dict | None]:
     if orders is not None:
         try:
             na, nb, nk = orders
@@ -289,8 +317,9 @@ def _structure(est: IOData, val: IOData, orders: Sequence | None, grid: Mapping 
     return res, model, choice, g
 
 
-def _checks(model: ArxModel, final: ArxModel, val: IOData, horizon: int | None
-            ) -> tuple[Comparison, tuple[FailureAnalysis, ...]]:
+def _checks(
+    model: ArxModel, final: ArxModel, val: IOData, horizon: int | None
+) -> tuple[Comparison, tuple[FailureAnalysis, ...]]:
     models = {model.structure_name(): model}
     if final is not model:
         models["+ " + ", ".join(final.effects)] = final
@@ -301,18 +330,31 @@ def _checks(model: ArxModel, final: ArxModel, val: IOData, horizon: int | None
 def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
     notes = []
     if res is not None and res.integrating:
-        notes.append(f"The sweep found an integrating plant ({res.integrating_reason}); free-run error drifts, so "
-                     f"validation errors are {res.horizon}-step-ahead prediction errors.")
+        notes.append(
+            f"The sweep found an integrating plant ({res.integrating_reason}); free-run error drifts, so "
+            f"validation errors are {res.horizon}-step-ahead prediction errors."
+        )
     elif horizon != requested and horizon is not None:
-        notes.append(f"The chosen model's free run diverges or it has a pole at 1, so validation errors are "
-                     f"{horizon}-step-ahead prediction errors.")
+        notes.append(
+            f"The chosen model's free run diverges or it has a pole at 1, so validation errors are "
+            f"{horizon}-step-ahead prediction errors."
+        )
     return tuple(notes)
 
 
-def analyse(data: IOData, validation: IOData | None = None, *, split: float = DEFAULT_SPLIT,
-            orders: Sequence | None = None, grid: Mapping[str, Any] | None = None, horizon: int | None = None,
-            expect: str | None = None, max_steps: int = 3, progress: bool = False,
-            **diagnose_kwargs: Any) -> Analysis:
+def analyse(
+    data: IOData,
+    validation: IOData | None = None,
+    *,
+    split: float = DEFAULT_SPLIT,
+    orders: Sequence | None = None,
+    grid: Mapping[str, Any] | None = None,
+    horizon: int | None = None,
+    expect: str | None = None,
+    max_steps: int = 3,
+    progress: bool = False,
+    **diagnose_kwargs: Any,
+) -> Analysis:
     """Sweep (unless ``orders`` are given), choose, compare, test, diagnose and climb the ladder.
 
     Parameters
@@ -356,13 +398,33 @@ def analyse(data: IOData, validation: IOData | None = None, *, split: float = DE
     t0 = time.perf_counter()
     cmp, failures = _checks(model, ladder.final_model, val, ladder.horizon)
     timings["checks"] = time.perf_counter() - t0
-    return Analysis(est, val, g, res, choice, model, ladder.horizon, ladder.diagnoses[0], ladder, cmp, failures,
-                    timings, _notes(res, ladder.horizon, requested))
+    return Analysis(
+        est,
+        val,
+        g,
+        res,
+        choice,
+        model,
+        ladder.horizon,
+        ladder.diagnoses[0],
+        ladder,
+        cmp,
+        failures,
+        timings,
+        _notes(res, ladder.horizon, requested),
+    )
 
 
-def diagnose_report(data: IOData, validation: IOData | None = None, orders: Sequence | None = None,
-                    grid: Mapping[str, Any] | None = None, horizon: int | None = None, max_steps: int = 3,
-                    progress: bool = False, **diagnose_kwargs: Any) -> dict:
+def diagnose_report(
+    data: IOData,
+    validation: IOData | None = None,
+    orders: Sequence | None = None,
+    grid: Mapping[str, Any] | None = None,
+    horizon: int | None = None,
+    max_steps: int = 3,
+    progress: bool = False,
+    **diagnose_kwargs: Any,
+) -> dict:
     """Deprecated alias of ``analyse(...).to_dict()`` (the ``arxid diagnose --json`` result).
 
     Parameters
@@ -375,6 +437,13 @@ def diagnose_report(data: IOData, validation: IOData | None = None, orders: Sequ
     dict
     """
     warnings.warn("diagnose_report is deprecated: use arxid.analyse(...).to_dict()", DeprecationWarning, stacklevel=2)
-    return analyse(data, validation, orders=orders, grid=grid, horizon=horizon, max_steps=max_steps,
-                   progress=progress, **diagnose_kwargs).to_dict()
-
+    return analyse(
+        data,
+        validation,
+        orders=orders,
+        grid=grid,
+        horizon=horizon,
+        max_steps=max_steps,
+        progress=progress,
+        **diagnose_kwargs,
+    ).to_dict()

@@ -12,8 +12,9 @@ import json
 import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -77,8 +78,14 @@ def _parse_orders(text: str) -> tuple[int, int, int]:
     return vals  # type: ignore[return-value]
 
 
-def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str] = (), ts: float | None = None,
-              time_col: str | None = None):
+def load_data(  # noqa: C901
+    path: str,
+    output: str,
+    inputs: Sequence[str],
+    extra: Sequence[str] = (),
+    ts: float | None = None,
+    time_col: str | None = None,
+):
     """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
 
     Parameters
@@ -106,8 +113,10 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
         raise UsageError("name the output column with --output COL")
     wanted = [output, *inputs, *extra] + ([time_col] if time_col else [])
     if p.suffix.lower() == ".npy":
-        raise DataError(f"{p.name} holds one unnamed array; save the signals by name with "
-                        "numpy.savez('log.npz', y=..., u=..., ts=...) or write a CSV file with a header row")
+        raise DataError(
+            f"{p.name} holds one unnamed array; save the signals by name with "
+            "numpy.savez('log.npz', y=..., u=..., ts=...) or write a CSV file with a header row"
+        )
     if p.suffix.lower() == ".npz":
         try:
             with np.load(p, allow_pickle=False) as z:
@@ -116,8 +125,10 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
             raise DataError(f"{p.name} is not a readable .npz archive ({' '.join(str(exc).split()[:12])})") from None
         if ts is None and time_col is None and "ts" in arrays and arrays["ts"].size == 1:
             if not np.issubdtype(arrays["ts"].dtype, np.number) or np.iscomplexobj(arrays["ts"]):
-                raise DataError(f"{p.name}: the array 'ts' holds {arrays['ts'].reshape(-1)[0]!r}, not a sampling "
-                                "time in seconds; store a number or pass --ts")
+                raise DataError(
+                    f"{p.name}: the array 'ts' holds {arrays['ts'].reshape(-1)[0]!r}, not a sampling "
+                    "time in seconds; store a number or pass --ts"
+                )
             ts = float(arrays["ts"].reshape(-1)[0])
         columns = {}
         for k, v in arrays.items():
@@ -131,17 +142,29 @@ def load_data(path: str, output: str, inputs: Sequence[str], extra: Sequence[str
             if not numeric or np.iscomplexobj(v):
                 raise DataError(f"{p.name}: the array {k!r} holds {v.dtype} values, not real numbers")
             if v.ndim != 1:
-                raise DataError(f"{p.name}: the array {k!r} has shape {v.shape}; store each signal as a 1-D "
-                                "array of samples under its own name")
+                raise DataError(
+                    f"{p.name}: the array {k!r} has shape {v.shape}; store each signal as a 1-D "
+                    "array of samples under its own name"
+                )
             columns[k] = v.astype(float)
-        data = IOData._from_columns(columns, output=output, inputs=list(inputs), extra=list(extra), ts=ts,
-                                    time=time_col, units=None, source=p.name)
+        data = IOData._from_columns(
+            columns,
+            output=output,
+            inputs=list(inputs),
+            extra=list(extra),
+            ts=ts,
+            time=time_col,
+            units=None,
+            source=p.name,
+        )
     else:
         try:
             data = IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col)
         except UnicodeDecodeError:
-            raise DataError(f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
-                            "give a CSV file with a header row or a .npz archive") from None
+            raise DataError(
+                f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
+                "give a CSV file with a header row or a .npz archive"
+            ) from None
     for name, values in [(data.output_name, data.y), *zip(data.input_names, data.u.T), *data.extra.items()]:
         if not np.isfinite(values).any():
             raise DataError(f"{p.name}: the column {name!r} holds no numbers (every sample is missing)")
@@ -159,9 +182,14 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
     if validation:
         v = p.add_mutually_exclusive_group()
         v.add_argument("--validation", metavar="VAL.csv", help="separate validation file with the same columns")
-        v.add_argument("--split", type=float, metavar="F", default=None,
-                       help="estimation fraction of DATA when no --validation is given "
-                            + (f"(default {DEFAULT_SPLIT})" if split_default else "(default: no validation, fit on all of DATA)"))
+        v.add_argument(
+            "--split",
+            type=float,
+            metavar="F",
+            default=None,
+            help="estimation fraction of DATA when no --validation is given "
+            + (f"(default {DEFAULT_SPLIT})" if split_default else "(default: no validation, fit on all of DATA)"),
+        )
 
 
 def _range_text(r: Sequence[int]) -> str:
@@ -174,8 +202,12 @@ _GRID_HELP = {"na": "poles", "nb": "input coefficients", "nk": "input delays in 
 def _order_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orders", metavar="NA,NB,NK", help="one fixed structure, e.g. 2,1,8 (instead of a sweep)")
     for k, what in _GRID_HELP.items():
-        p.add_argument(f"--{k}", metavar="RANGE", default=None,
-                       help=f"{k} grid ({what}), e.g. 1:4 (inclusive) or 1,2,5 (default {_range_text(DEFAULT_GRID[k])})")
+        p.add_argument(
+            f"--{k}",
+            metavar="RANGE",
+            default=None,
+            help=f"{k} grid ({what}), e.g. 1:4 (inclusive) or 1,2,5 (default {_range_text(DEFAULT_GRID[k])})",
+        )
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -228,8 +260,14 @@ def cmd_fit(args) -> int:
     effects = _names(args.effects)
     model = arx(est, *orders, effects=effects)
     h = args.horizon
-    out = {"model": model.to_dict(), "structure": model.structure_name(), "n_rows": model.n_rows_,
-           "fit_est_one_step": model.fit_percent_, "rms_pred_est": model.rms(est, 1), "horizon": h}
+    out = {
+        "model": model.to_dict(),
+        "structure": model.structure_name(),
+        "n_rows": model.n_rows_,
+        "fit_est_one_step": model.fit_percent_,
+        "rms_pred_est": model.rms(est, 1),
+        "horizon": h,
+    }
     if val is not None:
         out.update(rms_sim_val=model.rms(val, h), rms_pred_val=model.rms(val, 1), fit_val=model.fit_percent(val, h))
     if args.save:
@@ -239,11 +277,17 @@ def cmd_fit(args) -> int:
         _print_json(out)
         return EXIT_OK
     print(str(model))
-    rows = [["one-step fit on estimation [%]", out["fit_est_one_step"]], ["one-step RMS on estimation", out["rms_pred_est"]]]
+    rows = [
+        ["one-step fit on estimation [%]", out["fit_est_one_step"]],
+        ["one-step RMS on estimation", out["rms_pred_est"]],
+    ]
     if val is not None:
         what = "free-run" if h is None else f"{h}-step"
-        rows += [[f"{what} RMS on validation", out["rms_sim_val"]], ["one-step RMS on validation", out["rms_pred_val"]],
-                 [f"{what} fit on validation [%]", out["fit_val"]]]
+        rows += [
+            [f"{what} RMS on validation", out["rms_sim_val"]],
+            ["one-step RMS on validation", out["rms_pred_val"]],
+            [f"{what} fit on validation [%]", out["fit_val"]],
+        ]
     print()
     print(text_table(["measure", "value"], rows))
     if args.save:
@@ -263,11 +307,26 @@ def cmd_sweep(args) -> int:
     elapsed = time.perf_counter() - t0
     rows = res.summary(top=max(args.top, choice.rank + 1))["structures"]
     row = rows[choice.rank]
-    out = {"n_structures": len(res), "seconds": elapsed, "grid": grid, "measure": res.measure,
-           "horizon": res.horizon, "integrating": res.integrating, "choice": choice.to_dict(),
-           "best": {"structure": best.structure_name(), "na": best.na_, "nb": list(best.nb_), "nk": list(best.nk_),
-                    "rms_val": row["rms_val"], "fit_val": row["fit_val"], "parameters": best.parameters_},
-           "rejected": dict(choice.skipped), "table": rows[: args.top]}
+    out = {
+        "n_structures": len(res),
+        "seconds": elapsed,
+        "grid": grid,
+        "measure": res.measure,
+        "horizon": res.horizon,
+        "integrating": res.integrating,
+        "choice": choice.to_dict(),
+        "best": {
+            "structure": best.structure_name(),
+            "na": best.na_,
+            "nb": list(best.nb_),
+            "nk": list(best.nk_),
+            "rms_val": row["rms_val"],
+            "fit_val": row["fit_val"],
+            "parameters": best.parameters_,
+        },
+        "rejected": dict(choice.skipped),
+        "table": rows[: args.top],
+    }
     if args.json:
         _print_json(out)
         return EXIT_OK
@@ -275,16 +334,26 @@ def cmd_sweep(args) -> int:
     print(f"\n{len(res)} structures in {elapsed:.2f} s")
     for name, why in choice.skipped[:8]:
         print(f"skipped {name}: {why}")
-    print(f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
-          f"fit {format_value(row['fit_val'])} %, {res.measure})")
+    print(
+        f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
+        f"fit {format_value(row['fit_val'])} %, {res.measure})"
+    )
     return EXIT_OK
 
 
 def _analyse(args) -> Analysis:
     est, val = _load(args)
     orders = _parse_orders(args.orders) if args.orders else None
-    return analyse(est, val, orders=orders, grid=_grid(args), horizon=args.horizon, expect=args.expect,
-                   max_steps=args.max_steps, progress=_progress(args))
+    return analyse(
+        est,
+        val,
+        orders=orders,
+        grid=_grid(args),
+        horizon=args.horizon,
+        expect=args.expect,
+        max_steps=args.max_steps,
+        progress=_progress(args),
+    )
 
 
 def cmd_diagnose(args) -> int:
@@ -303,8 +372,9 @@ def cmd_report(args) -> int:
     path = Path(args.o)
     path.write_text(render_html(a, title=args.title, source=source), encoding="utf-8")
     if args.json:
-        _print_json({"report": str(path), "bytes": path.stat().st_size, "seconds": time.perf_counter() - t0,
-                     **a.to_dict()})
+        _print_json(
+            {"report": str(path), "bytes": path.stat().st_size, "seconds": time.perf_counter() - t0, **a.to_dict()}
+        )
     else:
         print(a)
         print(f"\nreport written to {path} ({path.stat().st_size / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")
@@ -317,8 +387,13 @@ def cmd_demo(args) -> int:
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration {args.duration:g} must be a positive number of seconds, e.g. 20")
 
-    res = run_demo(output=args.o, seed=args.seed, duration=args.duration, progress=_progress(args),
-                   stream=sys.stderr if args.json else sys.stdout)
+    res = run_demo(
+        output=args.o,
+        seed=args.seed,
+        duration=args.duration,
+        progress=_progress(args),
+        stream=sys.stderr if args.json else sys.stdout,
+    )
     if args.json:
         _print_json(res.to_dict())
     return EXIT_OK
@@ -327,30 +402,38 @@ def cmd_demo(args) -> int:
 # ---------------------------------------------------------------------------------------- parser
 _EXAMPLES = {
     "fit": "example:\n  arxid fit flight.csv --output roll --inputs roll_torque --ts 0.002 --orders 2,1,8 --split 0.7\n"
-           "  arxid fit flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 --orders 2,1,8 "
-           "--effects roll_torque*vbat --json",
-    "sweep": "example:\n  arxid sweep flight.csv --output roll --inputs roll_torque --ts 0.002 --na 2:4 --nb 1:2 --nk 0:10\n"
-             "  arxid sweep log.npz --output y --inputs u --validation val.npz --json",
+    "  arxid fit flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 --orders 2,1,8 "
+    "--effects roll_torque*vbat --json",
+    "sweep": "example:\n  arxid sweep flight.csv --output roll --inputs roll_torque --ts 0.002 --na 2:4 --nb 1:2 --nk 0:10\n"  # noqa: E501
+    "  arxid sweep log.npz --output y --inputs u --validation val.npz --json",
     "diagnose": "example:\n  arxid diagnose flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 "
-                "--orders 2,1,8 --split 0.7 --json",
-    "report": "example:\n  arxid report flight.csv --output roll --inputs roll_torque --extra vbat --time t -o report.html",
+    "--orders 2,1,8 --split 0.7 --json",
+    "report": "example:\n  arxid report flight.csv --output roll --inputs roll_torque --extra vbat --time t -o report.html",  # noqa: E501
     "demo": "example:\n  arxid demo                       # simulated quadrotor flight, writes arxid-demo-report.html\n"
-            "  arxid demo -o /tmp/demo.html --seed 3",
+    "  arxid demo -o /tmp/demo.html --seed 3",
 }
 
 
 def build_parser() -> argparse.ArgumentParser:
-    root = _Parser(prog="arxid", description="ARX system identification that finds the missing physical effect.",
-                   formatter_class=argparse.RawDescriptionHelpFormatter,
-                   epilog="examples:\n  arxid demo\n  arxid sweep data.csv --output y --inputs u --ts 0.01\n"
-                          "  arxid diagnose data.csv --output y --inputs u --extra vbat --ts 0.01 --json\n"
-                          "run 'arxid COMMAND --help' for each command's options.")
+    root = _Parser(
+        prog="arxid",
+        description="ARX system identification that finds the missing physical effect.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  arxid demo\n  arxid sweep data.csv --output y --inputs u --ts 0.01\n"
+        "  arxid diagnose data.csv --output y --inputs u --extra vbat --ts 0.01 --json\n"
+        "run 'arxid COMMAND --help' for each command's options.",
+    )
     root.add_argument("--version", action="version", version=f"arxid {__version__}")
     sub = root.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    kw = {"formatter_class": argparse.RawDescriptionHelpFormatter}
+    kw: dict[str, Any] = {"formatter_class": argparse.RawDescriptionHelpFormatter}
 
-    p = sub.add_parser("fit", help="fit one ARX structure (optionally with effects)", epilog=_EXAMPLES["fit"],
-                       description="Fit one ARX model by QR and report its errors.", **kw)
+    p = sub.add_parser(
+        "fit",
+        help="fit one ARX structure (optionally with effects)",
+        epilog=_EXAMPLES["fit"],
+        description="Fit one ARX model by QR and report its errors.",
+        **kw,
+    )
     _data_args(p, split_default=False)
     p.add_argument("--orders", metavar="NA,NB,NK", required=True, help="structure, e.g. 2,1,8")
     p.add_argument("--effects", metavar="E[,F]", default="", help="effect terms, e.g. 'u1*vbat,const'")
@@ -359,8 +442,13 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(func=cmd_fit)
 
-    p = sub.add_parser("sweep", help="fit and validate every (na, nb, nk) of a grid", epilog=_EXAMPLES["sweep"],
-                       description="Exhaustive order sweep, ranked by validation error; step sanity checks.", **kw)
+    p = sub.add_parser(
+        "sweep",
+        help="fit and validate every (na, nb, nk) of a grid",
+        epilog=_EXAMPLES["sweep"],
+        description="Exhaustive order sweep, ranked by validation error; step sanity checks.",
+        **kw,
+    )
     _data_args(p)
     _order_args(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
@@ -368,9 +456,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--top", type=int, default=20, metavar="N", help="rows to print (default %(default)s)")
     _common(p)
     p.set_defaults(func=cmd_sweep)
+    _add_analysis_commands(sub, kw)
+    return root
 
-    p = sub.add_parser("diagnose", help="rank the missing physical effect and climb the error ladder",
-                       epilog=_EXAMPLES["diagnose"], description="Diagnose a model: residual tests, suspects, ladder.", **kw)
+
+def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
+    """The commands that run the analysis pipeline: diagnose, report, demo."""
+    p = sub.add_parser(
+        "diagnose",
+        help="rank the missing physical effect and climb the error ladder",
+        epilog=_EXAMPLES["diagnose"],
+        description="Diagnose a model: residual tests, suspects, ladder.",
+        **kw,
+    )
     _data_args(p)
     _order_args(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
@@ -379,8 +477,13 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(func=cmd_diagnose)
 
-    p = sub.add_parser("report", help="write a self-contained HTML report", epilog=_EXAMPLES["report"],
-                       description="Sweep, choose, diagnose and write one HTML file with every plot embedded.", **kw)
+    p = sub.add_parser(
+        "report",
+        help="write a self-contained HTML report",
+        epilog=_EXAMPLES["report"],
+        description="Sweep, choose, diagnose and write one HTML file with every plot embedded.",
+        **kw,
+    )
     _data_args(p)
     _order_args(p)
     p.add_argument("-o", metavar="REPORT.html", default="report.html", help="output file (default %(default)s)")
@@ -391,15 +494,21 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(func=cmd_report)
 
-    p = sub.add_parser("demo", help="the hidden battery effect of a simulated quadrotor, end to end",
-                       epilog=_EXAMPLES["demo"], description="Simulated quadrotor flight with battery sag: sweep, "
-                       "diagnose, add the missing effect, print the error ladder, write an HTML report.", **kw)
-    p.add_argument("-o", metavar="REPORT.html", default="arxid-demo-report.html", help="report file (default %(default)s)")
+    p = sub.add_parser(
+        "demo",
+        help="the hidden battery effect of a simulated quadrotor, end to end",
+        epilog=_EXAMPLES["demo"],
+        description="Simulated quadrotor flight with battery sag: sweep, "
+        "diagnose, add the missing effect, print the error ladder, write an HTML report.",
+        **kw,
+    )
+    p.add_argument(
+        "-o", metavar="REPORT.html", default="arxid-demo-report.html", help="report file (default %(default)s)"
+    )
     p.add_argument("--seed", type=int, default=0, help="simulation seed (default %(default)s)")
     p.add_argument("--duration", type=float, default=None, help="flight duration in seconds (default: the demo's)")
     _common(p)
     p.set_defaults(func=cmd_demo)
-    return root
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,8 +38,9 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
     denominator : ndarray
     """
     if not model.is_linear:
-        raise ArxidError(f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no "
-                         f"transfer function")
+        raise ArxidError(
+            f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no transfer function"
+        )
     num_z1 = model.layout_numerators()
     n = max([model.na_] + [len(x) - 1 for x in num_z1])
     den = np.zeros(n + 1)
@@ -79,8 +81,9 @@ def to_control(model: ArxModel, continuous: bool = False, input: int | None = No
     idx = range(len(nums)) if input is None else [input]
     if continuous:
         return _d2c(model, [nums[i] for i in idx], den, [model.layout_.nk[i] for i in idx], [labels[i] for i in idx])
-    tfs = [control.TransferFunction(nums[i], den, model.ts, inputs=[labels[i]], outputs=[model.output_name])
-           for i in idx]
+    tfs = [
+        control.TransferFunction(nums[i], den, model.ts, inputs=[labels[i]], outputs=[model.output_name]) for i in idx
+    ]
     return tfs[0] if len(tfs) == 1 else tfs
 
 
@@ -115,7 +118,9 @@ def to_scipy(model: ArxModel) -> Any:
     return signal.dlti(a, b, c, dmat, dt=model.ts)
 
 
-def _d2c(model: ArxModel, nums: Sequence[np.ndarray], den: np.ndarray, nks: Sequence[int], labels: Sequence[str]) -> Any:
+def _d2c(
+    model: ArxModel, nums: Sequence[np.ndarray], den: np.ndarray, nks: Sequence[int], labels: Sequence[str]
+) -> Any:
     """Continuous-time model whose ZOH sampling is the discrete model (input delays split off)."""
     import control
     from scipy.linalg import logm
@@ -134,7 +139,9 @@ def _d2c(model: ArxModel, nums: Sequence[np.ndarray], den: np.ndarray, nks: Sequ
         while len(dd) > 1 and dd[-1] == 0 and n[-1] == 0:
             dd, n = dd[:-1], n[:-1]
         if len(dd) > 1 and dd[-1] == 0:
-            raise ArxidError("the model has a pole at z = 0 that cannot be a zero-order-hold sample of a continuous system")
+            raise ArxidError(
+                "the model has a pole at z = 0 that cannot be a zero-order-hold sample of a continuous system"
+            )
         sys_d = control.tf2ss(control.TransferFunction(n, dd, model.ts))
         a, b, c, d = (np.asarray(x) for x in (sys_d.A, sys_d.B, sys_d.C, sys_d.D))
         k = a.shape[0]
@@ -145,7 +152,9 @@ def _d2c(model: ArxModel, nums: Sequence[np.ndarray], den: np.ndarray, nks: Sequ
             lg = logm(big)
         if np.iscomplexobj(lg):
             if np.max(np.abs(lg.imag)) > 1e-8 * max(1.0, np.max(np.abs(lg.real))):
-                raise ArxidError("the model has poles on the negative real axis: it is not the zero-order-hold sample of a real continuous system")
+                raise ArxidError(
+                    "the model has poles on the negative real axis: it is not the zero-order-hold sample of a real continuous system"  # noqa: E501
+                )
             lg = lg.real
         lg = lg / model.ts
         sys_c = control.ss(lg[:k, :k], lg[:k, k:], c, d)
@@ -154,4 +163,3 @@ def _d2c(model: ArxModel, nums: Sequence[np.ndarray], den: np.ndarray, nks: Sequ
         tf_c.dead_time = shift * model.ts
         results.append(tf_c)
     return results[0] if len(results) == 1 else results
-

@@ -39,7 +39,6 @@ from .exceptions import DataError
 __all__ = [
     "QuadrotorParameters",
     "DEFAULT_EFFECTS",
-    "FLIGHT_SIGNALS",
     "quadrotor_flight",
     "quadrotor_axis",
     "thrust_stand",
@@ -228,8 +227,8 @@ def _rng(seed):
         raise DataError(f"seed must be a non-negative integer, got {seed!r}") from None
 
 
-#: Signals of :func:`quadrotor_flight` and their units (any of them can be the output).
-FLIGHT_SIGNALS = {
+# Signals of quadrotor_flight and their units (any of them can be the output).
+_FLIGHT_UNITS = {
     "roll": "rad",
     "pitch": "rad",
     "yaw": "rad",
@@ -289,7 +288,7 @@ def quadrotor_flight(
             A broadband gust torque on every axis (``parameters.turbulence`` RMS, correlation
             time ``turbulence_time_constant``), about 0.25 degrees of hover jitter.
     output : str
-        Which signal of :data:`FLIGHT_SIGNALS` becomes the output (``"roll"``, ``"az"``, ...).
+        Which logged signal becomes the output (``"roll"``, ``"pitch"``, ``"yaw"``, ``"az"``, ...).
     parameters : QuadrotorParameters, optional
         True parameters (default :class:`QuadrotorParameters()`).
 
@@ -317,8 +316,8 @@ def quadrotor_flight(
     eff = _effects(effects)
     par = parameters or QuadrotorParameters()
     n = _check_timing(duration, ts)
-    if output not in FLIGHT_SIGNALS:
-        raise DataError(f"unknown output {output!r}; choose from {sorted(FLIGHT_SIGNALS)}")
+    if output not in _FLIGHT_UNITS:
+        raise DataError(f"unknown output {output!r}; choose from {sorted(_FLIGHT_UNITS)}")
     rng = _rng(seed)
     # the draw order is fixed (references, then noise): switching an effect never changes the
     # other random signals
@@ -650,10 +649,10 @@ def _flight_data(
         ts,
         output_name=output,
         input_names=("d1", "d2", "d3", "d4"),
-        output_unit=FLIGHT_SIGNALS[output],
+        output_unit=_FLIGHT_UNITS[output],
         input_units=("1",) * 4,
         extra=signals,
-        extra_units={k: FLIGHT_SIGNALS[k] for k in signals},
+        extra_units={k: _FLIGHT_UNITS[k] for k in signals},
     )
 
 

@@ -73,12 +73,28 @@ def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
     skip = min(int(round(TAKEOFF_S / flight.ts)), flight.n_samples // 4)
     vbat = flight.signal("vbat")[skip:]
     collective = collective[skip:]
-    data = IOData(flight.signal("az")[skip:], collective, flight.ts, output_name="az", input_names=("collective",),
-                  output_unit="m/s^2", input_units=("(rad/s)^2",), extra={"vbat": vbat, "z": flight.signal("z")[skip:]},
-                  extra_units={"vbat": "V", "z": "m"})
-    facts = {"seed": seed, "duration": duration, "ts": flight.ts, "n_samples": data.n_samples, "skipped_s": skip * flight.ts,
-             "vbat_start": float(vbat[:50].mean()), "vbat_end": float(vbat[-50:].mean()),
-             "vbat_min": float(vbat.min()), "nominal_voltage": par.nominal_voltage}
+    data = IOData(
+        flight.signal("az")[skip:],
+        collective,
+        flight.ts,
+        output_name="az",
+        input_names=("collective",),
+        output_unit="m/s^2",
+        input_units=("(rad/s)^2",),
+        extra={"vbat": vbat, "z": flight.signal("z")[skip:]},
+        extra_units={"vbat": "V", "z": "m"},
+    )
+    facts = {
+        "seed": seed,
+        "duration": duration,
+        "ts": flight.ts,
+        "n_samples": data.n_samples,
+        "skipped_s": skip * flight.ts,
+        "vbat_start": float(vbat[:50].mean()),
+        "vbat_end": float(vbat[-50:].mean()),
+        "vbat_min": float(vbat.min()),
+        "nominal_voltage": par.nominal_voltage,
+    }
     return data, facts
 
 
@@ -119,10 +135,15 @@ class DemoResult:
         return 1.0 - self.ladder[-1][1] / self.ladder[0][1]
 
     def to_dict(self) -> dict:
-        return {"structure": self.structure, "missing_effect": self.missing_effect,
-                "ladder": [{"effects": list(e), "rms_sim_val": v} for e, v in self.ladder],
-                "error_fall": self.error_fall, "report": self.report, "seconds": dict(self.seconds),
-                "facts": dict(self.facts)}
+        return {
+            "structure": self.structure,
+            "missing_effect": self.missing_effect,
+            "ladder": [{"effects": list(e), "rms_sim_val": v} for e, v in self.ladder],
+            "error_fall": self.error_fall,
+            "report": self.report,
+            "seconds": dict(self.seconds),
+            "facts": dict(self.facts),
+        }
 
     def __str__(self) -> str:
         lad = " → ".join(f"{v:.4g}" for _, v in self.ladder)
@@ -136,11 +157,17 @@ def _say(out: TextIO, text: str = "") -> None:
 def _tell_flight(out: TextIO, facts: dict, seed: int) -> None:
     _say(out, "arxid demo: a simulated quadrotor flight whose battery drains, and the effect the model is missing")
     _say(out)
-    _say(out, f"1. Flight: {facts['duration']:g} s at {1 / facts['ts']:g} Hz, seed {seed} ({facts['n_samples']} samples "
-              f"after the {facts['skipped_s']:g} s take-off); battery {facts['vbat_start']:.2f} V -> "
-              f"{facts['vbat_end']:.2f} V (sags to {facts['vbat_min']:.2f} V under load).")
-    _say(out, f"   Input: motor speeds from the PWM duty by the motor model at the nominal {facts['nominal_voltage']:g} V "
-              f"(the log has no speed sensor), mixed into the collective thrust channel sum(w^2).")
+    _say(
+        out,
+        f"1. Flight: {facts['duration']:g} s at {1 / facts['ts']:g} Hz, seed {seed} ({facts['n_samples']} samples "
+        f"after the {facts['skipped_s']:g} s take-off); battery {facts['vbat_start']:.2f} V -> "
+        f"{facts['vbat_end']:.2f} V (sags to {facts['vbat_min']:.2f} V under load).",
+    )
+    _say(
+        out,
+        f"   Input: motor speeds from the PWM duty by the motor model at the nominal {facts['nominal_voltage']:g} V "
+        f"(the log has no speed sensor), mixed into the collective thrust channel sum(w^2).",
+    )
     _say(out, "   Output: the accelerometer az. Logged but not in the model: vbat (battery voltage), z (altitude).")
 
 
@@ -149,15 +176,23 @@ def _tell_analysis(out: TextIO, a: Analysis) -> None:
     n = len(a.sweep) if a.sweep is not None else 1
     d = a.diagnosis
     _say(out)
-    _say(out, f"2. Sweep: {n} structures ({grid}) in {a.timings.get('sweep', 0):.2f} s; chosen "
-              f"{a.model.structure_name()} ({a.choice.reason}).")
+    _say(
+        out,
+        f"2. Sweep: {n} structures ({grid}) in {a.timings.get('sweep', 0):.2f} s; chosen "
+        f"{a.model.structure_name()} ({a.choice.reason}).",
+    )
     for name, why in a.choice.skipped[:3]:
         _say(out, f"   rejected {name}: {why}")
-    _say(out, f"   Validation: {horizon_label(a.horizon)} RMS error {format_value(d.rms_sim_val)} m/s^2, "
-              f"fit {format_value(d.fit_val, 3)} %.")
+    _say(
+        out,
+        f"   Validation: {horizon_label(a.horizon)} RMS error {format_value(d.rms_sim_val)} m/s^2, "
+        f"fit {format_value(d.fit_val, 3)} %.",
+    )
     _say(out)
-    rows = [[str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
-            for i, s in enumerate(d.suspects[:8], start=1)]
+    rows = [
+        [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
+        for i, s in enumerate(d.suspects[:8], start=1)
+    ]
     _say(out, f"3. Diagnose ({a.timings.get('diagnose', 0):.1f} s): which effect is missing?")
     if rows:
         table = text_table(["rank", "effect", "score", "p-value", "significant", "val. RMS after"], rows)
@@ -165,8 +200,13 @@ def _tell_analysis(out: TextIO, a: Analysis) -> None:
     missing = a.missing_effect
     if missing:
         battery = "vbat" in missing
-        _say(out, f"   Missing effect: {missing}" + (" -- the battery voltage: the same command gives less thrust as "
-                                                    "the battery drains." if battery else "."))
+        _say(
+            out,
+            f"   Missing effect: {missing}"
+            + (
+                " -- the battery voltage: the same command gives less thrust as the battery drains." if battery else "."
+            ),
+        )
     else:
         _say(out, "   No significant missing effect was found.")
 
@@ -177,12 +217,20 @@ def _tell_ladder(out: TextIO, a: Analysis) -> None:
     _say(out, "   " + str(a.ladder).split("\n", 1)[1].replace("\n", "\n   "))
     errors = a.ladder.errors
     if a.error_fall is not None and len(errors) > 1:
-        _say(out, f"   before {errors[0]:.4g} m/s^2 -> after {errors[-1]:.4g} m/s^2 "
-                  f"({100 * a.error_fall:.0f} % of the error removed).")
+        _say(
+            out,
+            f"   before {errors[0]:.4g} m/s^2 -> after {errors[-1]:.4g} m/s^2 "
+            f"({100 * a.error_fall:.0f} % of the error removed).",
+        )
 
 
-def run_demo(output: str | Path = "arxid-demo-report.html", seed: int = 0, duration: float | None = None,
-             progress: bool = False, stream: TextIO | None = None) -> DemoResult:
+def run_demo(
+    output: str | Path = "arxid-demo-report.html",
+    seed: int = 0,
+    duration: float | None = None,
+    progress: bool = False,
+    stream: TextIO | None = None,
+) -> DemoResult:
     """Run the demo story, print it to ``stream`` and write the HTML report to ``output``.
 
     The story is :func:`arxid.analyse` with its defaults (:data:`arxid.DEFAULT_GRID`) on the demo's
@@ -216,13 +264,21 @@ def run_demo(output: str | Path = "arxid-demo-report.html", seed: int = 0, durat
     _tell_ladder(out, a)
     t0 = time.perf_counter()
     path = Path(output)
-    path.write_text(render_html(a, title="arxid demo: the quadrotor's hidden battery effect",
-                                source=f"simulated quadrotor flight (arxid.datasets.quadrotor_flight, seed {seed}, "
-                                       f"battery sag on)"), encoding="utf-8")
+    path.write_text(
+        render_html(
+            a,
+            title="arxid demo: the quadrotor's hidden battery effect",
+            source=f"simulated quadrotor flight (arxid.datasets.quadrotor_flight, seed {seed}, battery sag on)",
+        ),
+        encoding="utf-8",
+    )
     seconds["report"] = time.perf_counter() - t0
     seconds["total"] = time.perf_counter() - t_all
     _say(out)
-    _say(out, f"5. Report: {path} ({path.stat().st_size / 1e6:.1f} MB, self-contained, opens offline). "
-              f"Total {seconds['total']:.1f} s.")
+    _say(
+        out,
+        f"5. Report: {path} ({path.stat().st_size / 1e6:.1f} MB, self-contained, opens offline). "
+        f"Total {seconds['total']:.1f} s.",
+    )
     ladder = [(s.effects, s.rms_sim_val) for s in a.ladder.steps]
     return DemoResult(a.model.structure_name(), a.missing_effect, ladder, str(path), seconds, facts, a)

@@ -6,5 +6,8 @@ import warnings
 from .validation import *  # noqa: F403
 from .validation import __all__  # noqa: F401
 
-warnings.warn("arxid.diagnostics is deprecated: import from arxid.validation (compare, residuals, where_it_fails)",
-              DeprecationWarning, stacklevel=2)
+warnings.warn(
+    "arxid.diagnostics is deprecated: import from arxid.validation (compare, residuals, where_it_fails)",
+    DeprecationWarning,
+    stacklevel=2,
+)

@@ -126,14 +126,29 @@ class Ladder:
             raise ArxidError("give validation data: Ladder(validation) or add(model, validation=...)")
         self.validation = self.validation if self.validation is not None else val
         pred, _, _ = prediction_error(model, val, self.horizon)
-        step = LadderStep(added, model, tuple(model.effects), model.structure_name(),
-                          metrics.prediction_rms(val.y, pred), metrics.fit_percent(val.y, pred), self.horizon)
+        step = LadderStep(
+            added,
+            model,
+            tuple(model.effects),
+            model.structure_name(),
+            metrics.prediction_rms(val.y, pred),
+            metrics.fit_percent(val.y, pred),
+            self.horizon,
+        )
         self.steps.append(step)
         return step
 
     @classmethod
-    def run(cls, model: ArxModel, data: IOData | None = None, validation: IOData | None = None, *,
-            max_steps: int = 3, horizon: int | None = None, **diagnose_kwargs) -> "Ladder":
+    def run(
+        cls,
+        model: ArxModel,
+        data: IOData | None = None,
+        validation: IOData | None = None,
+        *,
+        max_steps: int = 3,
+        horizon: int | None = None,
+        **diagnose_kwargs,
+    ) -> Ladder:
         """Greedy ladder: diagnose, add the best significant suspect, repeat.
 
         Parameters
@@ -192,8 +207,9 @@ class Ladder:
         for i, s in enumerate(self.steps):
             change = f"{100 * (s.rms_sim_val / first - 1):+.1f}%" if i and math.isfinite(first) and first > 0 else ""
             rows.append((i, s.added or "(start)", s.structure, s.rms_sim_val, s.fit_val, change))
-        return (f"error ladder (validation error, {horizon_label(self.horizon)})\n"
-                + text_table(["step", "added", "model", "rms", "fit %", "vs start"], rows))
+        return f"error ladder (validation error, {horizon_label(self.horizon)})\n" + text_table(
+            ["step", "added", "model", "rms", "fit %", "vs start"], rows
+        )
 
     def __repr__(self) -> str:
         return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
@@ -205,9 +221,16 @@ class Ladder:
         -------
         list of dict
         """
-        return [{"added": s.added, "structure": s.structure, "effects": list(s.effects),
-                 "rms_sim_val": finite_or_none(float(s.rms_sim_val)), "fit_val": finite_or_none(float(s.fit_val))}
-                for s in self.steps]
+        return [
+            {
+                "added": s.added,
+                "structure": s.structure,
+                "effects": list(s.effects),
+                "rms_sim_val": finite_or_none(float(s.rms_sim_val)),
+                "fit_val": finite_or_none(float(s.fit_val)),
+            }
+            for s in self.steps
+        ]
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the horizon and the steps.
@@ -217,10 +240,19 @@ class Ladder:
         dict
             ``{"horizon": int or None, "steps": [...]}``, the steps as in :meth:`to_list`.
         """
-        return {"horizon": self.horizon,
-                "steps": [{"added": s.added, "structure": s.structure, "effects": list(s.effects),
-                           "rms_sim_val": finite_or_none(float(s.rms_sim_val)),
-                           "fit_val": finite_or_none(float(s.fit_val))} for s in self.steps]}
+        return {
+            "horizon": self.horizon,
+            "steps": [
+                {
+                    "added": s.added,
+                    "structure": s.structure,
+                    "effects": list(s.effects),
+                    "rms_sim_val": finite_or_none(float(s.rms_sim_val)),
+                    "fit_val": finite_or_none(float(s.fit_val)),
+                }
+                for s in self.steps
+            ],
+        }
 
     def to_json(self, indent: int | None = 2) -> str:
         """JSON of :meth:`to_dict`.
@@ -245,8 +277,12 @@ class Ladder:
             Columns ``added``, ``structure``, ``rms_sim_val``, ``fit_val``.
         """
         pd = require_pandas()
-        return pd.DataFrame([{"added": s.added, "structure": s.structure, "rms_sim_val": s.rms_sim_val,
-                              "fit_val": s.fit_val} for s in self.steps])
+        return pd.DataFrame(
+            [
+                {"added": s.added, "structure": s.structure, "rms_sim_val": s.rms_sim_val, "fit_val": s.fit_val}
+                for s in self.steps
+            ]
+        )
 
     def plot(self, ax: Any = None) -> Any:
         """Validation error per step (the error falling).
@@ -262,5 +298,3 @@ class Ladder:
         from .plots.diagnostics import plot_ladder
 
         return plot_ladder(self, ax=ax)
-
-

@@ -26,20 +26,24 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .data import IOData
 from . import _metrics as metrics
 from ._checks import check_data, check_horizon, check_model
 from ._format import finite_or_none, horizon_label, require_pandas, text_table
-from .validation import ResidualAnalysis, error_rms, prediction_error, residuals
+from .data import IOData
 from .effects import compile_effects, parse_effect
 from .exceptions import ArxidError, DataError, OrderError
-from .model import ArxModel, arx
+from .model import ArxModel
 from .regressors import max_lag, regressor_matrix, regressor_names
+from .validation import ResidualAnalysis, error_rms, prediction_error, residuals
+
+if TYPE_CHECKING:
+    from .ladder import Ladder
 
 __all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
 
@@ -96,7 +100,7 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     out += extras
     for i, a in enumerate(ins):
         out += [f"{a}*{x}" for x in extras]
-        out += [f"{a}*{b}" for b in ins[i + 1:]]
+        out += [f"{a}*{b}" for b in ins[i + 1 :]]
         out.append(f"{a}*y")
     for a in ins:
         out += [f"{a}^2", f"{a}^3"]
@@ -366,36 +370,58 @@ class Diagnosis:
             try:
                 s = self.suspects[k]
             except (IndexError, TypeError):
-                raise ArxidError(f"suspect index {k!r} is out of range: there are {len(self.suspects)} suspects") from None
+                raise ArxidError(
+                    f"suspect index {k!r} is out of range: there are {len(self.suspects)} suspects"
+                ) from None
         if s.model is not None:
             return s.model
         return _refit(self.model, self.data, s)
 
     def __str__(self) -> str:
-        base = (f"diagnosis of {self.model.structure_name()}: validation error ({horizon_label(self.horizon)}) "
-                f"{self.rms_sim_val:.4g}, fit {self.fit_val:.2f}%, one-step rms {self.rms_pred_val:.4g}")
+        base = (
+            f"diagnosis of {self.model.structure_name()}: validation error ({horizon_label(self.horizon)}) "
+            f"{self.rms_sim_val:.4g}, fit {self.fit_val:.2f}%, one-step rms {self.rms_pred_val:.4g}"
+        )
         lines = [base]
         if self.validation_is_estimation:
             lines.append("  (no validation data given: judged on the estimation data)")
         if self.residual_tests is not None:
             rt = self.residual_tests
-            lines.append(f"  residual: Ljung–Box p = {rt.ljung_box_p_value:.3g} ({'white' if rt.is_white else 'not white'})")
+            lines.append(
+                f"  residual: Ljung–Box p = {rt.ljung_box_p_value:.3g} ({'white' if rt.is_white else 'not white'})"
+            )
         rows = []
         for i, s in enumerate(self.suspects[:15]):
-            rows.append((i, s.effect, s.score, s.p_value, s.rms_sim_val_after,
-                         f"{100 * s.improvement:+.1f}%" if s.refitted and math.isfinite(s.improvement) else "",
-                         "yes" if s.significant else "", s.note if len(s.note) <= 48 else s.note[:45] + "..."))
-        lines.append(text_table(["#", "suspect", "score", "p (Holm)", "val rms after", "change", "significant", "note"],
-                            rows, digits=3))
+            rows.append(
+                (
+                    i,
+                    s.effect,
+                    s.score,
+                    s.p_value,
+                    s.rms_sim_val_after,
+                    f"{100 * s.improvement:+.1f}%" if s.refitted and math.isfinite(s.improvement) else "",
+                    "yes" if s.significant else "",
+                    s.note if len(s.note) <= 48 else s.note[:45] + "...",
+                )
+            )
+        lines.append(
+            text_table(
+                ["#", "suspect", "score", "p (Holm)", "val rms after", "change", "significant", "note"], rows, digits=3
+            )
+        )
         if not self.significant:
-            lines.append("no significant missing effect: no candidate passes both the corrected F-test "
-                         f"(alpha {self.alpha}) and a {100 * self.min_improvement:.0f}% validation improvement")
+            lines.append(
+                "no significant missing effect: no candidate passes both the corrected F-test "
+                f"(alpha {self.alpha}) and a {100 * self.min_improvement:.0f}% validation improvement"
+            )
         else:
-            lines.append(f"best: add {self.top.effect} (validation error {self.rms_sim_val:.4g} -> "
-                         f"{self.top.rms_sim_val_after:.4g}); diagnosis.apply(0) refits with it")
+            lines.append(
+                f"best: add {self.top.effect} (validation error {self.rms_sim_val:.4g} -> "
+                f"{self.top.rms_sim_val_after:.4g}); diagnosis.apply(0) refits with it"
+            )
         return "\n".join(lines)
 
-    def to_dict(self, ladder: "Ladder | None" = None) -> dict:
+    def to_dict(self, ladder: Ladder | None = None) -> dict:
         """The machine-readable report (the ``arxid diagnose --json`` contract).
 
         Keys ``model`` (na, nb, nk, effects), ``baseline`` (rms_sim_val, rms_pred_val, fit_val,
@@ -419,8 +445,13 @@ class Diagnosis:
         else:
             steps = ladder.to_list()
         return {
-            "model": {"na": m.na_, "nb": list(m.nb_), "nk": list(m.nk_), "structure": m.structure_name(),
-                      "effects": list(m.effects)},
+            "model": {
+                "na": m.na_,
+                "nb": list(m.nb_),
+                "nk": list(m.nk_),
+                "structure": m.structure_name(),
+                "effects": list(m.effects),
+            },
             "baseline": {
                 "rms_sim_val": finite_or_none(float(self.rms_sim_val)),
                 "rms_pred_val": finite_or_none(float(self.rms_pred_val)),
@@ -432,7 +463,7 @@ class Diagnosis:
             "ladder": steps,
         }
 
-    def to_json(self, indent: int | None = 2, ladder: "Ladder | None" = None) -> str:
+    def to_json(self, indent: int | None = 2, ladder: Ladder | None = None) -> str:
         """JSON of :meth:`to_dict` (the ``arxid diagnose --json`` output).
 
         Parameters
@@ -458,12 +489,23 @@ class Diagnosis:
             ``p_value_raw``, ``p_value``, ``rms_sim_val_after``, ``improvement``, ``significant``, ``note``.
         """
         pd = require_pandas()
-        return pd.DataFrame([
-            {"suspect": s.effect, "kind": s.kind, "score": s.score, "f_statistic": s.f_statistic,
-             "p_value_raw": s.p_value_raw, "p_value": s.p_value, "rms_sim_val_after": s.rms_sim_val_after,
-             "improvement": s.improvement, "significant": s.significant, "note": s.note}
-            for s in self.suspects
-        ])
+        return pd.DataFrame(
+            [
+                {
+                    "suspect": s.effect,
+                    "kind": s.kind,
+                    "score": s.score,
+                    "f_statistic": s.f_statistic,
+                    "p_value_raw": s.p_value_raw,
+                    "p_value": s.p_value,
+                    "rms_sim_val_after": s.rms_sim_val_after,
+                    "improvement": s.improvement,
+                    "significant": s.significant,
+                    "note": s.note,
+                }
+                for s in self.suspects
+            ]
+        )
 
     def plot(self, n: int = 12):
         """Scores and validation change of the top ``n`` suspects.
@@ -492,7 +534,7 @@ def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
 
 def _is_integrating(model: ArxModel) -> bool:
     p = model.poles()
-    return bool(np.any((np.abs(p - 1.0) < 1e-3)))
+    return bool(np.any(np.abs(p - 1.0) < 1e-3))
 
 
 def _holm(p: np.ndarray) -> np.ndarray:
@@ -549,10 +591,19 @@ class _Projector:
         return (math.sqrt(drss / self.rss0), float(f), p, q), ""
 
 
-def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | None = None, *,
-             candidates: str | Sequence[str] = "auto", horizon: int | None = None, alpha: float = 0.01,
-             min_improvement: float = 0.05, n_refit: int = 8, n_pairs: int = 8,
-             residual_max_lag: int = 25) -> Diagnosis:
+def diagnose(
+    model: ArxModel,
+    data: IOData | None = None,
+    validation: IOData | None = None,
+    *,
+    candidates: str | Sequence[str] = "auto",
+    horizon: int | None = None,
+    alpha: float = 0.01,
+    min_improvement: float = 0.05,
+    n_refit: int = 8,
+    n_pairs: int = 8,
+    residual_max_lag: int = 25,
+) -> Diagnosis:
     """Rank the physical effects (and structure changes) the model is missing.
 
     Parameters
@@ -618,8 +669,21 @@ def diagnose(model: ArxModel, data: IOData | None = None, validation: IOData | N
     suspects = judge.conditional_on_top(suspects)
     suspects += _unscored(notes, cands, suspects)
     suspects.sort(key=_rank_key)
-    return Diagnosis(model, data, validation, base.horizon, base.rms, base.rms_one_step, base.fit, tuple(suspects),
-                     base.residual_tests, alpha, min_improvement, len(scored), same)
+    return Diagnosis(
+        model,
+        data,
+        validation,
+        base.horizon,
+        base.rms,
+        base.rms_one_step,
+        base.fit,
+        tuple(suspects),
+        base.residual_tests,
+        alpha,
+        min_improvement,
+        len(scored),
+        same,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -629,13 +693,17 @@ def _data_pair(model: ArxModel, data: IOData | None, validation: IOData | None) 
     if data is None:
         data = model.data_
         if data is None:
-            raise ArxidError("this model was loaded without its data: pass the estimation data to diagnose(model, data)")
+            raise ArxidError(
+                "this model was loaded without its data: pass the estimation data to diagnose(model, data)"
+            )
     data = check_data(data)
     same = validation is None
     validation = data if same else check_data(validation, "validation")
     if validation.input_names != data.input_names:
-        raise DataError(f"validation inputs {list(validation.input_names)} differ from the estimation inputs "
-                        f"{list(data.input_names)}")
+        raise DataError(
+            f"validation inputs {list(validation.input_names)} differ from the estimation inputs "
+            f"{list(data.input_names)}"
+        )
     return data, validation, same
 
 
@@ -654,8 +722,10 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
         horizon = INTEGRATING_HORIZON
     rms = error_rms(model, validation, horizon)
     if math.isnan(rms):  # no sample of the validation data has a prediction
-        raise DataError(f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
-                        f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)")
+        raise DataError(
+            f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
+            f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)"
+        )
     if horizon is None and math.isinf(rms):
         horizon = INTEGRATING_HORIZON
         rms = error_rms(model, validation, horizon)
@@ -707,8 +777,9 @@ class _Scoring:
         self.lag = lag
         self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
         if len(self.rows0) <= self.phi0.shape[1] + 2:
-            raise DataError(f"too few regression rows ({len(self.rows0)}) to diagnose a model with "
-                            f"{self.phi0.shape[1]} parameters")
+            raise DataError(
+                f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
+            )
         self.proj0 = _Projector(self.phi0, self.y0)
         self.single_z: dict[str, np.ndarray] = {}
 
@@ -751,9 +822,17 @@ class _Scoring:
         """Strong effects tried together with ``const`` (asymmetric Coulomb friction, an output
         that was not detrended: the effect only helps together with a constant)."""
         adj = _holm(np.array([s["p"] for s in scored]))
-        strong = sorted((s for s, pa in zip(scored, adj) if pa < alpha and s["c"].kind == "effect"
-                         and s["c"].label not in ("const", "time") and s["c"].label in self.single_z),
-                        key=lambda s: s["p"])
+        strong = sorted(
+            (
+                s
+                for s, pa in zip(scored, adj)
+                if pa < alpha
+                and s["c"].kind == "effect"
+                and s["c"].label not in ("const", "time")
+                and s["c"].label in self.single_z
+            ),
+            key=lambda s: s["p"],
+        )
         have = {s["c"].label for s in scored}
         out = []
         for s in strong[:n_pairs]:
@@ -771,8 +850,15 @@ class _Scoring:
 class _Judge:
     """Refits candidates and judges them by the validation error at the baseline's horizon."""
 
-    def __init__(self, model: ArxModel, data: IOData, validation: IOData, horizon: int | None, base_rms: float,
-                 min_improvement: float):
+    def __init__(
+        self,
+        model: ArxModel,
+        data: IOData,
+        validation: IOData,
+        horizon: int | None,
+        base_rms: float,
+        min_improvement: float,
+    ):
         self.model, self.data, self.validation = model, data, validation
         self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
 
@@ -785,8 +871,11 @@ class _Judge:
         """Every candidate that passes the corrected test is refitted (only those can be significant),
         and the best ``n_refit`` by p-value so the table shows their effect (all when None)."""
         order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
-        chosen = set(range(len(scored))) if n_refit is None else \
-            set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
+        chosen = (
+            set(range(len(scored)))
+            if n_refit is None
+            else set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
+        )
         return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
@@ -802,8 +891,24 @@ class _Judge:
                 note = str(exc).split(":")[0]
         improvement = self._improvement(after)
         sig = bool(s["p_adj"] < alpha and math.isfinite(improvement) and improvement >= self.min_improvement)
-        return Suspect(c.label, c.kind, c.effects, c.na, c.nb, c.nk, s["score"], s["f"], s["p"], s["p_adj"], s["q"],
-                       after, improvement, sig, note, fitted)
+        return Suspect(
+            c.label,
+            c.kind,
+            c.effects,
+            c.na,
+            c.nb,
+            c.nk,
+            s["score"],
+            s["f"],
+            s["p"],
+            s["p_adj"],
+            s["q"],
+            after,
+            improvement,
+            sig,
+            note,
+            fitted,
+        )
 
     def conditional_on_top(self, suspects: list[Suspect]) -> list[Suspect]:
         """Keep a suspect significant only if it still helps once the best suspect is in the model.
@@ -841,8 +946,12 @@ def _demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspe
     out = []
     for s in suspects:
         single = by_label.get(s.effect.rsplit("+", 1)[0]) if s.kind == "pair" and s.significant else None
-        if single is not None and single.refitted and math.isfinite(single.rms_sim_val_after) \
-                and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after:
+        if (
+            single is not None
+            and single.refitted
+            and math.isfinite(single.rms_sim_val_after)
+            and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after
+        ):
             s = replace(s, significant=False, note=f"no better than {single.effect} alone")
         out.append(s)
     return out
@@ -853,8 +962,11 @@ def _unscored(notes: dict[str, str], cands: list[_Candidate], suspects: list[Sus
     have = {s.effect for s in suspects}
     by_label = {c.label: c for c in cands}
     nan = math.nan
-    return [Suspect(lab, c.kind, c.effects, c.na, c.nb, c.nk, nan, nan, nan, nan, 0, nan, nan, False, why, None)
-            for lab, why in notes.items() if lab not in have and (c := by_label.get(lab)) is not None]
+    return [
+        Suspect(lab, c.kind, c.effects, c.na, c.nb, c.nk, nan, nan, nan, nan, 0, nan, nan, False, why, None)
+        for lab, why in notes.items()
+        if lab not in have and (c := by_label.get(lab)) is not None
+    ]
 
 
 def _rank_key(s: Suspect) -> tuple:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import json
 import math
 import numbers
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,9 @@ def _per_input(name: str, value, m: int) -> tuple[int, ...]:
     if isinstance(value, (list, tuple, np.ndarray)):
         vals = tuple(_order(f"{name}[{i}]", v) for i, v in enumerate(value))
         if len(vals) != m:
-            raise OrderError(f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input or a single integer")
+            raise OrderError(
+                f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input or a single integer"
+            )
         return vals
     return (_order(name, value),) * m
 
@@ -101,8 +104,14 @@ class FittedLayout:
         -------
         FittedLayout
         """
-        return cls(tuple(layout.nb), tuple(layout.nk), tuple(tuple(t) for t in layout.output_terms),  # type: ignore[misc]
-                   tuple(layout.column_labels), tuple(layout.effect_of_column), tuple(layout.effect_of_term))
+        return cls(
+            tuple(layout.nb),
+            tuple(layout.nk),
+            tuple(tuple(t) for t in layout.output_terms),  # type: ignore[misc]
+            tuple(layout.column_labels),
+            tuple(layout.effect_of_column),
+            tuple(layout.effect_of_term),
+        )
 
     def to_dict(self) -> dict:
         """JSON-ready.
@@ -111,9 +120,14 @@ class FittedLayout:
         -------
         dict
         """
-        return {"nb": list(self.nb), "nk": list(self.nk), "output_terms": [list(t) for t in self.output_terms],
-                "column_labels": list(self.column_labels), "effect_of_column": list(self.effect_of_column),
-                "effect_of_term": list(self.effect_of_term)}
+        return {
+            "nb": list(self.nb),
+            "nk": list(self.nk),
+            "output_terms": [list(t) for t in self.output_terms],
+            "column_labels": list(self.column_labels),
+            "effect_of_column": list(self.effect_of_column),
+            "effect_of_term": list(self.effect_of_term),
+        }
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], input_names: Sequence[str], effects: Sequence[str]) -> FittedLayout:
@@ -171,14 +185,30 @@ def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
             )
 
 
-def _solve(data: IOData, na: int, layout: EffectLayout, names: list[str], first_lag: int, n_threads: int,
-           rows_like: tuple[int, Sequence[int], Sequence[int]] | None) -> Any:
+def _solve(
+    data: IOData,
+    na: int,
+    layout: EffectLayout,
+    names: list[str],
+    first_lag: int,
+    n_threads: int,
+    rows_like: tuple[int, Sequence[int], Sequence[int]] | None,
+) -> Any:
     """The core's QR solve; a rank-deficient regressor is named with the columns it depends on."""
     y = np.ascontiguousarray(data.y)
     try:
-        res = _core.fit(y, layout.u, list(data.experiment_starts), na, list(layout.nb), list(layout.nk),
-                        list(layout.output_terms), first_lag=first_lag, n_threads=n_threads,
-                        rows_like=rows_like)
+        res = _core.fit(
+            y,
+            layout.u,
+            list(data.experiment_starts),
+            na,
+            list(layout.nb),
+            list(layout.nk),
+            list(layout.output_terms),
+            first_lag=first_lag,
+            n_threads=n_threads,
+            rows_like=rows_like,
+        )
     except IdentifiabilityError as exc:
         col = getattr(exc, "column", None)
         if col is None:
@@ -238,8 +268,14 @@ class ArxModel:
         self.effects = tuple(effects)
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, data: IOData, *, first_lag: int = 0, n_threads: int = 0,
-            rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None) -> ArxModel:
+    def fit(
+        self,
+        data: IOData,
+        *,
+        first_lag: int = 0,
+        n_threads: int = 0,
+        rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
+    ) -> ArxModel:
         """Least squares by Householder QR in the Rust core.
 
         Parameters
@@ -262,7 +298,9 @@ class ArxModel:
             ``self``, fitted.
         """
         if not isinstance(data, IOData):
-            raise DataError(f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)")
+            raise DataError(
+                f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
+            )
         m = data.n_inputs
         na, nb, nk = _order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
         first_lag = _order("first_lag", first_lag)
@@ -274,8 +312,9 @@ class ArxModel:
         self._store(data, (na, nb, nk), layout, names, first_lag, res)
         return self
 
-    def _store(self, data: IOData, orders: tuple, layout: EffectLayout, names: list[str], first_lag: int,
-               res: Any) -> None:
+    def _store(
+        self, data: IOData, orders: tuple, layout: EffectLayout, names: list[str], first_lag: int, res: Any
+    ) -> None:
         """Fitted state from the core's result (constructor arguments stay as given)."""
         self.na_, self.nb_, self.nk_ = orders
         self.ts_ = data.ts
@@ -405,7 +444,7 @@ class ArxModel:
         self.check_fitted()
         out, c = [], self.na_
         for nb, nk in zip(self.layout_.nb, self.layout_.nk):
-            out.append(np.concatenate([np.zeros(nk), self.parameters_[c:c + nb]]))
+            out.append(np.concatenate([np.zeros(nk), self.parameters_[c : c + nb]]))
             c += nb
         return out
 
@@ -417,10 +456,10 @@ class ArxModel:
         out, c = {}, self.na_ + sum(self.nb_)
         for name, b in zip(lay.effect_of_column[m:], lay.nb[m:]):
             if name is not None:
-                out[name] = self.parameters_[c:c + b]
+                out[name] = self.parameters_[c : c + b]
             c += b
         for j, name in enumerate(lay.effect_of_term or [f"term{j}" for j in range(len(lay.output_terms))]):
-            out[name] = self.parameters_[c + j:c + j + 1]
+            out[name] = self.parameters_[c + j : c + j + 1]
         return out
 
     @property
@@ -449,7 +488,7 @@ class ArxModel:
         -------
         ndarray of complex
         """
-        b = np.trim_zeros(self.b[input][self.nk_[input]:], "f")
+        b = np.trim_zeros(self.b[input][self.nk_[input] :], "f")
         return np.roots(b) if len(b) > 1 else np.zeros(0)
 
     @property
@@ -470,8 +509,10 @@ class ArxModel:
     # ------------------------------------------------------------------ simulation
     def _layout(self, data: IOData) -> EffectLayout:
         if data.n_inputs != len(self.input_names_):
-            raise DataError(f"the model has {len(self.input_names_)} inputs {list(self.input_names_)} but the data "
-                            f"have {data.n_inputs}")
+            raise DataError(
+                f"the model has {len(self.input_names_)} inputs {list(self.input_names_)} but the data "
+                f"have {data.n_inputs}"
+            )
         return compile_effects(self.effects, data, self.nb_, self.nk_)
 
     def predict(self, data: IOData, horizon: int | None = None) -> np.ndarray:
@@ -500,10 +541,20 @@ class ArxModel:
             if horizon < 1:
                 raise OrderError("horizon must be >= 1 (or None for free-run simulation)")
         layout = self._layout(data)
-        return np.asarray(_core.predict(np.ascontiguousarray(data.y), layout.u, list(data.experiment_starts), self.na_,
-                                        list(layout.nb), list(layout.nk), list(layout.output_terms),
-                                        np.ascontiguousarray(self.parameters_, dtype=float), horizon=horizon,
-                                        first_lag=self.first_lag_))
+        return np.asarray(
+            _core.predict(
+                np.ascontiguousarray(data.y),
+                layout.u,
+                list(data.experiment_starts),
+                self.na_,
+                list(layout.nb),
+                list(layout.nk),
+                list(layout.output_terms),
+                np.ascontiguousarray(self.parameters_, dtype=float),
+                horizon=horizon,
+                first_lag=self.first_lag_,
+            )
+        )
 
     def fit_percent(self, data: IOData, horizon: int | None = None) -> float:
         """NRMSE fit in percent of the prediction with ``horizon`` (see :mod:`arxid._metrics`).
@@ -557,8 +608,12 @@ class ArxModel:
         if u.ndim == 1:
             u = u.reshape(-1, 1)
         lay = self.layout_
-        lag = max(self.na_, max((b + k - 1 for b, k in zip(lay.nb, lay.nk) if b > 0), default=0),
-                  2 if lay.output_terms else 0, self.first_lag_)
+        lag = max(
+            self.na_,
+            max((b + k - 1 for b, k in zip(lay.nb, lay.nk) if b > 0), default=0),
+            2 if lay.output_terms else 0,
+            self.first_lag_,
+        )
         init = np.zeros(lag) if initial is None else np.asarray(initial, dtype=float)
         if init.shape != (lag,):
             raise DataError(f"initial must hold the {lag} outputs before the first sample, got shape {init.shape}")
@@ -606,7 +661,8 @@ class ArxModel:
             raise ArxidError("this model was loaded without its data: pass data=... to refit it with effects")
         new = [e for e in effects if e not in self.effects]
         return ArxModel(na=self.na_, nb=self.nb_, nk=self.nk_, effects=self.effects + tuple(new)).fit(
-            data, first_lag=self.first_lag_)
+            data, first_lag=self.first_lag_
+        )
 
     # ------------------------------------------------------------------ export
     def input_labels(self) -> list[str]:
@@ -616,7 +672,7 @@ class ArxModel:
         -------
         list of str
         """
-        return list(self.input_names_) + list(self.layout_.column_labels[len(self.input_names_):])
+        return list(self.input_names_) + list(self.layout_.column_labels[len(self.input_names_) :])
 
     def to_control(self, continuous: bool = False, input: int | None = None) -> Any:
         """python-control transfer function(s); see :func:`arxid.convert.to_control`.
@@ -656,14 +712,24 @@ class ArxModel:
         """
         self.check_fitted()
         return {
-            "format": _JSON_FORMAT, "version": _JSON_VERSION,
-            "na": self.na_, "nb": list(self.nb_), "nk": list(self.nk_), "effects": list(self.effects),
-            "ts": self.ts_, "output_name": self.output_name_, "input_names": list(self.input_names_),
-            "output_unit": self.output_unit_, "input_units": list(self.input_units_),
+            "format": _JSON_FORMAT,
+            "version": _JSON_VERSION,
+            "na": self.na_,
+            "nb": list(self.nb_),
+            "nk": list(self.nk_),
+            "effects": list(self.effects),
+            "ts": self.ts_,
+            "output_name": self.output_name_,
+            "input_names": list(self.input_names_),
+            "output_unit": self.output_unit_,
+            "input_units": list(self.input_units_),
             "parameters": [float(x) for x in self.parameters_],
             "covariance": [[float(x) for x in row] for row in self.covariance_],
             "regressor_names": list(self.regressor_names_),
-            "n_rows": self.n_rows_, "n_skipped": self.n_skipped_, "first_lag": self.first_lag_, "rss": self.rss_,
+            "n_rows": self.n_rows_,
+            "n_skipped": self.n_skipped_,
+            "first_lag": self.first_lag_,
+            "rss": self.rss_,
             "fit_percent": self.fit_percent_,
             "layout": self.layout_.to_dict(),
         }
@@ -723,8 +789,11 @@ class ArxModel:
         -------
         str
         """
-        na, nb, nk = (self.na_, self.nb_, self.nk_) if "parameters_" in self.__dict__ else \
-            (self.na, _as_tuple(self.nb), _as_tuple(self.nk))
+        na, nb, nk = (
+            (self.na_, self.nb_, self.nk_)
+            if "parameters_" in self.__dict__
+            else (self.na, _as_tuple(self.nb), _as_tuple(self.nk))
+        )
         b = nb[0] if len(set(nb)) == 1 else list(nb)
         k = nk[0] if len(set(nk)) == 1 else list(nk)
         return f"ARX({na},{b},{k})" + (" + " + " + ".join(self.effects) if self.effects else "")
@@ -735,7 +804,8 @@ class ArxModel:
         lines = [f"{self.structure_name()}   ts = {self.ts:g} s"] + self._fraction_lines() + self._term_lines()
         lines.append(
             f"  fit {self.fit_percent_:.2f}% (one-step, estimation), noise variance {self.noise_variance_:.4g}, "
-            f"FPE {self.fpe_:.4g}, {self.n_rows_} rows" + (f", {self.n_skipped_} rows skipped (NaN)" if self.n_skipped_ else "")
+            f"FPE {self.fpe_:.4g}, {self.n_rows_} rows"
+            + (f", {self.n_skipped_} rows skipped (NaN)" if self.n_skipped_ else "")
         )
         if self.output_unit:
             lines.append(f"  output unit: {self.output_unit}")
@@ -751,12 +821,14 @@ class ArxModel:
         for j, (b, k) in enumerate(zip(self.layout_.nb, self.layout_.nk)):
             if b == 0:
                 continue
-            coefs = self.parameters_[c:c + b]
+            coefs = self.parameters_[c : c + b]
             c += b
             num = _format_poly(coefs) if b > 1 else f"{coefs[0]:.4g}"
             width = max(len(num), len(den))
             lines.append(pad + num.center(width))
-            lines.append((lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z)" + (f" z^-{k}" if k else ""))
+            lines.append(
+                (lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z)" + (f" z^-{k}" if k else "")
+            )
             lines.append(pad + den.center(width))
         return lines
 
@@ -770,8 +842,11 @@ class ArxModel:
 
     def _term_text(self, kind: str, power: int, mult: int) -> str:
         y = self.output_name
-        g = {"pow": f"{y}(t-1)^{power}" if power != 1 else f"{y}(t-1)", "abs": f"|{y}(t-1)|",
-             "signdiff": f"sign(d{y}(t-1))"}[kind]
+        g = {
+            "pow": f"{y}(t-1)^{power}" if power != 1 else f"{y}(t-1)",
+            "abs": f"|{y}(t-1)|",
+            "signdiff": f"sign(d{y}(t-1))",
+        }[kind]
         return g + (" · carrier(t-1)" if mult >= 0 else "")
 
     def __repr__(self) -> str:
@@ -786,7 +861,9 @@ def _as_tuple(v: Any) -> tuple:
 
 def _model_from_dict(cls: type[ArxModel], d: Any) -> ArxModel:
     if not isinstance(d, dict) or d.get("format") != _JSON_FORMAT:
-        raise ValueError(f"not an arxid model (format {d.get('format') if isinstance(d, dict) else type(d).__name__!r})")
+        raise ValueError(
+            f"not an arxid model (format {d.get('format') if isinstance(d, dict) else type(d).__name__!r})"
+        )
     if d.get("version") != _JSON_VERSION:
         raise ValueError(f"unsupported version {d.get('version')!r}")
     na, nb, nk = _order("na", d["na"]), tuple(_order("nb", v) for v in d["nb"]), tuple(_order("nk", v) for v in d["nk"])
@@ -810,7 +887,6 @@ def _model_from_dict(cls: type[ArxModel], d: Any) -> ArxModel:
     if p != na + sum(model.layout_.nb) + len(model.layout_.output_terms):
         raise ValueError("the parameter count does not match the model structure")
     return model
-
 
 
 def arx(data: IOData, na: int, nb, nk, effects: Sequence[str] = (), *, n_threads: int = 0) -> ArxModel:

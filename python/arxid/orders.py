@@ -9,8 +9,9 @@ import math
 import numbers
 import sys
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,7 +21,15 @@ from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from .model import ArxModel
-from .sanity import EXPECTATIONS, SanityLimits, StepSanity, check_responses, output_range, step_sanity, typical_amplitudes
+from .sanity import (
+    EXPECTATIONS,
+    SanityLimits,
+    StepSanity,
+    check_responses,
+    output_range,
+    step_sanity,
+    typical_amplitudes,
+)
 
 __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
@@ -57,8 +66,10 @@ def _per_input_ranges(name: str, value, m: int) -> list[tuple[int, ...]]:
     """One shared range for every input, or a list of ranges (one per input)."""
     if isinstance(value, (list, tuple)) and value and all(not isinstance(v, numbers.Integral) for v in value):
         if len(value) != m:
-            raise OrderError(f"{name} gives {len(value)} ranges but the data have {m} inputs; give one range per input "
-                             f"or a single shared range")
+            raise OrderError(
+                f"{name} gives {len(value)} ranges but the data have {m} inputs; give one range per input "
+                f"or a single shared range"
+            )
         return [_order_range(f"{name}[{i}]", v) for i, v in enumerate(value)]
     r = _order_range(name, value)
     return [r] * m
@@ -109,7 +120,9 @@ class Selection:
         for rank, name, reasons in shown:
             lines.append(f"  skipped {name} (rank {rank + 1}): " + "; ".join(reasons))
         if len(shown) < len(self.skipped):
-            lines.append(f"  ... and {len(self.skipped) - len(shown)} more skipped (model.selection_.describe(None) lists all)")
+            lines.append(
+                f"  ... and {len(self.skipped) - len(shown)} more skipped (model.selection_.describe(None) lists all)"
+            )
         return "\n".join(lines)
 
 
@@ -253,7 +266,7 @@ class SweepResult:
         return self.max_pole < 1.0
 
     # ------------------------------------------------------------------ models
-    def model(self, i: int = 0) -> "ArxModel":
+    def model(self, i: int = 0) -> ArxModel:
         """The ranked structure ``i`` as a fitted :class:`~arxid.ArxModel`, refitted on the sweep's rows
         (``first_lag``), so its parameters equal the sweep's.
 
@@ -278,7 +291,8 @@ class SweepResult:
             nb = tuple(int(v) for v in self.nb[i])
             nk = tuple(int(v) for v in self.nk[i])
             self._cache[key] = ArxModel(na=int(self.na[i]), nb=nb, nk=nk, effects=self.effects).fit(
-                self.estimation, first_lag=self.first_lag, rows_like=self.row_orders)
+                self.estimation, first_lag=self.first_lag, rows_like=self.row_orders
+            )
         return self._cache[key]
 
     def sanity(self, i: int) -> StepSanity:
@@ -324,18 +338,23 @@ class SweepResult:
                 b, k = int(b), int(k)
                 if b == 0:
                     continue
-                num = np.concatenate([np.zeros(k), theta[c:c + b]])
+                num = np.concatenate([np.zeros(k), theta[c : c + b]])
                 c += b
                 s = lfilter(num, a, np.full(horizon, amps[j]))
                 pos.append(s)
                 neg.append(-s)
         poles = np.roots(a) if na else np.zeros(0)
-        return check_responses(name, pos, neg, poles, out_range=output_range(data), amplitudes=amps,
-                               expect=expect, limits=self.limits)
+        return check_responses(
+            name, pos, neg, poles, out_range=output_range(data), amplitudes=amps, expect=expect, limits=self.limits
+        )
 
     def _usable(self, i: int) -> bool:
-        return self.errors[i] is None and not self.diverged_val[i] and not self.diverged_est[i] and \
-            np.isfinite(self.ranking_score()[i])
+        return (
+            self.errors[i] is None
+            and not self.diverged_val[i]
+            and not self.diverged_est[i]
+            and np.isfinite(self.ranking_score()[i])
+        )
 
     def select(self, sane: bool = True) -> Selection:
         """The best-ranked usable structure; with ``sane``, the best one whose step sanity passes.
@@ -370,12 +389,15 @@ class SweepResult:
         if not why:
             n_err = sum(e is not None for e in self.errors)
             first = next((f"{self.structure_name(i)}: {e}" for i, e in enumerate(self.errors) if e is not None), None)
-            why = (f"{len(self) - n_err} structures diverged or have no finite error, {n_err} could not be fitted"
-                   + (f", e.g. {first}" if first else ""))
-        raise ArxidError(f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
-                         f"widen the grid, check expect={self.expect!r}, or relax SanityLimits")
+            why = f"{len(self) - n_err} structures diverged or have no finite error, {n_err} could not be fitted" + (
+                f", e.g. {first}" if first else ""
+            )
+        raise ArxidError(
+            f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
+            f"widen the grid, check expect={self.expect!r}, or relax SanityLimits"
+        )
 
-    def best(self, sane: bool = False, *, explain: bool = True) -> "ArxModel":
+    def best(self, sane: bool = False, *, explain: bool = True) -> ArxModel:
         """The best-ranked structure as a fitted :class:`~arxid.ArxModel`.
 
         Parameters
@@ -419,30 +441,32 @@ class SweepResult:
         rows = []
         for i in range(n):
             sv = self.sanity(i) if sanity else None
-            rows.append({
-                "rank": i + 1,
-                "structure": self.structure_name(i),
-                "na": int(self.na[i]),
-                "nb": [int(v) for v in self.nb[i]],
-                "nk": [int(v) for v in self.nk[i]],
-                "n_params": int(self.n_params[i]),
-                "rms_est": _num(self.rms_est[i]),
-                "rms_val": _num(self.rms_val[i]),
-                "rms_est_one_step": _num(self.rms_est_one_step[i]),
-                "rms_val_one_step": _num(self.rms_val_one_step[i]),
-                "fit_val": _num(self.fit_val[i]),
-                "fpe": _num(self.fpe[i]),
-                "aic": _num(self.aic[i]),
-                "bic": _num(self.bic[i]),
-                "stable": bool(self.stable[i]),
-                "max_pole": _num(self.max_pole[i]),
-                "diverged_est": bool(self.diverged_est[i]),
-                "diverged_val": bool(self.diverged_val[i]),
-                "horizon": self.horizon,
-                "error": self.errors[i],
-                "step_sanity": None if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
-                "parameters": [float(x) for x in self.parameters[i]],
-            })
+            rows.append(
+                {
+                    "rank": i + 1,
+                    "structure": self.structure_name(i),
+                    "na": int(self.na[i]),
+                    "nb": [int(v) for v in self.nb[i]],
+                    "nk": [int(v) for v in self.nk[i]],
+                    "n_params": int(self.n_params[i]),
+                    "rms_est": _num(self.rms_est[i]),
+                    "rms_val": _num(self.rms_val[i]),
+                    "rms_est_one_step": _num(self.rms_est_one_step[i]),
+                    "rms_val_one_step": _num(self.rms_val_one_step[i]),
+                    "fit_val": _num(self.fit_val[i]),
+                    "fpe": _num(self.fpe[i]),
+                    "aic": _num(self.aic[i]),
+                    "bic": _num(self.bic[i]),
+                    "stable": bool(self.stable[i]),
+                    "max_pole": _num(self.max_pole[i]),
+                    "diverged_est": bool(self.diverged_est[i]),
+                    "diverged_val": bool(self.diverged_val[i]),
+                    "horizon": self.horizon,
+                    "error": self.errors[i],
+                    "step_sanity": None if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
+                    "parameters": [float(x) for x in self.parameters[i]],
+                }
+            )
         return rows
 
     def to_pandas(self, sanity: bool = True):
@@ -539,8 +563,20 @@ class SweepResult:
             A header line (sizes, ranking measure, horizon), then an aligned table, one row per structure.
         """
         k = "" if self.horizon is None else f" k={self.horizon}"
-        head = ["#", "Model Configuration", f"RMS est{k}", f"RMS val{k}", "fit val %", "RMS val 1-step",
-                "FPE", "AIC", "BIC", "p", "stable", "step"]
+        head = [
+            "#",
+            "Model Configuration",
+            f"RMS est{k}",
+            f"RMS val{k}",
+            "fit val %",
+            "RMS val 1-step",
+            "FPE",
+            "AIC",
+            "BIC",
+            "p",
+            "stable",
+            "step",
+        ]
         lines = []
         for i in range(min(n, len(self))):
             if self.errors[i] is not None:
@@ -548,24 +584,32 @@ class SweepResult:
             else:
                 sv = self.sanity(i) if sanity else None
                 cells = [
-                    str(i + 1), self.structure_name(i),
+                    str(i + 1),
+                    self.structure_name(i),
                     "diverged" if self.diverged_est[i] else _fmt(self.rms_est[i]),
                     "diverged" if self.diverged_val[i] else _fmt(self.rms_val[i]),
                     "-" if self.diverged_val[i] else _fmt(self.fit_val[i], ".1f"),
-                    _fmt(self.rms_val_one_step[i]), _fmt(self.fpe[i]), _fmt(self.aic[i], ".4g"), _fmt(self.bic[i], ".4g"),
-                    str(int(self.n_params[i])), "yes" if self.stable[i] else "no",
+                    _fmt(self.rms_val_one_step[i]),
+                    _fmt(self.fpe[i]),
+                    _fmt(self.aic[i], ".4g"),
+                    _fmt(self.bic[i], ".4g"),
+                    str(int(self.n_params[i])),
+                    "yes" if self.stable[i] else "no",
                     "-" if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
                 ]
             lines.append(cells)
         widths = [max(len(h), *(len(r[j]) for r in lines)) if lines else len(h) for j, h in enumerate(head)]
         out = [
             f"ARX sweep: {len(self)} structures, {self.n_est} estimation rows, {self.n_val} validation rows, "
-            f"ranked by {_SORT_TEXT[self.sort_by]} ({self.measure}" + (f", horizon {self.horizon} samples = "
-            f"{self.horizon * self.estimation.ts:g} s" if self.horizon else "") + ")",
+            f"ranked by {_SORT_TEXT[self.sort_by]} ({self.measure}"
+            + (f", horizon {self.horizon} samples = {self.horizon * self.estimation.ts:g} s" if self.horizon else "")
+            + ")",
         ]
         if self.integrating:
-            out.append(f"integrating plant ({self.integrating_reason}): free-run error is meaningless, "
-                       f"RMS columns are {self.horizon}-step-ahead prediction errors")
+            out.append(
+                f"integrating plant ({self.integrating_reason}): free-run error is meaningless, "
+                f"RMS columns are {self.horizon}-step-ahead prediction errors"
+            )
         out.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
         out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in lines]
         if len(self) > n:
@@ -598,8 +642,13 @@ class SweepResult:
 
 
 _SORT_TEXT = {
-    "val_sim": "validation RMS", "val_one_step": "validation one-step RMS", "est_sim": "estimation RMS",
-    "est_one_step": "estimation one-step RMS", "fpe": "FPE", "aic": "AIC", "bic": "BIC",
+    "val_sim": "validation RMS",
+    "val_one_step": "validation one-step RMS",
+    "est_sim": "estimation RMS",
+    "est_one_step": "estimation one-step RMS",
+    "fpe": "FPE",
+    "aic": "AIC",
+    "bic": "BIC",
 }
 
 
@@ -614,8 +663,15 @@ def _fmt(x, spec: str = ".4g") -> str:
 
 
 def _ranking_column(r, key: str) -> np.ndarray:
-    col = {"val_sim": r.rms_val, "val_one_step": r.rms_val_one_step, "est_sim": r.rms_est,
-           "est_one_step": r.rms_est_one_step, "fpe": r.fpe, "aic": r.aic, "bic": r.bic}[key]
+    col = {
+        "val_sim": r.rms_val,
+        "val_one_step": r.rms_val_one_step,
+        "est_sim": r.rms_est,
+        "est_one_step": r.rms_est_one_step,
+        "fpe": r.fpe,
+        "aic": r.aic,
+        "bic": r.bic,
+    }[key]
     return col
 
 
@@ -639,10 +695,23 @@ def _detect_integrator(na, theta, order) -> tuple[bool, str]:
     return False, ""
 
 
-def sweep(data: IOData, na=DEFAULT_GRID["na"], nb=DEFAULT_GRID["nb"], nk=DEFAULT_GRID["nk"], *, validation=None, sort_by: str = "val_sim",
-          n_threads: int = 0, progress: bool = True, effects: Sequence[str] = (), expect: str | None = None,
-          horizon: int | None = None, max_memory: int | None = None, limits: SanityLimits | None = None,
-          simulate_estimation: bool = True) -> SweepResult:
+def sweep(
+    data: IOData,
+    na=DEFAULT_GRID["na"],
+    nb=DEFAULT_GRID["nb"],
+    nk=DEFAULT_GRID["nk"],
+    *,
+    validation=None,
+    sort_by: str = "val_sim",
+    n_threads: int = 0,
+    progress: bool = True,
+    effects: Sequence[str] = (),
+    expect: str | None = None,
+    horizon: int | None = None,
+    max_memory: int | None = None,
+    limits: SanityLimits | None = None,
+    simulate_estimation: bool = True,
+) -> SweepResult:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
     Parameters
@@ -706,7 +775,9 @@ def sweep(data: IOData, na=DEFAULT_GRID["na"], nb=DEFAULT_GRID["nb"], nk=DEFAULT
     'ARX(2,1,3)'
     """
     if not isinstance(data, IOData):
-        raise DataError(f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)")
+        raise DataError(
+            f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
+        )
     if sort_by not in SORT_KEYS:
         raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
     if expect not in EXPECTATIONS:
@@ -733,15 +804,30 @@ def sweep(data: IOData, na=DEFAULT_GRID["na"], nb=DEFAULT_GRID["nb"], nk=DEFAULT
     k_step = k_default if integrating else (int(horizon) if horizon is not None else None)
     res = run(k_step)
     if expect is None and k_step is None:
-        p = g.layout[:, 0] + g.layout[:, 1:1 + g.n_columns].sum(axis=1) + len(inputs.terms)
+        p = g.layout[:, 0] + g.layout[:, 1 : 1 + g.n_columns].sum(axis=1) + len(inputs.terms)
         fpe_pre = metrics.fpe(res.rss_est, res.n_est, p)
         order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
         integrating, reason = _detect_integrator(g.layout[:, 0], res.theta, order_pre)
         if integrating:
             k_step = k_default
             res = run(k_step)
-    return _build_result(res, g.layout, g.user_nb, g.user_nk, inputs.terms, est, val, k_step, integrating, reason,
-                         sort_by, effects, expect, limits or SanityLimits(), m)
+    return _build_result(
+        res,
+        g.layout,
+        g.user_nb,
+        g.user_nk,
+        inputs.terms,
+        est,
+        val,
+        k_step,
+        integrating,
+        reason,
+        sort_by,
+        effects,
+        expect,
+        limits or SanityLimits(),
+        m,
+    )
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
@@ -758,8 +844,16 @@ def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | N
     raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
 
 
-def _check_memory(est: IOData, val: IOData | None, nas: tuple[int, ...], nbs: list, nks: list,
-                  effects: tuple[str, ...], n_threads: int, max_memory: int | None) -> None:
+def _check_memory(
+    est: IOData,
+    val: IOData | None,
+    nas: tuple[int, ...],
+    nbs: list,
+    nks: list,
+    effects: tuple[str, ...],
+    n_threads: int,
+    max_memory: int | None,
+) -> None:
     """Size and memory before building anything (the core's own estimate)."""
     n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
     probe = compile_effects(effects, est[: min(est.n_samples, 8)], [max(r) for r in nbs], [max(r) for r in nks])
@@ -767,12 +861,13 @@ def _check_memory(est: IOData, val: IOData | None, nas: tuple[int, ...], nbs: li
     span = max(max(k) + max(b) - 1 - min(k) + 1 for b, k in zip(nbs, nks))
     p_max = max(nas) + n_cols * max(max(b) for b in nbs) + n_terms
     q = max(nas) + n_cols * span + n_terms + 1
-    need = _core.sweep_memory(n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols,
-                              n_threads)
+    need = _core.sweep_memory(
+        n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols, n_threads
+    )
     limit = int(max_memory) if max_memory is not None else _available_memory() // 2
     if need > limit:
         raise DataError(
-            f"the grid is too large: {n_structures:,} structures with up to {p_max} parameters and a largest regressor of "
+            f"the grid is too large: {n_structures:,} structures with up to {p_max} parameters and a largest regressor of "  # noqa: E501
             f"{q} columns need about {_gib(need)}, more than the limit of {_gib(limit)} (max_memory); "
             f"narrow the ranges or split the sweep into parts"
         )
@@ -823,8 +918,11 @@ class _CoreInputs:
 def _core_inputs(est: IOData, val: IOData | None, g: _Grid, effects: tuple[str, ...]) -> _CoreInputs:
     """Inputs with the effect columns; without effects the core reads the inputs in place (no copy)."""
     if not effects:
-        return _CoreInputs(np.ascontiguousarray(est.u, dtype=float),
-                           None if val is None else np.ascontiguousarray(val.u, dtype=float), [])
+        return _CoreInputs(
+            np.ascontiguousarray(est.u, dtype=float),
+            None if val is None else np.ascontiguousarray(val.u, dtype=float),
+            [],
+        )
     nb0, nk0 = list(g.user_nb[0]), list(g.user_nk[0])
     lay_est = compile_effects(effects, est, nb0, nk0)
     u_val = None if val is None else compile_effects(effects, val, nb0, nk0).u
@@ -838,17 +936,27 @@ def _check_validation_length(val: IOData | None, first_lag: int) -> None:
         raise DataError(
             f"the validation data have {val.n_samples} samples, but every structure starts at the grid's largest lag "
             f"{first_lag} into each experiment, which leaves none to validate on; use longer validation data or "
-            f"smaller orders")
+            f"smaller orders"
+        )
     if not np.isfinite(val.y).any():
-        raise DataError("the validation data hold no finite output sample (all NaN); pass validation data with a "
-                        "measured output")
+        raise DataError(
+            "the validation data hold no finite output sample (all NaN); pass validation data with a measured output"
+        )
 
 
 class _Runner:
     """One call of the core's sweep at a given horizon, with an optional progress bar."""
 
-    def __init__(self, est: IOData, val: IOData | None, g: _Grid, inputs: _CoreInputs, n_threads: int,
-                 progress: bool, simulate_estimation: bool):
+    def __init__(
+        self,
+        est: IOData,
+        val: IOData | None,
+        g: _Grid,
+        inputs: _CoreInputs,
+        n_threads: int,
+        progress: bool,
+        simulate_estimation: bool,
+    ):
         self.est, self.val, self.g, self.inputs = est, val, g, inputs
         self.n_threads, self.progress, self.simulate_estimation = n_threads, progress, simulate_estimation
 
@@ -867,11 +975,19 @@ class _Runner:
         val = self.val
         try:
             return _core.sweep(
-                np.ascontiguousarray(self.est.y), self.inputs.u_est, list(self.est.experiment_starts), self.g.layout,
-                self.inputs.terms, yv=np.ascontiguousarray(val.y) if val is not None else None, uv=self.inputs.u_val,
+                np.ascontiguousarray(self.est.y),
+                self.inputs.u_est,
+                list(self.est.experiment_starts),
+                self.g.layout,
+                self.inputs.terms,
+                yv=np.ascontiguousarray(val.y) if val is not None else None,
+                uv=self.inputs.u_val,
                 starts_v=list(val.experiment_starts) if val is not None else None,
-                simulate_estimation=bool(self.simulate_estimation), horizon=k, n_threads=self.n_threads,
-                chunk=max(64, n // 100), progress=report if bar is not None else None,
+                simulate_estimation=bool(self.simulate_estimation),
+                horizon=k,
+                n_threads=self.n_threads,
+                chunk=max(64, n // 100),
+                progress=report if bar is not None else None,
             )
         finally:
             if bar is not None:
@@ -880,7 +996,7 @@ class _Runner:
 
 def _scored_norm(d: IOData, lag: int) -> float:
     """‖y − ȳ‖ over the samples a sweep scores (from ``lag`` into each experiment, finite)."""
-    parts = [d.y[a + lag:b] for a, b in d.segments if b > a + lag]
+    parts = [d.y[a + lag : b] for a, b in d.segments if b > a + lag]
     if not parts:
         return math.nan
     if all(np.isfinite(p).all() for p in parts):
@@ -916,12 +1032,38 @@ def _max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return out
 
 
-def _build_result(res: _core.SweepOutput, grid, user_nb, user_nk, terms, est, val, k_step, integrating, reason, sort_by,
-                  effects, expect, limits, m) -> SweepResult:
+def _validation_fit(res: _core.SweepOutput, rms_val: np.ndarray, val: IOData | None, first_lag: int) -> np.ndarray:
+    """Validation fit percent of every structure from the core's error and output norms."""
+    if val is None:
+        return np.full(len(rms_val), np.nan)
+    # With missing validation samples the core scores a subset per structure and gives its norm.
+    per_structure = res.norm_sim_val
+    norm = np.where(np.isfinite(per_structure), per_structure, _scored_norm(val, first_lag))
+    with np.errstate(all="ignore"):
+        return np.asarray(metrics.fit_percent_from_norms(rms_val * np.sqrt(res.n_sim_val), norm))
+
+
+def _build_result(
+    res: _core.SweepOutput,
+    grid,
+    user_nb,
+    user_nk,
+    terms,
+    est,
+    val,
+    k_step,
+    integrating,
+    reason,
+    sort_by,
+    effects,
+    expect,
+    limits,
+    m,
+) -> SweepResult:
     s = len(grid)
     mc = (grid.shape[1] - 1) // 2
     na = grid[:, 0].copy()
-    p = na + grid[:, 1:1 + mc].sum(axis=1) + len(terms)
+    p = na + grid[:, 1 : 1 + mc].sum(axis=1) + len(terms)
     theta_all = res.theta
     n_est, n_val, first_lag = res.n_est, res.n_val, res.first_lag
     rss_est, rss_val = res.rss_est, res.rss_val
@@ -929,25 +1071,17 @@ def _build_result(res: _core.SweepOutput, grid, user_nb, user_nk, terms, est, va
         loss = rss_est / n_est
         rms_est_one = np.sqrt(loss)
         rms_val_one = np.sqrt(rss_val / n_val) if n_val else np.full(s, np.nan)
-        fpe, aic, bic = (metrics.fpe(rss_est, n_est, p), metrics.aic(rss_est, n_est, p),
-                         metrics.bic(rss_est, n_est, p))
+        fpe, aic, bic = (metrics.fpe(rss_est, n_est, p), metrics.aic(rss_est, n_est, p), metrics.bic(rss_est, n_est, p))
     div_est, div_val = res.diverged_est, res.diverged_val
     rms_est = np.where(div_est, np.nan, res.rms_sim_est)
     rms_val = np.where(div_val, np.nan, res.rms_sim_val)
     errors = tuple(res.errors)
-    if val is not None:
-        # With missing validation samples the core scores a subset per structure and gives its norm.
-        per_structure = res.norm_sim_val
-        norm = np.where(np.isfinite(per_structure), per_structure, _scored_norm(val, first_lag))
-        with np.errstate(all="ignore"):
-            fit_val = metrics.fit_percent_from_norms(rms_val * np.sqrt(res.n_sim_val), norm)
-    else:
-        fit_val = np.full(s, np.nan)
+    fit_val = _validation_fit(res, rms_val, val, first_lag)
     key = sort_by
     if val is None and key in ("val_sim", "val_one_step"):
         key = "est_sim" if key == "val_sim" else "est_one_step"
-    score = {"val_sim": rms_val, "val_one_step": rms_val_one, "est_sim": rms_est, "est_one_step": rms_est_one,
-             "fpe": fpe, "aic": aic, "bic": bic}[key]
+    columns = dict(val_sim=rms_val, val_one_step=rms_val_one, est_sim=rms_est, est_one_step=rms_est_one)
+    score = {**columns, "fpe": fpe, "aic": aic, "bic": bic}[key]
     bad = ~np.isfinite(score) | div_val | div_est | np.array([e is not None for e in errors])
     # Diverged and unfitted structures go last; ties keep grid order (stable sort).
     order = np.lexsort((np.arange(s), np.where(bad, np.inf, score), bad))
@@ -955,12 +1089,33 @@ def _build_result(res: _core.SweepOutput, grid, user_nb, user_nk, terms, est, va
     nkm = np.array(user_nk, dtype=int).reshape(s, m)
     params = [theta_all[i, : p[i]].copy() for i in order]
     return SweepResult(
-        na=na[order], nb=nbm[order], nk=nkm[order], parameters=params, n_params=p[order],
-        rms_est_one_step=rms_est_one[order], rms_val_one_step=rms_val_one[order], rms_est=rms_est[order],
-        rms_val=rms_val[order], fit_val=fit_val[order], fpe=fpe[order], aic=aic[order], bic=bic[order],
-        diverged_est=div_est[order], diverged_val=div_val[order],
-        errors=tuple(errors[i] for i in order), horizon=k_step, integrating=integrating, integrating_reason=reason,
-        sort_by=key, first_lag=first_lag, row_orders=res.envelope, n_est=n_est, n_val=n_val, effects=effects,
-        expect=expect, limits=limits,
-        estimation=est, validation=val,
+        na=na[order],
+        nb=nbm[order],
+        nk=nkm[order],
+        parameters=params,
+        n_params=p[order],
+        rms_est_one_step=rms_est_one[order],
+        rms_val_one_step=rms_val_one[order],
+        rms_est=rms_est[order],
+        rms_val=rms_val[order],
+        fit_val=fit_val[order],
+        fpe=fpe[order],
+        aic=aic[order],
+        bic=bic[order],
+        diverged_est=div_est[order],
+        diverged_val=div_val[order],
+        errors=tuple(errors[i] for i in order),
+        horizon=k_step,
+        integrating=integrating,
+        integrating_reason=reason,
+        sort_by=key,
+        first_lag=first_lag,
+        row_orders=res.envelope,
+        n_est=n_est,
+        n_val=n_val,
+        effects=effects,
+        expect=expect,
+        limits=limits,
+        estimation=est,
+        validation=val,
     )

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -129,9 +130,13 @@ class Comparison:
         return self.names[int(np.nanargmin(np.where(np.isfinite(self.rms), self.rms, np.inf)))]
 
     def __str__(self) -> str:
-        rows = [(n, f, r, "diverged" if d else "") for n, f, r, d in zip(self.names, self.fit_percent, self.rms, self.diverged)]
+        rows = [
+            (n, f, r, "diverged" if d else "")
+            for n, f, r, d in zip(self.names, self.fit_percent, self.rms, self.diverged)
+        ]
         return f"compare ({horizon_label(self.horizon)}), output {self.output_name}\n" + text_table(
-            ["model", "fit %", "rms", ""], rows)
+            ["model", "fit %", "rms", ""], rows
+        )
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the horizon and, per model, its fit, RMS and divergence flag.
@@ -173,8 +178,10 @@ class Comparison:
             Indexed by model name, columns ``fit_percent``, ``rms``, ``diverged``.
         """
         pd = require_pandas()
-        return pd.DataFrame({"fit_percent": self.fit_percent, "rms": self.rms, "diverged": self.diverged},
-                            index=pd.Index(self.names, name="model"))
+        return pd.DataFrame(
+            {"fit_percent": self.fit_percent, "rms": self.rms, "diverged": self.diverged},
+            index=pd.Index(self.names, name="model"),
+        )
 
     def plot(self, ax: Any = None) -> Any:
         """Measured against predicted output, with the error underneath.
@@ -202,7 +209,9 @@ def _model_list(models) -> tuple[list[str], list[ArxModel]]:
         try:
             ms = list(models)
         except TypeError:
-            raise ArxidError(f"compare takes a model, a list of models or a dict name -> model, got {type(models).__name__}") from None
+            raise ArxidError(
+                f"compare takes a model, a list of models or a dict name -> model, got {type(models).__name__}"
+            ) from None
         names = []
         for m in ms:
             check_model(m)
@@ -259,8 +268,18 @@ def compare(models, data: IOData, horizon: int | None = None) -> Comparison:
         preds.append(pred)
         divs.append(diverged)
     t = np.arange(data.n_samples) * data.ts
-    return Comparison(tuple(names), tuple(fits), tuple(rmss), horizon, t, data.y.copy(), tuple(preds), tuple(divs),
-                      data.output_name, data.output_unit)
+    return Comparison(
+        tuple(names),
+        tuple(fits),
+        tuple(rmss),
+        horizon,
+        t,
+        data.y.copy(),
+        tuple(preds),
+        tuple(divs),
+        data.output_name,
+        data.output_unit,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -293,9 +312,9 @@ def _correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray, segments) -> np
             if abs(k) >= n:
                 continue
             if k >= 0:
-                s += float(np.dot(av[lo + k:hi], bv[lo:hi - k]))
+                s += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
             else:
-                s += float(np.dot(av[lo:hi + k], bv[lo - k:hi]))
+                s += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
         out[i] = s / den
     return out
 
@@ -323,8 +342,8 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
         return x
     best_aic, best = math.log(max(metrics.mean_square(lagged[:, 0]), 1e-300)), (0, np.zeros(0))
     for p in range(1, max_order + 1):
-        a, *_ = np.linalg.lstsq(lagged[:, 1:p + 1], lagged[:, 0], rcond=None)
-        rss = metrics.mean_square(lagged[:, 0] - lagged[:, 1:p + 1] @ a)
+        a, *_ = np.linalg.lstsq(lagged[:, 1 : p + 1], lagged[:, 0], rcond=None)
+        rss = metrics.mean_square(lagged[:, 0] - lagged[:, 1 : p + 1] @ a)
         aic = math.log(max(rss, 1e-300)) + 2.0 * p / m
         if aic < best_aic:
             best_aic, best = aic, (p, a)
@@ -334,7 +353,7 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     out = np.full(n, np.nan)
     for lo, hi in segments:
         if hi - lo > p:
-            out[lo + p:hi] = x[lo + p:hi] - sum(a[i] * x[lo + p - 1 - i:hi - 1 - i] for i in range(p))
+            out[lo + p : hi] = x[lo + p : hi] - sum(a[i] * x[lo + p - 1 - i : hi - 1 - i] for i in range(p))
     return out
 
 
@@ -483,29 +502,50 @@ class ResidualAnalysis:
             Indexed by ``lag`` (−L..L); ``residual`` is NaN at negative lags.
         """
         pd = require_pandas()
-        df = pd.DataFrame({name: r for name, r in self.cross_correlation.items()}, index=pd.Index(self.cross_lags, name="lag"))
+        df = pd.DataFrame(
+            {name: r for name, r in self.cross_correlation.items()}, index=pd.Index(self.cross_lags, name="lag")
+        )
         auto = pd.Series(self.autocorrelation, index=self.lags)
         df.insert(0, "residual", auto.reindex(df.index))
         return df
 
     def __str__(self) -> str:
-        lb = (f"Ljung–Box Q = {self.ljung_box_statistic:.4g} with {self.ljung_box_dof} dof, p = {self.ljung_box_p_value:.3g}: "
-              + ("white" if self.is_white else "NOT white (the model misses dynamics or an effect)"))
-        lines = [f"residual analysis{' of ' + self.model_name if self.model_name else ''} ({self.n_samples} samples, "
-                 f"99% bounds)", "  " + lb]
+        lb = (
+            f"Ljung–Box Q = {self.ljung_box_statistic:.4g} with {self.ljung_box_dof} dof, p = {self.ljung_box_p_value:.3g}: "  # noqa: E501
+            + ("white" if self.is_white else "NOT white (the model misses dynamics or an effect)")
+        )
+        lines = [
+            f"residual analysis{' of ' + self.model_name if self.model_name else ''} ({self.n_samples} samples, "
+            f"99% bounds)",
+            "  " + lb,
+        ]
         out = self.autocorrelation_outside
-        lines.append(f"  autocorrelation: bound ±{self.autocorrelation_bound:.3g}, "
-                     + (f"outside at lags {list(map(int, out[:10]))}" if len(out) else "inside"))
+        lines.append(
+            f"  autocorrelation: bound ±{self.autocorrelation_bound:.3g}, "
+            + (f"outside at lags {list(map(int, out[:10]))}" if len(out) else "inside")
+        )
         rows = []
         for k, r in self.cross_correlation.items():
             i = int(np.argmax(np.nan_to_num(np.abs(r), nan=-1.0)))
             o = self.cross_outside(k)
             p = self.cross_p_values[k]
-            rows.append((k, float(r[i]), int(self.cross_lags[i]), self.cross_bounds[k], len(o), p,
-                         "untested (no data)" if not math.isfinite(p) else "yes" if p >= self.alpha else "NO"))
+            rows.append(
+                (
+                    k,
+                    float(r[i]),
+                    int(self.cross_lags[i]),
+                    self.cross_bounds[k],
+                    len(o),
+                    p,
+                    "untested (no data)" if not math.isfinite(p) else "yes" if p >= self.alpha else "NO",
+                )
+            )
         if rows:
-            lines.append(text_table(["signal", "max corr", "at lag", "bound", "lags outside", "p-value", "independent"],
-                                rows, digits=3))
+            lines.append(
+                text_table(
+                    ["signal", "max corr", "at lag", "bound", "lags outside", "p-value", "independent"], rows, digits=3
+                )
+            )
         return "\n".join(lines)
 
     def plot(self, axes: Any = None) -> Any:
@@ -599,8 +639,9 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
     dof = max(max_lag - model.na_, 1)
     p = float(stats.chi2.sf(q, dof))
-    return ResidualAnalysis(e, n, lags, auto, Z99 / math.sqrt(n), cl, cross, bounds, q, p, dof, pvals, alpha,
-                            model.structure_name())
+    return ResidualAnalysis(
+        e, n, lags, auto, Z99 / math.sqrt(n), cl, cross, bounds, q, p, dof, pvals, alpha, model.structure_name()
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -725,18 +766,33 @@ class FailureAnalysis:
         raise ArxidError(f"no binned signal {signal!r}; have {[b.signal for b in self.by_signal]}")
 
     def __str__(self) -> str:
-        lines = [f"where {self.model_name or 'the model'} fails ({horizon_label(self.horizon)} error, rms {self.rms:.4g})",
-                 f"worst segments (window {self.window} samples):"]
-        lines.append(text_table(["from [s]", "to [s]", "rms", "× overall", "p-value", "significant"],
-                            [(s.start_time, s.end_time, s.rms, s.ratio, s.p_value, "yes" if s.significant else "")
-                             for s in self.worst_segments]))
+        lines = [
+            f"where {self.model_name or 'the model'} fails ({horizon_label(self.horizon)} error, rms {self.rms:.4g})",
+            f"worst segments (window {self.window} samples):",
+        ]
+        lines.append(
+            text_table(
+                ["from [s]", "to [s]", "rms", "× overall", "p-value", "significant"],
+                [
+                    (s.start_time, s.end_time, s.rms, s.ratio, s.p_value, "yes" if s.significant else "")
+                    for s in self.worst_segments
+                ],
+            )
+        )
         k = max(len(self.by_signal), 1)
         lines.append("one-step residual binned by signal (Bonferroni over signals):")
         rows = []
         for b in self.by_signal:
             i = int(np.nanargmax(b.rms))
-            rows.append((b.signal, b.ratio, f"{b.edges[i]:.4g}..{b.edges[i + 1]:.4g}", b.p_value,
-                         "yes" if b.p_value * k < self.alpha else ""))
+            rows.append(
+                (
+                    b.signal,
+                    b.ratio,
+                    f"{b.edges[i]:.4g}..{b.edges[i + 1]:.4g}",
+                    b.p_value,
+                    "yes" if b.p_value * k < self.alpha else "",
+                )
+            )
         lines.append(text_table(["signal", "max/overall", "worst bin", "p-value", "significant"], rows, digits=3))
         return "\n".join(lines)
 
@@ -752,8 +808,18 @@ class FailureAnalysis:
         rows = []
         for b in self.by_signal:
             for i in range(len(b.centers)):
-                rows.append({"signal": b.signal, "low": b.edges[i], "high": b.edges[i + 1], "center": b.centers[i],
-                             "count": int(b.counts[i]), "rms": b.rms[i], "mean": b.mean[i], "p_value": b.p_value})
+                rows.append(
+                    {
+                        "signal": b.signal,
+                        "low": b.edges[i],
+                        "high": b.edges[i + 1],
+                        "center": b.centers[i],
+                        "count": int(b.counts[i]),
+                        "rms": b.rms[i],
+                        "mean": b.mean[i],
+                        "p_value": b.p_value,
+                    }
+                )
         return pd.DataFrame(rows)
 
     def to_dict(self) -> dict:
@@ -770,13 +836,28 @@ class FailureAnalysis:
             "rms": finite_or_none(self.rms),
             "window": self.window,
             "worst_segments": [
-                {"start_time": s.start_time, "end_time": s.end_time, "start": s.start, "end": s.end,
-                 "rms": s.rms, "ratio": s.ratio, "p_value": finite_or_none(s.p_value),
-                 "significant": s.significant} for s in self.worst_segments
+                {
+                    "start_time": s.start_time,
+                    "end_time": s.end_time,
+                    "start": s.start,
+                    "end": s.end,
+                    "rms": s.rms,
+                    "ratio": s.ratio,
+                    "p_value": finite_or_none(s.p_value),
+                    "significant": s.significant,
+                }
+                for s in self.worst_segments
             ],
             "by_signal": [
-                {"signal": b.signal, "ratio": b.ratio, "p_value": b.p_value, "edges": b.edges.tolist(),
-                 "rms": [finite_or_none(x) for x in b.rms], "counts": b.counts.tolist()} for b in self.by_signal
+                {
+                    "signal": b.signal,
+                    "ratio": b.ratio,
+                    "p_value": b.p_value,
+                    "edges": b.edges.tolist(),
+                    "rms": [finite_or_none(x) for x in b.rms],
+                    "counts": b.counts.tolist(),
+                }
+                for b in self.by_signal
             ],
             "significant_signals": list(self.significant_signals),
         }
@@ -863,8 +944,16 @@ def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int) -> float
     return float(min(1.0, stats.f.sf(f, inside.size, outside.size) * n_windows))
 
 
-def where_it_fails(model: ArxModel, data: IOData, horizon: int | None = None, *, window: int | None = None,
-                   n_worst: int = 3, n_bins: int = 8, alpha: float = 0.01) -> FailureAnalysis:
+def where_it_fails(
+    model: ArxModel,
+    data: IOData,
+    horizon: int | None = None,
+    *,
+    window: int | None = None,
+    n_worst: int = 3,
+    n_bins: int = 8,
+    alpha: float = 0.01,
+) -> FailureAnalysis:
     """Locate a model's error in time and by operating point.
 
     Parameters
@@ -918,9 +1007,19 @@ def where_it_fails(model: ArxModel, data: IOData, horizon: int | None = None, *,
         lo, hi = max(0, i - half), min(n, i - half + window)
         rms = metrics.rms(err[lo:hi])
         p = _segment_p_value(res, lo, hi, n_windows=max(1, n // window))
-        worst.append(WorstSegment(lo, hi, float(t[lo]), float(t[hi - 1] + data.ts), rms,
-                                  rms / overall if overall > 0 else math.nan, p, bool(p < alpha)))
-        r[max(0, lo - half):min(n, hi + half)] = np.nan
+        worst.append(
+            WorstSegment(
+                lo,
+                hi,
+                float(t[lo]),
+                float(t[hi - 1] + data.ts),
+                rms,
+                rms / overall if overall > 0 else math.nan,
+                p,
+                bool(p < alpha),
+            )
+        )
+        r[max(0, lo - half) : min(n, hi + half)] = np.nan
     # Operating points.
     signals = []
     for i, name in enumerate(data.input_names):
@@ -928,17 +1027,18 @@ def where_it_fails(model: ArxModel, data: IOData, horizon: int | None = None, *,
         k = model.nk_[i]
         for a, b in data.segments:
             if b - a > k:
-                x[a + k:b] = data.u[a:b - k, i]
+                x[a + k : b] = data.u[a : b - k, i]
         signals.append((name, x))
     y1 = np.full(n, np.nan)
     dy1 = np.full(n, np.nan)
     for a, b in data.segments:
-        y1[a + 1:b] = data.y[a:b - 1]
-        dy1[a + 2:b] = (data.y[a + 1:b - 1] - data.y[a:b - 2]) / data.ts
+        y1[a + 1 : b] = data.y[a : b - 1]
+        dy1[a + 2 : b] = (data.y[a + 1 : b - 1] - data.y[a : b - 2]) / data.ts
     signals.append((data.output_name, y1))
     signals.append((f"d{data.output_name}", dy1))
     signals += [(k, np.asarray(v, dtype=float)) for k, v in data.extra.items()]
     bins = [b for b in (_bin_signal(name, x, res, n_bins) for name, x in signals) if b is not None]
     bins.sort(key=lambda b: (b.p_value, -b.ratio))
-    return FailureAnalysis(t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha,
-                           model.structure_name())
+    return FailureAnalysis(
+        t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()
+    )

@@ -7,8 +7,25 @@ one panel take ``ax=`` to draw into an existing axes instead.
 from __future__ import annotations
 
 from .data import data_overview, figure_to_data_uri, step_checks
-from .diagnostics import plot_comparison, plot_diagnosis, plot_error_by_signal, plot_failures, plot_ladder, plot_residuals
+from .diagnostics import (
+    plot_comparison,
+    plot_diagnosis,
+    plot_error_by_signal,
+    plot_failures,
+    plot_ladder,
+    plot_residuals,
+)
 from .sweep import plot_sweep
 
-__all__ = ["data_overview", "figure_to_data_uri", "step_checks", "plot_comparison", "plot_diagnosis",
-           "plot_error_by_signal", "plot_failures", "plot_ladder", "plot_residuals", "plot_sweep"]
+__all__ = [
+    "data_overview",
+    "figure_to_data_uri",
+    "step_checks",
+    "plot_comparison",
+    "plot_diagnosis",
+    "plot_error_by_signal",
+    "plot_failures",
+    "plot_ladder",
+    "plot_residuals",
+    "plot_sweep",
+]

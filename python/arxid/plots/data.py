@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import base64
 import io
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -16,8 +17,9 @@ __all__ = ["figure_to_data_uri", "data_overview", "step_checks", "thin", "new_fi
 _WIDTH = 9.0  # inches; at 100 dpi a 900 px wide image, readable on a laptop and on A4
 
 
-def new_figure(n_rows: int = 1, n_cols: int = 1, height: float = 2.2, sharex: bool = False,
-               width: float = _WIDTH) -> tuple[Any, np.ndarray]:
+def new_figure(
+    n_rows: int = 1, n_cols: int = 1, height: float = 2.2, sharex: bool = False, width: float = _WIDTH
+) -> tuple[Any, np.ndarray]:
     """A constrained-layout Figure (no pyplot) and its axes as a 2-D array.
 
     Parameters
@@ -127,8 +129,12 @@ def data_overview(data: Any, max_extra: int = 4) -> Any:
     return fig
 
 
-def step_checks(responses: Sequence[tuple[str, np.ndarray]], ts: float, flags: Mapping[str, str] | None = None,
-                ylabel: str = "output") -> Any:
+def step_checks(
+    responses: Sequence[tuple[str, np.ndarray]],
+    ts: float,
+    flags: Mapping[str, str] | None = None,
+    ylabel: str = "output",
+) -> Any:
     """Responses to a positive and a negative step of several structures (the step sanity check a
     published quadrotor study, Sarıoğlu & Kural, used to reject its best-ranked structure).
 

@@ -14,8 +14,14 @@ from .. import _metrics as metrics
 from .._format import horizon_text
 from .data import new_figure, thin
 
-__all__ = ["plot_comparison", "plot_residuals", "plot_failures", "plot_error_by_signal", "plot_diagnosis",
-           "plot_ladder"]
+__all__ = [
+    "plot_comparison",
+    "plot_residuals",
+    "plot_failures",
+    "plot_error_by_signal",
+    "plot_diagnosis",
+    "plot_ladder",
+]
 
 
 def _axes(ax: Any, n_rows: int = 1, height: float = 3.0, sharex: bool = False) -> tuple[Any, np.ndarray]:
@@ -93,14 +99,29 @@ def plot_residuals(res: Any, axes: Any = None) -> Any:
     ax = ax[:, 0]
     verdict = "white" if res.is_white else "not white"
     lags, auto = res.lags[1:], res.autocorrelation[1:]
-    _stems(ax[0], lags, auto, res.autocorrelation_bound, "C0",
-           f"autocorrelation of the residual: Ljung–Box p = {res.ljung_box_p_value:.3g} ({verdict})")
+    _stems(
+        ax[0],
+        lags,
+        auto,
+        res.autocorrelation_bound,
+        "C0",
+        f"autocorrelation of the residual: Ljung–Box p = {res.ljung_box_p_value:.3g} ({verdict})",
+    )
     for a, name in zip(ax[1:], names):
         p = res.cross_p_values.get(name, math.nan)
-        tested = "untested (no data)" if not math.isfinite(p) else \
-            f"p = {p:.3g}, " + ("independent" if p >= res.alpha else "NOT independent")
-        _stems(a, res.cross_lags, res.cross_correlation[name], res.cross_bounds[name], "C1",
-               f"residual × {name} (positive lag: {name} leads): {tested}")
+        tested = (
+            "untested (no data)"
+            if not math.isfinite(p)
+            else f"p = {p:.3g}, " + ("independent" if p >= res.alpha else "NOT independent")
+        )
+        _stems(
+            a,
+            res.cross_lags,
+            res.cross_correlation[name],
+            res.cross_bounds[name],
+            "C1",
+            f"residual × {name} (positive lag: {name} leads): {tested}",
+        )
     ax[-1].set_xlabel("lag [samples]")
     return fig
 
@@ -150,7 +171,7 @@ def plot_error_by_signal(fa: Any, other: Any = None, max_panels: int = 8) -> Any
     cols = 2
     rows = max(1, math.ceil(len(bins) / cols))
     fig, axes = new_figure(rows, cols, height=1.9)
-    for a in axes.ravel()[len(bins):]:
+    for a in axes.ravel()[len(bins) :]:
         a.set_visible(False)
     significant = set(fa.significant_signals)
     for a, b in zip(axes.ravel(), bins):
@@ -159,8 +180,9 @@ def plot_error_by_signal(fa: Any, other: Any = None, max_panels: int = 8) -> Any
         if other is not None and b.signal in {x.signal for x in other.by_signal}:
             ob = other.bins(b.signal)
             a.plot(ob.centers, ob.rms, "o-", color="C2", ms=3, lw=1.0, label=other.model_name)
-        a.set_title(f"by {b.signal}: p = {b.p_value:.2g}" + (" (significant)" if b.signal in significant else ""),
-                    fontsize=8)
+        a.set_title(
+            f"by {b.signal}: p = {b.p_value:.2g}" + (" (significant)" if b.signal in significant else ""), fontsize=8
+        )
         a.tick_params(labelsize=7)
         a.grid(alpha=0.3)
     if bins:

@@ -59,18 +59,31 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
     cmap = matplotlib.colormaps["viridis_r"].with_extremes(bad="0.75")
     for ax, b in zip(axes.flat, nbs):
         g = np.ma.masked_invalid(grids[b])
-        image = ax.imshow(g, origin="lower", aspect="auto", cmap=cmap, norm=norm,
-                          extent=(nks[0] - 0.5, nks[-1] + 0.5, nas[0] - 0.5, nas[-1] + 0.5))
+        image = ax.imshow(
+            g,
+            origin="lower",
+            aspect="auto",
+            cmap=cmap,
+            norm=norm,
+            extent=(nks[0] - 0.5, nks[-1] + 0.5, nas[0] - 0.5, nas[-1] + 0.5),
+        )
         if chosen is not None and int(result.nb[chosen, nb_input]) == b:
-            ax.plot(int(result.nk[chosen, nb_input]), int(result.na[chosen]), marker="*", color="red", markersize=12,
-                    ls="none", label=f"chosen: {result.structure_name(chosen)}")
+            ax.plot(
+                int(result.nk[chosen, nb_input]),
+                int(result.na[chosen]),
+                marker="*",
+                color="red",
+                markersize=12,
+                ls="none",
+                label=f"chosen: {result.structure_name(chosen)}",
+            )
             ax.legend(fontsize=7, loc="upper right")
         ax.set_xticks(nks)
         ax.set_yticks(nas)
         ax.set_title(f"nb = {b}")
         ax.set_xlabel("nk")
         ax.set_ylabel("na")
-    for ax in list(axes.flat)[len(nbs):]:
+    for ax in list(axes.flat)[len(nbs) :]:
         ax.set_visible(False)
     label = ("validation " if result.sort_by.startswith("val") else "") + result.measure + " RMS"
     if result.sort_by in ("fpe", "aic", "bic"):

@@ -14,9 +14,10 @@ Examples
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from .._format import format_value, json_safe
 from ..analysis import Analysis, analyse
@@ -53,8 +54,9 @@ class Report:
         return f"Report: {self.analysis.model.structure_name()}, ladder {lad}, {len(self.html) / 1e6:.1f} MB of HTML"
 
 
-def build_report(data: IOData, validation: IOData | None = None, *, title: str | None = None, source: str = "",
-                 **analyse_kwargs: Any) -> Report:
+def build_report(
+    data: IOData, validation: IOData | None = None, *, title: str | None = None, source: str = "", **analyse_kwargs: Any
+) -> Report:
     """:func:`arxid.analyse` then :func:`render_html`: the whole report in one call.
 
     Parameters
@@ -75,8 +77,14 @@ def build_report(data: IOData, validation: IOData | None = None, *, title: str |
     return Report(render_html(a, title=title, source=source), a)
 
 
-def run_sweep(est: IOData, val: IOData, grid: Mapping[str, Sequence[int]] | None = None, progress: bool = False,
-              expect: str | None = None, horizon: int | None = None) -> Any:
+def run_sweep(
+    est: IOData,
+    val: IOData,
+    grid: Mapping[str, Sequence[int]] | None = None,
+    progress: bool = False,
+    expect: str | None = None,
+    horizon: int | None = None,
+) -> Any:
     """Deprecated: use :func:`arxid.sweep` and :func:`arxid.analysis.choose`.
 
     Parameters
@@ -94,8 +102,11 @@ def run_sweep(est: IOData, val: IOData, grid: Mapping[str, Sequence[int]] | None
     from ..analysis import choose, grid_of
     from ..orders import sweep
 
-    warnings.warn("arxid.report.run_sweep is deprecated: use arxid.sweep and arxid.analysis.choose",
-                  DeprecationWarning, stacklevel=2)
+    warnings.warn(
+        "arxid.report.run_sweep is deprecated: use arxid.sweep and arxid.analysis.choose",
+        DeprecationWarning,
+        stacklevel=2,
+    )
     res = sweep(est, validation=val, progress=progress, expect=expect, horizon=horizon, **grid_of(grid))
     model, choice = choose(res)
     return res, res.to_pandas(), model, dict(choice.skipped)

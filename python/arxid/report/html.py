@@ -8,8 +8,9 @@ import html
 import json
 import string
 import time
+from collections.abc import Sequence
 from importlib import resources
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -103,17 +104,27 @@ def _data_section(a: Analysis) -> Raw:
 
     est, val = a.estimation, a.validation
     lad = a.ladder.errors
-    cards = [(f"{est.n_samples} + {val.n_samples}", "estimation + validation samples"),
-             (f"{est.ts:g} s", "sampling time"), (a.model.structure_name(), "chosen structure"),
-             (f"{_num(lad[0])} → {_num(lad[-1])}", f"validation RMS error ({horizon_text(a.horizon)})")]
+    cards = [
+        (f"{est.n_samples} + {val.n_samples}", "estimation + validation samples"),
+        (f"{est.ts:g} s", "sampling time"),
+        (a.model.structure_name(), "chosen structure"),
+        (f"{_num(lad[0])} → {_num(lad[-1])}", f"validation RMS error ({horizon_text(a.horizon)})"),
+    ]
     if a.error_fall is not None:
         cards.append((f"{100 * a.error_fall:.0f} %", "error removed along the ladder"))
     cards_html = el("div", *[el("div", el("b", v), el("span", k), cls="card") for v, k in cards], cls="cards")
     full = IOData.merge([est, val])
-    return _join([cards_html, el("pre", repr(est), cls="eq"),
-                  _img(data_overview(full), "data overview",
-                       "Output (blue), inputs (orange) and extra signals (green); dashed: where the validation "
-                       "data begin.")])
+    return _join(
+        [
+            cards_html,
+            el("pre", repr(est), cls="eq"),
+            _img(
+                data_overview(full),
+                "data overview",
+                "Output (blue), inputs (orange) and extra signals (green); dashed: where the validation data begin.",
+            ),
+        ]
+    )
 
 
 def _sweep_rows(a: Analysis) -> tuple[list[list[Any]], list[str]]:
@@ -121,11 +132,24 @@ def _sweep_rows(a: Analysis) -> tuple[list[list[Any]], list[str]]:
     rows, classes = [], []
     skipped = {s for s, _ in a.choice.skipped}
     for r in a.sweep.summary(top=15)["structures"]:
-        rows.append([r["rank"], r["structure"], _num(r["rms_est"]), _num(r["rms_val"]), _num(r["fit_val"], 3),
-                     _num(r["rms_val_one_step"]), _num(r["fpe"]), r["n_params"], _num(r["stable"]),
-                     _num(r["max_pole"]), r["step_sanity"] or "-"])
-        classes.append("chosen" if r["structure"] == a.choice.structure else
-                       ("flagged" if r["structure"] in skipped else ""))
+        rows.append(
+            [
+                r["rank"],
+                r["structure"],
+                _num(r["rms_est"]),
+                _num(r["rms_val"]),
+                _num(r["fit_val"], 3),
+                _num(r["rms_val_one_step"]),
+                _num(r["fpe"]),
+                r["n_params"],
+                _num(r["stable"]),
+                _num(r["max_pole"]),
+                r["step_sanity"] or "-",
+            ]
+        )
+        classes.append(
+            "chosen" if r["structure"] == a.choice.structure else ("flagged" if r["structure"] in skipped else "")
+        )
     return rows, classes
 
 
@@ -134,24 +158,42 @@ def _sweep_section(a: Analysis) -> Raw:
         return _p("The orders were given, so no sweep was run.")
     res = a.sweep
     rows, classes = _sweep_rows(a)
-    head = ["rank", "structure", "RMS est", "RMS val", "fit val %", "RMS val 1-step", "FPE", "p", "stable",
-            "largest pole", "step check"]
+    head = [
+        "rank",
+        "structure",
+        "RMS est",
+        "RMS val",
+        "fit val %",
+        "RMS val 1-step",
+        "FPE",
+        "p",
+        "stable",
+        "largest pole",
+        "step check",
+    ]
     grid = ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in (a.grid or {}).items())
     parts: list[str] = [
-        _p(f"{len(res)} structures ({grid}) fitted on the estimation data and ranked by {res.ranking_text}; the "
-           f"best 15 are shown. Chosen: {a.choice.structure}, {a.choice.reason}. Grey rows failed the step "
-           f"sanity check."),
-        _table(head, rows, classes, left=2)]
+        _p(
+            f"{len(res)} structures ({grid}) fitted on the estimation data and ranked by {res.ranking_text}; the "
+            f"best 15 are shown. Chosen: {a.choice.structure}, {a.choice.reason}. Grey rows failed the step "
+            f"sanity check."
+        ),
+        _table(head, rows, classes, left=2),
+    ]
     if a.choice.skipped:
-        parts.append(_p("Skipped by the step sanity check: "
-                        + "; ".join(f"{s}: {w}" for s, w in a.choice.skipped[:8])))
+        parts.append(_p("Skipped by the step sanity check: " + "; ".join(f"{s}: {w}" for s, w in a.choice.skipped[:8])))
     try:
         fig = res.plot(chosen=a.choice.rank)
     except (ArxidError, ValueError) as exc:  # a grid with one na or nk value cannot be drawn as a map
         parts.append(_p(f"(no heat map: {exc})"))
     else:
-        parts.append(_img(fig, "sweep heat map", "Ranking error over the order grid (lower is better); the star "
-                                                  "marks the chosen structure."))
+        parts.append(
+            _img(
+                fig,
+                "sweep heat map",
+                "Ranking error over the order grid (lower is better); the star marks the chosen structure.",
+            )
+        )
     return _join(parts)
 
 
@@ -181,98 +223,196 @@ def _step_section(a: Analysis) -> Raw:
     fig = step_checks(responses, val.ts, flags, ylabel=val.output_name + unit)
     stable = a.model.is_stable
     dc = ", ".join(_num(g) for g in np.atleast_1d(a.model.dc_gain())) if stable else ""
-    text = (f"Response to a step of one standard deviation of {val.input_names[0]} ({amp:.4g}) over {n * val.ts:g} s. "
-            f"A plausible model responds with the sign and size the measured output suggests (a published quadrotor "
-            f"study, Sarıoğlu & Kural, rejected its best-ranked ARX(2,2,0) this way). The chosen model is "
-            + ("stable" if stable else "not asymptotically stable (integrating)") + (f", DC gain {dc}" if dc else "")
-            + ".")
-    return _join([_p(text), _img(fig, "step responses", "Positive and negative steps of the chosen structure and of "
-                                                      "the better-ranked structures the check rejected (dashed).")])
+    text = (
+        f"Response to a step of one standard deviation of {val.input_names[0]} ({amp:.4g}) over {n * val.ts:g} s. "
+        f"A plausible model responds with the sign and size the measured output suggests (a published quadrotor "
+        f"study, Sarıoğlu & Kural, rejected its best-ranked ARX(2,2,0) this way). The chosen model is "
+        + ("stable" if stable else "not asymptotically stable (integrating)")
+        + (f", DC gain {dc}" if dc else "")
+        + "."
+    )
+    return _join(
+        [
+            _p(text),
+            _img(
+                fig,
+                "step responses",
+                "Positive and negative steps of the chosen structure and of "
+                "the better-ranked structures the check rejected (dashed).",
+            ),
+        ]
+    )
 
 
 def _compare_section(a: Analysis) -> Raw:
     c = a.comparison
-    rows = [[n, _num(f, 3), _num(r), "diverged" if d else ""]
-            for n, f, r, d in zip(c.names, c.fit_percent, c.rms, c.diverged)]
-    return _join([_p(f"Validation data, {horizon_text(c.horizon)}."),
-                  _table(["model", "fit %", "RMS error", ""], rows),
-                  _img(c.plot(), "measured vs simulated", "Measured output (black) and model outputs, error "
-                                                          "underneath.")])
+    rows = [
+        [n, _num(f, 3), _num(r), "diverged" if d else ""]
+        for n, f, r, d in zip(c.names, c.fit_percent, c.rms, c.diverged)
+    ]
+    return _join(
+        [
+            _p(f"Validation data, {horizon_text(c.horizon)}."),
+            _table(["model", "fit %", "RMS error", ""], rows),
+            _img(c.plot(), "measured vs simulated", "Measured output (black) and model outputs, error underneath."),
+        ]
+    )
 
 
 def _residual_section(a: Analysis) -> Raw:
     rt = a.residual_tests
     if rt is None:
         return _p("The residual tests could not be run on these validation data.")
-    lb = (f"Ljung–Box Q = {rt.ljung_box_statistic:.4g} with {rt.ljung_box_dof} degrees of freedom, "
-          f"p = {rt.ljung_box_p_value:.3g}: the residual is " + ("white." if rt.is_white else
-                                                                   "NOT white (the model misses dynamics or an effect)."))
+    lb = (
+        f"Ljung–Box Q = {rt.ljung_box_statistic:.4g} with {rt.ljung_box_dof} degrees of freedom, "
+        f"p = {rt.ljung_box_p_value:.3g}: the residual is "
+        + ("white." if rt.is_white else "NOT white (the model misses dynamics or an effect).")
+    )
     out = rt.autocorrelation_outside
-    auto = (f"Autocorrelation: 99 % bound ±{rt.autocorrelation_bound:.3g}, "
-            + (f"{len(out)} of {len(rt.lags) - 1} lags outside." if len(out) else "every lag inside."))
+    auto = f"Autocorrelation: 99 % bound ±{rt.autocorrelation_bound:.3g}, " + (
+        f"{len(out)} of {len(rt.lags) - 1} lags outside." if len(out) else "every lag inside."
+    )
     rows = []
     for name, d in rt.to_dict()["cross_correlation"].items():
         verdict = "untested (no data)" if d["independent"] is None else ("yes" if d["independent"] else "NO")
-        rows.append([name, _num(d["max_abs"], 3), d["lag_of_max"], _num(d["bound"], 3),
-                     f"{len(d['lags_outside'])} of {len(rt.cross_lags)}", _num(d["p_value"], 3), verdict])
-    table = _table(["signal", "largest |correlation|", "at lag", "99 % bound", "lags outside", "p-value",
-                    "independent"], rows)
-    note = ("Independence is judged by a test on the prewhitened series (Haugh), not by counting lags outside the "
-            "bound: a coloured signal can leave the bound at many lags and still be independent.")
-    return _join([_p(lb), _p(auto), table, _p(note, cls="small"),
-                  _img(rt.plot(), "residual correlations", "Correlations of the one-step residual with the "
-                                                          "analysis' own 99 % bounds; red: outside.")])
+        rows.append(
+            [
+                name,
+                _num(d["max_abs"], 3),
+                d["lag_of_max"],
+                _num(d["bound"], 3),
+                f"{len(d['lags_outside'])} of {len(rt.cross_lags)}",
+                _num(d["p_value"], 3),
+                verdict,
+            ]
+        )
+    table = _table(
+        ["signal", "largest |correlation|", "at lag", "99 % bound", "lags outside", "p-value", "independent"], rows
+    )
+    note = (
+        "Independence is judged by a test on the prewhitened series (Haugh), not by counting lags outside the "
+        "bound: a coloured signal can leave the bound at many lags and still be independent."
+    )
+    return _join(
+        [
+            _p(lb),
+            _p(auto),
+            table,
+            _p(note, cls="small"),
+            _img(
+                rt.plot(),
+                "residual correlations",
+                "Correlations of the one-step residual with the analysis' own 99 % bounds; red: outside.",
+            ),
+        ]
+    )
 
 
 def _failure_section(a: Analysis) -> Raw:
     from ..plots import plot_error_by_signal
 
     fa = a.failures[0]
-    rows = [[f"{s.start_time:.4g}", f"{s.end_time:.4g}", _num(s.rms), _num(s.ratio, 3), _num(s.p_value, 3),
-             "yes" if s.significant else "no"] for s in fa.worst_segments]
-    bins = [[b.signal, _num(b.ratio, 3), _num(b.p_value, 3), "yes" if b.signal in fa.significant_signals else "no"]
-            for b in fa.by_signal]
+    rows = [
+        [
+            f"{s.start_time:.4g}",
+            f"{s.end_time:.4g}",
+            _num(s.rms),
+            _num(s.ratio, 3),
+            _num(s.p_value, 3),
+            "yes" if s.significant else "no",
+        ]
+        for s in fa.worst_segments
+    ]
+    bins = [
+        [b.signal, _num(b.ratio, 3), _num(b.p_value, 3), "yes" if b.signal in fa.significant_signals else "no"]
+        for b in fa.by_signal
+    ]
     other = a.failures[1] if len(a.failures) > 1 else None
-    return _join([_p(f"{fa.model_name}, {horizon_text(fa.horizon)}: RMS {_num(fa.rms)} over the record."),
-                  _table(["from [s]", "to [s]", "RMS", "× overall", "p-value", "significant"], rows),
-                  _img(fa.plot(), "error in time", "Rolling RMS of measured − model on validation data."),
-                  _table(["signal", "largest bin / overall", "p-value", "significant"], bins),
-                  _img(plot_error_by_signal(fa, other), "error by operating point",
-                       "Residual RMS binned by each signal; a trend names the missing physics.")])
+    return _join(
+        [
+            _p(f"{fa.model_name}, {horizon_text(fa.horizon)}: RMS {_num(fa.rms)} over the record."),
+            _table(["from [s]", "to [s]", "RMS", "× overall", "p-value", "significant"], rows),
+            _img(fa.plot(), "error in time", "Rolling RMS of measured − model on validation data."),
+            _table(["signal", "largest bin / overall", "p-value", "significant"], bins),
+            _img(
+                plot_error_by_signal(fa, other),
+                "error by operating point",
+                "Residual RMS binned by each signal; a trend names the missing physics.",
+            ),
+        ]
+    )
 
 
 def _suspect_section(a: Analysis) -> Raw:
     d = a.diagnosis
     top = d.top
-    verdict = (_p(el("b", f"Missing effect: {top.effect}"),
-                  f" (validation error {_num(d.rms_sim_val)} → {_num(top.rms_sim_val_after)}).") if top else
-               _p(el("b", "No significant missing effect"), ": no candidate passed both the corrected F-test and a "
-                  f"{100 * d.min_improvement:.0f} % validation improvement."))
+    verdict = (
+        _p(
+            el("b", f"Missing effect: {top.effect}"),
+            f" (validation error {_num(d.rms_sim_val)} → {_num(top.rms_sim_val_after)}).",
+        )
+        if top
+        else _p(
+            el("b", "No significant missing effect"),
+            ": no candidate passed both the corrected F-test and a "
+            f"{100 * d.min_improvement:.0f} % validation improvement.",
+        )
+    )
     rows, classes = [], []
     for i, s in enumerate(d.suspects[:15], start=1):
-        rows.append([i, s.effect, _num(s.score, 3), _num(s.p_value, 3), "yes" if s.significant else "no",
-                     _num(s.rms_sim_val_after), s.note])
+        rows.append(
+            [
+                i,
+                s.effect,
+                _num(s.score, 3),
+                _num(s.p_value, 3),
+                "yes" if s.significant else "no",
+                _num(s.rms_sim_val_after),
+                s.note,
+            ]
+        )
         classes.append("chosen" if s is top else "")
-    table = _table(["rank", "effect", "score (partial corr.)", "p-value (Holm)", "significant",
-                    "validation error after", "note"], rows, classes, left=2)
+    table = _table(
+        ["rank", "effect", "score (partial corr.)", "p-value (Holm)", "significant", "validation error after", "note"],
+        rows,
+        classes,
+        left=2,
+    )
     return _join([verdict, table])
 
 
 def _ladder_section(a: Analysis) -> Raw:
     first = a.ladder.errors[0]
-    rows = [[i, s.added or "(start)", s.structure, _num(s.rms_sim_val), _num(s.fit_val, 3),
-             f"{100 * (1 - s.rms_sim_val / first):.1f} %" if i and first > 0 else "-"]
-            for i, s in enumerate(a.ladder.steps)]
-    return _join([_table(["step", "added", "model", "validation RMS error", "fit %", "fall vs. step 0"], rows, left=3),
-                  _img(a.ladder.plot(), "error ladder", "Each step adds the best significant suspect and "
-                                                        "re-diagnoses.")])
+    rows = [
+        [
+            i,
+            s.added or "(start)",
+            s.structure,
+            _num(s.rms_sim_val),
+            _num(s.fit_val, 3),
+            f"{100 * (1 - s.rms_sim_val / first):.1f} %" if i and first > 0 else "-",
+        ]
+        for i, s in enumerate(a.ladder.steps)
+    ]
+    return _join(
+        [
+            _table(["step", "added", "model", "validation RMS error", "fit %", "fall vs. step 0"], rows, left=3),
+            _img(a.ladder.plot(), "error ladder", "Each step adds the best significant suspect and re-diagnoses."),
+        ]
+    )
 
 
-_SECTIONS = (("data", "Data", _data_section), ("sweep", "Order sweep", _sweep_section),
-             ("model", "Model equation", _model_section), ("steps", "Step-response checks", _step_section),
-             ("compare", "Measured against simulated output", _compare_section),
-             ("residuals", "Residual tests", _residual_section), ("fails", "Where it fails", _failure_section),
-             ("suspects", "Which effect is missing", _suspect_section), ("ladder", "Error ladder", _ladder_section))
+_SECTIONS = (
+    ("data", "Data", _data_section),
+    ("sweep", "Order sweep", _sweep_section),
+    ("model", "Model equation", _model_section),
+    ("steps", "Step-response checks", _step_section),
+    ("compare", "Measured against simulated output", _compare_section),
+    ("residuals", "Residual tests", _residual_section),
+    ("fails", "Where it fails", _failure_section),
+    ("suspects", "Which effect is missing", _suspect_section),
+    ("ladder", "Error ladder", _ladder_section),
+)
 
 
 def render_html(a: Analysis, title: str | None = None, source: str = "") -> str:
@@ -296,12 +436,17 @@ def render_html(a: Analysis, title: str | None = None, source: str = "") -> str:
     sections = [(key, name, fn(a)) for key, name, fn in _SECTIONS]
     page = string.Template(resources.files(__package__).joinpath("template.html").read_text(encoding="utf-8"))
     return page.substitute(
-        title=html.escape(title), css=resources.files(__package__).joinpath("report.css").read_text(encoding="utf-8"),
-        lead=html.escape(f"{source}{' · ' if source else ''}generated by arxid {__version__} on "
-                         f"{time.strftime('%Y-%m-%d %H:%M')}"),
+        title=html.escape(title),
+        css=resources.files(__package__).joinpath("report.css").read_text(encoding="utf-8"),
+        lead=html.escape(
+            f"{source}{' · ' if source else ''}generated by arxid {__version__} on {time.strftime('%Y-%m-%d %H:%M')}"
+        ),
         notes=_join([_p(n, cls="note") for n in a.notes]),
         nav=_join([el("li", el("a", name, href=f"#{key}")) for key, name, _ in sections]),
-        sections=_join([el("section", el("h2", f"{i}. {name}"), body, id=key)
-                        for i, (key, name, body) in enumerate(sections, 1)]),
+        sections=_join(
+            [el("section", el("h2", f"{i}. {name}"), body, id=key) for i, (key, name, body) in enumerate(sections, 1)]
+        ),
         timings=html.escape(", ".join(f"{k} {v:.1f} s" for k, v in a.timings.items())),
-        measure=html.escape(horizon_text(a.horizon)), analysis_json=script_json(a.to_dict()))
+        measure=html.escape(horizon_text(a.horizon)),
+        analysis_json=script_json(a.to_dict()),
+    )
