@@ -53,7 +53,7 @@ def report_file(tmp_path_factory):
     for t in range(1, n):
         y[t] = 0.9 * y[t - 1] + 0.3 * u[t - 1] * vbat[t - 1] + 0.02 * rng.standard_normal()
     data = arxid.IOData(y, u, 0.01, output_name="y", input_names=("u",), extra={"vbat": vbat})
-    rep = build_report(data, 0.7, grid={"na": [1, 2], "nb": [1], "nk": [0, 1, 2]}, max_steps=2)
+    rep = build_report(data, split=0.7, grid={"na": [1, 2], "nb": [1], "nk": [0, 1, 2]}, max_steps=2)
     path = tmp_path_factory.mktemp("report") / "report.html"
     rep.save(path)
     return path

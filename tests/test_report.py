@@ -82,6 +82,13 @@ def test_html_is_self_contained_and_complete(analysis):
     assert "<" not in embedded and "&quot;" not in embedded
 
 
+def test_a_number_as_validation_is_a_deprecated_split():
+    data = _battery_data(1200)
+    with pytest.warns(DeprecationWarning, match="split"):
+        a = analyse(data, 0.6, orders=(1, 1, 1), max_steps=1)
+    assert a.estimation.n_samples == data.split(0.6)[0].n_samples
+
+
 def test_build_report_with_fixed_orders_skips_the_sweep(tmp_path):
     rep = build_report(_battery_data(1200), orders=(1, 1, 1), max_steps=1)
     assert rep.analysis.sweep is None

@@ -286,8 +286,15 @@ class Analysis:
 
 
 # ----------------------------------------------------------------------------------------- stages
-def _split(data: IOData, validation: IOData | None, split: float) -> tuple[IOData, IOData]:
+def _split(data: IOData, validation: IOData | float | None, split: float) -> tuple[IOData, IOData]:
     data = check_data(data)
+    if isinstance(validation, float):  # the former report.analyse(data, 0.7): an estimation fraction
+        warnings.warn(
+            "a number as validation is deprecated: pass split=... (the estimation fraction)",
+            DeprecationWarning,
+            stacklevel=3,
+        )
+        validation, split = None, validation
     if validation is not None:
         return data, check_data(validation, "validation")
     if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
