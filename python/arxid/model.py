@@ -16,7 +16,7 @@ from . import _metrics as metrics
 from .data import IOData
 from .effects import EffectLayout, compile_effects
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
-from .regressors import dependent_partners, regressor_matrix, regressor_names
+from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names
 
 __all__ = ["ArxModel", "FittedLayout", "arx"]
 
@@ -159,7 +159,7 @@ def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> 
     p = na + sum(layout.nb) + len(layout.output_terms)
     if p == 0:
         raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
-    lag = max(first_lag, int(_core.max_lag(na, list(layout.nb), list(layout.nk), list(layout.output_terms))))
+    lag = max(first_lag, max_lag(na, layout))
     usable = sum(max(0, b - a - lag) for a, b in data.segments)
     if usable < p + 1:
         raise DataError(

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from . import _core
 from .data import IOData
 from .effects import EffectLayout
 
@@ -36,13 +37,8 @@ def max_lag(na: int, layout: EffectLayout) -> int:
     int
         The first row of an experiment that has every regressor.
     """
-    lag = na
-    for b, k in zip(layout.nb, layout.nk, strict=True):
-        if b > 0:
-            lag = max(lag, b + k - 1)
-    for kind, _, _ in layout.output_terms:
-        lag = max(lag, 2 if kind == "signdiff" else 1)
-    return lag
+    # The core's own rule (Structure::max_lag), so Python never mirrors it.
+    return int(_core.max_lag(na, list(layout.nb), list(layout.nk), list(layout.output_terms)))
 
 
 def regressor_names(output_name: str, na: int, layout: EffectLayout) -> list[str]:
