@@ -51,6 +51,7 @@ bench: develop
 LINT_STEPS = \
 	"$(PY) -m ruff check python tests benches" \
 	"$(PY) -m ruff format --check python tests benches" \
+	"$(PY) -m mypy" \
 	"$(PY) -m mypy.stubtest arxid._core" \
 	"cargo fmt --check" \
 	"cargo clippy --release --all-targets --features python -- -D warnings"
@@ -61,9 +62,7 @@ lint: develop
 	done; \
 	if [ -n "$$failed" ]; then echo "make lint: failed: $$failed"; exit 1; fi
 
-# mypy on python/arxid: not yet clean after the "one truth" restructuring (about 40 findings, mostly
-# Optional narrowing and numpy unions); run it with `make typecheck` until it joins `make lint`
-# (then add "$(PY) -m mypy" to LINT_STEPS after the ruff steps).
+# mypy alone (it is also a step of `make lint`).
 typecheck: develop
 	$(PY) -m mypy
 

@@ -28,7 +28,7 @@ import time
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 from ._checks import check_data, check_horizon
 from ._format import format_value, horizon_label, json_safe, text_table
@@ -82,7 +82,15 @@ class Choice:
         }
 
 
-def grid_of(grid: Mapping[str, Any] | None = None) -> dict[str, tuple[int, ...]]:
+class OrderGrid(TypedDict):
+    """The order ranges of a sweep, every key present."""
+
+    na: tuple[int, ...]
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+
+
+def grid_of(grid: Mapping[str, Any] | None = None) -> OrderGrid:
     """The order grid with every key present: ``grid`` completed from :data:`arxid.DEFAULT_GRID`.
 
     Parameters
@@ -98,7 +106,12 @@ def grid_of(grid: Mapping[str, Any] | None = None) -> dict[str, tuple[int, ...]]
     unknown = set(g) - {"na", "nb", "nk"}
     if unknown:
         raise OrderError(f"grid keys must be na, nb, nk; got {sorted(unknown)}")
-    return {k: tuple(int(v) for v in _as_range(g.get(k, DEFAULT_GRID[k]))) for k in ("na", "nb", "nk")}
+    na, nb, nk = (tuple(int(v) for v in _as_range(g.get(k, DEFAULT_GRID[k]))) for k in ("na", "nb", "nk"))
+    return OrderGrid(na=na, nb=nb, nk=nk)
+
+
+def _grid_lists(g: OrderGrid) -> dict[str, list[int]]:
+    return {"na": list(g["na"]), "nb": list(g["nb"]), "nk": list(g["nk"])}
 
 
 def _as_range(v: Any) -> Sequence[int]:
@@ -163,7 +176,7 @@ class Analysis:
 
     estimation: IOData
     validation: IOData
-    grid: dict | None
+    grid: OrderGrid | None
     sweep: SweepResult | None
     choice: Choice
     model: ArxModel
@@ -179,6 +192,13 @@ class Analysis:
     def final_model(self) -> ArxModel:
         """The model of the ladder's last step (the chosen model when nothing was added)."""
         return self.ladder.final_model
+
+    @property
+    def grid_text(self) -> str:
+        """The swept order ranges as text, e.g. ``na 1..4, nb 1..3, nk 0..5`` (empty when orders were given)."""
+        if self.grid is None:
+            return ""
+        return ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in _grid_lists(self.grid).items())
 
     @property
     def residual_tests(self) -> ResidualAnalysis | None:
@@ -214,7 +234,7 @@ class Analysis:
         out.update(
             {
                 "choice": self.choice.to_dict(),
-                "grid": None if self.grid is None else {k: list(v) for k, v in self.grid.items()},
+                "grid": None if self.grid is None else _grid_lists(self.grid),
                 "sweep": None if self.sweep is None else self.sweep.summary(),
                 "comparison": self.comparison.to_dict(),
                 "where_it_fails": [f.to_dict() for f in self.failures],
@@ -294,7 +314,8 @@ def _split(data: IOData, validation: IOData | float | None, split: float) -> tup
             DeprecationWarning,
             stacklevel=3,
         )
-        validation, split = None, validation
+        split = validation
+        validation = None
     if validation is not None:
         return data, check_data(validation, "validation")
     if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
@@ -310,7 +331,7 @@ def _structure(
     horizon: int | None,
     expect: str | None,
     progress: bool,
-) -> tuple[SweepResult | None, ArxModel, Choice, dict | None]:
+) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
     if orders is not None:
         try:
             na, nb, nk = orders

@@ -75,7 +75,8 @@ def _parse_orders(text: str) -> tuple[int, int, int]:
         vals = ()
     if len(vals) != 3 or min(vals) < 0:
         raise UsageError(f"--orders {text!r} must be three non-negative integers NA,NB,NK, e.g. 2,1,8")
-    return vals  # type: ignore[return-value]
+    na, nb, nk = vals
+    return na, nb, nk
 
 
 def load_data(  # noqa: C901
@@ -305,8 +306,9 @@ def cmd_sweep(args) -> int:
     res = sweep(est, validation=val, progress=_progress(args), expect=args.expect, horizon=args.horizon, **grid)
     best, choice = choose(res)
     elapsed = time.perf_counter() - t0
-    rows = res.summary(top=max(args.top, choice.rank + 1))["structures"]
-    row = rows[choice.rank]
+    rank = choice.rank or 0  # a sweep's choice always has a rank
+    rows = res.summary(top=max(args.top, rank + 1))["structures"]
+    row = rows[rank]
     out = {
         "n_structures": len(res),
         "seconds": elapsed,

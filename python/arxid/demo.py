@@ -172,7 +172,7 @@ def _tell_flight(out: TextIO, facts: dict, seed: int) -> None:
 
 
 def _tell_analysis(out: TextIO, a: Analysis) -> None:
-    grid = ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in (a.grid or {}).items())
+    grid = a.grid_text
     n = len(a.sweep) if a.sweep is not None else 1
     d = a.diagnosis
     _say(out)

@@ -285,7 +285,7 @@ class Diagnosis:
     rms_pred_val: float
     fit_val: float
     suspects: tuple[Suspect, ...]
-    residual_tests: object = field(default=None, repr=False)
+    residual_tests: ResidualAnalysis | None = field(default=None, repr=False)
     alpha: float = 0.01
     min_improvement: float = 0.05
     n_tested: int = 0
@@ -415,9 +415,10 @@ class Diagnosis:
                 f"(alpha {self.alpha}) and a {100 * self.min_improvement:.0f}% validation improvement"
             )
         else:
+            top = self.significant[0]
             lines.append(
-                f"best: add {self.top.effect} (validation error {self.rms_sim_val:.4g} -> "
-                f"{self.top.rms_sim_val_after:.4g}); diagnosis.apply(0) refits with it"
+                f"best: add {top.effect} (validation error {self.rms_sim_val:.4g} -> "
+                f"{top.rms_sim_val_after:.4g}); diagnosis.apply(0) refits with it"
             )
         return "\n".join(lines)
 

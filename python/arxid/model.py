@@ -7,7 +7,7 @@ import math
 import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -17,6 +17,9 @@ from .data import IOData
 from .effects import EffectLayout, compile_effects
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names
+
+if TYPE_CHECKING:
+    from .orders import Selection
 
 __all__ = ["ArxModel", "FittedLayout", "arx"]
 
@@ -29,11 +32,12 @@ _MAX_ORDER = 2**40
 def _order(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise OrderError(f"{name} must be a non-negative integer, got {value!r}")
+    value = int(value)
     if value < 0:
         raise OrderError(f"{name} must be >= 0, got {value}")
     if value > _MAX_ORDER:
         raise OrderError(f"{name} = {value} is too large (at most {_MAX_ORDER}); orders and delays count samples")
-    return int(value)
+    return value
 
 
 def _per_input(name: str, value, m: int) -> tuple[int, ...]:
@@ -260,6 +264,9 @@ class ArxModel:
     >>> np.round(m.parameters_, 6)
     array([-0.8,  0.5])
     """
+
+    data_: IOData | None
+    selection_: Selection | None
 
     def __init__(self, *, na: int, nb, nk, effects: Sequence[str] = ()):
         self.na = na
@@ -814,7 +821,7 @@ class ArxModel:
     def _fraction_lines(self) -> list[str]:
         """y(z) = B(z)/A(z) u(z) z^-nk, one fraction per input or effect column (as a published
         quadrotor study, Sarıoğlu & Kural, writes it)."""
-        den = _format_poly(self.a)
+        den = _format_poly(self.a.tolist())
         labels, lines, c = self.input_labels(), [], self.na_
         lhs = f"{self.output_name}(z) = "
         pad = " " * len(lhs)
@@ -823,7 +830,7 @@ class ArxModel:
                 continue
             coefs = self.parameters_[c : c + b]
             c += b
-            num = _format_poly(coefs) if b > 1 else f"{coefs[0]:.4g}"
+            num = _format_poly(coefs.tolist()) if b > 1 else f"{coefs[0]:.4g}"
             width = max(len(num), len(den))
             lines.append(pad + num.center(width))
             lines.append(

@@ -54,9 +54,9 @@ def _order_range(name: str, value) -> tuple[int, ...]:
             raise OrderError(f"{name} must be an integer or a range of integers, got {value!r}") from None
     if not vals:
         raise OrderError(f"{name} is an empty range: give at least one order")
-    out = []
+    out: list[int] = []
     for v in vals:
-        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or int(v) < 0:
             raise OrderError(f"{name} must hold non-negative integers, got {v!r}")
         out.append(int(v))
     return tuple(dict.fromkeys(out))
@@ -838,9 +838,10 @@ def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | N
     if validation is None:
         return data, None
     if isinstance(validation, numbers.Real) and not isinstance(validation, bool):
-        if not 0 < validation < 1:
+        fraction = float(validation)
+        if not 0 < fraction < 1:
             raise DataError(f"validation as a fraction must be between 0 and 1, got {validation}")
-        return data.split(1 - float(validation))
+        return data.split(1 - fraction)
     raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
 
 
@@ -962,15 +963,14 @@ class _Runner:
 
     def __call__(self, k: int | None) -> Any:
         n = len(self.g.layout)
-        bar = None
-        if self.progress and sys.stderr.isatty():
-            from tqdm.auto import tqdm
+        bar = _progress_bar(n, k) if self.progress else None
+        report = None
+        if bar is not None:
+            progress_bar = bar
 
-            bar = tqdm(total=n, desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
-
-        def report(done: int) -> None:
-            if done > bar.n:  # reports may arrive out of order from the worker threads
-                bar.update(done - bar.n)
+            def report(done: int) -> None:
+                if done > progress_bar.n:  # reports may arrive out of order from the worker threads
+                    progress_bar.update(done - progress_bar.n)
 
         val = self.val
         try:
@@ -987,11 +987,20 @@ class _Runner:
                 horizon=k,
                 n_threads=self.n_threads,
                 chunk=max(64, n // 100),
-                progress=report if bar is not None else None,
+                progress=report,
             )
         finally:
             if bar is not None:
                 bar.close()
+
+
+def _progress_bar(n: int, k: int | None) -> Any:
+    """A tqdm bar on an interactive terminal; None when stderr is not a terminal."""
+    if not sys.stderr.isatty():
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=n, desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
 
 
 def _scored_norm(d: IOData, lag: int) -> float:
@@ -1071,7 +1080,7 @@ def _build_result(
         loss = rss_est / n_est
         rms_est_one = np.sqrt(loss)
         rms_val_one = np.sqrt(rss_val / n_val) if n_val else np.full(s, np.nan)
-        fpe, aic, bic = (metrics.fpe(rss_est, n_est, p), metrics.aic(rss_est, n_est, p), metrics.bic(rss_est, n_est, p))
+        fpe, aic, bic = (np.asarray(f(rss_est, n_est, p)) for f in (metrics.fpe, metrics.aic, metrics.bic))
     div_est, div_val = res.diverged_est, res.diverged_val
     rms_est = np.where(div_est, np.nan, res.rms_sim_est)
     rms_val = np.where(div_val, np.nan, res.rms_sim_val)

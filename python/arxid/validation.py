@@ -328,10 +328,8 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     """
     x = _centered(x)
     n = len(x)
-    rows = []
-    for lo, hi in segments:
-        rows.extend(range(lo + max_order, hi))
-    rows = np.asarray(rows, dtype=int)
+    starts = [np.arange(lo + max_order, hi) for lo, hi in segments]
+    rows = np.concatenate(starts) if starts else np.zeros(0, dtype=int)
     if rows.size == 0:
         return x
     lagged = np.column_stack([x[rows - k] for k in range(max_order + 1)])

@@ -171,7 +171,7 @@ def _sweep_section(a: Analysis) -> Raw:
         "largest pole",
         "step check",
     ]
-    grid = ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in (a.grid or {}).items())
+    grid = a.grid_text
     parts: list[str] = [
         _p(
             f"{len(res)} structures ({grid}) fitted on the estimation data and ranked by {res.ranking_text}; the "
