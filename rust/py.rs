@@ -252,15 +252,20 @@ pub struct SweepOutput {
     first_lag: usize,
     /// `(na, nb, nk)` of the grid envelope (the largest regressor), per layout column.
     envelope: Py<PyTuple>,
+    /// 2: fitted by QR and simulated; 1: ranked by its one-step loss only (sweeps with `top`).
+    stage: Py<PyArray1<u8>>,
 }
 
 /// Fits and validates every structure of a grid from one factorization (returns a `SweepOutput`).
 ///
 /// `structures` is an (S, 1 + 2m) integer array of rows (na, nb_1..nb_m, nk_1..nk_m). A simulation
 /// beyond `divergence_limit` of the measured output of its data set is stopped as diverged.
+/// `top = k` ranks every structure by its one-step loss first and fits exactly and simulates only
+/// the k best (`stage` says which).
 #[pyfunction]
 #[pyo3(signature = (y, u, starts, structures, output_terms, yv = None, uv = None, starts_v = None,
-                    simulate_estimation = true, horizon = None, n_threads = 0, chunk = 64, progress = None))]
+                    simulate_estimation = true, horizon = None, n_threads = 0, chunk = 64, progress = None,
+                    top = None))]
 #[allow(clippy::too_many_arguments)]
 fn sweep<'py>(
     py: Python<'py>,
@@ -277,6 +282,7 @@ fn sweep<'py>(
     n_threads: usize,
     chunk: usize,
     progress: Option<Py<PyAny>>,
+    top: Option<usize>,
 ) -> PyResult<SweepOutput> {
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
@@ -291,7 +297,7 @@ fn sweep<'py>(
         Some((a, b, mv)) => Some(Data::new(a, b, mv, &sv).map_err(|e| to_pyerr(py, e))?),
         None => None,
     };
-    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk };
+    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk, top };
     let report = |done: usize| {
         if let Some(cb) = &progress {
             Python::attach(|py| {
@@ -309,7 +315,9 @@ fn sweep<'py>(
     let mut diverged_est = Vec::with_capacity(s);
     let mut diverged_val = Vec::with_capacity(s);
     let mut errors: Vec<Option<String>> = Vec::with_capacity(s);
+    let mut stage = Vec::with_capacity(s);
     for (i, r) in res.into_iter().enumerate() {
+        stage.push(r.stage);
         theta[i * pmax..i * pmax + r.theta.len()].copy_from_slice(&r.theta);
         cols[0].push(r.rss_est);
         cols[1].push(r.rss_val);
@@ -342,6 +350,7 @@ fn sweep<'py>(
         n_val,
         first_lag: env.max_lag(),
         envelope: orders_tuple(py, &env)?.unbind(),
+        stage: PyArray1::from_vec(py, stage).unbind(),
     })
 }
 

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
+use crate::one_step::{one_step_all, Factors, OneStep};
 use crate::qr::{reduce, to_col_major, BLOCK_ROWS};
 use crate::simulate::{
     divergence_limit, free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES,
@@ -25,6 +26,10 @@ pub struct SweepOptions {
     pub parallel: bool,
     /// Structures per progress report.
     pub chunk: usize,
+    /// Two stages: rank every structure by its one-step loss from the R factors (validation rows,
+    /// else estimation rows), then fit exactly and simulate only the best `top`. `None`: every
+    /// structure is fitted exactly and simulated.
+    pub top: Option<usize>,
 }
 
 /// At most this many threads per core are started for an explicit `n_threads`: results do not
@@ -88,6 +93,9 @@ pub struct StructureResult {
     pub sim_val: SimScore,
     /// Set when the structure could not be fitted (rank deficient); the numbers are then NaN.
     pub error: Option<ArxError>,
+    /// 2: fitted by QR and simulated (stage 2, or every structure without `top`); 1: ranked by its
+    /// one-step loss only (parameters from the normal equations refined against R), not simulated.
+    pub stage: u8,
 }
 
 /// The regressor holding every column any structure of the grid needs: `na_max` output lags and,
@@ -121,7 +129,15 @@ pub fn envelope(structures: &[Structure]) -> Result<Structure> {
 
 /// Column indices of `s` inside the envelope `env`'s regressor.
 pub fn columns_in(env: &Structure, s: &Structure) -> Vec<usize> {
-    let mut cols: Vec<usize> = (0..s.na).collect();
+    let mut cols = Vec::with_capacity(s.n_params());
+    columns_into(env, s, &mut cols);
+    cols
+}
+
+/// [`columns_in`] into a reused buffer.
+pub fn columns_into(env: &Structure, s: &Structure, cols: &mut Vec<usize>) {
+    cols.clear();
+    cols.extend(0..s.na);
     let mut off = env.na;
     for i in 0..s.nb.len() {
         for j in 0..s.nb[i] {
@@ -132,7 +148,6 @@ pub fn columns_in(env: &Structure, s: &Structure) -> Vec<usize> {
     for l in 0..s.output_terms.len() {
         cols.push(off + l);
     }
-    cols
 }
 
 /// `‖R[:, cols ∪ y] · [−θ; 1]‖²`: the residual sum of squares of θ on the rows that produced R.
@@ -202,6 +217,119 @@ fn simulate_group(
     }
 }
 
+/// The triangular factors every structure of a grid is solved from.
+struct GridFactors {
+    env: Structure,
+    first_lag: usize,
+    q: usize,
+    r_est: Vec<f64>,
+    n_est: usize,
+    r_val: Option<Vec<f64>>,
+    n_val: usize,
+}
+
+/// Checks the grid and reduces the envelope's regressor on both data sets to R.
+fn factor_grid(est: &Data, val: Option<&Data>, structures: &[Structure], parallel: bool) -> Result<GridFactors> {
+    let env = envelope(structures)?;
+    env.check(est.m)?;
+    for s in structures {
+        s.check(est.m)?;
+    }
+    let first_lag = env.max_lag();
+    let q = env.n_params() + 1;
+    let bound = est.max_rows(first_lag);
+    if bound < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: bound });
+    }
+    let rows = rows_of(est, &env, first_lag);
+    if rows.len() < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
+    }
+    let n_est = rows.len();
+    let r_est = to_col_major(&reduce(est, &env, &rows, parallel));
+    drop(rows);
+    let (r_val, n_val) = match val {
+        Some(v) => {
+            if v.m != est.m {
+                return Err(ArxError::ShapeMismatch { what: "validation inputs".into(), expected: est.m, got: v.m });
+            }
+            let vrows = rows_of(v, &env, first_lag);
+            let n = vrows.len();
+            (Some(to_col_major(&reduce(v, &env, &vrows, parallel))), n)
+        }
+        None => (None, 0),
+    };
+    Ok(GridFactors { env, first_lag, q, r_est, n_est, r_val, n_val })
+}
+
+const NAN_SCORE: SimScore = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN };
+
+/// Exact QR solve of one structure from the factors, with its one-step losses (stage 2).
+fn fit_exact(f: &GridFactors, s: &Structure) -> StructureResult {
+    let cols = columns_in(&f.env, s);
+    match solve_subset(&f.r_est, f.q, &cols, f.n_est) {
+        Ok((theta, rss_est, _)) => {
+            let rss_val = f.r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, f.q, &cols, &theta));
+            StructureResult { theta, rss_est, rss_val, sim_est: NAN_SCORE, sim_val: NAN_SCORE, error: None, stage: 2 }
+        }
+        Err(e) => StructureResult {
+            theta: vec![f64::NAN; cols.len()],
+            rss_est: f64::NAN,
+            rss_val: f64::NAN,
+            sim_est: NAN_SCORE,
+            sim_val: NAN_SCORE,
+            error: Some(e),
+            stage: 2,
+        },
+    }
+}
+
+/// Stage 1 for every structure, then stage 2 (exact fit) for the `top` best by one-step loss on
+/// the validation rows (estimation rows without validation data). Returns the results and the
+/// structures of stage 2.
+fn two_stage_fits(
+    f: &GridFactors,
+    structures: &[Structure],
+    top: usize,
+    parallel: bool,
+) -> Result<(Vec<StructureResult>, Vec<usize>)> {
+    let factors = Factors::new(&f.r_est, f.r_val.as_deref(), f.q, f.n_est);
+    let stage1 = one_step_all(&factors, &f.env, structures, parallel)?;
+    let key = |r: &OneStep| {
+        let v = if f.r_val.is_some() { r.rss_val } else { r.rss_est };
+        if v.is_finite() {
+            v
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut ranked: Vec<usize> = (0..structures.len()).collect();
+    ranked.sort_by(|&i, &j| key(&stage1[i]).total_cmp(&key(&stage1[j])).then(i.cmp(&j)));
+    ranked.truncate(top);
+    ranked.sort_unstable();
+    let mut out: Vec<StructureResult> = stage1
+        .into_iter()
+        .map(|r| StructureResult {
+            theta: r.theta,
+            rss_est: r.rss_est,
+            rss_val: r.rss_val,
+            sim_est: NAN_SCORE,
+            sim_val: NAN_SCORE,
+            error: r.error,
+            stage: 1,
+        })
+        .collect();
+    let exact: Vec<StructureResult> = if parallel {
+        ranked.par_iter().map(|&i| fit_exact(f, &structures[i])).collect()
+    } else {
+        ranked.iter().map(|&i| fit_exact(f, &structures[i])).collect()
+    };
+    for (&i, r) in ranked.iter().zip(exact) {
+        out[i] = r;
+    }
+    Ok((out, ranked))
+}
+
 /// Fits and validates every structure. All structures use the rows from the grid's largest lag on,
 /// so their losses compare on the same samples (as MATLAB `arxstruc`).
 ///
@@ -209,6 +337,10 @@ fn simulate_group(
 /// independent of N), then simulated: linear structures on complete data in groups of
 /// [`LANES`](crate::simulate::LANES) with the same `na` side by side, the others one by one.
 /// Groups are formed from the grid alone, so results do not depend on the number of threads.
+///
+/// With `opts.top = Some(k)` (and more than k structures) the sweep runs in two stages: every
+/// structure is ranked by its one-step loss from the factors ([`one_step_all`], stage 1), and only
+/// the k best are fitted by QR and simulated (stage 2); [`StructureResult::stage`] tells which.
 ///
 /// Each data set's simulations are judged against its own measured output: a prediction beyond
 /// [`divergence_limit`]`(y)` of that data set is stopped and reported as diverged.
@@ -226,74 +358,59 @@ pub fn sweep(
     opts: &SweepOptions,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<(Vec<StructureResult>, usize, usize)> {
-    let env = envelope(structures)?;
-    env.check(est.m)?;
-    for s in structures {
-        s.check(est.m)?;
-    }
-    let first_lag = env.max_lag();
-    let q = env.n_params() + 1;
-    let bound = est.max_rows(first_lag);
-    if bound < q {
-        return Err(ArxError::TooFewSamples { needed: q, got: bound });
-    }
-    let rows = rows_of(est, &env, first_lag);
-    if rows.len() < q {
-        return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
-    }
-    let n_est = rows.len();
-    let r_est = to_col_major(&reduce(est, &env, &rows, opts.parallel));
-    drop(rows);
-    let (r_val, n_val) = match val {
-        Some(v) => {
-            if v.m != est.m {
-                return Err(ArxError::ShapeMismatch { what: "validation inputs".into(), expected: est.m, got: v.m });
-            }
-            let vrows = rows_of(v, &env, first_lag);
-            let n = vrows.len();
-            (Some(to_col_major(&reduce(v, &env, &vrows, opts.parallel))), n)
-        }
-        None => (None, 0),
-    };
-    let nan = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN };
+    let f = factor_grid(est, val, structures, opts.parallel)?;
+    let (n_est, n_val) = (f.n_est, f.n_val);
 
     // 1. Parameters and one-step losses of every structure, from R alone.
-    let fit_one = |s: &Structure| -> StructureResult {
-        let cols = columns_in(&env, s);
-        match solve_subset(&r_est, q, &cols, n_est) {
-            Ok((theta, rss_est, _)) => {
-                let rss_val = r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, q, &cols, &theta));
-                StructureResult { theta, rss_est, rss_val, sim_est: nan, sim_val: nan, error: None }
-            }
-            Err(e) => StructureResult {
-                theta: vec![f64::NAN; cols.len()],
-                rss_est: f64::NAN,
-                rss_val: f64::NAN,
-                sim_est: nan,
-                sim_val: nan,
-                error: Some(e),
-            },
+    let (mut out, simulated) = match opts.top {
+        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, opts.parallel)?,
+        _ => {
+            let all: Vec<StructureResult> = if opts.parallel {
+                structures.par_iter().map(|s| fit_exact(&f, s)).collect()
+            } else {
+                structures.iter().map(|s| fit_exact(&f, s)).collect()
+            };
+            (all, (0..structures.len()).collect())
         }
-    };
-    let mut out: Vec<StructureResult> = if opts.parallel {
-        structures.par_iter().map(fit_one).collect()
-    } else {
-        structures.iter().map(fit_one).collect()
     };
 
     // 2. Simulation, in groups of structures with the same na (fitted ones only).
-    let sim_est = opts.simulate_estimation;
-    if !sim_est && val.is_none() {
+    if !opts.simulate_estimation && val.is_none() {
         progress(structures.len());
         return Ok((out, n_est, n_val));
     }
-    let lanes_est = sim_est && lanes_apply(est, &env, opts);
-    let lanes_val = val.is_some_and(|v| lanes_apply(v, &env, opts));
+    let order: Vec<usize> = simulated.into_iter().filter(|&i| out[i].error.is_none()).collect();
+    let scores = simulate_all(est, val, structures, &out, order, &f, opts, progress);
+    for (i, se, sv) in scores {
+        out[i].sim_est = se;
+        out[i].sim_val = sv;
+    }
+    progress(structures.len());
+    Ok((out, n_est, n_val))
+}
+
+/// Simulates the structures `order` (fitted ones) on the estimation data (when asked) and the
+/// validation data, in lane groups of the same `na`; returns `(index, estimation, validation)`.
+#[allow(clippy::too_many_arguments)]
+fn simulate_all(
+    est: &Data,
+    val: Option<&Data>,
+    structures: &[Structure],
+    out: &[StructureResult],
+    mut order: Vec<usize>,
+    f: &GridFactors,
+    opts: &SweepOptions,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Vec<(usize, SimScore, SimScore)> {
+    let (env, first_lag) = (&f.env, f.first_lag);
+    let sim_est = opts.simulate_estimation;
+    let nan = NAN_SCORE;
+    let lanes_est = sim_est && lanes_apply(est, env, opts);
+    let lanes_val = val.is_some_and(|v| lanes_apply(v, env, opts));
     let ucol_est = if lanes_est { Some(input_columns(est)) } else { None };
     let ucol_val = if lanes_val { Some(input_columns(val.unwrap_or(est))) } else { None };
     let limit_est = divergence_limit(est.y);
     let limit_val = val.map_or(f64::NAN, |v| divergence_limit(v.y));
-    let mut order: Vec<usize> = (0..structures.len()).filter(|&i| out[i].error.is_none()).collect();
     // Same na in a group; neighbouring delays and orders so the lanes share most input lags.
     order.sort_by(|&i, &j| {
         let (a, b) = (&structures[i], &structures[j]);
@@ -339,18 +456,13 @@ pub fn sweep(
     } else {
         groups.iter().map(run_and_report).collect()
     };
-    let mut scores: Vec<(usize, SimScore, SimScore)> = Vec::with_capacity(order.len());
+    let mut scores = Vec::with_capacity(order.len());
     for (g, r) in groups.iter().zip(res) {
         for (&i, (se, sv)) in g.iter().zip(r) {
             scores.push((i, se, sv));
         }
     }
-    for (i, se, sv) in scores {
-        out[i].sim_est = se;
-        out[i].sim_val = sv;
-    }
-    progress(structures.len());
-    Ok((out, n_est, n_val))
+    scores
 }
 
 #[cfg(test)]
@@ -381,7 +493,7 @@ mod tests {
                 }
             }
         }
-        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: true, chunk: 7 };
+        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: true, chunk: 7, top: None };
         let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
         let lag = envelope(&grid).unwrap().max_lag();
         for (s, r) in grid.iter().zip(&res) {
@@ -421,7 +533,7 @@ mod tests {
         let d = Data::new(&y, &u, 1, &starts).unwrap();
         let v = Data::new(&yv, &u, 1, &starts).unwrap();
         let grid = vec![Structure::new(1, vec![1], vec![1], vec![]).unwrap()];
-        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: false, chunk: 1 };
+        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: false, chunk: 1, top: None };
         let (res, _, _) = sweep(&d, Some(&v), &grid, &opts, &|_| {}).unwrap();
         assert!(!res[0].sim_est.diverged && res[0].sim_est.rms < 0.1, "{:?}", res[0].sim_est);
         assert!(res[0].sim_val.diverged, "{:?}", res[0].sim_val);

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import _core
 from . import _metrics as metrics
+from . import stages
 from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
@@ -163,12 +164,15 @@ class SweepResult:
         it touches a NaN are left out for every structure.
     n_est, n_val : int
         Regression rows of estimation and validation data.
+    stage : ndarray of shape (S,)
+        Which stage ranked each row: 2 = fitted by QR and simulated, 1 = ranked by its one-step
+        error only (two-stage sweeps of grids larger than ``top``; its simulation columns are NaN).
     """
 
     na: np.ndarray
     nb: np.ndarray
     nk: np.ndarray
-    parameters: list
+    parameters: Sequence
     n_params: np.ndarray
     rms_est_one_step: np.ndarray
     rms_val_one_step: np.ndarray
@@ -194,6 +198,7 @@ class SweepResult:
     limits: SanityLimits
     estimation: IOData = field(repr=False)
     validation: IOData | None = field(repr=False)
+    stage: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8), repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ basics
@@ -462,6 +467,7 @@ class SweepResult:
                     "diverged_est": bool(self.diverged_est[i]),
                     "diverged_val": bool(self.diverged_val[i]),
                     "horizon": self.horizon,
+                    "stage": int(self.stage[i]),
                     "error": self.errors[i],
                     "step_sanity": None if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
                     "parameters": [float(x) for x in self.parameters[i]],
@@ -576,11 +582,13 @@ class SweepResult:
             "p",
             "stable",
             "step",
+            "stage",
         ]
         lines = []
         for i in range(min(n, len(self))):
             if self.errors[i] is not None:
                 cells = [str(i + 1), self.structure_name(i), "not fitted", "not fitted"] + ["-"] * 7 + ["collinear"]
+                cells.append(str(int(self.stage[i])))
             else:
                 sv = self.sanity(i) if sanity else None
                 cells = [
@@ -596,6 +604,7 @@ class SweepResult:
                     str(int(self.n_params[i])),
                     "yes" if self.stable[i] else "no",
                     "-" if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
+                    str(int(self.stage[i])),
                 ]
             lines.append(cells)
         widths = [max(len(h), *(len(r[j]) for r in lines)) if lines else len(h) for j, h in enumerate(head)]
@@ -605,6 +614,8 @@ class SweepResult:
             + (f", horizon {self.horizon} samples = {self.horizon * self.estimation.ts:g} s" if self.horizon else "")
             + ")",
         ]
+        if stages.stages_text(self.stage, self.validation is not None):
+            out.append(stages.stages_text(self.stage, self.validation is not None))
         if self.integrating:
             out.append(
                 f"integrating plant ({self.integrating_reason}): free-run error is meaningless, "
@@ -711,6 +722,8 @@ def sweep(
     max_memory: int | None = None,
     limits: SanityLimits | None = None,
     simulate_estimation: bool = True,
+    top: int | None = stages.DEFAULT_TOP,
+    max_seconds: float | None = 3600.0,
 ) -> SweepResult:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
@@ -746,6 +759,13 @@ def sweep(
         Thresholds of the step sanity checks.
     simulate_estimation : bool
         Also simulate every structure on the estimation data (``rms_est``).
+    top : int or None
+        Grids larger than this run in two stages (see :mod:`arxid.stages`): every structure is
+        ranked by its one-step validation error (MATLAB ``arxstruc``), and only the best ``top`` are
+        fitted again and simulated; ``stage`` says which rows. None simulates every structure.
+    max_seconds : float or None
+        Refuse grids whose estimated run time exceeds this many seconds, before anything is
+        allocated (None: no limit).
 
     Returns
     -------
@@ -790,12 +810,17 @@ def sweep(
     m = est.n_inputs
     nas, nbs, nks = _order_range("na", na), _per_input_ranges("nb", nb, m), _per_input_ranges("nk", nk, m)
     effects = tuple(effects)
-    _check_memory(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
+    top = _check_top(top)
+    n_structures, p_max, q = _check_memory(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
+    n_val = val.n_samples if val is not None else 0
+    n_sim = n_val + (est.n_samples if simulate_estimation else 0)
+    seconds = stages.estimated_seconds(n_structures, top, p_max, q, est.n_samples + n_val, n_sim, int(n_threads))
+    stages.check_time_budget(n_structures, top, seconds, max_seconds)
     g = _Grid.build(est, nas, nbs, nks, effects)
     inputs = _core_inputs(est, val, g, effects)
     first_lag, _ = _core.grid_envelope(g.layout, inputs.terms)
     _check_validation_length(val, first_lag)
-    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation)
+    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
@@ -854,8 +879,9 @@ def _check_memory(
     effects: tuple[str, ...],
     n_threads: int,
     max_memory: int | None,
-) -> None:
-    """Size and memory before building anything (the core's own estimate)."""
+) -> tuple[int, int, int]:
+    """Size and memory before building anything (the core's own estimate); returns the number of
+    structures, the largest number of parameters and the columns of the largest regressor."""
     n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
     probe = compile_effects(effects, est[: min(est.n_samples, 8)], [max(r) for r in nbs], [max(r) for r in nks])
     n_cols, n_terms = len(probe.nb), len(probe.output_terms)
@@ -872,6 +898,17 @@ def _check_memory(
             f"{q} columns need about {_gib(need)}, more than the limit of {_gib(limit)} (max_memory); "
             f"narrow the ranges or split the sweep into parts"
         )
+    return n_structures, p_max, q
+
+
+def _check_top(top: Any) -> int | None:
+    if top is None:
+        return None
+    if isinstance(top, bool) or not isinstance(top, numbers.Integral) or top < 1:
+        raise OrderError(
+            f"top must be an integer >= 1 (structures simulated after the one-step ranking) or None, got {top!r}"
+        )
+    return int(top)
 
 
 @dataclass(frozen=True)
@@ -879,12 +916,17 @@ class _Grid:
     """Every structure as the user wrote it (per input) and as the core sees it (per layout column)."""
 
     layout: np.ndarray  # (S, 1 + 2 n_columns): na, nb per column, nk per column
-    user_nb: list
-    user_nk: list
+    user_nb: Any  # per structure (nb per input): a list of tuples, or an (S, m) array
+    user_nk: Any
     n_columns: int
 
     @classmethod
     def build(cls, est: IOData, nas: tuple[int, ...], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
+        if not effects:
+            layout, nb_rows, nk_rows = stages.product_layout(nas, nbs, nks)
+            if not len(layout):
+                raise OrderError("the grid has no structure with a parameter: use na >= 1 or nb >= 1")
+            return cls(layout, nb_rows, nk_rows, len(nbs))
         head = est[: min(est.n_samples, 8)]
         layouts: dict = {}
         n_terms = len(compile_effects(effects, head, [max(r) for r in nbs], [max(r) for r in nks]).output_terms)
@@ -957,9 +999,11 @@ class _Runner:
         n_threads: int,
         progress: bool,
         simulate_estimation: bool,
+        top: int | None = None,
     ):
         self.est, self.val, self.g, self.inputs = est, val, g, inputs
         self.n_threads, self.progress, self.simulate_estimation = n_threads, progress, simulate_estimation
+        self.top = top
 
     def __call__(self, k: int | None) -> Any:
         n = len(self.g.layout)
@@ -988,6 +1032,7 @@ class _Runner:
                 n_threads=self.n_threads,
                 chunk=max(64, n // 100),
                 progress=report,
+                top=self.top,
             )
         finally:
             if bar is not None:
@@ -1084,19 +1129,19 @@ def _build_result(
     div_est, div_val = res.diverged_est, res.diverged_val
     rms_est = np.where(div_est, np.nan, res.rms_sim_est)
     rms_val = np.where(div_val, np.nan, res.rms_sim_val)
-    errors = tuple(res.errors)
+    errors = np.array(res.errors, dtype=object)
     fit_val = _validation_fit(res, rms_val, val, first_lag)
     key = sort_by
     if val is None and key in ("val_sim", "val_one_step"):
         key = "est_sim" if key == "val_sim" else "est_one_step"
     columns = dict(val_sim=rms_val, val_one_step=rms_val_one, est_sim=rms_est, est_one_step=rms_est_one)
     score = {**columns, "fpe": fpe, "aic": aic, "bic": bic}[key]
-    bad = ~np.isfinite(score) | div_val | div_est | np.array([e is not None for e in errors])
+    bad = ~np.isfinite(score) | div_val | div_est | np.not_equal(errors, None)
     # Diverged and unfitted structures go last; ties keep grid order (stable sort).
-    order = np.lexsort((np.arange(s), np.where(bad, np.inf, score), bad))
+    order = stages.rank_order(score, bad, res.stage, rss_val if n_val else rss_est)
     nbm = np.array(user_nb, dtype=int).reshape(s, m)
     nkm = np.array(user_nk, dtype=int).reshape(s, m)
-    params = [theta_all[i, : p[i]].copy() for i in order]
+    params = stages.RankedParameters(theta_all, p, order)
     return SweepResult(
         na=na[order],
         nb=nbm[order],
@@ -1113,7 +1158,7 @@ def _build_result(
         bic=bic[order],
         diverged_est=div_est[order],
         diverged_val=div_val[order],
-        errors=tuple(errors[i] for i in order),
+        errors=tuple(errors[order]),
         horizon=k_step,
         integrating=integrating,
         integrating_reason=reason,
@@ -1127,4 +1172,5 @@ def _build_result(
         limits=limits,
         estimation=est,
         validation=val,
+        stage=res.stage[order],
     )
