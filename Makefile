@@ -42,6 +42,8 @@ test: setup test-rust test-python
 
 bench: develop
 	$(PY) benches/sweep_vs_numpy.py
+	$(PY) benches/sweep_miso.py
+	$(PY) benches/fleet.py
 
 # Python: lint, format, and the stub of the compiled core against the built module (hence
 # `develop`). Rust: format and clippy (--release: it shares target/release with `make test`'s

@@ -736,6 +736,64 @@ fn lanes_kernel_dyn<const FMA: bool>(
     st.scores(models.len())
 }
 
+/// Seconds for `n_vectors` multiply-adds of [`LANES`] lanes each, at the machine's throughput:
+/// many independent chains (no latency to wait on), on every thread of the current pool, with no
+/// memory traffic. The limit a free-run sweep doing the same number of multiply-adds could reach.
+pub fn fma_throughput_seconds(n_vectors: u64) -> f64 {
+    use rayon::prelude::*;
+    let threads = rayon::current_num_threads() as u64;
+    let per_thread = n_vectors.div_ceil(threads.max(1));
+    let t = std::time::Instant::now();
+    let total: f64 = (0..threads).into_par_iter().map(|_| fma_chains(per_thread)).sum();
+    let seconds = t.elapsed().as_secs_f64();
+    std::hint::black_box(total);
+    seconds
+}
+
+fn fma_chains(n: u64) -> f64 {
+    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+    {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { fma_chains_avx512(n) };
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: as above.
+            return unsafe { fma_chains_avx2(n) };
+        }
+    }
+    fma_chains_impl::<false>(n)
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn fma_chains_avx512(n: u64) -> f64 {
+    fma_chains_impl::<true>(n)
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn fma_chains_avx2(n: u64) -> f64 {
+    fma_chains_impl::<true>(n)
+}
+
+#[inline(always)]
+fn fma_chains_impl<const FMA: bool>(n: u64) -> f64 {
+    // More chains than the FMA latency times the units: the units never wait.
+    const CHAINS: usize = 12;
+    let mut acc = [[1.0f64; LANES]; CHAINS];
+    let a = std::hint::black_box([0.999_999_9; LANES]);
+    let b = std::hint::black_box([1e-9; LANES]);
+    for _ in 0..n.div_ceil(CHAINS as u64) {
+        for c in acc.iter_mut() {
+            for l in 0..LANES {
+                c[l] = madd::<FMA>(c[l], a[l], b[l]);
+            }
+        }
+    }
+    acc.iter().flatten().sum()
+}
+
 /// A prediction whose magnitude exceeds this many times the largest measured |y| has diverged.
 ///
 /// The one divergence rule of arxid: the sweep's free-run lanes stop there, and the Python layer

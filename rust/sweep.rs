@@ -380,13 +380,112 @@ pub fn sweep(
         return Ok((out, n_est, n_val));
     }
     let order: Vec<usize> = simulated.into_iter().filter(|&i| out[i].error.is_none()).collect();
-    let scores = simulate_all(est, val, structures, &out, order, &f, opts, progress);
+    let scores = simulate_all(est, val, structures, &out, order, (&f.env, f.first_lag), opts, progress);
     for (i, se, sv) in scores {
         out[i].sim_est = se;
         out[i].sim_val = sv;
     }
     progress(structures.len());
     Ok((out, n_est, n_val))
+}
+
+/// The triangular factor (column-major q × q, output last) of the grid envelope's regressor on one
+/// part of a data set, and its number of rows: a partial of a fleet sweep. Partials of disjoint
+/// experiments combine by QR of their stacked factors ([`crate::qr::stack_and_reduce`]); a part
+/// may have fewer rows than columns.
+///
+/// # Errors
+/// As [`sweep`] for the grid.
+pub fn grid_factor(d: &Data, structures: &[Structure], parallel: bool) -> Result<(Vec<f64>, usize)> {
+    let env = envelope(structures)?;
+    env.check(d.m)?;
+    for s in structures {
+        s.check(d.m)?;
+    }
+    let rows = rows_of(d, &env, env.max_lag());
+    Ok((to_col_major(&reduce(d, &env, &rows, parallel)), rows.len()))
+}
+
+/// Parameters and one-step losses of every structure from the factors of the grid's envelope
+/// (as [`grid_factor`] gives them, combined over all parts), in one or two stages as [`sweep`];
+/// nothing is simulated. Returns the results and the structures a sweep would simulate.
+///
+/// # Errors
+/// `InvalidStructure` for factors that do not match the grid, `TooFewSamples` when the
+/// estimation rows are fewer than the envelope's columns.
+pub fn fits_from_factors(
+    structures: &[Structure],
+    r_est: Vec<f64>,
+    n_est: usize,
+    r_val: Option<Vec<f64>>,
+    n_val: usize,
+    top: Option<usize>,
+    parallel: bool,
+) -> Result<(Vec<StructureResult>, Vec<usize>)> {
+    let env = envelope(structures)?;
+    let q = env.n_params() + 1;
+    if r_est.len() != q * q || r_val.as_ref().is_some_and(|r| r.len() != q * q) {
+        return Err(ArxError::InvalidStructure(format!("the factors must be {q} × {q}, the grid envelope's size")));
+    }
+    if n_est < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: n_est });
+    }
+    let f = GridFactors { first_lag: env.max_lag(), env, q, r_est, n_est, r_val, n_val };
+    match top {
+        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, parallel),
+        _ => {
+            let all: Vec<StructureResult> = if parallel {
+                structures.par_iter().map(|s| fit_exact(&f, s)).collect()
+            } else {
+                structures.iter().map(|s| fit_exact(&f, s)).collect()
+            };
+            Ok((all, (0..structures.len()).collect()))
+        }
+    }
+}
+
+/// Free-run (or k-step) scores of fitted structures on `d`, from `first_lag` (the whole grid's) on,
+/// exactly as [`sweep`] simulates them: a group of a fleet's validation spread over workers.
+///
+/// # Errors
+/// As [`sweep`] for the structures; `ShapeMismatch` when a parameter vector has the wrong length.
+pub fn simulate_structures(
+    d: &Data,
+    structures: &[Structure],
+    thetas: Vec<Vec<f64>>,
+    first_lag: usize,
+    opts: &SweepOptions,
+) -> Result<Vec<SimScore>> {
+    let env = envelope(structures)?;
+    env.check(d.m)?;
+    let mut out = Vec::with_capacity(structures.len());
+    for (s, theta) in structures.iter().zip(thetas) {
+        s.check(d.m)?;
+        if theta.len() != s.n_params() {
+            return Err(ArxError::ShapeMismatch {
+                what: "parameters".into(),
+                expected: s.n_params(),
+                got: theta.len(),
+            });
+        }
+        out.push(StructureResult {
+            theta,
+            rss_est: f64::NAN,
+            rss_val: f64::NAN,
+            sim_est: NAN_SCORE,
+            sim_val: NAN_SCORE,
+            error: None,
+            stage: 2,
+        });
+    }
+    let lag = first_lag.max(env.max_lag());
+    let opts = SweepOptions { simulate_estimation: false, ..*opts };
+    let order = (0..structures.len()).filter(|&i| out[i].theta.iter().all(|v| v.is_finite())).collect();
+    let mut scores = vec![NAN_SCORE; structures.len()];
+    for (i, _, sv) in simulate_all(d, Some(d), structures, &out, order, (&env, lag), &opts, &|_| {}) {
+        scores[i] = sv;
+    }
+    Ok(scores)
 }
 
 /// Simulates the structures `order` (fitted ones) on the estimation data (when asked) and the
@@ -398,11 +497,10 @@ fn simulate_all(
     structures: &[Structure],
     out: &[StructureResult],
     mut order: Vec<usize>,
-    f: &GridFactors,
+    (env, first_lag): (&Structure, usize),
     opts: &SweepOptions,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Vec<(usize, SimScore, SimScore)> {
-    let (env, first_lag) = (&f.env, f.first_lag);
     let sim_est = opts.simulate_estimation;
     let nan = NAN_SCORE;
     let lanes_est = sim_est && lanes_apply(est, env, opts);

@@ -15,9 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from . import _core
+from . import _core, fleet, stages
 from . import _metrics as metrics
-from . import stages
 from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
@@ -724,7 +723,10 @@ def sweep(
     simulate_estimation: bool = True,
     top: int | None = stages.DEFAULT_TOP,
     max_seconds: float | None = 3600.0,
-) -> SweepResult:
+    client: Any = None,
+    per_experiment: bool = False,
+    read: Any = None,
+) -> Any:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
     Parameters
@@ -766,10 +768,18 @@ def sweep(
     max_seconds : float or None
         Refuse grids whose estimated run time exceeds this many seconds, before anything is
         allocated (None: no limit).
+    client : dask.distributed.Client, optional
+        With a list of logs as ``data``: run on this Dask cluster (see :mod:`arxid.fleet`).
+    per_experiment : bool
+        With a list of logs: sweep each log separately and return a :class:`arxid.fleet.FleetSweep`.
+    read : dict or callable, optional
+        With file paths in ``data``: how to read them (see :func:`arxid.fleet.load_experiment`).
 
     Returns
     -------
     SweepResult
+        For a list of logs, the sweep of all of them at once (a :class:`arxid.fleet.FleetSweep`
+        with ``per_experiment=True``).
 
     Notes
     -----
@@ -794,6 +804,17 @@ def sweep(
     >>> res.structure_name(0)
     'ARX(2,1,3)'
     """
+    engine = None
+    if isinstance(data, (list, tuple)):
+        options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
+        options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
+        options.update(simulate_estimation=simulate_estimation, max_seconds=max_seconds)
+        fraction = fleet.check_validation(validation)
+        if per_experiment:
+            return fleet.sweep_each(data, client, read, fraction, sweep, options)
+        engine = fleet.DaskEngine(client, data, read, fraction)
+        data, validation = engine.merged()
+        engine = engine if client is not None else None  # in process: one sweep of the merged logs
     if not isinstance(data, IOData):
         raise DataError(
             f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
@@ -820,7 +841,7 @@ def sweep(
     inputs = _core_inputs(est, val, g, effects)
     first_lag, _ = _core.grid_envelope(g.layout, inputs.terms)
     _check_validation_length(val, first_lag)
-    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top)
+    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
@@ -1000,10 +1021,11 @@ class _Runner:
         progress: bool,
         simulate_estimation: bool,
         top: int | None = None,
+        engine: Any = None,
     ):
         self.est, self.val, self.g, self.inputs = est, val, g, inputs
         self.n_threads, self.progress, self.simulate_estimation = n_threads, progress, simulate_estimation
-        self.top = top
+        self.top, self.core = top, engine if engine is not None else _core.sweep
 
     def __call__(self, k: int | None) -> Any:
         n = len(self.g.layout)
@@ -1018,7 +1040,7 @@ class _Runner:
 
         val = self.val
         try:
-            return _core.sweep(
+            return self.core(
                 np.ascontiguousarray(self.est.y),
                 self.inputs.u_est,
                 list(self.est.experiment_starts),

@@ -170,11 +170,12 @@ def rank_order(score: np.ndarray, bad: np.ndarray, stage: np.ndarray, one_step: 
         measure could not score (not simulated), by their one-step error; then the diverged and
         unfitted ones. Ties keep grid order.
     """
-    s = len(score)
     unscored = bad & (stage == 1) & np.isfinite(one_step)
-    group = np.where(~bad, 0, np.where(unscored, 1, 2))
-    within = np.where(group == 0, score, np.where(group == 1, one_step, np.inf))
-    return np.lexsort((np.arange(s), within, group))
+    parts = []
+    for members, key in ((~bad, score), (unscored, one_step), (bad & ~unscored, None)):
+        idx = np.flatnonzero(members)
+        parts.append(idx if key is None else idx[np.argsort(key[idx], kind="stable")])
+    return np.concatenate(parts)
 
 
 class RankedParameters(Sequence):
