@@ -13,6 +13,10 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
     "divergence_limit",
+    "fma_limit",
+    "grid_factor",
+    "simulate_structures",
+    "sweep_factors",
     "fit",
     "grid_envelope",
     "max_lag",
@@ -125,3 +129,30 @@ def grid_envelope(structures: npt.NDArray[np.int64], output_terms: Sequence[_Ter
 def max_lag(na: int, nb: Sequence[int], nk: Sequence[int], output_terms: Sequence[_Term]) -> int: ...
 def sweep_memory(n_structures: int, p_max: int, q: int, n_est: int, n_val: int, n_cols: int, n_threads: int) -> int: ...
 def divergence_limit(y: _F) -> float: ...
+
+# Sweeps at scale (arxid.fleet, benches).
+def grid_factor(
+    y: _F, u: _F, starts: Sequence[int], structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]
+) -> tuple[_F, int]: ...
+def sweep_factors(
+    r_est: _F,
+    n_est: int,
+    structures: npt.NDArray[np.int64],
+    output_terms: Sequence[_Term],
+    r_val: _F | None = None,
+    n_val: int = 0,
+    top: int | None = None,
+    n_threads: int = 0,
+) -> tuple[SweepOutput, npt.NDArray[np.uintp]]: ...
+def simulate_structures(
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    structures: npt.NDArray[np.int64],
+    output_terms: Sequence[_Term],
+    theta: _F,
+    first_lag: int,
+    horizon: int | None = None,
+    n_threads: int = 0,
+) -> tuple[_F, _F, _F, _B]: ...
+def fma_limit(n_vectors: int, n_threads: int = 0) -> float: ...

@@ -160,7 +160,7 @@ def partial_factors(sources: Sequence[Any], read: Any, validation: Any, layout: 
 def _stack(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
     if a is None or b is None:
         return a if b is None else b
-    return np.linalg.qr(np.vstack([a, b]), mode="r")
+    return np.asarray(np.linalg.qr(np.vstack([a, b]), mode="r"))
 
 
 def combine_factors(a: tuple, b: tuple) -> tuple:

@@ -1158,7 +1158,7 @@ def _build_result(
         key = "est_sim" if key == "val_sim" else "est_one_step"
     columns = dict(val_sim=rms_val, val_one_step=rms_val_one, est_sim=rms_est, est_one_step=rms_est_one)
     score = {**columns, "fpe": fpe, "aic": aic, "bic": bic}[key]
-    bad = ~np.isfinite(score) | div_val | div_est | np.not_equal(errors, None)
+    bad = ~np.isfinite(score) | div_val | div_est | np.array([e is not None for e in errors.tolist()], dtype=bool)
     # Diverged and unfitted structures go last; ties keep grid order (stable sort).
     order = stages.rank_order(score, bad, res.stage, rss_val if n_val else rss_est)
     nbm = np.array(user_nb, dtype=int).reshape(s, m)
