@@ -12,7 +12,10 @@ flag                   meaning
 ``too-small``          peak |response| < ``small`` × measured output range
 ``too-large``          peak |response| > ``large`` × measured output range (not checked
                        for integrating expectations, whose response grows without bound)
-``unstable``           a pole on or outside the unit circle while ``expect="stable"``
+``unstable``           a pole on or outside the unit circle while ``expect="stable"`` (a
+                       sweep checks every plant it does not call integrating this way);
+                       for an integrating plant, a pole significantly outside: more than
+                       ``UNIT_ROOT_CRITICAL`` standard errors (:mod:`arxid.integrator`)
 ``not-growing``        ``expect="integrating"`` / ``"double-integrating"`` but the response
                        at the end of the growth horizon is less than ``growth``
                        (``growth_double``) times the response at half of it; the growth
@@ -35,6 +38,7 @@ import numpy as np
 
 from .data import IOData
 from .exceptions import ArxidError
+from .integrator import UNIT_ROOT_CRITICAL, pole_excess
 
 __all__ = ["SanityLimits", "StepSanity", "step_sanity", "growth_horizon", "EXPECTATIONS"]
 
@@ -224,6 +228,7 @@ def check_responses(
     amplitudes,
     expect: str | None,
     limits: SanityLimits,
+    pole_excess: float | None = None,
 ) -> StepSanity:
     """Apply the checks to given step responses (one positive and one negative per input).
 
@@ -241,6 +246,10 @@ def check_responses(
         Step amplitude of each input.
     expect : {None, "stable", "integrating", "double-integrating"}
     limits : SanityLimits
+    pole_excess : float, optional
+        Standard errors by which the largest pole lies outside the unit circle
+        (:func:`arxid.integrator.pole_excess`); for integrating expectations, above
+        ``UNIT_ROOT_CRITICAL`` flags ``unstable``.
 
     Returns
     -------
@@ -259,10 +268,9 @@ def check_responses(
             peak_all = max(peak_all, peak)
             for code, why in flags:
                 found.setdefault(code, why)
-    if expect == "stable" and poles.size and np.max(np.abs(poles)) >= 1.0:
-        found.setdefault(
-            "unstable", f"expect='stable' but the largest pole magnitude is {np.max(np.abs(poles)):.4f} (>= 1)"
-        )
+    unstable = _stability_flag(poles, expect, pole_excess)
+    if unstable:
+        found.setdefault("unstable", unstable)
     return StepSanity(
         structure,
         tuple(found),
@@ -273,6 +281,25 @@ def check_responses(
         int(horizon),
         expect,
     )
+
+
+def _stability_flag(poles: np.ndarray, expect: str | None, excess: float | None) -> str | None:
+    """Reason for the ``unstable`` flag, or None."""
+    if not poles.size:
+        return None
+    mag = float(np.max(np.abs(poles)))
+    if expect == "stable" and mag >= 1.0:
+        return (
+            f"a pole at |z| = {mag:.5f} (on or outside the unit circle): the model is unstable, and the plant is "
+            f"not integrating"
+        )
+    if expect in ("integrating", "double-integrating") and mag > 1.0 and excess is not None:
+        if excess > UNIT_ROOT_CRITICAL:
+            return (
+                f"a pole at |z| = {mag:.5f} lies {excess:.1f} standard errors outside the unit circle (more than "
+                f"{UNIT_ROOT_CRITICAL}): unstable beyond an integrator"
+            )
+    return None
 
 
 def _input_flags(
@@ -410,13 +437,18 @@ def step_sanity(
         with np.errstate(all="ignore"):
             pos.append(model.simulate(u, extra=extra))
             neg.append(model.simulate(-u, extra=extra))
+    poles = model.poles()
+    excess = None
+    if poles.size and np.max(np.abs(poles)) > 1.0 and expect in ("integrating", "double-integrating"):
+        excess = pole_excess(model.parameters_, model.covariance_, model.na_)[1]
     return check_responses(
         model.structure_name(),
         pos,
         neg,
-        model.poles(),
+        poles,
         out_range=output_range(data),
         amplitudes=amps,
         expect=expect,
         limits=limits,
+        pole_excess=excess,
     )
