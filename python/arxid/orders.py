@@ -370,6 +370,7 @@ class SweepResult:
             expect=expect,
             limits=self.limits,
             pole_excess=self._pole_excess(i, poles),
+            record=self.n_est,
         )
 
     @property

@@ -16,6 +16,9 @@ flag                   meaning
                        sweep checks every plant it does not call integrating this way);
                        for an integrating plant, a pole significantly outside: more than
                        ``UNIT_ROOT_CRITICAL`` standard errors (:mod:`arxid.integrator`)
+``near-integrator``    a plant that is not integrating, but a pole near z = 1 so slow (time
+                       constant over ``RECORD_SHARE`` of the estimation record) that the
+                       data cannot tell it from an integrator
 ``not-growing``        ``expect="integrating"`` / ``"double-integrating"`` but the response
                        at the end of the growth horizon is less than ``growth``
                        (``growth_double``) times the response at half of it; the growth
@@ -38,7 +41,7 @@ import numpy as np
 
 from .data import IOData
 from .exceptions import ArxidError
-from .integrator import UNIT_ROOT_CRITICAL, pole_excess
+from .integrator import LOW_FREQUENCY, RECORD_SHARE, UNIT_ROOT_CRITICAL, pole_excess
 
 __all__ = ["SanityLimits", "StepSanity", "step_sanity", "growth_horizon", "EXPECTATIONS"]
 
@@ -229,6 +232,7 @@ def check_responses(
     expect: str | None,
     limits: SanityLimits,
     pole_excess: float | None = None,
+    record: int | None = None,
 ) -> StepSanity:
     """Apply the checks to given step responses (one positive and one negative per input).
 
@@ -250,6 +254,9 @@ def check_responses(
         Standard errors by which the largest pole lies outside the unit circle
         (:func:`arxid.integrator.pole_excess`); for integrating expectations, above
         ``UNIT_ROOT_CRITICAL`` flags ``unstable``.
+    record : int, optional
+        Estimation rows; with ``expect="stable"``, a low-frequency pole whose time constant exceeds
+        ``RECORD_SHARE`` of them flags ``near-integrator``.
 
     Returns
     -------
@@ -271,6 +278,10 @@ def check_responses(
     unstable = _stability_flag(poles, expect, pole_excess)
     if unstable:
         found.setdefault("unstable", unstable)
+    elif expect == "stable" and record:
+        slow = _slow_pole_flag(poles, record)
+        if slow:
+            found.setdefault("near-integrator", slow)
     return StepSanity(
         structure,
         tuple(found),
@@ -300,6 +311,23 @@ def _stability_flag(poles: np.ndarray, expect: str | None, excess: float | None)
                 f"{UNIT_ROOT_CRITICAL}): unstable beyond an integrator"
             )
     return None
+
+
+def _slow_pole_flag(poles: np.ndarray, record: int) -> str | None:
+    """Reason for ``near-integrator``: the slowest low-frequency pole outlasts the record."""
+    poles = poles.astype(complex)
+    with np.errstate(divide="ignore"):
+        low = poles[np.abs(np.log(poles)) < LOW_FREQUENCY]
+    if not low.size:
+        return None
+    mag = float(np.abs(low).max())
+    tau = -1.0 / np.log(mag)
+    if tau <= RECORD_SHARE * record:
+        return None
+    return (
+        f"a pole at |z| = {mag:.5f} has a time constant of {tau:.4g} samples, more than {RECORD_SHARE:g} of the "
+        f"{record} estimation samples: the data cannot tell it from an integrator, and the plant is not integrating"
+    )
 
 
 def _input_flags(
@@ -451,4 +479,5 @@ def step_sanity(
         expect=expect,
         limits=limits,
         pole_excess=excess,
+        record=model.n_rows_,
     )
