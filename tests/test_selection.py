@@ -300,3 +300,40 @@ def test_diverged_structures_stay_in_place_for_a_one_step_criterion():
     bad = sim.diverged_val | sim.diverged_est
     k = len(sim) - int(bad.sum())
     assert 0 < k < len(sim) and not bad[:k].any() and bad[k:].all()
+
+
+# ------------------------------------------------------------------------------------ 4. parsimony
+def test_smallest_within_noise_returns_the_true_size_where_lowest_overfits():
+    """Data from ARX(2,1,3) with white equation noise: the lowest validation error goes to a larger
+    structure by a margin within the noise; the parsimony rule returns one with no more
+    parameters than the truth, and says why."""
+    rng = np.random.default_rng(11)
+    n = 4000
+    u = rng.standard_normal(n)
+    y = lfilter([0, 0, 0, 0.5], [1, -1.5, 0.7], u) + lfilter([1], [1, -1.5, 0.7], 0.05 * rng.standard_normal(n))
+    res = arxid.sweep(arxid.IOData(y, u, 0.01), validation=0.4, progress=False, na=range(1, 5), nb=range(1, 4))
+    lowest = res.select(sane=True)
+    small = res.select(sane=True, rule="smallest-within-noise")
+    assert res.n_params[lowest.rank] > 3
+    assert res.n_params[small.rank] <= 3 and int(res.nk[small.rank][0]) == 3
+    assert "Diebold-Mariano" in small.note and small.rule == "smallest-within-noise"
+    assert res.sanity(small.rank).ok
+    model = quiet_best(res, sane=True, rule="smallest-within-noise")
+    assert model.structure_name() == small.structure
+    with pytest.raises(arxid.ArxidError, match="rule must be one of"):
+        res.select(rule="smallest")
+
+
+def test_diebold_mariano_on_white_errors_is_the_paired_z_statistic():
+    """Without serial correlation the long-run variance is the plain variance (up to the Bartlett
+    terms, which vanish on average): DM is then close to the paired z statistic, and equal errors
+    are never worse."""
+    from arxid.parsimony import diebold_mariano
+
+    rng = np.random.default_rng(2)
+    e1, e2 = rng.standard_normal(20000), 1.05 * rng.standard_normal(20000)
+    d = e2**2 - e1**2
+    z = d.mean() / (d.std() / np.sqrt(d.size))
+    cmp = diebold_mariano(e2, e1)
+    assert cmp.statistic == pytest.approx(z, rel=0.05) and cmp.worse
+    assert not diebold_mariano(e1, e1).worse

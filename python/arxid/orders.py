@@ -23,6 +23,7 @@ from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from .integrator import VOTERS, IntegratorTest, integrator_test, pole_excess, slowest_time_constant, unit_root_t
 from .model import ArxModel
+from .parsimony import DM_CRITICAL, diebold_mariano
 from .sanity import (
     EXPECTATIONS,
     SanityLimits,
@@ -38,6 +39,9 @@ __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 #: Ranking criteria. ``aic`` and ``mdl`` are MATLAB ``selstruc``'s, on the validation loss when there are
 #: validation data; ``est_aic`` and ``est_bic`` (alias ``bic``) are MATLAB ``aic``'s on the estimation fit.
 SORT_KEYS = ("val_sim", "val_one_step", "est_sim", "est_one_step", "fpe", "aic", "mdl", "est_aic", "est_bic", "bic")
+
+#: How :meth:`SweepResult.select` picks among the structures that qualify.
+SELECTION_RULES = ("lowest", "smallest-within-noise")
 
 #: Criteria that judge a free-run (or k-step) simulation: only these move diverged structures last.
 FREE_RUN_KEYS = ("val_sim", "est_sim")
@@ -102,6 +106,8 @@ class Selection:
     rank: int
     structure: str
     skipped: tuple[tuple[int, str, tuple[str, ...]], ...]
+    rule: str = "lowest"
+    note: str = ""
 
     def __str__(self) -> str:
         return self.describe()
@@ -119,7 +125,7 @@ class Selection:
         str
             One line for the chosen structure, then one per skipped structure with its failed checks.
         """
-        lines = [f"chose {self.structure} (rank {self.rank + 1})"]
+        lines = [f"chose {self.structure} (rank {self.rank + 1})" + (f": {self.note}" if self.note else "")]
         shown = self.skipped if limit is None else self.skipped[:limit]
         for rank, name, reasons in shown:
             lines.append(f"  skipped {name} (rank {rank + 1}): " + "; ".join(reasons))
@@ -404,14 +410,20 @@ class SweepResult:
             return f"its {self.measure} diverged on the {where} data"
         return None
 
-    def select(self, sane: bool = True) -> Selection:
+    def select(self, sane: bool = True, rule: str = "lowest") -> Selection:
         """The best-ranked usable structure; with ``sane``, the best one whose step sanity passes.
 
         Parameters
         ----------
         sane : bool
-            Also skip structures whose step sanity checks fail; without it, only structures that were
-            not fitted, diverged or have no finite ranking error are skipped.
+            Also skip structures whose step sanity checks fail (which include stability for a
+            plant that is not integrating, and a free run that diverged); without it, only
+            structures that were not fitted or have no finite ranking error are skipped (and, for
+            a free-run criterion, those whose simulation diverged).
+        rule : {"lowest", "smallest-within-noise"}
+            ``"lowest"``: the best-ranked one. ``"smallest-within-noise"``: then the structure with
+            the fewest parameters (that also qualifies) whose validation error is not
+            significantly worse than that one's (Diebold–Mariano test, :mod:`arxid.parsimony`).
 
         Returns
         -------
@@ -423,6 +435,8 @@ class SweepResult:
         ArxidError
             When no structure qualifies (the message lists why the best ones were rejected).
         """
+        if rule not in SELECTION_RULES:
+            raise ArxidError(f"rule must be one of {SELECTION_RULES}, got {rule!r}")
         skipped: list[tuple[int, str, tuple[str, ...]]] = []
         for i in range(len(self)):
             hard = self._unusable(i)
@@ -432,24 +446,83 @@ class SweepResult:
                 skipped.append((i, self.structure_name(i), (hard,)))
                 continue
             if sane:
-                reasons = tuple(r for r in (self._diverged(i),) if r) + self.sanity(i).reasons
+                reasons = self._sane_reasons(i)
                 if reasons:
                     skipped.append((i, self.structure_name(i), reasons))
                     continue
-            return Selection(i, self.structure_name(i), tuple(skipped))
+            sel = Selection(i, self.structure_name(i), tuple(skipped))
+            return self._smallest_within_noise(sel, sane) if rule == "smallest-within-noise" else sel
         why = "; ".join(f"{n}: {', '.join(r)}" for _, n, r in skipped[:5])
         raise ArxidError(
             f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
             f"widen the grid, check expect={self.expect!r}, or relax SanityLimits"
         )
 
-    def best(self, sane: bool = False, *, explain: bool = True) -> ArxModel:
+    def _sane_reasons(self, i: int) -> tuple[str, ...]:
+        return tuple(r for r in (self._diverged(i),) if r) + self.sanity(i).reasons
+
+    def _prediction_errors(self, i: int) -> np.ndarray:
+        """Validation errors of ranked structure ``i`` at the ranking's own measure (free run from
+        rest or one step by filtering the data with its polynomials when the structure is linear
+        and the data complete; else the model's own prediction)."""
+        from scipy.signal import lfilter
+
+        from .validation import prediction_error
+
+        data = self.validation if self.validation is not None else self.estimation
+        horizon = self.horizon if self.sort_by in FREE_RUN_KEYS else 1
+        linear = not self.effects and np.isfinite(data.y).all() and np.isfinite(data.u).all()
+        if not linear or horizon not in (None, 1):
+            err = prediction_error(self.model(i), data, horizon)[1]
+        else:
+            theta, na = self.parameters[i], int(self.na[i])
+            a = np.concatenate([[1.0], theta[:na]])
+            c, out = na, np.zeros(data.n_samples)
+            for j, (nb, nk) in enumerate(zip(self.nb[i], self.nk[i])):
+                b = np.concatenate([np.zeros(int(nk)), theta[c : c + int(nb)]])
+                c += int(nb)
+                out += lfilter(b, a if horizon is None else [1.0], data.u[:, j])
+            with np.errstate(all="ignore"):
+                err = data.y - out if horizon is None else lfilter(a, [1.0], data.y) - out
+        err = np.array(err, dtype=float)
+        err[: self.first_lag] = np.nan  # the sweep scores from its first row on
+        return err
+
+    def _smallest_within_noise(self, sel: Selection, sane: bool) -> Selection:
+        best_err = self._prediction_errors(sel.rank)
+        n_best = int(self.n_params[sel.rank])
+        order = sorted(
+            (i for i in range(len(self)) if self.n_params[i] < n_best), key=lambda i: (int(self.n_params[i]), i)
+        )
+        for i in order:
+            if self._unusable(i) or (self.sort_by in FREE_RUN_KEYS and self._diverged(i)):
+                continue
+            cmp = diebold_mariano(self._prediction_errors(i), best_err)
+            if not cmp.worse and not (sane and self._sane_reasons(i)):
+                note = (
+                    f"the fewest parameters ({int(self.n_params[i])} against {n_best} of the best-ranked "
+                    f"{sel.structure}) with a validation error not significantly worse (Diebold-Mariano "
+                    f"{cmp.statistic:.2f} <= {DM_CRITICAL} on {cmp.n} samples)"
+                )
+                return Selection(i, self.structure_name(i), sel.skipped, "smallest-within-noise", note)
+        note = "no structure with fewer parameters is as good (Diebold-Mariano test at 5%)"
+        return dataclasses.replace(sel, rule="smallest-within-noise", note=note)
+
+    def best(self, sane: bool = False, *, rule: str = "lowest", explain: bool = True) -> ArxModel:
         """The best-ranked structure as a fitted :class:`~arxid.ArxModel`.
 
         Parameters
         ----------
         sane : bool
             Skip structures flagged by the step sanity checks (see :mod:`arxid.sanity`).
+        rule : {"lowest", "smallest-within-noise"}
+            See :meth:`select`. For control design prefer ``"smallest-within-noise"`` when the
+            top of the ranking is flat: the fewest parameters whose validation error the data
+            cannot tell from the best's give a controller fewer states and a model less fitted to
+            noise. ``"lowest"`` is the default: it is MATLAB's ``selstruc`` pick, and parsimony
+            trades structure for parameters without regard to what a controller needs most, the
+            delay (on the simulated quadrotor roll axis it gives ARX(3,1,9) for ARX(3,2,8), one
+            coefficient fewer and one sample more dead time than the plant has).
         explain : bool
             With ``sane``, warn (:class:`~arxid.ArxidWarning`) which better-ranked structures were
             skipped and why.
@@ -465,7 +538,7 @@ class SweepResult:
         ArxidError
             When no structure qualifies (see :meth:`select`).
         """
-        sel = self.select(sane)
+        sel = self.select(sane, rule)
         if sane and explain and sel.skipped:
             warnings.warn(f"arxid.sweep best(sane=True): {sel}", ArxidWarning, stacklevel=2)
         model = self.model(sel.rank)
