@@ -337,3 +337,54 @@ def test_diebold_mariano_on_white_errors_is_the_paired_z_statistic():
     cmp = diebold_mariano(e2, e1)
     assert cmp.statistic == pytest.approx(z, rel=0.05) and cmp.worse
     assert not diebold_mariano(e1, e1).worse
+
+
+# ------------------------------------------------------------------------------------ 5. grid edges
+def _delayed_plant(nk=7, n=3000, seed=5):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = lfilter(np.concatenate([np.zeros(nk), [0.4, 0.2]]), [1, -1.2, 0.5], u) + 0.01 * rng.standard_normal(n)
+    return arxid.IOData(y, u, 0.01)
+
+
+def test_a_choice_on_the_grid_edge_says_so_and_extend_finds_the_inside():
+    """Delay 7 samples, grid nk 0..4: the choice sits on nk = 4, the largest delay tried; the
+    result, the selection and the CLI say so with the range to try, and extend() grows the grid
+    until the delay of the choice (nk = 7) is inside it (the free-run ranking keeps asking for more
+    na and nb on these low-noise data: extend stops after its 3 rounds)."""
+    data = _delayed_plant()
+    res = arxid.sweep(data, validation=0.3, progress=False, na=range(1, 4), nb=range(1, 4), nk=range(0, 5))
+    sel = res.select(sane=False)
+    edges = res.grid_edges(sel.rank)
+    assert any(e.order == "nk" and e.side == "largest" and e.value == 4 for e in edges)
+    assert "nk = 4 is the largest tried; try nk 0:7" in sel.grid_edge
+    assert sel.grid_edge in sel.describe()
+    ext = res.extend()
+    choice = ext.select(sane=True)
+    assert int(ext.nk[choice.rank][0]) == 7
+    assert not [e for e in ext.grid_edges(choice.rank) if e.order == "nk"]  # the delay is inside now
+    assert max(ext.grid["nk"][0]) > 7 and ext.settings["validation"] is res.validation
+    auto = arxid.sweep(
+        data, validation=0.3, progress=False, na=range(1, 4), nb=range(1, 4), nk=range(0, 5), auto_extend=True
+    )
+    assert auto.select(sane=True).structure == choice.structure
+
+
+def test_smallest_delay_is_an_edge_only_when_the_grid_does_not_start_at_zero():
+    from arxid.grid_edges import grid_edges
+
+    grid = {"na": (1, 2, 3), "nb": [(1, 2)], "nk": [(3, 4, 5)]}
+    (edge,) = grid_edges(grid, 2, [1], [3])
+    assert (edge.order, edge.side, edge.suggestion) == ("nk", "smallest", (1, 2, 3, 4, 5))
+    assert grid_edges({"na": (1, 2, 3), "nb": [(1, 2)], "nk": [(0, 1, 2)]}, 2, [1], [0]) == ()
+    assert grid_edges({"na": (2,), "nb": [(1,)], "nk": [(3,)]}, 2, [1], [3]) == ()  # fixed by the user
+
+
+def test_cli_sweep_prints_the_grid_edge(tmp_path, capsys):
+    from arxid.cli import main
+
+    data = _delayed_plant()
+    path = tmp_path / "plant.csv"
+    np.savetxt(path, np.column_stack([data.y, data.u[:, 0]]), delimiter=",", header="y,u", comments="")
+    assert main(["sweep", str(path), "--output", "y", "--inputs", "u", "--ts", "0.01", "--nk", "0:4"]) == 0
+    assert "sits on the edge of the grid" in capsys.readouterr().out

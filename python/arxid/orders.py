@@ -21,6 +21,7 @@ from . import _metrics as metrics
 from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
+from .grid_edges import Edge, edge_text, grid_edges, grown_grid
 from .integrator import VOTERS, IntegratorTest, integrator_test, pole_excess, slowest_time_constant, unit_root_t
 from .model import ArxModel
 from .parsimony import DM_CRITICAL, diebold_mariano
@@ -108,6 +109,7 @@ class Selection:
     skipped: tuple[tuple[int, str, tuple[str, ...]], ...]
     rule: str = "lowest"
     note: str = ""
+    grid_edge: str = ""
 
     def __str__(self) -> str:
         return self.describe()
@@ -129,6 +131,8 @@ class Selection:
         shown = self.skipped if limit is None else self.skipped[:limit]
         for rank, name, reasons in shown:
             lines.append(f"  skipped {name} (rank {rank + 1}): " + "; ".join(reasons))
+        if self.grid_edge:
+            lines.append(f"  {self.grid_edge}")
         if len(shown) < len(self.skipped):
             lines.append(
                 f"  ... and {len(self.skipped) - len(shown)} more skipped (model.selection_.describe(None) lists all)"
@@ -174,6 +178,10 @@ class SweepResult:
         Why it was (or was not) called integrating, with the unit-root test's numbers.
     integrator : IntegratorTest or None
         The unit-root test of the best structures (None when ``expect`` decided).
+    grid : dict
+        The orders swept: ``{"na": tuple, "nb": [tuple per input], "nk": [tuple per input]}``.
+    settings : dict
+        The other arguments of :func:`sweep` (what :meth:`extend` re-runs with).
     sort_by : str
     first_lag : int
         The grid's largest lag: every structure uses rows from here on.
@@ -217,6 +225,7 @@ class SweepResult:
     validation: IOData | None = field(repr=False)
     integrator: IntegratorTest | None = None
     grid: dict = field(default_factory=dict, repr=False)
+    settings: dict = field(default_factory=dict, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ basics
@@ -451,7 +460,9 @@ class SweepResult:
                     skipped.append((i, self.structure_name(i), reasons))
                     continue
             sel = Selection(i, self.structure_name(i), tuple(skipped))
-            return self._smallest_within_noise(sel, sane) if rule == "smallest-within-noise" else sel
+            if rule == "smallest-within-noise":
+                sel = self._smallest_within_noise(sel, sane)
+            return dataclasses.replace(sel, grid_edge=self.grid_edge_text(sel.rank))
         why = "; ".join(f"{n}: {', '.join(r)}" for _, n, r in skipped[:5])
         raise ArxidError(
             f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
@@ -507,6 +518,73 @@ class SweepResult:
                 return Selection(i, self.structure_name(i), sel.skipped, "smallest-within-noise", note)
         note = "no structure with fewer parameters is as good (Diebold-Mariano test at 5%)"
         return dataclasses.replace(sel, rule="smallest-within-noise", note=note)
+
+    def grid_edges(self, i: int) -> tuple[Edge, ...]:
+        """The grid edges ranked structure ``i`` touches (see :mod:`arxid.grid_edges`).
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure.
+
+        Returns
+        -------
+        tuple of Edge
+            Empty when it lies inside the grid.
+        """
+        i = self._index(i)
+        if not self.grid:
+            return ()
+        return grid_edges(self.grid, int(self.na[i]), self.nb[i].tolist(), self.nk[i].tolist(), self.nb.shape[1] > 1)
+
+    def grid_edge_text(self, i: int) -> str:
+        """One sentence when ranked structure ``i`` sits on a grid edge, with the ranges to try; else "".
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure.
+
+        Returns
+        -------
+        str
+        """
+        return edge_text(self.structure_name(i), self.grid_edges(i))
+
+    def extend(self, max_rounds: int = 3, limit: int = 30, sane: bool = True) -> SweepResult:
+        """Grow the grid past the edges the chosen structure sits on, until it is inside or a limit.
+
+        Each round re-runs :func:`sweep` with the same data and settings on the grid whose edge
+        ranges are grown by ``max(2, ⌈len/2⌉)`` values (:func:`arxid.grid_edges.grown_grid`).
+
+        Parameters
+        ----------
+        max_rounds : int
+            Largest number of re-runs.
+        limit : int
+            Largest na, nb or nk tried.
+        sane : bool
+            Judge the choice as :meth:`select` with ``sane`` does.
+
+        Returns
+        -------
+        SweepResult
+            The last sweep (this one when the choice is already inside the grid).
+        """
+        res = self
+        for _ in range(max_rounds):
+            rank = res._choice_rank(sane)
+            new = grown_grid(res.grid, res.grid_edges(rank), limit)
+            if new is None:
+                break
+            res = sweep(res.estimation, na=new["na"], nb=new["nb"], nk=new["nk"], **res.settings)
+        return res
+
+    def _choice_rank(self, sane: bool) -> int:
+        try:
+            return self.select(sane).rank
+        except ArxidError:
+            return self.select(False).rank
 
     def best(self, sane: bool = False, *, rule: str = "lowest", explain: bool = True) -> ArxModel:
         """The best-ranked structure as a fitted :class:`~arxid.ArxModel`.
@@ -838,6 +916,7 @@ def sweep(
     max_memory: int | None = None,
     limits: SanityLimits | None = None,
     simulate_estimation: bool = True,
+    auto_extend: bool = False,
 ) -> SweepResult:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
@@ -873,6 +952,9 @@ def sweep(
         Thresholds of the step sanity checks.
     simulate_estimation : bool
         Also simulate every structure on the estimation data (``rms_est``).
+    auto_extend : bool
+        When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
+        again (:meth:`SweepResult.extend`, at most 3 rounds, orders up to 30).
 
     Returns
     -------
@@ -930,16 +1012,31 @@ def sweep(
     k_default = int(horizon) if horizon is not None else max(10, 2 * first_lag)
     k_step = k_default if integrating else (int(horizon) if horizon is not None else None)
     grid = {"na": nas, "nb": nbs, "nk": nks}
-    build = _ResultBuilder(g, inputs.terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid)
+    settings = dict(
+        validation=val,
+        sort_by=sort_by,
+        n_threads=n_threads,
+        progress=progress,
+        effects=effects,
+        expect=expect,
+        horizon=horizon,
+        max_memory=max_memory,
+        limits=limits,
+        simulate_estimation=simulate_estimation,
+    )
+    build = _ResultBuilder(
+        g, inputs.terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings
+    )
     result = build(run(k_step), k_step, integrating, reason)
     if expect is None:
         verdict = _integrator_verdict(result)
         if verdict.integrating and k_step is None:
-            return build(run(k_default), k_default, True, verdict.reason, verdict)
-        return dataclasses.replace(
-            result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
-        )
-    return result
+            result = build(run(k_default), k_default, True, verdict.reason, verdict)
+        else:
+            result = dataclasses.replace(
+                result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
+            )
+    return result.extend() if auto_extend else result
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
@@ -1178,6 +1275,7 @@ class _ResultBuilder:
     limits: SanityLimits
     m: int
     grid: dict
+    settings: dict
 
     def __call__(
         self,
@@ -1274,6 +1372,7 @@ def _build_result(
         validation=b.val,
         integrator=verdict,
         grid=b.grid,
+        settings=b.settings,
     )
 
 
