@@ -731,6 +731,7 @@ class _Scoring:
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
         scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
         scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
+        scored = self._one_direction_term(scored)
         if "const" not in self.model.effects and n_pairs > 0:
             scored += self._pairs_with_offset(scored, alpha, n_pairs)
         for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
@@ -804,6 +805,28 @@ class _Scoring:
         scored = _scored(cand, res)
         scored["p"] = min(1.0, scored["p"] * n)
         return scored
+
+    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
+        """``abs(u)`` and ``pos(u)`` are one hypothesis when u is in the model (|u| = 2 pos(u) − u):
+        keep ``abs(u)`` when the fitted gains for u > 0 and u < 0 have opposite signs (a response
+        that ignores the direction), else ``pos(u)`` (different gains for the two directions)."""
+        by_label = {s["c"].label: s for s in scored}
+        names = self.data.input_names
+        drop = set()
+        for label in by_label:
+            m = re.fullmatch(r"pos\((\w+)\)", label)
+            if not m or f"abs({m[1]})" not in by_label or label not in self.single_z:
+                continue
+            sig = m[1]
+            idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
+            base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
+            own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
+            z = self.single_z[label]
+            coef = np.linalg.lstsq(np.column_stack([self.phi0, z]), self.y0, rcond=None)[0]
+            negative = float(np.sum(coef[own]))
+            positive = negative + float(np.sum(coef[self.phi0.shape[1] :]))
+            drop.add(f"abs({sig})" if positive * negative >= 0 else label)
+        return [s for s in scored if s["c"].label not in drop]
 
     def _threshold_shape(self, signal: str, c: float) -> str:
         """``dz`` or ``sat``: whichever, in place of the input itself, leaves the smaller residual."""
