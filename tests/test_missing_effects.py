@@ -170,7 +170,9 @@ def test_effect_grammar_for_thresholds_and_parts():
     u = rng.uniform(-1, 1, 400)
     data = arxid.IOData(rng.standard_normal(400), u, 0.1)
     m = arxid.arx(data, 1, 1, 0, effects=["dz(u1,0.4)", "pos(u1)"])
-    phi = np.column_stack([-data.y[:-1], u[1:], np.sign(u[1:]) * np.maximum(np.abs(u[1:]) - 0.4, 0), np.maximum(u[1:], 0)])
+    phi = np.column_stack(
+        [-data.y[:-1], u[1:], np.sign(u[1:]) * np.maximum(np.abs(u[1:]) - 0.4, 0), np.maximum(u[1:], 0)]
+    )
     np.testing.assert_allclose(m.parameters_, np.linalg.lstsq(phi, data.y[1:], rcond=None)[0], rtol=1e-8)
     sat = arxid.arx(data, 1, 1, 0, effects=["sat(u1,0.4)", "neg(u1)"])
     phi[:, 2], phi[:, 3] = np.clip(u[1:], -0.4, 0.4), np.minimum(u[1:], 0)

@@ -90,10 +90,10 @@ CATALOGUE: tuple[CatalogueEntry, ...] = (
     ),
     CatalogueEntry("sign(dy)", "Coulomb friction on a position output", "output (position)"),
     CatalogueEntry("sign(du)", "a reversal of the input's direction (backlash-like)", "input"),
+    CatalogueEntry("dz(u,c)", "dead zone of the actuator (no response while |u| < c)", "input", "|u| takes 20+ values"),
     CatalogueEntry(
-        "dz(u,c)", "dead zone of the actuator (no response while |u| < c)", "input", "|u| takes 20+ values"
+        "sat(u,c)", "actuator saturation (response flattens above |u| > c)", "input", "|u| takes 20+ values"
     ),
-    CatalogueEntry("sat(u,c)", "actuator saturation (response flattens above |u| > c)", "input", "|u| takes 20+ values"),
     CatalogueEntry("pos(u)", "different gains for positive and negative inputs", "input", "u changes sign"),
     CatalogueEntry("const", "offset (bias, ambient level)", "model", "the model has no offset"),
     CatalogueEntry("time", "slow drift", "model"),
@@ -116,7 +116,7 @@ def changes_sign(x: np.ndarray) -> bool:
     bool
     """
     x = x[np.isfinite(x)]
-    return x.size > 0 and min(np.mean(x < 0), np.mean(x > 0)) >= SIGN_CHANGE_SHARE
+    return bool(x.size > 0 and min(np.mean(x < 0), np.mean(x > 0)) >= SIGN_CHANGE_SHARE)
 
 
 def output_integrates(model: ArxModel) -> bool:

@@ -16,9 +16,9 @@ import numpy as np
 from . import _metrics as metrics
 from ._checks import check_horizon, check_model
 from ._format import finite_or_none, horizon_label, require_pandas, text_table
+from .candidates import physics
 from .data import IOData
 from .exceptions import ArxidError
-from .candidates import physics
 from .missing import Diagnosis, diagnose
 from .model import ArxModel
 from .validation import error_rms, prediction_error
@@ -218,6 +218,8 @@ class Ladder:
             if not step.added or step.approximation_of or not earlier:
                 continue
             without = [e for e in model.effects if e not in earlier]
+            if model.data_ is None:
+                break
             try:
                 reduced = ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=without).fit(
                     model.data_, first_lag=model.first_lag_

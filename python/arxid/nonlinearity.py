@@ -120,8 +120,7 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     if ok is None or ok.sum() <= phi.shape[1] + len(linear) + 10:
         return ()
     base = AddedVariableTest(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok])
-    tested = [(name, lag, base.test(b[ok])[0]) for name, lag, b in blocks]
-    tested = [(name, lag, res) for name, lag, res in tested if res is not None]
+    tested = [(name, lag, res) for name, lag, b in blocks if (res := base.test(b[ok])[0]) is not None]
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))
@@ -130,8 +129,9 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
         if p < alpha:
             found.setdefault(name, []).append((lag, float(p), res.score**2))
     out = [
-        NonlinearDependence(name, tuple(sorted(lag for lag, _, _ in hits)), min(p for _, p, _ in hits),
-                            max(s for _, _, s in hits))
+        NonlinearDependence(
+            name, tuple(sorted(lag for lag, _, _ in hits)), min(p for _, p, _ in hits), max(s for _, _, s in hits)
+        )
         for name, hits in found.items()
     ]
     return tuple(sorted(out, key=lambda d: d.p_value))
