@@ -30,7 +30,8 @@ Examples
 ...     y[t] = 0.9 * y[t - 1] + 0.5 * u[t - 1] + 0.05 * rng.standard_normal()
 >>> data = arxid.IOData(y, u, ts=0.01)
 >>> arxid.frequency_check(arxid.arx(data, 1, 1, 1), data).summary
-'the model matches the data within the uncertainty from 0.2 to 50 Hz'
+'the model matches the data within the uncertainty from 0.2 to 50 Hz (slower changes, such as a drift,
+are not resolved by 512-sample segments)'
 """
 
 from __future__ import annotations
@@ -172,7 +173,10 @@ class FrequencyCheck:
         """One sentence: ``the model misses the data between 12 and 40 Hz`` (or that it matches)."""
         f = self.frequency
         if not self.bands:
-            return f"the model matches the data within the uncertainty from {f[0]:.2g} to {f[-1]:.3g} Hz"
+            return (
+                f"the model matches the data within the uncertainty from {f[0]:.2g} to {f[-1]:.3g} Hz "
+                f"(slower changes, such as a drift, are not resolved by {self.segment_length}-sample segments)"
+            )
         several = len(self.input_names) > 1
         widest = sorted(self.bands, key=lambda b: b.low - b.high)[:_SUMMARY_BANDS]
         parts = [b.text + (f" (from {b.input})" if several else "") for b in sorted(widest, key=lambda b: b.low)]

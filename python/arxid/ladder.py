@@ -215,7 +215,8 @@ class Ladder:
         return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
 
     def to_list(self) -> list[dict]:
-        """The CLI contract: one ``{"added", "structure", "effects", "rms_sim_val", "fit_val"}`` per step.
+        """The CLI contract: one ``{"added", "structure", "effects", "rms_sim_val", "fit_val"}`` per step,
+        plus the keys of :meth:`step_details`.
 
         Returns
         -------
@@ -228,8 +229,9 @@ class Ladder:
                 "effects": list(s.effects),
                 "rms_sim_val": finite_or_none(float(s.rms_sim_val)),
                 "fit_val": finite_or_none(float(s.fit_val)),
+                **self.step_details(i),
             }
-            for s in self.steps
+            for i, s in enumerate(self.steps)
         ]
 
     def to_dict(self) -> dict:
@@ -249,9 +251,11 @@ class Ladder:
                     "effects": list(s.effects),
                     "rms_sim_val": finite_or_none(float(s.rms_sim_val)),
                     "fit_val": finite_or_none(float(s.fit_val)),
+                    **self.step_details(i),
                 }
-                for s in self.steps
+                for i, s in enumerate(self.steps)
             ],
+            "error_fall": self.error_fall(),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -283,6 +287,75 @@ class Ladder:
                 for s in self.steps
             ]
         )
+
+    def step_kind(self, i: int) -> str:
+        """What step ``i`` changed: ``"start"``, ``"effect"`` (its effects differ from the step
+        before) or ``"structure"`` (only na, nb or nk changed).
+
+        Parameters
+        ----------
+        i : int
+            Step index.
+
+        Returns
+        -------
+        str
+        """
+        if i == 0:
+            return "start"
+        return "effect" if self.steps[i].effects != self.steps[i - 1].effects else "structure"
+
+    def step_details(self, i: int) -> dict:
+        """The JSON keys a step adds to ``added``/``structure``/``effects``: ``kind`` (see
+        :meth:`step_kind`), ``orders`` (``na``, ``nb``, ``nk``, ``effects``) and ``fall`` (share of the
+        starting error this step removed, None for the start).
+
+        Parameters
+        ----------
+        i : int
+            Step index.
+
+        Returns
+        -------
+        dict
+        """
+        s = self.steps[i]
+        m = s.model
+        first = self.steps[0].rms_sim_val
+        fall = None
+        if i and math.isfinite(first) and first > 0 and math.isfinite(s.rms_sim_val):
+            fall = float((self.steps[i - 1].rms_sim_val - s.rms_sim_val) / first)
+        return {
+            "kind": self.step_kind(i),
+            "orders": {"na": int(m.na_), "nb": list(m.nb_), "nk": list(m.nk_), "effects": list(s.effects)},
+            "fall": finite_or_none(fall) if fall is not None else None,
+        }
+
+    def error_fall(self) -> dict:
+        """How much of the starting validation error the ladder removed, split by what the steps added.
+
+        Returns
+        -------
+        dict
+            ``total``, ``effects`` (steps that added an effect), ``structure`` (steps that changed
+            na, nb or nk): shares of the first step's error (0.9 = 90 %), None when undefined;
+            ``added_effects`` and ``structure_changes``: the names added by each kind of step.
+        """
+        parts = {"effect": 0.0, "structure": 0.0}
+        names: dict[str, list[str]] = {"effect": [], "structure": []}
+        for i in range(1, len(self.steps)):
+            d = self.step_details(i)
+            kind = d["kind"]
+            parts[kind] += d["fall"] if d["fall"] is not None else math.nan
+            names[kind].append(self.steps[i].added)
+        ok = len(self.steps) > 1 and all(math.isfinite(v) for v in parts.values())
+        return {
+            "total": finite_or_none(parts["effect"] + parts["structure"]) if ok else None,
+            "effects": finite_or_none(parts["effect"]) if ok else None,
+            "structure": finite_or_none(parts["structure"]) if ok else None,
+            "added_effects": names["effect"],
+            "structure_changes": names["structure"],
+        }
 
     def plot(self, ax: Any = None) -> Any:
         """Validation error per step (the error falling).
