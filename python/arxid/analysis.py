@@ -313,6 +313,27 @@ class Analysis:
             lines += [headline] if headline else []
         return lines
 
+    def short_summary(self) -> list[str]:
+        """Three lines for ``arxid report``: the model and its fit, what the ladder removed, and
+        where the final model still misses the data in frequency.
+
+        Returns
+        -------
+        list of str
+        """
+        d = self.diagnosis
+        fit = f"validation fit {format_value(d.fit_val, 3)} % ({horizon_label(self.horizon)})"
+        if negative_fit_note(d.fit_val):
+            fit += ", worse than the output's mean"
+        missing = f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect"
+        ladder = ladder_headline(self.ladder) or "Nothing was added: the first model is the final one."
+        freq = (
+            f"Final model {self.frequency[-1].model_name}: {self.frequency[-1].summary}."
+            if self.frequency
+            else "No frequency check (the validation data are too short)."
+        )
+        return [f"Model {self.model.structure_name()}: {fit}; {missing}.", ladder, freq]
+
     def _suspect_lines(self, n: int) -> list[str]:
         d = self.diagnosis
         rows = [
