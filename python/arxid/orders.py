@@ -548,7 +548,7 @@ class SweepResult:
         return text
 
     def table(self, n: int = 12, sanity: bool = True, more_hint: str = ".to_pandas() has all") -> str:
-        """The top ``n`` rows as text, like seed 004's Table 1 plus more columns.
+        """The top ``n`` rows as text, like Sarıoğlu & Kural's Table 1 plus more columns.
 
         Parameters
         ----------
