@@ -317,14 +317,15 @@ class Ladder:
         return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
 
     def to_list(self) -> list[dict]:
-        """The CLI contract: one ``{"added", "structure", "effects", "rms_sim_val", "fit_val"}`` per step.
+        """The CLI contract: one ``{"added", "structure", "effects", "rms_sim_val", "fit_val"}`` per step,
+        plus the keys of :meth:`step_details`.
 
         Returns
         -------
         list of dict
             With ``physics``, ``approximation_of`` and ``replaces`` too (:meth:`LadderStep.to_dict`).
         """
-        return [s.to_dict() for s in self.steps]
+        return [{**s.to_dict(), **self.step_details(i)} for i, s in enumerate(self.steps)]
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the horizon and the steps.
@@ -335,7 +336,7 @@ class Ladder:
             ``{"horizon": int or None, "steps": [...]}``, the steps as in :meth:`to_list`, and for a
             ladder built by :meth:`run` ``nonlinear_dependence`` of its last diagnosis.
         """
-        out: dict = {"horizon": self.horizon, "steps": self.to_list()}
+        out: dict = {"horizon": self.horizon, "steps": self.to_list(), "error_fall": self.error_fall()}
         if self.diagnoses:
             out["nonlinear_dependence"] = self.diagnoses[-1].dependence_dict()
         return out
@@ -369,6 +370,75 @@ class Ladder:
                 for s in self.steps
             ]
         )
+
+    def step_kind(self, i: int) -> str:
+        """What step ``i`` changed: ``"start"``, ``"effect"`` (its effects differ from the step
+        before) or ``"structure"`` (only na, nb or nk changed).
+
+        Parameters
+        ----------
+        i : int
+            Step index.
+
+        Returns
+        -------
+        str
+        """
+        if i == 0:
+            return "start"
+        return "effect" if self.steps[i].effects != self.steps[i - 1].effects else "structure"
+
+    def step_details(self, i: int) -> dict:
+        """The JSON keys a step adds to ``added``/``structure``/``effects``: ``kind`` (see
+        :meth:`step_kind`), ``orders`` (``na``, ``nb``, ``nk``, ``effects``) and ``fall`` (share of the
+        starting error this step removed, None for the start).
+
+        Parameters
+        ----------
+        i : int
+            Step index.
+
+        Returns
+        -------
+        dict
+        """
+        s = self.steps[i]
+        m = s.model
+        first = self.steps[0].rms_sim_val
+        fall = None
+        if i and math.isfinite(first) and first > 0 and math.isfinite(s.rms_sim_val):
+            fall = float((self.steps[i - 1].rms_sim_val - s.rms_sim_val) / first)
+        return {
+            "kind": self.step_kind(i),
+            "orders": {"na": int(m.na_), "nb": list(m.nb_), "nk": list(m.nk_), "effects": list(s.effects)},
+            "fall": finite_or_none(fall) if fall is not None else None,
+        }
+
+    def error_fall(self) -> dict:
+        """How much of the starting validation error the ladder removed, split by what the steps added.
+
+        Returns
+        -------
+        dict
+            ``total``, ``effects`` (steps that added an effect), ``structure`` (steps that changed
+            na, nb or nk): shares of the first step's error (0.9 = 90 %), None when undefined;
+            ``added_effects`` and ``structure_changes``: the names added by each kind of step.
+        """
+        parts = {"effect": 0.0, "structure": 0.0}
+        names: dict[str, list[str]] = {"effect": [], "structure": []}
+        for i in range(1, len(self.steps)):
+            d = self.step_details(i)
+            kind = d["kind"]
+            parts[kind] += d["fall"] if d["fall"] is not None else math.nan
+            names[kind].append(self.steps[i].added)
+        ok = len(self.steps) > 1 and all(math.isfinite(v) for v in parts.values())
+        return {
+            "total": finite_or_none(parts["effect"] + parts["structure"]) if ok else None,
+            "effects": finite_or_none(parts["effect"]) if ok else None,
+            "structure": finite_or_none(parts["structure"]) if ok else None,
+            "added_effects": names["effect"],
+            "structure_changes": names["structure"],
+        }
 
     def plot(self, ax: Any = None) -> Any:
         """Validation error per step (the error falling).

@@ -158,10 +158,13 @@ class Suspect:
     significant : bool
         Corrected p-value below ``alpha`` and improvement of at least ``min_improvement``.
     note : str
-        Why a candidate could not be scored or refitted, if so.
+        Why a candidate could not be scored or refitted, or why it is not significant, if so.
     physics : str
         What the candidate stands for (``"Coulomb friction on a speed output"``; see
         :data:`arxid.candidates.CATALOGUE`).
+    explained_by : str
+        The suspect that makes this one unnecessary (``""`` when none): once it is in the model,
+        adding this one gains less than ``min_improvement``.
     """
 
     effect: str
@@ -181,6 +184,7 @@ class Suspect:
     note: str = ""
     model: ArxModel | None = field(default=None, repr=False, compare=False)
     physics: str = ""
+    explained_by: str = ""
 
     @property
     def refitted(self) -> bool:
@@ -193,7 +197,8 @@ class Suspect:
         Returns
         -------
         dict
-            Those keys plus ``kind``, ``improvement`` and ``note``; NaN and inf become None.
+            Those keys plus ``kind``, ``improvement``, ``note`` and ``explained_by`` (None when no
+            other suspect explains it); NaN and inf become None.
         """
         return {
             "effect": self.effect,
@@ -205,6 +210,7 @@ class Suspect:
             "improvement": finite_or_none(float(self.improvement)),
             "note": self.note,
             "physics": self.physics,
+            "explained_by": self.explained_by or None,
         }
 
 
@@ -346,6 +352,34 @@ class Diagnosis:
             return s.model
         return _refit(self.model, self.data, s)
 
+    def why(self, s: Suspect) -> str:
+        """Why ``s`` is or is not significant, in one phrase (its ``note`` when it has one).
+
+        Parameters
+        ----------
+        s : Suspect
+
+        Returns
+        -------
+        str
+            e.g. ``explained by y^3+const: no gain once it is added`` or ``validation error falls
+            only 2 % (needs 5 %)``.
+        """
+        if s.note:
+            return s.note
+        need = f"{100 * self.min_improvement:.0f} %"
+        if not math.isfinite(s.p_value) or s.p_value >= self.alpha:
+            return f"p-value {s.p_value:.2g} is not below {self.alpha:g}: no evidence it is missing"
+        if not s.refitted:
+            return "not refitted: only the best-scored candidates are judged on validation data"
+        if not math.isfinite(s.improvement):
+            return "the free run with it diverges"
+        if s.significant:
+            return f"validation error falls {100 * s.improvement:.0f} %"
+        if s.improvement < 0:
+            return f"validation error rises {-100 * s.improvement:.0f} % (needs to fall {need})"
+        return f"validation error falls only {100 * s.improvement:.1f} % (needs {need})"
+
     def __str__(self) -> str:
         base = (
             f"diagnosis of {self.model.structure_name()}: validation error ({horizon_label(self.horizon)}) "
@@ -432,7 +466,7 @@ class Diagnosis:
                 "horizon": self.horizon,
             },
             "residual_tests": self.residual_tests.to_dict() if self.residual_tests is not None else {},
-            "suspects": [s.to_dict() for s in self.suspects],
+            "suspects": [{**s.to_dict(), "why": self.why(s)} for s in self.suspects],
             "ladder": steps,
             "nonlinear_dependence": (ladder.diagnoses[-1] if ladder and ladder.diagnoses else self).dependence_dict(),
         }
@@ -999,7 +1033,9 @@ class _Judge:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
             return s
-        return replace(s, significant=False, note=f"explained by {top.effect}: no gain once it is added")
+        return replace(
+            s, significant=False, note=f"explained by {top.effect}: no gain once it is added", explained_by=top.effect
+        )
 
 
 def _demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspect]:
@@ -1018,7 +1054,9 @@ def _demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspe
                 and math.isfinite(single.rms_sim_val_after)
                 and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after
             ):
-                s = replace(s, significant=False, note=f"no better than {single.effect} alone")
+                s = replace(
+                    s, significant=False, note=f"no better than {single.effect} alone", explained_by=single.effect
+                )
                 break
         out.append(s)
     return out
