@@ -365,6 +365,8 @@ def cmd_sweep(args) -> int:
     print(f"\n{len(res)} structures in {elapsed:.2f} s")
     for name, why in choice.skipped[:8]:
         print(f"skipped {name}: {why}")
+    if choice.grid_edge:
+        print(choice.grid_edge)
     print(
         f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
         f"fit {format_value(row['fit_val'])} %, {res.measure})"
