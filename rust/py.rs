@@ -507,9 +507,11 @@ fn sweep_factors<'py>(
 }
 
 /// `(rms, n, norm, diverged)` of fitted structures simulated on these data from `first_lag` on (free run,
-/// or `horizon`-step prediction), exactly as `sweep` simulates them. `theta` is (S, p_max), NaN-padded.
+/// or `horizon`-step prediction), exactly as `sweep` simulates them. `theta` is (S, p_max), NaN-padded;
+/// `limit` replaces the divergence limit of these data.
 #[pyfunction]
-#[pyo3(signature = (y, u, starts, structures, output_terms, theta, first_lag, horizon = None, n_threads = 0))]
+#[pyo3(signature = (y, u, starts, structures, output_terms, theta, first_lag, horizon = None, n_threads = 0,
+                    limit = None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn simulate_structures<'py>(
     py: Python<'py>,
@@ -522,6 +524,7 @@ fn simulate_structures<'py>(
     first_lag: usize,
     horizon: Option<usize>,
     n_threads: usize,
+    limit: Option<f64>,
 ) -> PyResult<(
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
@@ -542,7 +545,7 @@ fn simulate_structures<'py>(
         .map(|(i, s)| (0..s.n_params().min(th.shape()[1])).map(|j| th[[i, j]]).collect())
         .collect();
     let opts = SweepOptions { simulate_estimation: false, horizon, parallel: n_threads != 1, chunk: 64, top: None };
-    let scores = run(py, n_threads, || crate::sweep::simulate_structures(&d, &grid, thetas, first_lag, &opts))?;
+    let scores = run(py, n_threads, || crate::sweep::simulate_structures(&d, &grid, thetas, first_lag, limit, &opts))?;
     let rms: Vec<f64> = scores.iter().map(|s| s.rms).collect();
     let n: Vec<f64> = scores.iter().map(|s| s.n as f64).collect();
     let norm: Vec<f64> = scores.iter().map(|s| s.norm).collect();

@@ -380,7 +380,7 @@ pub fn sweep(
         return Ok((out, n_est, n_val));
     }
     let order: Vec<usize> = simulated.into_iter().filter(|&i| out[i].error.is_none()).collect();
-    let scores = simulate_all(est, val, structures, &out, order, (&f.env, f.first_lag), opts, progress);
+    let scores = simulate_all(est, val, structures, &out, order, (&f.env, f.first_lag, None), opts, progress);
     for (i, se, sv) in scores {
         out[i].sim_est = se;
         out[i].sim_val = sv;
@@ -445,7 +445,8 @@ pub fn fits_from_factors(
 }
 
 /// Free-run (or k-step) scores of fitted structures on `d`, from `first_lag` (the whole grid's) on,
-/// exactly as [`sweep`] simulates them: a group of a fleet's validation spread over workers.
+/// exactly as [`sweep`] simulates them: a fleet's simulation, spread over the workers. `limit`
+/// replaces the divergence limit of `d` (a part of a fleet is judged by the whole fleet's output).
 ///
 /// # Errors
 /// As [`sweep`] for the structures; `ShapeMismatch` when a parameter vector has the wrong length.
@@ -454,6 +455,7 @@ pub fn simulate_structures(
     structures: &[Structure],
     thetas: Vec<Vec<f64>>,
     first_lag: usize,
+    limit: Option<f64>,
     opts: &SweepOptions,
 ) -> Result<Vec<SimScore>> {
     let env = envelope(structures)?;
@@ -482,7 +484,7 @@ pub fn simulate_structures(
     let opts = SweepOptions { simulate_estimation: false, ..*opts };
     let order = (0..structures.len()).filter(|&i| out[i].theta.iter().all(|v| v.is_finite())).collect();
     let mut scores = vec![NAN_SCORE; structures.len()];
-    for (i, _, sv) in simulate_all(d, Some(d), structures, &out, order, (&env, lag), &opts, &|_| {}) {
+    for (i, _, sv) in simulate_all(d, Some(d), structures, &out, order, (&env, lag, limit), &opts, &|_| {}) {
         scores[i] = sv;
     }
     Ok(scores)
@@ -497,7 +499,7 @@ fn simulate_all(
     structures: &[Structure],
     out: &[StructureResult],
     mut order: Vec<usize>,
-    (env, first_lag): (&Structure, usize),
+    (env, first_lag, limit): (&Structure, usize, Option<f64>),
     opts: &SweepOptions,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Vec<(usize, SimScore, SimScore)> {
@@ -507,8 +509,8 @@ fn simulate_all(
     let lanes_val = val.is_some_and(|v| lanes_apply(v, env, opts));
     let ucol_est = if lanes_est { Some(input_columns(est)) } else { None };
     let ucol_val = if lanes_val { Some(input_columns(val.unwrap_or(est))) } else { None };
-    let limit_est = divergence_limit(est.y);
-    let limit_val = val.map_or(f64::NAN, |v| divergence_limit(v.y));
+    let limit_est = limit.unwrap_or_else(|| divergence_limit(est.y));
+    let limit_val = limit.unwrap_or_else(|| val.map_or(f64::NAN, |v| divergence_limit(v.y)));
     // Same na in a group; neighbouring delays and orders so the lanes share most input lags.
     order.sort_by(|&i, &j| {
         let (a, b) = (&structures[i], &structures[j]);

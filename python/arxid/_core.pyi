@@ -154,5 +154,6 @@ def simulate_structures(
     first_lag: int,
     horizon: int | None = None,
     n_threads: int = 0,
+    limit: float | None = None,
 ) -> tuple[_F, _F, _F, _B]: ...
 def fma_limit(n_vectors: int, n_threads: int = 0) -> float: ...

@@ -3,14 +3,16 @@
 :func:`arxid.sweep` accepts a list of experiments (:class:`~arxid.IOData` objects or file paths)
 and, optionally, ``client=`` (a ``dask.distributed.Client``; ``pip install 'arxid[dask]'``).
 
-Merged (one sweep over every log). Each Dask task reads its own logs and reduces them to the
-triangular factor R of the grid's largest regressor (regressors never straddle two logs); the
-factors are combined by QR in a tree, and every structure is solved from the final R on the client.
-The free-run validation of the structures is spread over the workers in groups of structures, each
-worker reading the validation parts itself. What travels over the network: the grid, R factors of
-``q × q`` numbers (``q`` = columns of the largest regressor) and the scores of each structure; never
-the logs, when the workers read their own files. The client also reads the logs once to build the
-:class:`~arxid.SweepResult` (which refits models and checks step responses on them).
+Merged (one sweep over every log). Each Dask task reads a share of the logs once, keeps it on its
+worker and reduces it to the triangular factor R of the grid's largest regressor (regressors never
+straddle two logs); the factors are combined by QR in a tree, and every structure is solved from the
+final R on the client. The free-run simulation is spread over the workers too: each share simulates
+the structures on its own logs (judged by the divergence limit of the whole fleet) and sends back
+their squared-error sums, so no log moves between workers. What travels over the network: the grid,
+R factors of ``q × q`` numbers (``q`` = columns of the largest regressor), the parameters and the
+scores of each structure; never the logs, when the workers read their own files. The client also
+reads the logs once to build the :class:`~arxid.SweepResult` (which refits models and checks step
+responses on them).
 
 Per log (``per_experiment=True``): each log is swept separately on a worker; the result is a
 :class:`FleetSweep`, one table per log and a summary of how the chosen structure varies.
@@ -129,8 +131,8 @@ def _arrays(d: IOData) -> tuple[np.ndarray, np.ndarray, list[int]]:
     return np.ascontiguousarray(d.y, dtype=float), np.ascontiguousarray(d.u, dtype=float), list(d.experiment_starts)
 
 
-def partial_factors(sources: Sequence[Any], read: Any, validation: Any, layout: np.ndarray) -> tuple:
-    """A worker's share: the factors of the estimation and validation parts of its logs.
+def load_parts(sources: Sequence[Any], read: Any, validation: Any) -> tuple:
+    """A worker's logs, split into their estimation and validation parts (kept on the worker).
 
     Parameters
     ----------
@@ -140,21 +142,40 @@ def partial_factors(sources: Sequence[Any], read: Any, validation: Any, layout: 
         As in :func:`load_experiment`.
     validation : float or None
         Fraction of each log held out.
+
+    Returns
+    -------
+    tuple of (IOData, IOData or None)
+    """
+    est = merged_part(sources, read, validation, "est")
+    return est, (None if validation is None else merged_part(sources, read, validation, "val"))
+
+
+def _peak(d: IOData | None) -> float:
+    y = np.abs(d.y[np.isfinite(d.y)]) if d is not None else np.zeros(0)
+    return float(y.max()) if y.size else 0.0
+
+
+def partial_factors(parts: tuple, layout: np.ndarray) -> tuple:
+    """The factors of a worker's estimation and validation parts, and their largest |y|.
+
+    Parameters
+    ----------
+    parts : tuple
+        From :func:`load_parts`.
     layout : ndarray of shape (S, 1 + 2m)
         The grid.
 
     Returns
     -------
     tuple
-        ``(R_est, n_est, R_val, n_val)`` (R_val None without validation).
+        ``(R_est, n_est, R_val, n_val, peak_est, peak_val)`` (R_val None without validation).
     """
+    est, val = parts
     layout = _aligned(layout, np.int64)
-    est = merged_part(sources, read, validation, "est")
     r_est, n_est = _core.grid_factor(*_arrays(est), layout, [])
-    if validation is None:
-        return r_est, n_est, None, 0
-    r_val, n_val = _core.grid_factor(*_arrays(merged_part(sources, read, validation, "val")), layout, [])
-    return r_est, n_est, r_val, n_val
+    r_val, n_val = _core.grid_factor(*_arrays(val), layout, []) if val is not None else (None, 0)
+    return r_est, n_est, r_val, n_val, _peak(est), _peak(val)
 
 
 def _stack(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
@@ -169,53 +190,56 @@ def combine_factors(a: tuple, b: tuple) -> tuple:
     Parameters
     ----------
     a, b : tuple
-        ``(R_est, n_est, R_val, n_val)`` each.
+        ``(R_est, n_est, R_val, n_val, peak_est, peak_val)`` each.
 
     Returns
     -------
     tuple
         The same for the rows of both.
     """
-    return _stack(a[0], b[0]), a[1] + b[1], _stack(a[2], b[2]), a[3] + b[3]
+    return _stack(a[0], b[0]), a[1] + b[1], _stack(a[2], b[2]), a[3] + b[3], max(a[4], b[4]), max(a[5], b[5])
 
 
-def simulate_group(
-    sources: Sequence[Any], read: Any, validation: Any, which: str, layout: np.ndarray, theta: np.ndarray, args: dict
-) -> tuple:
-    """Scores of a group of structures on the merged estimation or validation parts of the fleet.
+def simulate_parts(parts: tuple, which: str, layout: np.ndarray, theta: np.ndarray, args: dict) -> tuple:
+    """Every structure simulated on a worker's logs, judged by the whole fleet's divergence limit.
 
     Parameters
     ----------
-    sources : sequence
-        Every log of the fleet.
-    read, validation
-        As in :func:`partial_factors`.
+    parts : tuple
+        From :func:`load_parts`.
     which : {"est", "val"}
         The parts to simulate on.
-    layout : ndarray of shape (G, 1 + 2m)
-        The structures of the group.
-    theta : ndarray of shape (G, p_max)
+    layout : ndarray of shape (S, 1 + 2m)
+        The structures.
+    theta : ndarray of shape (S, p_max)
         Their parameters.
     args : dict
-        ``first_lag`` and ``horizon``.
+        ``first_lag``, ``horizon`` and ``limit``.
 
     Returns
     -------
     tuple of ndarray
-        ``(rms, n, norm, diverged)`` per structure.
+        ``(sse, n, diverged)`` per structure on these logs.
     """
-    d = merged_part(sources, read, validation, which)
+    d = parts[0] if which == "est" else parts[1]
     layout, theta = _aligned(layout, np.int64), _aligned(theta, np.float64)
-    return _core.simulate_structures(*_arrays(d), layout, [], theta, args["first_lag"], args["horizon"], n_threads=1)
+    rms, n, _, diverged = _core.simulate_structures(
+        *_arrays(d), layout, [], theta, args["first_lag"], args["horizon"], n_threads=1, limit=args["limit"]
+    )
+    return rms * rms * n, n, diverged
 
 
 class DaskEngine:
     """Runs the core of a sweep over a fleet on a Dask cluster (called as ``_core.sweep`` is).
 
+    Each task loads a share of the logs once and keeps them on its worker; the factors of the shares
+    are combined in a QR tree; every structure is solved from the final R on the client; then every
+    share simulates the structures on its own logs and sends back their squared-error sums.
+
     Parameters
     ----------
-    client : dask.distributed.Client or None
-        The cluster; None runs the same steps in process.
+    client : dask.distributed.Client
+        The cluster.
     sources : sequence
         The logs.
     read : dict or callable or None
@@ -240,34 +264,29 @@ class DaskEngine:
         val = None if self.validation is None else merged_part(self.sources, self.read, self.validation, "val")
         return est, val
 
-    def _n_workers(self) -> int:
-        return max(1, len(self.client.scheduler_info()["workers"])) if self.client is not None else 1
+    def _shares(self) -> list:
+        workers = max(1, len(self.client.scheduler_info()["workers"]))
+        n_tasks = min(len(self.sources), 2 * workers)
+        chunks = [self.sources[i::n_tasks] for i in range(n_tasks)]
+        return [self.client.submit(load_parts, c, self.read, self.validation, pure=False) for c in chunks]
 
-    def factors(self, layout: np.ndarray) -> tuple:
-        """The combined factors of every log: partials on the workers, then a QR tree.
+    def factors(self, shares: list, layout: np.ndarray) -> tuple:
+        """The combined factors of every log: partials where the logs are, then a QR tree.
 
         Parameters
         ----------
+        shares : list of futures
+            From :func:`load_parts`.
         layout : ndarray
             The grid.
 
         Returns
         -------
         tuple
-            ``(R_est, n_est, R_val, n_val)``.
+            ``(R_est, n_est, R_val, n_val, peak_est, peak_val)``.
         """
-        n_tasks = min(len(self.sources), 4 * self._n_workers())
-        chunks = [self.sources[i::n_tasks] for i in range(n_tasks)]
-        if self.client is None:
-            parts = [partial_factors(c, self.read, self.validation, layout) for c in chunks]
-            while len(parts) > 1:
-                parts = [
-                    combine_factors(*parts[i : i + 2]) if i + 1 < len(parts) else parts[i]
-                    for i in range(0, len(parts), 2)
-                ]
-            return parts[0]
-        grid = self.client.scatter(layout, broadcast=True)
-        futures = [self.client.submit(partial_factors, c, self.read, self.validation, grid, pure=False) for c in chunks]
+        # The grid travels inside the tasks (not scattered: scattered data die with their worker).
+        futures = [self.client.submit(partial_factors, s, layout) for s in shares]
         while len(futures) > 1:
             futures = [
                 self.client.submit(combine_factors, futures[i], futures[i + 1]) if i + 1 < len(futures) else futures[i]
@@ -275,36 +294,30 @@ class DaskEngine:
             ]
         return futures[0].result()
 
-    def simulate(self, which: str, layout: np.ndarray, theta: np.ndarray, args: dict) -> tuple:
-        """Scores of every given structure, simulated in groups spread over the workers.
+    def simulate(self, shares: list, which: str, layout: np.ndarray, theta: np.ndarray, args: dict) -> tuple:
+        """Scores of every given structure over all logs: each share simulates its own logs.
 
         Parameters
         ----------
+        shares : list of futures
         which : {"est", "val"}
         layout : ndarray of shape (S, 1 + 2m)
         theta : ndarray of shape (S, p_max)
         args : dict
-            ``first_lag`` and ``horizon``.
+            ``first_lag``, ``horizon`` and ``limit``.
 
         Returns
         -------
         tuple of ndarray
-            ``(rms, n, norm, diverged)``.
+            ``(rms, n, norm, diverged)`` as the core's sweep gives them for the merged logs.
         """
-        n_groups = min(len(layout), 2 * self._n_workers()) if len(layout) else 0
-        bounds = np.linspace(0, len(layout), n_groups + 1).astype(int) if n_groups else [0]
-        groups = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-        call = (self.sources, self.read, self.validation, which)
-        if self.client is None:
-            outs = [simulate_group(*call, layout[a:b], theta[a:b], args) for a, b in groups]
-        else:
-            futures = [
-                self.client.submit(simulate_group, *call, layout[a:b], theta[a:b], args, pure=False) for a, b in groups
-            ]
-            outs = self.client.gather(futures)
-        if not outs:
-            return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=bool)
-        return tuple(np.concatenate([o[k] for o in outs]) for k in range(4))
+        outs = self.client.gather([self.client.submit(simulate_parts, s, which, layout, theta, args) for s in shares])
+        sse = np.sum([o[0] for o in outs], axis=0)
+        n = np.sum([o[1] for o in outs], axis=0)
+        diverged = np.any([o[2] for o in outs], axis=0)
+        with np.errstate(all="ignore"):
+            rms = np.where(diverged | (n == 0), np.nan, np.sqrt(sse / n))
+        return rms, n, np.full(len(n), np.nan), diverged
 
     def __call__(self, y, u, starts, layout, terms, **kw) -> Any:
         """The fleet's ``_core.sweep``: the arrays of the merged data are not used (the workers read
@@ -318,7 +331,7 @@ class DaskEngine:
         terms : list
             Output terms (a fleet sweep supports none).
         **kw
-            ``top``, ``horizon``, ``simulate_estimation``, ``n_threads`` as ``_core.sweep``.
+            ``top``, ``horizon``, ``simulate_estimation`` as ``_core.sweep``.
 
         Returns
         -------
@@ -326,15 +339,17 @@ class DaskEngine:
         """
         if terms:
             raise DataError("a fleet sweep takes no effects yet; sweep the merged IOData in process instead")
-        r_est, n_est, r_val, n_val = self.factors(layout)
+        shares = self._shares()
+        r_est, n_est, r_val, n_val, peak_est, peak_val = self.factors(shares, layout)
         out, simulate = _core.sweep_factors(r_est, n_est, layout, [], r_val=r_val, n_val=n_val, top=kw.get("top"))
         result = FleetOutput.from_core(out)
         fitted = np.array([i for i in simulate if out.errors[i] is None], dtype=int)
-        args = {"first_lag": out.first_lag, "horizon": kw.get("horizon")}
         sets = (["est"] if kw.get("simulate_estimation", True) else []) + (["val"] if r_val is not None else [])
         for which in sets:
-            scores = self.simulate(which, layout[fitted], out.theta[fitted], args)
-            result.fill(which, fitted, scores)
+            peak = peak_est if which == "est" else peak_val
+            limit = _core.divergence_limit(np.array([peak]))
+            args = {"first_lag": out.first_lag, "horizon": kw.get("horizon"), "limit": limit}
+            result.fill(which, fitted, self.simulate(shares, which, layout[fitted], out.theta[fitted], args))
         return result
 
 
