@@ -58,11 +58,13 @@ def main():
             f"arxid fleet sweep: {n_logs} logs x {n:,} samples from files, 30 % of each validates, "
             f"default grid (72 structures), {os.cpu_count()} cores; medians"
         )
-        ref = arxid.sweep(paths, validation=0.3, progress=False)
-        t_local = median_time(lambda: arxid.sweep(paths, validation=0.3, progress=False), rep)
+        ref = arxid.sweep(paths, validation=0.3, progress=False, expect="stable")
+        t_local = median_time(lambda: arxid.sweep(paths, validation=0.3, progress=False, expect="stable"), rep)
         with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster, Client(cluster) as c:
-            got = arxid.sweep(paths, validation=0.3, progress=False, client=c)
-            t_dask = median_time(lambda: arxid.sweep(paths, validation=0.3, progress=False, client=c), rep)
+            got = arxid.sweep(paths, validation=0.3, progress=False, expect="stable", client=c)
+            t_dask = median_time(
+                lambda: arxid.sweep(paths, validation=0.3, progress=False, expect="stable", client=c), rep
+            )
         diff = float(np.nanmax(np.abs(got.rms_val - ref.rms_val) / ref.rms_val))
     print()
     print(f"  in process (2 threads)                  {t_local:8.3f} s")

@@ -28,6 +28,7 @@ may also be a function of the path returning an IOData.
 from __future__ import annotations
 
 import math
+import operator
 import os
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -128,11 +129,12 @@ def _aligned(a: np.ndarray, dtype: Any) -> np.ndarray:
 
 
 def _arrays(d: IOData) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    return np.ascontiguousarray(d.y, dtype=float), np.ascontiguousarray(d.u, dtype=float), list(d.experiment_starts)
+    return _aligned(d.y, np.float64), _aligned(d.u, np.float64), list(d.experiment_starts)
 
 
-def load_parts(sources: Sequence[Any], read: Any, validation: Any) -> tuple:
-    """A worker's logs, split into their estimation and validation parts (kept on the worker).
+def load_parts(sources: Sequence[Any], read: Any, validation: Any, layout: np.ndarray) -> tuple:
+    """A worker's logs, split into their estimation and validation parts (kept on the worker), and
+    their factors (:func:`partial_factors`), computed in the same task, where the logs were read.
 
     Parameters
     ----------
@@ -142,13 +144,18 @@ def load_parts(sources: Sequence[Any], read: Any, validation: Any) -> tuple:
         As in :func:`load_experiment`.
     validation : float or None
         Fraction of each log held out.
+    layout : ndarray of shape (S, 1 + 2m)
+        The grid.
 
     Returns
     -------
-    tuple of (IOData, IOData or None)
+    tuple
+        ``(estimation part, validation part or None, factors)``.
     """
-    est = merged_part(sources, read, validation, "est")
-    return est, (None if validation is None else merged_part(sources, read, validation, "val"))
+    split = [split_experiment(load_experiment(s, read), validation) for s in sources]
+    est = IOData.merge([e for e, _ in split])
+    val = None if validation is None else IOData.merge([v for _, v in split if v is not None])
+    return est, val, partial_factors((est, val), layout)
 
 
 def _peak(d: IOData | None) -> float:
@@ -162,7 +169,7 @@ def partial_factors(parts: tuple, layout: np.ndarray) -> tuple:
     Parameters
     ----------
     parts : tuple
-        From :func:`load_parts`.
+        The estimation and validation parts.
     layout : ndarray of shape (S, 1 + 2m)
         The grid.
 
@@ -171,7 +178,7 @@ def partial_factors(parts: tuple, layout: np.ndarray) -> tuple:
     tuple
         ``(R_est, n_est, R_val, n_val, peak_est, peak_val)`` (R_val None without validation).
     """
-    est, val = parts
+    est, val = parts[0], parts[1]
     layout = _aligned(layout, np.int64)
     r_est, n_est = _core.grid_factor(*_arrays(est), layout, [])
     r_val, n_val = _core.grid_factor(*_arrays(val), layout, []) if val is not None else (None, 0)
@@ -260,15 +267,16 @@ class DaskEngine:
         """
         if not self.sources:
             raise DataError("the list of logs is empty")
-        est = merged_part(self.sources, self.read, self.validation, "est")
-        val = None if self.validation is None else merged_part(self.sources, self.read, self.validation, "val")
+        split = [split_experiment(load_experiment(s, self.read), self.validation) for s in self.sources]
+        est = IOData.merge([e for e, _ in split])
+        val = None if self.validation is None else IOData.merge([v for _, v in split if v is not None])
         return est, val
 
-    def _shares(self) -> list:
+    def _shares(self, layout: np.ndarray) -> list:
         workers = max(1, len(self.client.scheduler_info()["workers"]))
         n_tasks = min(len(self.sources), 2 * workers)
         chunks = [self.sources[i::n_tasks] for i in range(n_tasks)]
-        return [self.client.submit(load_parts, c, self.read, self.validation, pure=False) for c in chunks]
+        return [self.client.submit(load_parts, c, self.read, self.validation, layout, pure=False) for c in chunks]
 
     def factors(self, shares: list, layout: np.ndarray) -> tuple:
         """The combined factors of every log: partials where the logs are, then a QR tree.
@@ -285,8 +293,9 @@ class DaskEngine:
         tuple
             ``(R_est, n_est, R_val, n_val, peak_est, peak_val)``.
         """
-        # The grid travels inside the tasks (not scattered: scattered data die with their worker).
-        futures = [self.client.submit(partial_factors, s, layout) for s in shares]
+        # Only the factors leave the workers (the grid travels inside the tasks, not scattered:
+        # scattered data die with their worker).
+        futures = [self.client.submit(operator.itemgetter(2), s) for s in shares]
         while len(futures) > 1:
             futures = [
                 self.client.submit(combine_factors, futures[i], futures[i + 1]) if i + 1 < len(futures) else futures[i]
@@ -339,7 +348,7 @@ class DaskEngine:
         """
         if terms:
             raise DataError("a fleet sweep takes no effects yet; sweep the merged IOData in process instead")
-        shares = self._shares()
+        shares = self._shares(layout)
         r_est, n_est, r_val, n_val, peak_est, peak_val = self.factors(shares, layout)
         out, simulate = _core.sweep_factors(r_est, n_est, layout, [], r_val=r_val, n_val=n_val, top=kw.get("top"))
         result = FleetOutput.from_core(out)
