@@ -6,7 +6,15 @@ so that ``except ValueError`` keeps working. Messages say what is wrong and how 
 
 from __future__ import annotations
 
-__all__ = ["ArxidError", "DataError", "OrderError", "IdentifiabilityError", "NotFittedError", "ArxidWarning"]
+__all__ = [
+    "ArxidError",
+    "DataError",
+    "OrderError",
+    "IdentifiabilityError",
+    "NotFittedError",
+    "ConvergenceError",
+    "ArxidWarning",
+]
 
 
 class ArxidError(ValueError):
@@ -35,6 +43,10 @@ class IdentifiabilityError(ArxidError):
     def __init__(self, message: str, regressors: tuple[str, ...] = ()):
         super().__init__(message)
         self.regressors = tuple(regressors)
+
+
+class ConvergenceError(ArxidError):
+    """Prediction-error iterations (``oe``, ``armax``, ``bj``) could not proceed; the message says why."""
 
 
 class NotFittedError(ArxidError, AttributeError):
