@@ -145,6 +145,7 @@ pub fn conv(a: &[f64], b: &[f64]) -> Vec<f64> {
 }
 
 /// $\mathrm{out} = (\mathrm{num}/\mathrm{den})\, x$ from rest; `den[0]` must be 1.
+#[allow(clippy::needless_range_loop)]
 pub fn filter(num: &[f64], den: &[f64], x: &[f64], out: &mut [f64]) {
     for t in 0..x.len() {
         let mut acc = 0.0;
@@ -205,7 +206,8 @@ pub fn is_stable(p: &[f64]) -> bool {
     while a.len() > 1 {
         let n = a.len() - 1;
         let k = a[n] / a[0];
-        if !(k.abs() < 1.0) {
+        // NaN coefficients count as unstable too.
+        if k.abs().partial_cmp(&1.0) != Some(std::cmp::Ordering::Less) {
             return false;
         }
         let next: Vec<f64> = (0..n).map(|i| (a[i] - k * a[n - i]) / (1.0 - k * k)).collect();
@@ -267,8 +269,8 @@ impl<'a> Segments<'a> {
     fn delayed(&self, i: usize, nk: usize) -> Vec<f64> {
         let mut x = vec![0.0; self.y.len()];
         for &(a, b) in self.segments {
-            for t in (a + nk).min(b)..b {
-                x[t] = self.u[(t - nk) * self.m + i];
+            for (t, v) in x.iter_mut().enumerate().take(b).skip((a + nk).min(b)) {
+                *v = self.u[(t - nk) * self.m + i];
             }
         }
         x
@@ -363,6 +365,7 @@ fn lagged(signal: usize, lags: std::ops::Range<usize>, sign: f64) -> Vec<Column>
 
 /// SISO output-error start: ARX least squares, then SRIV (Steiglitz–McBride with noise-free
 /// instruments) for `iterations` rounds. Returns B and monic F.
+#[allow(clippy::too_many_arguments)]
 fn sriv(
     data: &Segments<'_>,
     z: &[f64],
@@ -494,8 +497,8 @@ fn start_noise(
     parallel: bool,
 ) -> Result<()> {
     let mut v = data.filter(&p.a, &[1.0], data.y);
-    for i in 0..s.m() {
-        let w = data.filter(&p.b[i], &p.f[i], &xs[i]);
+    for ((b, f), x) in p.b.iter().zip(&p.f).zip(xs) {
+        let w = data.filter(b, f, x);
         v.iter_mut().zip(&w).for_each(|(a, b)| *a -= b);
     }
     let n = long_order(s, rows.len());
@@ -763,8 +766,8 @@ pub fn predict(data: &Segments<'_>, s: &PolyStructure, theta: &[f64], horizon: O
     match horizon {
         None => {
             let mut sim = vec![0.0; data.y.len()];
-            for i in 0..s.m() {
-                let w = data.filter(&p.b[i], &conv(&p.a, &p.f[i]), &xs[i]);
+            for ((b, f), x) in p.b.iter().zip(&p.f).zip(&xs) {
+                let w = data.filter(b, &conv(&p.a, f), x);
                 sim.iter_mut().zip(&w).for_each(|(a, b)| *a += b);
             }
             data.rows(s.max_lag()).iter().for_each(|&t| out[t] = sim[t]);

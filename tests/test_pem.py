@@ -183,6 +183,8 @@ def test_model_surface_round_trip_and_converters():
     assert cmp.fit_percent[0] > cmp.fit_percent[1]
     white = arxid.residuals(model, val)  # the noise model whitens the one-step residual
     assert white.n_samples > 4900 and white.ljung_box_p_value > 0.001
+    with pytest.raises(arxid.ArxidError, match="diagnose adds effect terms to ARX models"):
+        arxid.diagnose(model, est, val)
     fails = arxid.where_it_fails(model, val)
     assert fails.rms == pytest.approx(model.rms(val, None), rel=1e-9)
 
@@ -226,7 +228,7 @@ def test_typed_errors():
     with pytest.raises(ConvergenceError, match="not finite"):
         arxid.oe(data, 2, 2, 3, start=[np.nan, 0.0, -1.0, 0.5])
     with pytest.raises(arxid.NotFittedError):
-        arxid.PolynomialModel(nb=2, nf=2, nk=3).parameters_
+        _ = arxid.PolynomialModel(nb=2, nf=2, nk=3).parameters_
 
 
 def test_non_convergence_warns_with_the_reason():

@@ -9,7 +9,8 @@ The map (one module per concept):
 
 * :mod:`arxid.data` — :class:`IOData`; :mod:`arxid.effects` — the physical-term grammar;
 * :mod:`arxid.model` — :func:`arx`, :class:`ArxModel`; :mod:`arxid.polynomial` — :class:`PolynomialModel`;
-* :mod:`arxid.pem` — :func:`oe`, :func:`armax`, :func:`bj`, :func:`delayest`, :func:`refine`; :mod:`arxid.convert` — python-control, scipy, d2c;
+* :mod:`arxid.pem` — :func:`oe`, :func:`armax`, :func:`bj`, :func:`delayest`, :func:`refine`;
+  :mod:`arxid.convert` — python-control, scipy, d2c;
 * :mod:`arxid.orders` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`;
 * :mod:`arxid.validation` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`;
 * :mod:`arxid.missing` — :func:`diagnose`, :class:`Diagnosis`; :mod:`arxid.ladder` — :class:`Ladder`;
@@ -24,8 +25,15 @@ from typing import Any
 
 from .analysis import Analysis, analyse
 from .data import IOData
-from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
-from .exceptions import ConvergenceError
+from .exceptions import (
+    ArxidError,
+    ArxidWarning,
+    ConvergenceError,
+    DataError,
+    IdentifiabilityError,
+    NotFittedError,
+    OrderError,
+)
 from .ladder import Ladder
 from .missing import Diagnosis, diagnose
 from .model import ArxModel, arx

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -22,7 +22,8 @@ def check_model(model: Any) -> ArxModel:
             f"expected a fitted arxid.ArxModel, got {type(model).__name__}; fit one with arxid.arx(data, na, nb, nk)"
         )
     model.check_fitted()
-    return model
+    # A PolynomialModel has the ArxModel surface the checked functions use (duck typing).
+    return cast(ArxModel, model)
 
 
 def check_data(data: Any, what: str = "data") -> IOData:
