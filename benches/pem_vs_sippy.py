@@ -67,14 +67,18 @@ def fit_sippy(kind: str, d: arxid.IOData) -> np.ndarray | None:
         m = system_identification(y, u, "OE", OE_orders=[2, 2, 3])
         return np.r_[np.asarray(m.NUMERATOR[0][0])[3:5], np.asarray(m.DENOMINATOR[0][0])[1:3]]
     m = system_identification(y, u, "ARMAX", ARMAX_orders=[2, 2, 2, 3])
-    return np.r_[np.asarray(m.DENOMINATOR[0][0])[1:3], np.asarray(m.NUMERATOR[0][0])[3:5], np.asarray(m.NUMERATOR_H[0][0])[1:3]]
+    return np.r_[
+        np.asarray(m.DENOMINATOR[0][0])[1:3], np.asarray(m.NUMERATOR[0][0])[3:5], np.asarray(m.NUMERATOR_H[0][0])[1:3]
+    ]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 200_000])
     args = ap.parse_args()
-    print(f"{'fit':<8}{'N':>8}{'arxid s':>10}{'scipy s':>10}{'ratio':>8}{'arxid loss':>13}{'scipy loss':>13}{'SIPPY':>22}")
+    print(
+        f"{'fit':<8}{'N':>8}{'arxid s':>10}{'scipy s':>10}{'ratio':>8}{'arxid loss':>13}{'scipy loss':>13}{'SIPPY':>22}"
+    )
     for kind in ("oe", "armax"):
         for n in args.sizes:
             d = make(kind, n)

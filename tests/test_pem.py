@@ -238,3 +238,31 @@ def test_non_convergence_warns_with_the_reason():
         model = arxid.oe(data, 2, 2, 3, start=[0.1, 0.1, -0.5, 0.1], max_iterations=1)
     assert not model.converged_ and "iteration limit" in model.termination_
     assert any(issubclass(w.category, arxid.ArxidWarning) and "iteration limit" in str(w.message) for w in caught)
+
+
+# ----------------------------------------------------------------------------- real data
+def _scipy_oe_loss(data: arxid.IOData, model, start) -> float:
+    """Loss a plain ``scipy.optimize.least_squares`` OE fit reaches on the samples arxid scores."""
+    from scipy.optimize import least_squares
+
+    nb, nf, nk, lag = model.nb_[0], model.nf_[0], model.nk_[0], model.first_lag_
+
+    def errors(th):
+        return (data.y - signal.lfilter(np.r_[np.zeros(nk), th[:nb]], np.r_[1, th[nb:]], data.u[:, 0]))[lag:]
+
+    return float(np.mean(least_squares(errors, start).fun ** 2))
+
+
+@pytest.mark.realdata
+def test_real_data_oe_loss_no_higher_than_scipy_least_squares(shared_data):
+    """Silverbox (estimation part) and the DaISy heating system: SIPPY is not installed here, so the
+    reference is scipy's least_squares from the same ARX-refined start and from a plain one."""
+    raw = np.genfromtxt(shared_data / "silverbox" / "SNLS80mV.csv", delimiter=",", skip_header=1, usecols=(0, 1))
+    u, y = raw[40650:60650, 0], raw[40650:60650, 1]
+    silver = arxid.IOData(y - y.mean(), u - u.mean(), 1 / 610.35)
+    heat = np.loadtxt(shared_data / "daisy-heating" / "heating_system.dat")
+    heating = arxid.IOData(heat[:, 2] - heat[:, 2].mean(), heat[:, 1] - heat[:, 1].mean(), 2.0)
+    for data, orders in [(silver, (2, 2, 1)), (heating, (2, 2, 1))]:
+        model = arxid.oe(data, *orders)
+        for start in (model.start_parameters_, np.r_[np.zeros(orders[0]), -0.5, 0.1][: model.n_params]):
+            assert model.loss_ <= _scipy_oe_loss(data, model, start) * (1 + 1e-6)
