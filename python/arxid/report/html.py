@@ -386,7 +386,7 @@ def _ladder_section(a: Analysis) -> Raw:
     rows = [
         [
             i,
-            s.added or "(start)",
+            s.label(),
             s.structure,
             _num(s.rms_sim_val),
             _num(s.fit_val, 3),
@@ -397,6 +397,7 @@ def _ladder_section(a: Analysis) -> Raw:
     return _join(
         [
             _table(["step", "added", "model", "validation RMS error", "fit %", "fall vs. step 0"], rows, left=3),
+            *([_p(a.ladder.unexplained[0].upper() + a.ladder.unexplained[1:] + ".")] if a.ladder.unexplained else []),
             _img(a.ladder.plot(), "error ladder", "Each step adds the best significant suspect and re-diagnoses."),
         ]
     )
