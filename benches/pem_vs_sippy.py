@@ -72,26 +72,33 @@ def fit_sippy(kind: str, d: arxid.IOData) -> np.ndarray | None:
     ]
 
 
+def bench_row(kind: str, n: int) -> str:
+    """One line of the table: arxid, scipy and (if installed) SIPPY on the same data."""
+    d = make(kind, n)
+    model, t_a = timed(lambda: fit_arxid(kind, d))
+    lag = model.first_lag_
+
+    def loss(th: np.ndarray) -> float:
+        return float(np.mean(errors(th, kind, d.y, d.u[:, 0], lag) ** 2))
+
+    th_s, t_s = timed(lambda: fit_scipy(kind, d, lag))
+    th_p, t_p = timed(lambda: fit_sippy(kind, d))
+    sippy = "not installed" if th_p is None else f"{t_p / t_a:.0f}x, loss {loss(th_p):.6g}"
+    return (
+        f"{kind:<8}{n:>8}{t_a:>10.3f}{t_s:>10.3f}{t_s / t_a:>7.0f}x{loss(model.parameters_):>13.6g}"
+        f"{loss(th_s):>13.6g}{sippy:>22}"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 200_000])
     args = ap.parse_args()
-    print(
-        f"{'fit':<8}{'N':>8}{'arxid s':>10}{'scipy s':>10}{'ratio':>8}{'arxid loss':>13}{'scipy loss':>13}{'SIPPY':>22}"
-    )
+    head = f"{'fit':<8}{'N':>8}{'arxid s':>10}{'scipy s':>10}{'ratio':>8}{'arxid loss':>13}{'scipy loss':>13}"
+    print(head + f"{'SIPPY':>22}")
     for kind in ("oe", "armax"):
         for n in args.sizes:
-            d = make(kind, n)
-            model, t_a = timed(lambda: fit_arxid(kind, d))
-            lag = model.first_lag_
-            loss = lambda th: float(np.mean(errors(th, kind, d.y, d.u[:, 0], lag) ** 2))  # noqa: E731
-            th_s, t_s = timed(lambda: fit_scipy(kind, d, lag))
-            th_p, t_p = timed(lambda: fit_sippy(kind, d))
-            sippy = "not installed" if th_p is None else f"{t_p / t_a:.0f}x, loss {loss(th_p):.6g}"
-            print(
-                f"{kind:<8}{n:>8}{t_a:>10.3f}{t_s:>10.3f}{t_s / t_a:>7.0f}x{loss(model.parameters_):>13.6g}"
-                f"{loss(th_s):>13.6g}{sippy:>22}"
-            )
+            print(bench_row(kind, n))
 
 
 if __name__ == "__main__":

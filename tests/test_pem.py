@@ -245,7 +245,7 @@ def _scipy_oe_loss(data: arxid.IOData, model, start) -> float:
     """Loss a plain ``scipy.optimize.least_squares`` OE fit reaches on the samples arxid scores."""
     from scipy.optimize import least_squares
 
-    nb, nf, nk, lag = model.nb_[0], model.nf_[0], model.nk_[0], model.first_lag_
+    nb, nk, lag = model.nb_[0], model.nk_[0], model.first_lag_
 
     def errors(th):
         return (data.y - signal.lfilter(np.r_[np.zeros(nk), th[:nb]], np.r_[1, th[nb:]], data.u[:, 0]))[lag:]
