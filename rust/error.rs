@@ -13,6 +13,8 @@ pub enum ArxError {
     RankDeficient { column: usize, ratio: f64 },
     /// An order or lag is invalid (for example an input index out of range).
     InvalidStructure(String),
+    /// Prediction-error iterations could not proceed (non-finite loss); says why.
+    NotConverged(String),
 }
 
 impl fmt::Display for ArxError {
@@ -31,6 +33,7 @@ impl fmt::Display for ArxError {
                 "regressor column {column} is a linear combination of the columns before it (relative residual {ratio:.3e})"
             ),
             ArxError::InvalidStructure(msg) => write!(f, "invalid model structure: {msg}"),
+            ArxError::NotConverged(msg) => write!(f, "the prediction-error iterations failed: {msg}"),
         }
     }
 }

@@ -17,6 +17,7 @@ pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
 pyo3::import_exception!(arxid.exceptions, OrderError);
 pyo3::import_exception!(arxid.exceptions, IdentifiabilityError);
+pyo3::import_exception!(arxid.exceptions, ConvergenceError);
 
 fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
     let msg = e.to_string();
@@ -28,6 +29,7 @@ fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
         }
         ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } => DataError::new_err(msg),
         ArxError::InvalidStructure(_) => OrderError::new_err(msg),
+        ArxError::NotConverged(_) => ConvergenceError::new_err(msg),
     }
 }
 
@@ -422,10 +424,124 @@ fn divergence_limit(y: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
     Ok(crate::simulate::divergence_limit(y.as_slice()?))
 }
 
+// ---------------------------------------------------------------- prediction-error models (pem.rs)
+
+/// Orders `(na, nb, nc, nd, nf, nk)` of a polynomial model, as passed from Python.
+type PolyOrders = (usize, Vec<usize>, usize, usize, Vec<usize>, Vec<usize>);
+
+fn poly_structure(py: Python<'_>, o: PolyOrders) -> PyResult<crate::pem::PolyStructure> {
+    crate::pem::PolyStructure::new(o.0, o.1, o.2, o.3, o.4, o.5).map_err(|e| to_pyerr(py, e))
+}
+
+/// What `pem_fit` returns.
+#[pyclass(frozen, get_all, module = "arxid._core")]
+pub struct PemOutput {
+    /// Parameters in MATLAB's `getpvec` order (A, B, C, D, F), shape (p,).
+    theta: Py<PyArray1<f64>>,
+    /// The start (ARX / SRIV / Hannan–Rissanen, stabilised), shape (p,).
+    start: Py<PyArray1<f64>>,
+    /// Sum of squared prediction errors on the scored samples.
+    rss: f64,
+    /// Same at the start.
+    start_rss: f64,
+    /// Number of scored samples.
+    n_rows: usize,
+    /// (Jᵀ J)⁻¹ at the estimate, shape (p, p); times the noise variance it is the covariance.
+    inv_gram: Py<PyArray2<f64>>,
+    /// Accepted Gauss–Newton steps.
+    iterations: usize,
+    /// Loss after each accepted step, the start first.
+    losses: Py<PyArray1<f64>>,
+    /// Why the iterations stopped, in words.
+    termination: String,
+    /// True when they stopped at a (local) minimum.
+    converged: bool,
+}
+
+/// Prediction-error fit of a polynomial model on finite `segments` `[start, end)` of the data.
+#[pyfunction]
+#[pyo3(signature = (y, u, segments, orders, start = None, max_iterations = 100, tolerance = 1e-6, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+fn pem_fit<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    orders: PolyOrders,
+    start: Option<PyReadonlyArray1<'py, f64>>,
+    max_iterations: usize,
+    tolerance: f64,
+    n_threads: usize,
+) -> PyResult<PemOutput> {
+    let s = poly_structure(py, orders)?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
+    let start = match &start {
+        Some(a) => Some(a.as_slice()?),
+        None => None,
+    };
+    let opts = crate::pem::PemOptions { max_iterations, tolerance, parallel: n_threads != 1, ..Default::default() };
+    let f = run(py, n_threads, || crate::pem::pem(&d, &s, &opts, start))?;
+    let p = f.theta.len();
+    Ok(PemOutput {
+        theta: f.theta.into_pyarray(py).unbind(),
+        start: f.start.into_pyarray(py).unbind(),
+        rss: f.rss,
+        start_rss: f.start_rss,
+        n_rows: f.n_rows,
+        inv_gram: PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?.unbind(),
+        iterations: f.iterations,
+        losses: f.losses.into_pyarray(py).unbind(),
+        termination: f.termination.to_string(),
+        converged: f.termination.converged(),
+    })
+}
+
+/// Prediction of a polynomial model: `horizon` k steps ahead, None the free run; NaN outside the
+/// scored samples of `segments`.
+#[pyfunction]
+#[pyo3(signature = (y, u, segments, orders, theta, horizon = None))]
+fn pem_predict<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    orders: PolyOrders,
+    theta: PyReadonlyArray1<'py, f64>,
+    horizon: Option<usize>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let s = poly_structure(py, orders)?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
+    let th = theta.as_slice()?;
+    if th.len() != s.n_params() || s.nb.len() != m || horizon == Some(0) {
+        return Err(OrderError::new_err(format!(
+            "theta has {} entries and nb {} inputs; the structure has {} parameters and the data {m} inputs \
+             (horizon must be >= 1 or None)",
+            th.len(),
+            s.nb.len(),
+            s.n_params()
+        )));
+    }
+    let out = run(py, 1, || Ok(crate::pem::predict(&d, &s, th, horizon)))?;
+    Ok(out.into_pyarray(py))
+}
+
+/// Samples at the start of each run of finite data that a polynomial model treats as initial
+/// conditions (not scored).
+#[pyfunction]
+fn pem_max_lag(py: Python<'_>, orders: PolyOrders) -> PyResult<usize> {
+    Ok(poly_structure(py, orders)?.max_lag())
+}
+
+// ---------------------------------------------------------------- end of prediction-error models
+
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
     use super::{divergence_limit, fit, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput};
+    #[pymodule_export]
+    use super::{pem_fit, pem_max_lag, pem_predict, PemOutput};
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

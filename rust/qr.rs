@@ -27,7 +27,7 @@ pub fn qr_r_in_place(a: MatMut<'_, f64>) {
 }
 
 /// Upper-triangular (q × q) copy of the first q rows of `a`'s R, zero-padded when `a` had fewer rows.
-fn take_r(a: &Mat<f64>, q: usize) -> Mat<f64> {
+pub fn take_r(a: &Mat<f64>, q: usize) -> Mat<f64> {
     let rows = a.nrows().min(q);
     Mat::from_fn(q, q, |i, j| if i < rows && i <= j { a[(i, j)] } else { 0.0 })
 }

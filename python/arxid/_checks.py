@@ -2,25 +2,28 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from .data import IOData
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
+from .polynomial import PolynomialModel
 
 __all__ = ["check_model", "check_data", "check_horizon"]
 
 
 def check_model(model: Any) -> ArxModel:
-    """``model`` if it is a fitted :class:`~arxid.ArxModel`, else a typed error saying what to pass."""
-    if not isinstance(model, ArxModel):
+    """``model`` if it is a fitted :class:`~arxid.ArxModel` (or :class:`~arxid.PolynomialModel`, which
+    has the same surface), else a typed error saying what to pass."""
+    if not isinstance(model, (ArxModel, PolynomialModel)):
         raise ArxidError(
             f"expected a fitted arxid.ArxModel, got {type(model).__name__}; fit one with arxid.arx(data, na, nb, nk)"
         )
     model.check_fitted()
-    return model
+    # A PolynomialModel has the ArxModel surface the checked functions use (duck typing).
+    return cast(ArxModel, model)
 
 
 def check_data(data: Any, what: str = "data") -> IOData:

@@ -42,10 +42,12 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
         raise ArxidError(
             f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no transfer function"
         )
-    num_z1 = model.layout_numerators()
-    n = max([model.na_] + [len(x) - 1 for x in num_z1])
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    num_z1, den_z1 = model.common_denominator() if hasattr(model, "common_denominator") else (None, model.a)
+    num_z1 = model.layout_numerators() if num_z1 is None else num_z1
+    n = max([len(den_z1) - 1] + [len(x) - 1 for x in num_z1])
     den = np.zeros(n + 1)
-    den[: model.na_ + 1] = model.a
+    den[: len(den_z1)] = den_z1
     nums = []
     for x in num_z1:
         v = np.zeros(n + 1)
@@ -133,10 +135,14 @@ def to_scipy(model: ArxModel) -> Any:
 def _d2c(model: ArxModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
     """Continuous transfer functions (one per layout column) whose sampling is the discrete model."""
     control = _control()
-    nums = model.layout_numerators()
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    if hasattr(model, "common_denominator"):
+        nums, den = model.common_denominator()
+    else:
+        nums, den = model.layout_numerators(), model.a
     results = []
     for i, label in zip(columns, labels):
-        cont = d2c(model.a, nums[i], model.ts, method)
+        cont = d2c(den, nums[i], model.ts, method)
         tf_c = control.TransferFunction(cont.num, cont.den, inputs=[label], outputs=[model.output_name])
         tf_c.dead_time = cont.dead_time
         tf_c.d2c_method = cont.method

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _core
 from . import _metrics as metrics
+from ._format import format_polynomial as _format_poly
 from .data import IOData
 from .effects import EffectLayout, compile_effects
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
@@ -49,26 +50,6 @@ def _per_input(name: str, value, m: int) -> tuple[int, ...]:
             )
         return vals
     return (_order(name, value),) * m
-
-
-def _format_poly(coefs: Sequence[float], var: str = "z", start: int = 0) -> str:
-    """``1 - 1.959 z^-1 + 0.9567 z^-2`` from coefficients of z^-start, z^-(start+1), ..."""
-    parts = []
-    for i, c in enumerate(coefs):
-        if c == 0 and len(coefs) > 1:
-            continue
-        p = start + i
-        mag = f"{abs(c):.4g}"
-        term = mag if p == 0 else (f"{mag} {var}^-{p}" if mag != "1" else f"{var}^-{p}")
-        sign = "-" if c < 0 else "+"
-        parts.append((sign, term))
-    if not parts:
-        return "0"
-    first_sign, first = parts[0]
-    out = ("-" if first_sign == "-" else "") + first
-    for sign, term in parts[1:]:
-        out += f" {sign} {term}"
-    return out
 
 
 @dataclass(frozen=True)

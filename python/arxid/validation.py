@@ -27,6 +27,7 @@ from ._format import finite_or_none, horizon_label, require_pandas, text_table
 from .data import IOData
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
+from .polynomial import PolynomialModel
 
 __all__ = [
     "compare",
@@ -201,7 +202,7 @@ class Comparison:
 
 
 def _model_list(models) -> tuple[list[str], list[ArxModel]]:
-    if isinstance(models, ArxModel):
+    if isinstance(models, (ArxModel, PolynomialModel)):
         models = [models]
     if isinstance(models, Mapping):
         names, ms = [str(k) for k in models], list(models.values())
