@@ -3,6 +3,7 @@
 
 pub mod error;
 pub mod fit;
+pub mod kstep;
 pub mod qr;
 pub mod simulate;
 pub mod structure;

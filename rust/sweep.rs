@@ -214,7 +214,8 @@ fn simulate_group(
 /// [`divergence_limit`]`(y)` of that data set is stopped and reported as diverged.
 ///
 /// `progress(done)` is called about every `opts.chunk` simulated structures (from a worker thread,
-/// possibly out of order) and once at the end with the total.
+/// possibly out of order) and once at the end with the total; `progress(0)` before each structure
+/// is solved. A caller stops the sweep by unwinding from `progress` (Ctrl-C, see `py.rs`).
 ///
 /// # Errors
 /// `InvalidStructure` for an empty or inconsistent grid, `ShapeMismatch` when the validation data
@@ -259,6 +260,7 @@ pub fn sweep(
 
     // 1. Parameters and one-step losses of every structure, from R alone.
     let fit_one = |s: &Structure| -> StructureResult {
+        progress(0); // a heartbeat: the caller may stop the sweep here (see `progress` above)
         let cols = columns_in(&env, s);
         match solve_subset(&r_est, q, &cols, n_est) {
             Ok((theta, rss_est, _)) => {
