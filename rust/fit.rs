@@ -1,6 +1,6 @@
 //! Least-squares fit of one structure by Householder QR, with rank check and covariance.
 
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{ensure_memory, ArxError, Result};
 use crate::qr::{
@@ -174,7 +174,7 @@ pub fn fit_rows_like(
     if rows.len() < p + 1 {
         return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
     }
-    let r = to_col_major(&reduce_checked(d, s, &rows, parallel, cancel)?);
+    let r = to_col_major(&reduce_checked(d, s, &rows, parallel, &|| !cancel.load(Ordering::Relaxed))?);
     let cols: Vec<usize> = (0..p).collect();
     let (theta, rss, small) = solve_subset(&r, p + 1, &cols, rows.len())?;
     let inv_gram = scaled_inverse_gram(small, p + 1, p);

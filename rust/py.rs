@@ -83,6 +83,12 @@ fn from_panic(py: Python<'_>, panic: Box<dyn std::any::Any + Send>) -> PyErr {
         .cloned()
         .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
         .unwrap_or_else(|| "unknown".into());
+    if what.contains("AllocError") {
+        // faer's matrices panic (not abort) when their allocation fails.
+        return PyMemoryError::new_err(format!(
+            "out of memory in the arxid core ({what}); use fewer samples, lower orders or a smaller grid"
+        ));
+    }
     ArxidError::new_err(format!("internal error in the arxid core (please report it): {what}"))
 }
 

@@ -1,8 +1,6 @@
 //! Householder QR reductions: the tall regressor `[Φ | y]` to its triangular factor R (TSQR in
 //! fixed row blocks, so results do not depend on the thread count), and small re-triangularisations.
 
-use std::sync::atomic::{AtomicBool, Ordering};
-
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, recommended_block_size};
 use faer::{Mat, MatMut, Par};
@@ -48,22 +46,25 @@ pub fn reduce_memory(n_rows: usize, q: usize, threads: usize) -> usize {
 /// Blocks of rows are factored in parallel when `parallel`; the block R's are stacked and factored
 /// again in block order.
 ///
+/// `keep_going()` is asked before each block of [`BLOCK_ROWS`] rows (a caller may also unwind
+/// from it).
+///
 /// # Errors
 /// `OutOfMemory` when the buffers ([`reduce_memory`]) cannot be allocated; `Interrupted` when
-/// `cancel` is set (checked before each block of [`BLOCK_ROWS`] rows).
+/// `keep_going()` says no.
 pub fn reduce_checked(
     d: &Data,
     s: &Structure,
     rows: &[usize],
     parallel: bool,
-    cancel: &AtomicBool,
+    keep_going: &(dyn Fn() -> bool + Sync),
 ) -> Result<Mat<f64>> {
     let p = s.n_params();
     let q = p + 1;
     let threads = if parallel { rayon::current_num_threads() } else { 1 };
     ensure_memory(reduce_memory(rows.len(), q, threads), "the QR reduction of the regressor")?;
     let block_r = |block: &[usize]| -> Option<Mat<f64>> {
-        if cancel.load(Ordering::Relaxed) {
+        if !keep_going() {
             return None;
         }
         let mut a = Mat::<f64>::zeros(block.len(), q);
@@ -94,8 +95,18 @@ pub fn reduce_checked(
 /// [`reduce_checked`] for callers without an error path: its error unwinds, with the [`ArxError`]
 /// as payload, to the boundary that runs the computation (`py.rs` turns it back into the error).
 pub fn reduce(d: &Data, s: &Structure, rows: &[usize], parallel: bool) -> Mat<f64> {
-    reduce_checked(d, s, rows, parallel, &AtomicBool::new(false))
-        .unwrap_or_else(|e| std::panic::resume_unwind(Box::new(e)))
+    reduce_with(d, s, rows, parallel, &|| true)
+}
+
+/// [`reduce`] asking `keep_going()` before each block (a sweep passes its progress heartbeat).
+pub fn reduce_with(
+    d: &Data,
+    s: &Structure,
+    rows: &[usize],
+    parallel: bool,
+    keep_going: &(dyn Fn() -> bool + Sync),
+) -> Mat<f64> {
+    reduce_checked(d, s, rows, parallel, keep_going).unwrap_or_else(|e| std::panic::resume_unwind(Box::new(e)))
 }
 
 /// Writes `[Φ | y]` of a linear structure for the rows `block` into `a`, one contiguous column at a

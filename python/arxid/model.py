@@ -11,9 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import _core
+from . import _core, modelfile
 from . import _metrics as metrics
-from . import modelfile
 from ._limits import check_memory, check_order, check_work
 from .data import IOData
 from .effects import EffectLayout, compile_effects, effect_names
@@ -24,7 +23,6 @@ if TYPE_CHECKING:
     from .orders import Selection
 
 __all__ = ["ArxModel", "FittedLayout", "arx"]
-
 
 
 def _per_input(name: str, value, m: int) -> tuple[int, ...]:
@@ -329,7 +327,10 @@ class ArxModel:
         self.n_skipped_ = int(res.n_skipped)
         self.first_lag_ = first_lag
         self.rss_ = float(res.rss)
-        self.covariance_ = self.noise_variance_ * self.covariance_
+        # rss · (ΦᵀΦ)⁻¹ / (N − p): the same as noise_variance_ · (ΦᵀΦ)⁻¹, in an order that stays in
+        # range for outputs near the limits of floating point (beyond them an entry is inf or NaN).
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.covariance_ = (self.covariance_ * self.rss_) / max(self.n_rows_ - self.n_params, 1)
         self.data_ = data
         self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
 
