@@ -100,9 +100,7 @@ fn predict_segment(
     while first_out < b {
         let base = run_start.saturating_sub(na).max(a);
         let end = (run_start + 2 * k - 1).min(b);
-        for tau in base..run_start {
-            sim[tau - base] = d.y[tau];
-        }
+        sim[..run_start - base].copy_from_slice(&d.y[base..run_start]);
         for tau in run_start..end {
             let v = step(d, s, theta, tau, |i| if tau - i >= base { sim[tau - i - base] } else { d.y[tau - i] });
             sim[tau - base] = v;

@@ -352,7 +352,9 @@ def test_model_file_refuses_what_is_not_a_regular_file(tmp_path):
         lambda d, m: arxid.sweep(d, 1, 1, range(2), progress=False).plot(5),
         lambda d, m: d.time_slice(math.nan, 1.0),
         lambda d, m: arxid.sweep(d, 2, 2, 1, validation=arxid.IOData(d.y, d.u, 0.02), progress=False),
-        lambda d, m: arxid.sweep(d, 2, 2, 1, validation=arxid.IOData(d.y, d.u, d.ts, input_names=["x"]), progress=False),
+        lambda d, m: arxid.sweep(
+            d, 2, 2, 1, validation=arxid.IOData(d.y, d.u, d.ts, input_names=["x"]), progress=False
+        ),
         lambda d, m: arxid.compare(m, arxid.IOData(d.y, d.u, 0.02)),
         lambda d, m: arxid.compare(m, arxid.IOData(d.y, d.u, d.ts, output_name="z")),
     ],

@@ -14,6 +14,7 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 __all__ = [
     "divergence_limit",
     "fit",
+    "fit_memory",
     "grid_envelope",
     "max_lag",
     "predict",

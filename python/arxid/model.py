@@ -502,7 +502,7 @@ class ArxModel:
         """``input`` as an index of the model's inputs, else a DataError listing them."""
         self.check_fitted()
         m = len(self.input_names_)
-        if isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= input < m:
+        if isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= int(input) < m:
             raise DataError(
                 f"input {input!r} does not exist: the model has {m} input(s) {list(self.input_names_)}, "
                 f"numbered 0 to {m - 1}"

@@ -862,7 +862,7 @@ def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | N
 def _check_memory(
     est: IOData,
     val: IOData | None,
-    nas: tuple[int, ...],
+    nas: Sequence[int],
     nbs: list,
     nks: list,
     effects: tuple[str, ...],
@@ -899,7 +899,7 @@ class _Grid:
     n_columns: int
 
     @classmethod
-    def build(cls, est: IOData, nas: tuple[int, ...], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
+    def build(cls, est: IOData, nas: Sequence[int], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
         head = est[: min(est.n_samples, 8)]
         layouts: dict = {}
         n_terms = len(compile_effects(effects, head, [max(r) for r in nbs], [max(r) for r in nks]).output_terms)
