@@ -799,7 +799,9 @@ def sweep(
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
     horizon = None if horizon is None else check_order("horizon", horizon)
-    n_threads = check_order("n_threads (0 = all cores)", n_threads)
+    if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
+        raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
+    n_threads = check_order("n_threads", n_threads)
     m = est.n_inputs
     nas, nbs, nks = _order_range("na", na), _per_input_ranges("nb", nb, m), _per_input_ranges("nk", nk, m)
     effects = tuple(effects)
