@@ -6,7 +6,15 @@ so that ``except ValueError`` keeps working. Messages say what is wrong and how 
 
 from __future__ import annotations
 
-__all__ = ["ArxidError", "DataError", "OrderError", "IdentifiabilityError", "NotFittedError", "ArxidWarning"]
+__all__ = [
+    "ArxidError",
+    "DataError",
+    "OrderError",
+    "IdentifiabilityError",
+    "NotFittedError",
+    "ConversionError",
+    "ArxidWarning",
+]
 
 
 class ArxidError(ValueError):
@@ -39,6 +47,11 @@ class IdentifiabilityError(ArxidError):
 
 class NotFittedError(ArxidError, AttributeError):
     """A fitted attribute was used before the model was fitted."""
+
+
+class ConversionError(ArxidError):
+    """A model has no exact conversion of the requested kind (continuous time with a zero-order hold,
+    pole-zero matching); the message says why and which method to use instead."""
 
 
 class ArxidWarning(UserWarning):

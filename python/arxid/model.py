@@ -710,15 +710,17 @@ class ArxModel:
         """
         return list(self.input_names_) + list(self.layout_.column_labels[len(self.input_names_) :])
 
-    def to_control(self, continuous: bool = False, input: int | None = None) -> Any:
+    def to_control(self, continuous: bool = False, input: int | None = None, method: str = "zoh") -> Any:
         """python-control transfer function(s); see :func:`arxid.convert.to_control`.
 
         Parameters
         ----------
         continuous : bool
-            Invert the zero-order-hold sampling (matrix logarithm); the dead time is in ``.dead_time``.
+            Convert to continuous time (d2c); the dead time is in ``.dead_time``.
         input : int, optional
             Only this input's transfer function.
+        method : {"zoh", "tustin", "matched"}
+            d2c method with ``continuous`` (exact ZOH inverse by default).
 
         Returns
         -------
@@ -726,7 +728,7 @@ class ArxModel:
         """
         from .convert import to_control
 
-        return to_control(self, continuous=continuous, input=input)
+        return to_control(self, continuous=continuous, input=input, method=method)
 
     def to_scipy(self) -> Any:
         """``scipy.signal.dlti``; see :func:`arxid.convert.to_scipy`.
@@ -910,6 +912,7 @@ class ArxModel:
         g = {
             "pow": f"{y}(t-1)^{power}" if power != 1 else f"{y}(t-1)",
             "abs": f"|{y}(t-1)|",
+            "sign": f"sign({y}(t-1))",
             "signdiff": f"sign(d{y}(t-1))",
         }[kind]
         return g + (" · carrier(t-1)" if mult >= 0 else "")

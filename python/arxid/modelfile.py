@@ -277,5 +277,5 @@ def _layout_of(d: dict, nb: list[int], nk: list[int]) -> dict:
 def _identifiers(effect: str) -> list[str]:
     """Signal names an effect string may use (``sign(dy)`` may name ``y`` or a signal ``dy``)."""
     words = re.findall(r"[A-Za-z_]\w*", effect)
-    out = [w for w in words if w not in ("abs", "sign", "const", "time")]
+    out = [w for w in words if w not in ("abs", "sign", "dz", "sat", "pos", "neg", "const", "time")]
     return out + [w[1:] for w in out if w.startswith("d") and len(w) > 1]
