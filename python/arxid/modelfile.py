@@ -20,7 +20,7 @@ n_rows            int > p (regression rows of the fit); ``n_skipped``: int >= 0
 first_lag         int >= 0; ``rss``: finite number >= 0; ``fit_percent``: number
 layout            the effect layout: ``nb``, ``nk`` (one int per column; the inputs first, equal
                   to ``nb``, ``nk``), ``output_terms`` (``[kind, power, carrier]`` with kind
-                  ``pow``, ``abs`` or ``signdiff``), and optional ``column_labels``,
+                  ``pow``, ``abs``, ``sign`` or ``signdiff``), and optional ``column_labels``,
                   ``effect_of_column``, ``effect_of_term``; it must be what the effects build
 ================  ==========================================================================
 
@@ -52,7 +52,7 @@ FORMAT = "arxid.ArxModel"
 VERSION = 1
 #: Largest model file read (a model with 1000 parameters takes about 40 MB with its covariance).
 MAX_FILE_BYTES = 256 * 2**20
-_TERM_KINDS = ("pow", "abs", "signdiff")
+_TERM_KINDS = ("pow", "abs", "sign", "signdiff")
 _OPTIONAL = {"output_unit", "input_units"}
 _FIELDS = {
     "format", "version", "na", "nb", "nk", "effects", "ts", "output_name", "input_names", "output_unit",
