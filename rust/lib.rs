@@ -3,7 +3,9 @@
 
 pub mod error;
 pub mod fit;
+pub mod kstep;
 pub mod one_step;
+pub mod pem;
 pub mod qr;
 pub mod simulate;
 pub mod structure;

@@ -243,17 +243,25 @@ fn field(s: &Structure, f: usize) -> usize {
 /// `env` (every structure's columns lie inside it), in grid order.
 ///
 /// Results do not depend on the number of threads: each structure's numbers are computed by the
-/// same operations whichever structure computed the shared rows first.
+/// same operations whichever structure computed the shared rows first. `heartbeat()` is called
+/// before each task of structures (a caller stops the ranking by unwinding from it).
 ///
 /// # Errors
 /// `InvalidStructure` when a structure reads columns outside `env` or `q` does not match it.
-pub fn one_step_all(f: &Factors, env: &Structure, structures: &[Structure], parallel: bool) -> Result<Vec<OneStep>> {
+pub fn one_step_all(
+    f: &Factors,
+    env: &Structure,
+    structures: &[Structure],
+    parallel: bool,
+    heartbeat: &(dyn Fn() + Sync),
+) -> Result<Vec<OneStep>> {
     if f.q != env.n_params() + 1 || f.r_est.len() != f.q * f.q || f.r_val.is_some_and(|r| r.len() != f.q * f.q) {
         return Err(ArxError::InvalidStructure("the factors do not match the grid's envelope".into()));
     }
     let kmax = structures.iter().map(Structure::n_params).max().unwrap_or(0);
     let order = column_order(structures);
     let run = |chunk: &[usize]| -> Vec<(usize, OneStep)> {
+        heartbeat();
         let mut w = Scratch {
             chol: SharedCholesky::new(kmax),
             res: vec![0.0; f.q],
@@ -327,8 +335,8 @@ mod tests {
         let q = env.n_params() + 1;
         let r = to_col_major(&reduce(&d, &env, &rows, false));
         let f = Factors::new(&r, Some(&r), q, rows.len());
-        let got = one_step_all(&f, &env, &grid, true).unwrap();
-        let serial = one_step_all(&f, &env, &grid, false).unwrap();
+        let got = one_step_all(&f, &env, &grid, true, &|| {}).unwrap();
+        let serial = one_step_all(&f, &env, &grid, false, &|| {}).unwrap();
         for ((s, a), b) in grid.iter().zip(&got).zip(&serial) {
             let cols = columns_in(&env, s);
             let (theta, rss, _) = solve_subset(&r, q, &cols, rows.len()).unwrap();
@@ -348,7 +356,7 @@ mod tests {
         let r2 = to_col_major(&reduce(&d2, &env, &rows, false));
         let f2 = Factors::new(&r2, None, q, rows.len());
         let dup = Structure::new(1, vec![1, 1], vec![1, 1], vec![]).unwrap();
-        let out = one_step_all(&f2, &env, std::slice::from_ref(&dup), false).unwrap();
+        let out = one_step_all(&f2, &env, std::slice::from_ref(&dup), false, &|| {}).unwrap();
         assert!(matches!(out[0].error, Some(ArxError::RankDeficient { .. })), "{:?}", out[0].error);
         assert!(out[0].rss_est.is_nan() && out[0].rss_val.is_nan());
     }

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
 use crate::one_step::{one_step_all, Factors, OneStep};
-use crate::qr::{reduce, to_col_major, BLOCK_ROWS};
+use crate::qr::{reduce, reduce_with, to_col_major, BLOCK_ROWS};
 use crate::simulate::{
     divergence_limit, free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES,
 };
@@ -229,7 +229,17 @@ struct GridFactors {
 }
 
 /// Checks the grid and reduces the envelope's regressor on both data sets to R.
-fn factor_grid(est: &Data, val: Option<&Data>, structures: &[Structure], parallel: bool) -> Result<GridFactors> {
+fn factor_grid(
+    est: &Data,
+    val: Option<&Data>,
+    structures: &[Structure],
+    parallel: bool,
+    heartbeat: &(dyn Fn() + Sync),
+) -> Result<GridFactors> {
+    let keep_going = || {
+        heartbeat();
+        true
+    };
     let env = envelope(structures)?;
     env.check(est.m)?;
     for s in structures {
@@ -246,7 +256,7 @@ fn factor_grid(est: &Data, val: Option<&Data>, structures: &[Structure], paralle
         return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
     }
     let n_est = rows.len();
-    let r_est = to_col_major(&reduce(est, &env, &rows, parallel));
+    let r_est = to_col_major(&reduce_with(est, &env, &rows, parallel, &keep_going));
     drop(rows);
     let (r_val, n_val) = match val {
         Some(v) => {
@@ -255,7 +265,7 @@ fn factor_grid(est: &Data, val: Option<&Data>, structures: &[Structure], paralle
             }
             let vrows = rows_of(v, &env, first_lag);
             let n = vrows.len();
-            (Some(to_col_major(&reduce(v, &env, &vrows, parallel))), n)
+            (Some(to_col_major(&reduce_with(v, &env, &vrows, parallel, &keep_going))), n)
         }
         None => (None, 0),
     };
@@ -292,9 +302,10 @@ fn two_stage_fits(
     structures: &[Structure],
     top: usize,
     parallel: bool,
+    heartbeat: &(dyn Fn() + Sync),
 ) -> Result<(Vec<StructureResult>, Vec<usize>)> {
     let factors = Factors::new(&f.r_est, f.r_val.as_deref(), f.q, f.n_est);
-    let stage1 = one_step_all(&factors, &f.env, structures, parallel)?;
+    let stage1 = one_step_all(&factors, &f.env, structures, parallel, heartbeat)?;
     let key = |r: &OneStep| {
         let v = if f.r_val.is_some() { r.rss_val } else { r.rss_est };
         if v.is_finite() {
@@ -319,11 +330,12 @@ fn two_stage_fits(
             stage: 1,
         })
         .collect();
-    let exact: Vec<StructureResult> = if parallel {
-        ranked.par_iter().map(|&i| fit_exact(f, &structures[i])).collect()
-    } else {
-        ranked.iter().map(|&i| fit_exact(f, &structures[i])).collect()
+    let fit_one = |&i: &usize| {
+        heartbeat();
+        fit_exact(f, &structures[i])
     };
+    let exact: Vec<StructureResult> =
+        if parallel { ranked.par_iter().map(fit_one).collect() } else { ranked.iter().map(fit_one).collect() };
     for (&i, r) in ranked.iter().zip(exact) {
         out[i] = r;
     }
@@ -346,7 +358,9 @@ fn two_stage_fits(
 /// [`divergence_limit`]`(y)` of that data set is stopped and reported as diverged.
 ///
 /// `progress(done)` is called about every `opts.chunk` simulated structures (from a worker thread,
-/// possibly out of order) and once at the end with the total.
+/// possibly out of order) and once at the end with the total; `progress(0)` before each structure
+/// is solved and before each block of rows is reduced. A caller stops the sweep by unwinding from
+/// `progress` (Ctrl-C, see `py.rs`).
 ///
 /// # Errors
 /// `InvalidStructure` for an empty or inconsistent grid, `ShapeMismatch` when the validation data
@@ -358,17 +372,23 @@ pub fn sweep(
     opts: &SweepOptions,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<(Vec<StructureResult>, usize, usize)> {
-    let f = factor_grid(est, val, structures, opts.parallel)?;
+    let heartbeat = || progress(0);
+    let f = factor_grid(est, val, structures, opts.parallel, &heartbeat)?;
     let (n_est, n_val) = (f.n_est, f.n_val);
 
-    // 1. Parameters and one-step losses of every structure, from R alone.
+    // 1. Parameters and one-step losses of every structure, from R alone. `progress(0)` before each
+    //    structure is a heartbeat: the caller may stop the sweep there (see `progress` above).
     let (mut out, simulated) = match opts.top {
-        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, opts.parallel)?,
+        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, opts.parallel, &heartbeat)?,
         _ => {
+            let fit_one = |s: &Structure| {
+                progress(0);
+                fit_exact(&f, s)
+            };
             let all: Vec<StructureResult> = if opts.parallel {
-                structures.par_iter().map(|s| fit_exact(&f, s)).collect()
+                structures.par_iter().map(fit_one).collect()
             } else {
-                structures.iter().map(|s| fit_exact(&f, s)).collect()
+                structures.iter().map(fit_one).collect()
             };
             (all, (0..structures.len()).collect())
         }
@@ -432,7 +452,7 @@ pub fn fits_from_factors(
     }
     let f = GridFactors { first_lag: env.max_lag(), env, q, r_est, n_est, r_val, n_val };
     match top {
-        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, parallel),
+        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, parallel, &|| {}),
         _ => {
             let all: Vec<StructureResult> = if parallel {
                 structures.par_iter().map(|s| fit_exact(&f, s)).collect()

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .continuous import d2c
-from .exceptions import ArxidError
+from .exceptions import ArxidError, DataError
 
 if TYPE_CHECKING:
     from .model import ArxModel
@@ -42,10 +43,12 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
         raise ArxidError(
             f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no transfer function"
         )
-    num_z1 = model.layout_numerators()
-    n = max([model.na_] + [len(x) - 1 for x in num_z1])
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    num_z1, den_z1 = model.common_denominator() if hasattr(model, "common_denominator") else (None, model.a)
+    num_z1 = model.layout_numerators() if num_z1 is None else num_z1
+    n = max([len(den_z1) - 1] + [len(x) - 1 for x in num_z1])
     den = np.zeros(n + 1)
-    den[: model.na_ + 1] = model.a
+    den[: len(den_z1)] = den_z1
     nums = []
     for x in num_z1:
         v = np.zeros(n + 1)
@@ -90,6 +93,13 @@ def to_control(model: ArxModel, continuous: bool = False, input: int | None = No
     control = _control()
     nums, den = tf_coefficients(model)
     labels = model.input_labels()
+    if input is not None and (
+        isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= input < len(nums)
+    ):
+        raise DataError(
+            f"input {input!r} does not exist: the model has {len(nums)} input column(s) {labels}, "
+            f"numbered 0 to {len(nums) - 1}"
+        )
     idx = range(len(nums)) if input is None else [input]
     if continuous:
         return _d2c(model, list(idx), [labels[i] for i in idx], method)
@@ -133,10 +143,14 @@ def to_scipy(model: ArxModel) -> Any:
 def _d2c(model: ArxModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
     """Continuous transfer functions (one per layout column) whose sampling is the discrete model."""
     control = _control()
-    nums = model.layout_numerators()
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    if hasattr(model, "common_denominator"):
+        nums, den = model.common_denominator()
+    else:
+        nums, den = model.layout_numerators(), model.a
     results = []
     for i, label in zip(columns, labels):
-        cont = d2c(model.a, nums[i], model.ts, method)
+        cont = d2c(den, nums[i], model.ts, method)
         tf_c = control.TransferFunction(cont.num, cont.den, inputs=[label], outputs=[model.output_name])
         tf_c.dead_time = cont.dead_time
         tf_c.d2c_method = cont.method

@@ -13,6 +13,7 @@ __all__ = [
     "IdentifiabilityError",
     "NotFittedError",
     "ConversionError",
+    "ConvergenceError",
     "ArxidWarning",
 ]
 
@@ -43,6 +44,10 @@ class IdentifiabilityError(ArxidError):
     def __init__(self, message: str, regressors: tuple[str, ...] = ()):
         super().__init__(message)
         self.regressors = tuple(regressors)
+
+
+class ConvergenceError(ArxidError):
+    """Prediction-error iterations (``oe``, ``armax``, ``bj``) could not proceed; the message says why."""
 
 
 class NotFittedError(ArxidError, AttributeError):

@@ -42,6 +42,7 @@ __all__ = [
     "pole_excess",
     "slowest_time_constant",
     "integrator_test",
+    "structure_integrates",
 ]
 
 #: One-sided 1% critical value of the Dickey–Fuller t statistic without a constant (large samples).
@@ -236,3 +237,28 @@ def integrator_test(
     return IntegratorTest(
         integrating, reason, tuple(names), tuple(float(x) for x in t), tuple(float(x) for x in tau), record
     )
+
+
+def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, record: int) -> bool:
+    """One structure's vote: its unit root is not rejected, or its slowest low-frequency pole is
+    too slow for the record (the rule of :func:`integrator_test`, applied to a single model).
+
+    Parameters
+    ----------
+    theta : ndarray of shape (p,)
+        Parameters, the ``na`` a's first.
+    covariance : ndarray of shape (p, p)
+        Their covariance.
+    na : int
+        Number of a's.
+    record : int
+        Estimation rows.
+
+    Returns
+    -------
+    bool
+    """
+    if na == 0:
+        return False
+    t = unit_root_t(theta, covariance, na)
+    return bool(not t > UNIT_ROOT_CRITICAL or slowest_time_constant(theta, na) > RECORD_SHARE * record)
