@@ -178,6 +178,7 @@ def pem_predict(
     y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F, horizon: int | None = None
 ) -> _F: ...
 def pem_max_lag(orders: _PolyOrders) -> int: ...
+
 # Sweeps at scale (arxid.fleet, benches).
 def grid_factor(
     y: _F, u: _F, starts: Sequence[int], structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]
