@@ -3,6 +3,7 @@
 
 pub mod error;
 pub mod fit;
+pub mod kstep;
 pub mod pem;
 pub mod qr;
 pub mod simulate;

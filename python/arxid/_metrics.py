@@ -111,9 +111,13 @@ def fit_percent(y: _ArrayLike, pred: _ArrayLike) -> float:
     ok = np.isfinite(y) & np.isfinite(pred)
     if not ok.any():
         return math.nan
+    # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
+    # or 1e-200 neither overflow nor underflow the sums of squares.
+    big = float(np.max(np.abs(y[ok])))
+    scale = 1.0 / big if big > 0 and math.isfinite(1.0 / big) else 1.0
     with np.errstate(over="ignore", invalid="ignore"):
-        e = float(np.linalg.norm(y[ok] - pred[ok]))
-    d = float(np.linalg.norm(y[ok] - y[ok].mean()))
+        e = float(np.linalg.norm((y[ok] - pred[ok]) * scale))
+        d = float(np.linalg.norm((y[ok] - y[ok].mean()) * scale))
     return float(fit_percent_from_norms(e, d))
 
 

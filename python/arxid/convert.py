@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .continuous import d2c
-from .exceptions import ArxidError
+from .exceptions import ArxidError, DataError
 
 if TYPE_CHECKING:
     from .model import ArxModel
@@ -92,6 +93,13 @@ def to_control(model: ArxModel, continuous: bool = False, input: int | None = No
     control = _control()
     nums, den = tf_coefficients(model)
     labels = model.input_labels()
+    if input is not None and (
+        isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= input < len(nums)
+    ):
+        raise DataError(
+            f"input {input!r} does not exist: the model has {len(nums)} input column(s) {labels}, "
+            f"numbered 0 to {len(nums) - 1}"
+        )
     idx = range(len(nums)) if input is None else [input]
     if continuous:
         return _d2c(model, list(idx), [labels[i] for i in idx], method)

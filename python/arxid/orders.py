@@ -18,6 +18,9 @@ import numpy as np
 
 from . import _core
 from . import _metrics as metrics
+from ._checks import check_same_signals
+from ._format import json_safe
+from ._limits import available_memory, check_order
 from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
@@ -56,7 +59,15 @@ DEFAULT_GRID: dict[str, range] = {"na": range(1, 5), "nb": range(1, 4), "nk": ra
 
 
 # ---------------------------------------------------------------------------------------------- grid
-def _order_range(name: str, value) -> tuple[int, ...]:
+def _order_range(name: str, value) -> Sequence[int]:
+    if isinstance(value, range):
+        # Kept lazy: its size is checked against the memory before any structure is built.
+        if len(value) == 0:
+            raise OrderError(f"{name} is an empty range: give at least one order")
+        ascending = value if value.step > 0 else value[::-1]
+        check_order(name, ascending[0])
+        check_order(name, ascending[-1])
+        return ascending
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
         vals = (int(value),)
     else:
@@ -70,11 +81,21 @@ def _order_range(name: str, value) -> tuple[int, ...]:
     for v in vals:
         if isinstance(v, bool) or not isinstance(v, numbers.Integral) or int(v) < 0:
             raise OrderError(f"{name} must hold non-negative integers, got {v!r}")
-        out.append(int(v))
+        out.append(check_order(name, v))
     return tuple(dict.fromkeys(out))
 
 
-def _per_input_ranges(name: str, value, m: int) -> list[tuple[int, ...]]:
+def _lowest(r: Sequence[int]) -> int:
+    """Smallest order of a range from :func:`_order_range` (O(1) for a ``range``)."""
+    return r[0] if isinstance(r, range) else min(r)
+
+
+def _highest(r: Sequence[int]) -> int:
+    """Largest order of a range from :func:`_order_range` (O(1) for a ``range``)."""
+    return r[-1] if isinstance(r, range) else max(r)
+
+
+def _per_input_ranges(name: str, value, m: int) -> list[Sequence[int]]:
     """One shared range for every input, or a list of ranges (one per input)."""
     if isinstance(value, (list, tuple)) and value and all(not isinstance(v, numbers.Integral) for v in value):
         if len(value) != m:
@@ -85,17 +106,6 @@ def _per_input_ranges(name: str, value, m: int) -> list[tuple[int, ...]]:
         return [_order_range(f"{name}[{i}]", v) for i, v in enumerate(value)]
     r = _order_range(name, value)
     return [r] * m
-
-
-def _available_memory() -> int:
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 4 * 2**30
 
 
 def _gib(b: float) -> str:
@@ -741,7 +751,7 @@ class SweepResult:
         str
             The JSON text.
         """
-        text = json.dumps(self.to_dict(sanity), indent=indent, allow_nan=False)
+        text = json.dumps(json_safe(self.to_dict(sanity)), indent=indent, allow_nan=False)
         if path is not None:
             with open(path, "w") as fh:
                 fh.write(text)
@@ -840,6 +850,9 @@ class SweepResult:
         """
         from .plots.sweep import plot_sweep
 
+        m = self.nb.shape[1]
+        if isinstance(nb_input, bool) or not isinstance(nb_input, numbers.Integral) or not 0 <= nb_input < m:
+            raise DataError(f"nb_input {nb_input!r} does not exist: the sweep has {m} input(s), numbered 0 to {m - 1}")
         return plot_sweep(self, nb_input=nb_input, chosen=chosen)
 
 
@@ -1055,8 +1068,10 @@ def sweep(
     est, val = _validation_split(data, validation)
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
+    horizon = None if horizon is None else check_order("horizon", horizon)
     if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
         raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
+    n_threads = check_order("n_threads", n_threads)
     m = est.n_inputs
     nas, nbs, nks = _order_range("na", na), _per_input_ranges("nb", nb, m), _per_input_ranges("nk", nk, m)
     effects = tuple(effects)
@@ -1112,6 +1127,7 @@ def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | N
     if isinstance(validation, IOData):
         if validation.n_inputs != data.n_inputs:
             raise DataError(f"validation data have {validation.n_inputs} inputs, the estimation data {data.n_inputs}")
+        check_same_signals(data.ts, data.output_name, data.input_names, validation, "the validation data")
         return data, validation
     if validation is None:
         return data, None
@@ -1126,7 +1142,7 @@ def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | N
 def _check_memory(
     est: IOData,
     val: IOData | None,
-    nas: tuple[int, ...],
+    nas: Sequence[int],
     nbs: list,
     nks: list,
     effects: tuple[str, ...],
@@ -1135,15 +1151,16 @@ def _check_memory(
 ) -> None:
     """Size and memory before building anything (the core's own estimate)."""
     n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
-    probe = compile_effects(effects, est[: min(est.n_samples, 8)], [max(r) for r in nbs], [max(r) for r in nks])
+    top_nb, top_nk = [_highest(r) for r in nbs], [_highest(r) for r in nks]
+    probe = compile_effects(effects, est[: min(est.n_samples, 8)], top_nb, top_nk)
     n_cols, n_terms = len(probe.nb), len(probe.output_terms)
-    span = max(max(k) + max(b) - 1 - min(k) + 1 for b, k in zip(nbs, nks))
-    p_max = max(nas) + n_cols * max(max(b) for b in nbs) + n_terms
-    q = max(nas) + n_cols * span + n_terms + 1
+    span = max(k + b - _lowest(ks) for b, k, ks in zip(top_nb, top_nk, nks))
+    p_max = _highest(nas) + n_cols * max(top_nb) + n_terms
+    q = _highest(nas) + n_cols * span + n_terms + 1
     need = _core.sweep_memory(
         n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols, n_threads
     )
-    limit = int(max_memory) if max_memory is not None else _available_memory() // 2
+    limit = int(max_memory) if max_memory is not None else available_memory() // 2
     if need > limit:
         raise DataError(
             f"the grid is too large: {n_structures:,} structures with up to {p_max} parameters and a largest regressor of "  # noqa: E501
@@ -1162,7 +1179,7 @@ class _Grid:
     n_columns: int
 
     @classmethod
-    def build(cls, est: IOData, nas: tuple[int, ...], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
+    def build(cls, est: IOData, nas: Sequence[int], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
         head = est[: min(est.n_samples, 8)]
         layouts: dict = {}
         n_terms = len(compile_effects(effects, head, [max(r) for r in nbs], [max(r) for r in nks]).output_terms)
