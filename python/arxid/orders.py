@@ -12,7 +12,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from .sanity import (
     step_sanity,
     typical_amplitudes,
 )
+
+if TYPE_CHECKING:
+    from .pem import RefinedSweep
 
 __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
@@ -915,6 +918,52 @@ def _integrator_verdict(result: SweepResult) -> IntegratorTest:
     return integrator_test(names, t_values, taus, result.n_est)
 
 
+@overload
+def sweep(
+    data: IOData,
+    na=...,
+    nb=...,
+    nk=...,
+    *,
+    validation=...,
+    sort_by: str = ...,
+    n_threads: int = ...,
+    progress: bool = ...,
+    effects: Sequence[str] = ...,
+    expect: str | None = ...,
+    horizon: int | None = ...,
+    max_memory: int | None = ...,
+    limits: SanityLimits | None = ...,
+    simulate_estimation: bool = ...,
+    auto_extend: bool = ...,
+    refine: None = None,
+    top: int = ...,
+) -> SweepResult: ...
+
+
+@overload
+def sweep(
+    data: IOData,
+    na=...,
+    nb=...,
+    nk=...,
+    *,
+    validation=...,
+    sort_by: str = ...,
+    n_threads: int = ...,
+    progress: bool = ...,
+    effects: Sequence[str] = ...,
+    expect: str | None = ...,
+    horizon: int | None = ...,
+    max_memory: int | None = ...,
+    limits: SanityLimits | None = ...,
+    simulate_estimation: bool = ...,
+    auto_extend: bool = ...,
+    refine: Literal["oe"],
+    top: int = ...,
+) -> RefinedSweep: ...
+
+
 def sweep(
     data: IOData,
     na=DEFAULT_GRID["na"],
@@ -932,7 +981,9 @@ def sweep(
     limits: SanityLimits | None = None,
     simulate_estimation: bool = True,
     auto_extend: bool = False,
-) -> SweepResult:
+    refine: Literal["oe"] | None = None,
+    top: int = 5,
+) -> SweepResult | RefinedSweep:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
     Parameters
@@ -970,10 +1021,16 @@ def sweep(
     auto_extend : bool
         When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
         again (:meth:`SweepResult.extend`, at most 3 rounds, orders up to 30).
+    refine : {None, "oe"}
+        ``"oe"`` refits the ``top`` best ARX structures (and a small grid of nb, nf, nk) as
+        output-error models and ranks all of them by validation free-run error
+        (:func:`arxid.refine`); the table says which model class each row is.
+    top : int
+        Number of best ARX structures refined when ``refine`` is given.
 
     Returns
     -------
-    SweepResult
+    SweepResult, or RefinedSweep when ``refine`` is given
 
     Notes
     -----
@@ -1006,6 +1063,8 @@ def sweep(
         raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
     if expect not in EXPECTATIONS:
         raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
+    if refine not in (None, "oe"):
+        raise ArxidError(f"refine must be None or 'oe' (output-error refinement), got {refine!r}")
     est, val = _validation_split(data, validation)
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
@@ -1053,7 +1112,15 @@ def sweep(
             result = dataclasses.replace(
                 result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
             )
-    return result.extend() if auto_extend else result
+    result = result.extend() if auto_extend else result
+    return result if refine is None else _refined(result, refine, top)
+
+
+def _refined(result: SweepResult, structure: str, top: int) -> RefinedSweep:
+    """The sweep's best ARX structures refitted as ``structure`` models (output error) and ranked."""
+    from .pem import refine
+
+    return refine(result, structure, top=top)
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
