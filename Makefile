@@ -49,6 +49,12 @@ bench: develop
 	$(PY) benches/sweep_miso.py
 	$(PY) benches/fleet.py
 
+# OE and ARMAX against scipy least_squares, and SIPPY when it is installed (it is not a dependency:
+# the row says "not installed" otherwise).
+.PHONY: bench-pem
+bench-pem: develop
+	$(PY) benches/pem_vs_sippy.py
+
 # Python: lint, format, and the stub of the compiled core against the built module (hence
 # `develop`). Rust: format and clippy (--release: it shares target/release with `make test`'s
 # builds, but only their build scripts; its metadata-only check artifacts are its own, about a

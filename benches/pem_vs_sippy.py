@@ -3,9 +3,10 @@
 Same data, same structure, one run; prints time ratios and final losses (mean squared one-step
 prediction error on the samples arxid scores). SIPPY is not a dependency: install it in the
 benchmark's own environment (``pip install sippy_unipi casadi``); without it only the scipy
-reference runs and the table says so.
+reference runs and the table says so. A SIPPY fit runs in a child process and is stopped after
+``--sippy-cap`` seconds (its CasADi problem grows with N).
 
-    .venv/bin/python benches/pem_vs_sippy.py [--sizes 10000 200000]
+    .venv/bin/python benches/pem_vs_sippy.py [--sizes 10000 200000] [--sippy-cap 600]
 """
 
 from __future__ import annotations
@@ -63,16 +64,35 @@ def fit_sippy(kind: str, d: arxid.IOData) -> np.ndarray | None:
     except ImportError:
         return None
     y, u = d.y.reshape(1, -1), d.u[:, 0].reshape(1, -1)
+    # SIPPY's delay theta counts the samples before b1 multiplies u(t - theta - 1): MATLAB's nk - 1.
+    theta = 2
     if kind == "oe":
-        m = system_identification(y, u, "OE", OE_orders=[2, 2, 3])
-        return np.r_[np.asarray(m.NUMERATOR[0][0])[3:5], np.asarray(m.DENOMINATOR[0][0])[1:3]]
-    m = system_identification(y, u, "ARMAX", ARMAX_orders=[2, 2, 2, 3])
+        m = system_identification(y, u, "OE", OE_orders=[2, 2, theta])
+        return np.r_[np.asarray(m.NUMERATOR[0][0])[theta : theta + 2], np.asarray(m.DENOMINATOR[0][0])[1:3]]
+    # "OPT" is SIPPY's prediction-error fit through CasADi (its default "ILLS" is iterated least squares).
+    m = system_identification(y, u, "ARMAX", ARMAX_orders=[2, 2, 2, theta], ARMAX_mod="OPT")
     return np.r_[
-        np.asarray(m.DENOMINATOR[0][0])[1:3], np.asarray(m.NUMERATOR[0][0])[3:5], np.asarray(m.NUMERATOR_H[0][0])[1:3]
+        np.asarray(m.DENOMINATOR[0][0])[1:3],
+        np.asarray(m.NUMERATOR[0][0])[theta : theta + 2],
+        np.asarray(m.NUMERATOR_H[0][0])[1:3],
     ]
 
 
-def bench_row(kind: str, n: int) -> str:
+def fit_sippy_capped(kind: str, d: arxid.IOData, cap: float) -> tuple[np.ndarray | None, float | None]:
+    """SIPPY's fit in a child process stopped after ``cap`` seconds; the time is None when it was stopped."""
+    import multiprocessing
+
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        t = time.perf_counter()
+        job = pool.apply_async(fit_sippy, (kind, d))
+        try:
+            return job.get(timeout=cap), time.perf_counter() - t
+        except multiprocessing.TimeoutError:
+            pool.terminate()
+            return np.zeros(0), None
+
+
+def bench_row(kind: str, n: int, cap: float) -> str:
     """One line of the table: arxid, scipy and (if installed) SIPPY on the same data."""
     d = make(kind, n)
     model, t_a = timed(lambda: fit_arxid(kind, d))
@@ -82,23 +102,29 @@ def bench_row(kind: str, n: int) -> str:
         return float(np.mean(errors(th, kind, d.y, d.u[:, 0], lag) ** 2))
 
     th_s, t_s = timed(lambda: fit_scipy(kind, d, lag))
-    th_p, t_p = timed(lambda: fit_sippy(kind, d))
-    sippy = "not installed" if th_p is None else f"{t_p / t_a:.0f}x, loss {loss(th_p):.6g}"
+    th_p, t_p = fit_sippy_capped(kind, d, cap)
+    if th_p is None:
+        sippy = "not installed"
+    elif t_p is None:
+        sippy = f"stopped after {cap:.0f} s (>{cap / t_a:.0f}x)"
+    else:
+        sippy = f"{t_p:.1f} s, {t_p / t_a:.0f}x, loss {loss(th_p):.6g}"
     return (
         f"{kind:<8}{n:>8}{t_a:>10.3f}{t_s:>10.3f}{t_s / t_a:>7.0f}x{loss(model.parameters_):>13.6g}"
-        f"{loss(th_s):>13.6g}{sippy:>22}"
+        f"{loss(th_s):>13.6g}  {sippy}"
     )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 200_000])
+    ap.add_argument("--sippy-cap", type=float, default=600.0, help="seconds after which a SIPPY fit is stopped")
     args = ap.parse_args()
     head = f"{'fit':<8}{'N':>8}{'arxid s':>10}{'scipy s':>10}{'ratio':>8}{'arxid loss':>13}{'scipy loss':>13}"
-    print(head + f"{'SIPPY':>22}")
+    print(head + "  SIPPY (time, ratio to arxid, loss)")
     for kind in ("oe", "armax"):
         for n in args.sizes:
-            print(bench_row(kind, n))
+            print(bench_row(kind, n, args.sippy_cap), flush=True)
 
 
 if __name__ == "__main__":

@@ -100,14 +100,17 @@ def test_delayest_recovers_the_delay_under_output_noise():
 
 def test_refined_sweep_ranks_a_small_model_with_the_right_response_first():
     data = issue_plant(1)
-    res = arxid.sweep(data, na=range(1, 9), nb=range(1, 11), nk=range(0, 6), validation=0.5, progress=False)
-    assert res.n_params[0] > 6  # the plain ARX sweep compensates with many parameters
-    refined = arxid.refine(res, top=3)
+    grid = dict(na=range(1, 9), nb=range(1, 11), nk=range(0, 6), validation=0.5, progress=False)
+    refined = arxid.sweep(data, **grid, refine="oe", refine_top=3)
+    assert isinstance(refined, arxid.RefinedSweep)
+    assert refined.sweep.n_params[0] > 6  # the plain ARX sweep compensates with many parameters
     best = refined.rows[0]
     assert best.n_params <= 6 and best.model_class == "OE"
     assert model_frequency_error(best.model) < 0.03
     assert {r.model_class for r in refined.rows} == {"ARX", "OE"}
     assert "class" in refined.table()
+    with pytest.raises(arxid.ArxidError, match="refine"):
+        arxid.sweep(data, na=2, nb=2, nk=3, refine="bj", progress=False)
 
 
 # ----------------------------------------------------------------------------- ARMAX and BJ coverage

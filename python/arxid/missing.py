@@ -616,8 +616,12 @@ def diagnose(
     model = check_model(model)
     if not isinstance(model, ArxModel):
         raise ArxidError(
-            f"diagnose adds effect terms to ARX models and refits them; {model.structure_name()} is not one: "
-            f"diagnose arxid.arx(data, na, nb, nk) with comparable orders instead"
+            f"diagnose adds effect terms to ARX models and refits them; {model.structure_name()} is not one. "
+            "Both halves are ARX-only: the significance test regresses the one-step residual on the "
+            "candidate's columns next to the ARX regressors (past outputs and inputs), which are the "
+            "gradient of an ARX residual but not of an output-error or Box-Jenkins one, and the refit "
+            "adds the columns to that linear regression. Diagnose arxid.arx(data, na, nb, nk) with "
+            "comparable orders instead; arxid.residuals and arxid.where_it_fails accept this model"
         )
     data, validation, same = _data_pair(model, data, validation)
     horizon = check_horizon(horizon)

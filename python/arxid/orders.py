@@ -12,7 +12,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from .sanity import (
     step_sanity,
     typical_amplitudes,
 )
+
+if TYPE_CHECKING:
+    from .pem import RefinedSweep
 
 __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
@@ -925,6 +928,62 @@ def _integrator_verdict(result: SweepResult) -> IntegratorTest:
     return integrator_test(names, t_values, taus, result.n_est)
 
 
+@overload
+def sweep(
+    data: IOData,
+    na=...,
+    nb=...,
+    nk=...,
+    *,
+    validation=...,
+    sort_by: str = ...,
+    n_threads: int = ...,
+    progress: bool = ...,
+    effects: Sequence[str] = ...,
+    expect: str | None = ...,
+    horizon: int | None = ...,
+    max_memory: int | None = ...,
+    limits: SanityLimits | None = ...,
+    simulate_estimation: bool = ...,
+    auto_extend: bool = ...,
+    refine: None = None,
+    refine_top: int = ...,
+    top: int | None = ...,
+    max_seconds: float | None = ...,
+    client: Any = ...,
+    per_experiment: bool = ...,
+    read: Any = ...,
+) -> SweepResult: ...
+
+
+@overload
+def sweep(
+    data: IOData,
+    na=...,
+    nb=...,
+    nk=...,
+    *,
+    validation=...,
+    sort_by: str = ...,
+    n_threads: int = ...,
+    progress: bool = ...,
+    effects: Sequence[str] = ...,
+    expect: str | None = ...,
+    horizon: int | None = ...,
+    max_memory: int | None = ...,
+    limits: SanityLimits | None = ...,
+    simulate_estimation: bool = ...,
+    auto_extend: bool = ...,
+    refine: Literal["oe"],
+    refine_top: int = ...,
+    top: int | None = ...,
+    max_seconds: float | None = ...,
+    client: Any = ...,
+    per_experiment: bool = ...,
+    read: Any = ...,
+) -> RefinedSweep: ...
+
+
 def sweep(
     data: IOData,
     na=DEFAULT_GRID["na"],
@@ -942,6 +1001,8 @@ def sweep(
     limits: SanityLimits | None = None,
     simulate_estimation: bool = True,
     auto_extend: bool = False,
+    refine: Literal["oe"] | None = None,
+    refine_top: int = 5,
     top: int | None = stages.DEFAULT_TOP,
     max_seconds: float | None = 3600.0,
     client: Any = None,
@@ -985,6 +1046,13 @@ def sweep(
     auto_extend : bool
         When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
         again (:meth:`SweepResult.extend`, at most 3 rounds, orders up to 30).
+    refine : {None, "oe"}
+        ``"oe"`` refits the ``refine_top`` best ARX structures (and a small grid of nb, nf, nk) as
+        output-error models and ranks all of them by validation free-run error
+        (:func:`arxid.refine`); the table says which model class each row is.
+    refine_top : int
+        Number of best ARX structures refined when ``refine`` is given.
+
     top : int or None
         Grids larger than this run in two stages (see :mod:`arxid.stages`): every structure is
         ranked by its one-step validation error (MATLAB ``arxstruc``), and only the best ``top`` are
@@ -1003,7 +1071,7 @@ def sweep(
     -------
     SweepResult
         For a list of logs, the sweep of all of them at once (a :class:`arxid.fleet.FleetSweep`
-        with ``per_experiment=True``).
+        with ``per_experiment=True``); a RefinedSweep when ``refine`` is given.
 
     Notes
     -----
@@ -1045,6 +1113,8 @@ def sweep(
         raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
     if expect not in EXPECTATIONS:
         raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
+    if refine not in (None, "oe"):
+        raise ArxidError(f"refine must be None or 'oe' (output-error refinement), got {refine!r}")
     est, val = _validation_split(data, validation)
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
@@ -1099,7 +1169,15 @@ def sweep(
             result = dataclasses.replace(
                 result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
             )
-    return result.extend() if auto_extend else result
+    result = result.extend() if auto_extend else result
+    return result if refine is None else _refined(result, refine, refine_top)
+
+
+def _refined(result: SweepResult, structure: str, top: int) -> RefinedSweep:
+    """The sweep's best ARX structures refitted as ``structure`` models (output error) and ranked."""
+    from .pem import refine
+
+    return refine(result, structure, top=top)
 
 
 def _fleet_engine(client: Any, logs: Sequence, read: Any, fraction: float | None) -> tuple[Any, tuple]:
