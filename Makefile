@@ -5,7 +5,7 @@ PIP    := $(PY) -m pip
 export VIRTUAL_ENV := $(abspath $(VENV))
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: setup develop demo test test-rust test-python bench lint typecheck clean
+.PHONY: setup develop demo test test-rust test-python bench lint typecheck clean wheel smoke docs
 
 # Everything the venv needs, read from pyproject.toml (the one list): the build backend, the
 # runtime dependencies and the `test` and `dev` extras (pinned ruff and mypy). Python < 3.11 has no
@@ -18,25 +18,40 @@ REQUIREMENTS = $(PY) -c 'import sys; \
 # The stamp depends on pyproject.toml: a changed dependency list reinstalls.
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
+	@echo "setting up $(VENV) (pip: the build backend, numpy, scipy and the test and lint tools)"
 	$(PIP) install -q --upgrade pip
 	$(PIP) install -q $$($(REQUIREMENTS))
 	touch $@
 
 setup: $(VENV)/.installed
 
-# Release build of the Rust core into python/arxid (incremental: target/ is the cache).
-develop: setup
-	@echo "building the Rust core (release; the first build takes a few minutes) -> $(VENV)/develop.log"
+# Release build of the Rust core into python/arxid, only when a Rust source, the manifests or the
+# venv changed (the .so is the stamp, so an unchanged tree builds nothing). cargo test (below) and
+# maturin share target/release without invalidating each other: same profile and dependency
+# features, and cargo test builds only the lib's test harness, never the cdylib maturin owns.
+CORE := python/arxid/_core.abi3.so
+RUST_SOURCES := Cargo.toml Cargo.lock $(wildcard rust/*.rs rust/*/*.rs)
+
+develop: $(CORE)
+
+$(CORE): $(VENV)/.installed $(RUST_SOURCES) pyproject.toml
+	@echo "building the Rust core for Python (maturin, release: a few minutes from scratch on 2 cores, seconds to a minute after an edit) -> $(VENV)/develop.log"
+	@rm -f python/arxid/_core*.so
 	@$(VENV)/bin/maturin develop --release > $(VENV)/develop.log 2>&1 || { cat $(VENV)/develop.log; exit 1; }
+	@touch $@
 
 demo: develop
 	$(VENV)/bin/arxid demo
 
+# --lib: the unit tests only (there are no doctests or tests/*.rs); building the lib target as a
+# dependency would rebuild the cdylib with other features than maturin's, and each would undo the other.
 test-rust:
-	cargo test --release --quiet
+	@echo "building and running the Rust unit tests (cargo test, release: a few minutes from scratch on 2 cores, seconds after)"
+	@cargo test --release --lib --quiet
 
 test-python: develop
-	$(PY) -m pytest -q
+	@echo "running the Python tests (pytest)"
+	@$(PY) -m pytest -q
 
 test: setup test-rust test-python
 

@@ -23,7 +23,15 @@ from typing import Any
 
 from .analysis import Analysis, analyse
 from .data import IOData
-from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .exceptions import (
+    ArxidError,
+    ArxidWarning,
+    DataError,
+    IdentifiabilityError,
+    MissingDependencyError,
+    NotFittedError,
+    OrderError,
+)
 from .ladder import Ladder
 from .missing import Diagnosis, diagnose
 from .model import ArxModel, arx
@@ -50,6 +58,7 @@ __all__ = [
     "OrderError",
     "IdentifiabilityError",
     "NotFittedError",
+    "MissingDependencyError",
     "ArxidWarning",
     "quadrotor",
     "datasets",

@@ -6,7 +6,15 @@ so that ``except ValueError`` keeps working. Messages say what is wrong and how 
 
 from __future__ import annotations
 
-__all__ = ["ArxidError", "DataError", "OrderError", "IdentifiabilityError", "NotFittedError", "ArxidWarning"]
+__all__ = [
+    "ArxidError",
+    "DataError",
+    "OrderError",
+    "IdentifiabilityError",
+    "NotFittedError",
+    "MissingDependencyError",
+    "ArxidWarning",
+]
 
 
 class ArxidError(ValueError):
@@ -44,3 +52,8 @@ class NotFittedError(ArxidError, AttributeError):
 class ArxidWarning(UserWarning):
     """Something the user should know that does not stop the work (a structure skipped by the step
     sanity check, an optional dependency missing). Filter it with ``warnings.simplefilter``."""
+
+
+class MissingDependencyError(ArxidError, ImportError):
+    """An optional dependency is not installed; the message names the extra that installs it
+    (``pip install 'arxid[plot]'``). Also an :class:`ImportError`, so ``except ImportError`` works."""
