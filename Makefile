@@ -15,6 +15,17 @@ REQUIREMENTS = $(PY) -c 'import sys; \
 	t = tomllib.load(open("pyproject.toml", "rb")); p = t["project"]; x = p["optional-dependencies"]; \
 	print(" ".join(t["build-system"]["requires"] + p["dependencies"] + x["test"] + x["dev"]))'
 
+# The extras that only some targets need (docs, release), installed on demand, each with its stamp.
+EXTRA_REQUIREMENTS = $(PY) -c 'import sys; \
+	exec("try:\n import tomllib\nexcept ImportError:\n from pip._vendor import tomli as tomllib"); \
+	x = tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]; \
+	print(" ".join(r for e in sys.argv[1:] for r in x[e]))'
+
+$(VENV)/.extra-%: $(VENV)/.installed pyproject.toml
+	@echo "installing the $* tools into $(VENV)"
+	@$(PIP) install -q $$($(EXTRA_REQUIREMENTS) $*)
+	@touch $@
+
 # The stamp depends on pyproject.toml: a changed dependency list reinstalls.
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
@@ -57,6 +68,31 @@ test: setup test-rust test-python
 
 bench: develop
 	$(PY) benches/sweep_vs_numpy.py
+	$(PY) benches/csv_read.py
+
+# The wheel (abi3: one file for CPython >= 3.10) and the sdist, in dist/. The wheel is built from the
+# tree with the same profile and features as `make develop`, so after `make test` it only repackages
+# (`maturin build --sdist` would build the wheel again from the unpacked sdist, from scratch).
+# auditwheel then shows which manylinux policy the binary satisfies (maturin picked the tag).
+wheel: $(VENV)/.extra-release
+	@echo "building the wheel and the sdist (maturin, release; seconds when target/ is warm) -> dist/"
+	@rm -rf dist
+	@{ $(VENV)/bin/maturin build --release --out dist && $(VENV)/bin/maturin sdist --out dist; } \
+		> $(VENV)/wheel.log 2>&1 || { cat $(VENV)/wheel.log; exit 1; }
+	@$(PY) -m auditwheel show dist/*.whl
+	@ls -1 dist
+
+# The wheel installed in fresh venvs without cargo on PATH: base (numpy, scipy) and full (arxid[all]).
+smoke: wheel
+	@bash tests/smoke/run.sh dist/*.whl base
+	@bash tests/smoke/run.sh dist/*.whl full
+
+# The documentation site in site/: the gallery scripts run first (their figures and pages go to
+# docs/gallery/, git-ignored), then mkdocs builds with --strict (a warning fails the build).
+docs: develop $(VENV)/.extra-docs
+	@echo "running the gallery examples and building the site (mkdocs --strict) -> site/"
+	@$(PY) docs/gallery/build.py
+	@$(VENV)/bin/mkdocs build --strict --quiet
 
 # Python: lint, format, and the stub of the compiled core against the built module (hence
 # `develop`). Rust: format and clippy (--release: it shares target/release with `make test`'s
@@ -82,4 +118,4 @@ typecheck: develop
 	$(PY) -m mypy
 
 clean:
-	rm -rf $(VENV) target python/arxid/_core*.so
+	rm -rf $(VENV) target python/arxid/_core*.so dist site docs/gallery/generated
