@@ -100,8 +100,8 @@ docs: develop $(VENV)/.extra-docs
 # minute from clean, seconds when warm). Every step runs, in this order; lint fails at the end if
 # any step failed, naming them.
 LINT_STEPS = \
-	"$(PY) -m ruff check python tests benches" \
-	"$(PY) -m ruff format --check python tests benches" \
+	"$(PY) -m ruff check python tests benches examples docs/gallery" \
+	"$(PY) -m ruff format --check python tests benches examples docs/gallery" \
 	"$(PY) -m mypy" \
 	"$(PY) -m mypy.stubtest arxid._core" \
 	"cargo fmt --check" \
