@@ -81,6 +81,7 @@ fn parse_output_terms(spec: Vec<(String, i32, i64)>) -> PyResult<Vec<OutputTerm>
             let kind = match kind.as_str() {
                 "pow" => OutputKind::Pow(power),
                 "abs" => OutputKind::Abs,
+                "sign" => OutputKind::Sign,
                 "signdiff" => OutputKind::SignDiff,
                 other => return Err(OrderError::new_err(format!("unknown output term kind {other:?}"))),
             };

@@ -9,13 +9,15 @@
 use crate::error::{ArxError, Result};
 
 /// A nonlinear function of the past output, the part of an effect that must be re-evaluated on
-/// the simulated output in free run (`y^3`, `abs(y)`, `sign(dy)`, `y*u1`).
+/// the simulated output in free run (`y^3`, `abs(y)`, `sign(y)`, `sign(dy)`, `y*u1`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum OutputKind {
     /// $y(t-1)^p$
     Pow(i32),
     /// $|y(t-1)|$
     Abs,
+    /// $\mathrm{sign}(y(t-1))$, Coulomb friction when the output is a speed.
+    Sign,
     /// $\mathrm{sign}(y(t-1) - y(t-2))$, Coulomb-type friction.
     SignDiff,
 }
@@ -42,18 +44,22 @@ impl OutputTerm {
         let g = match self.kind {
             OutputKind::Pow(p) => y1.powi(p),
             OutputKind::Abs => y1.abs(),
-            OutputKind::SignDiff => {
-                let d = y1 - y2;
-                if d > 0.0 {
-                    1.0
-                } else if d < 0.0 {
-                    -1.0
-                } else {
-                    0.0
-                }
-            }
+            OutputKind::Sign => sign(y1),
+            OutputKind::SignDiff => sign(y1 - y2),
         };
         g * s1
+    }
+}
+
+/// Sign with sign(0) = 0 (numpy's convention, so Python and the core build the same regressors).
+#[inline]
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
     }
 }
 
@@ -255,4 +261,19 @@ pub fn usable_rows(d: &Data, s: &Structure, first_lag: usize) -> (Vec<usize>, us
         }
     }
     (rows, skipped)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sign_terms_follow_numpy_sign_with_zero_at_zero() {
+        let t = |kind| OutputTerm { kind, multiplier: None };
+        assert_eq!(t(OutputKind::Sign).eval(-0.3, 5.0, 1.0), -1.0);
+        assert_eq!(t(OutputKind::Sign).eval(0.0, 5.0, 1.0), 0.0);
+        assert_eq!(t(OutputKind::SignDiff).eval(-0.3, -0.5, 2.0), 2.0);
+        assert_eq!(t(OutputKind::Sign).lag(), 1);
+        assert_eq!(t(OutputKind::SignDiff).lag(), 2);
+    }
 }

@@ -78,7 +78,13 @@ window.addEventListener('load', function () {
              errors: window.__errors,
              diagnosis: (function () {
                try { return JSON.parse(document.getElementById('diagnosis').textContent).ladder.length; }
-               catch (e) { return 'unreadable: ' + e; } })()};
+               catch (e) { return 'unreadable: ' + e; } })(),
+             sections: (function () { var o = {};
+               Array.prototype.forEach.call(document.querySelectorAll('section'), function (s) {
+                 var imgs = Array.prototype.slice.call(s.querySelectorAll('img'));
+                 o[s.id] = {text: s.innerText,
+                            drawn: imgs.filter(function (i) { return i.naturalWidth > 0; }).length};
+               }); return o; })()};
   var pre = document.createElement('pre'); pre.id = '__probe'; pre.textContent = JSON.stringify(out);
   document.body.appendChild(pre);
 });
@@ -112,8 +118,9 @@ def _run(browser: str, args: list[str], tmp_path: Path) -> subprocess.CompletedP
     return res
 
 
-def test_report_renders_with_every_plot_loaded_and_no_errors(browser, report_file, tmp_path):
-    html = report_file.read_text()
+def _probe(browser: str, report: Path, tmp_path: Path) -> dict:
+    """Render ``report`` with the probe script; what the page loaded, logged and shows per section."""
+    html = report.read_text()
     probed = tmp_path / "probed.html"
     probed.write_text(html.replace("<head>", "<head>" + _PROBE, 1))
     res = _run(browser, ["--virtual-time-budget=10000", "--dump-dom", probed.as_uri()], tmp_path)
@@ -136,15 +143,16 @@ def test_report_renders_with_every_plot_loaded_and_no_errors(browser, report_fil
         if ("CONSOLE" in ln or "Uncaught" in ln or "Failed to load resource" in ln or "net::ERR" in ln)
     ]
     assert page_lines == [], "\n".join(page_lines)
+    return probe
 
 
-def test_report_screenshot_is_not_blank(browser, report_file, tmp_path):
+def _assert_not_blank(browser: str, report: Path, tmp_path: Path, height: int = 2400) -> None:
     from PIL import Image
 
     shot = tmp_path / "shot.png"
     res = _run(
         browser,
-        ["--window-size=1100,2400", "--virtual-time-budget=10000", f"--screenshot={shot}", report_file.as_uri()],
+        [f"--window-size=1280,{height}", "--virtual-time-budget=10000", f"--screenshot={shot}", report.as_uri()],
         tmp_path,
     )
     assert res.returncode == 0 and shot.is_file(), res.stderr[-2000:]
@@ -157,3 +165,63 @@ def test_report_screenshot_is_not_blank(browser, report_file, tmp_path):
     rgb = np.asarray(Image.open(shot).convert("RGB"), dtype=float)
     colourful = (rgb.max(axis=2) - rgb.min(axis=2) > 60).mean()
     assert colourful > 0.002, "no coloured plot pixels in the screenshot"
+
+
+def _assert_frequency_section(probe: dict) -> None:
+    freq = probe["sections"]["frequency"]
+    assert freq["drawn"] >= 1, "the frequency section has no plot"
+    assert re.search(
+        r"the model (misses the data (between|at) [\d.]+|matches the data within the uncertainty)", freq["text"]
+    )
+
+
+def test_report_renders_with_every_plot_loaded_and_no_errors(browser, report_file, tmp_path):
+    probe = _probe(browser, report_file, tmp_path)
+    _assert_frequency_section(probe)
+
+
+def test_report_screenshot_is_not_blank(browser, report_file, tmp_path):
+    _assert_not_blank(browser, report_file, tmp_path)
+
+
+def test_demo_report_in_the_browser(browser, tmp_path):
+    """The report ``make demo`` writes (on a shorter flight): loads offline, every plot drawn."""
+    import io
+
+    from arxid.demo import run_demo
+
+    path = tmp_path / "demo.html"
+    run_demo(path, duration=10.0, stream=io.StringIO())
+    probe = _probe(browser, path, tmp_path)
+    _assert_frequency_section(probe)
+    ladder = probe["sections"]["ladder"]["text"]
+    assert "vbat" in ladder and "effect" in ladder
+    residuals = probe["sections"]["residuals"]["text"]
+    assert "The residuals are white:" in residuals  # plain words before the details
+    assert residuals.index("The residuals are white:") < residuals.index("Details")
+    _assert_not_blank(browser, path, tmp_path)
+
+
+@pytest.mark.realdata
+def test_silverbox_report_in_the_browser(browser, shared_data, tmp_path):
+    """Silverbox (cubic spring, 14,350 samples of the multisine part, ARX(4,3,0)): the ladder adds
+    y^3+const, then nb+1, and the report says which step was which."""
+    import arxid
+    from arxid.report import build_report
+
+    data = arxid.IOData.from_csv(
+        shared_data / "silverbox" / "SNLS80mV.csv",
+        output="V2",
+        inputs=["V1"],
+        ts=1 / 610.35,
+        units={"V2": "V", "V1": "V"},
+    )
+    rep = build_report(data[40650:55000], orders=(4, 3, 0), max_steps=2, source="Silverbox SNLS80mV.csv")
+    path = rep.save(tmp_path / "silverbox.html")
+    probe = _probe(browser, path, tmp_path)
+    ladder = probe["sections"]["ladder"]["text"]
+    assert "nb+1" in ladder and "structure change" in ladder and "y^3+const" in ladder, ladder
+    assert re.search(r"structure changes \(nb\+1\) removed \d+ % more", ladder), ladder
+    _assert_frequency_section(probe)
+    assert "output: V2 [V]" in probe["sections"]["data"]["text"]  # --units / units= reach the report
+    _assert_not_blank(browser, path, tmp_path)

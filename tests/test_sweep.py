@@ -122,7 +122,7 @@ def test_one_thread_and_all_threads_give_identical_results():
 def test_table_json_and_pandas(small):
     _, _, res = small
     text = str(res)
-    assert "Model Configuration" in text and "RMS val" in text and res.structure_name(0) in text
+    assert "structure" in text and "RMS val" in text and res.structure_name(0) in text
     assert "free-run" in text
     d = json.loads(res.to_json())
     assert len(d["structures"]) == len(res) and d["structures"][0]["structure"] == res.structure_name(0)

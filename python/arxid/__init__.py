@@ -11,6 +11,7 @@ The map (one module per concept):
 * :mod:`arxid.model` — :func:`arx`, :class:`ArxModel`; :mod:`arxid.convert` — python-control, scipy, d2c;
 * :mod:`arxid.orders` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`;
 * :mod:`arxid.validation` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`;
+* :mod:`arxid.frequency` — :func:`frequency_check`; :mod:`arxid.uncertainty` — confidence bands;
 * :mod:`arxid.missing` — :func:`diagnose`, :class:`Diagnosis`; :mod:`arxid.ladder` — :class:`Ladder`;
 * :mod:`arxid.analysis` — :func:`analyse`, the one pipeline behind the CLI, the report and the demo;
 * :mod:`arxid.report`, :mod:`arxid.plots`, :mod:`arxid.cli`, :mod:`arxid.quadrotor`, :mod:`arxid.datasets`.
@@ -32,6 +33,7 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
+from .frequency import FrequencyCheck, frequency_check
 from .ladder import Ladder
 from .missing import Diagnosis, diagnose
 from .model import ArxModel, arx
@@ -48,6 +50,8 @@ __all__ = [
     "compare",
     "residuals",
     "where_it_fails",
+    "frequency_check",
+    "FrequencyCheck",
     "diagnose",
     "Diagnosis",
     "Ladder",

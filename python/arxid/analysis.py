@@ -34,11 +34,14 @@ from ._checks import check_data, check_horizon
 from ._format import format_value, horizon_label, json_safe, text_table
 from .data import IOData
 from .exceptions import ArxidError, OrderError
+from .frequency import FrequencyCheck, frequency_check
 from .ladder import Ladder
 from .missing import Diagnosis
 from .model import ArxModel, arx
 from .orders import DEFAULT_GRID, SweepResult, sweep
+from .uncertainty import ResponseBand, free_run_band
 from .validation import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
+from .verdicts import ladder_headline, negative_fit_note, residual_sentences
 
 __all__ = ["Analysis", "Choice", "analyse", "choose", "grid_of", "DEFAULT_SPLIT", "diagnose_report"]
 
@@ -172,6 +175,12 @@ class Analysis:
         Seconds spent in each stage.
     notes : tuple of str
         What the reader should know (the measure switched to k-step, ...).
+    frequency : tuple of FrequencyCheck
+        Where each model of ``comparison`` misses the data in frequency (empty when the validation
+        data are too short for a spectrum).
+    bands : tuple of ResponseBand
+        Free-run simulation of each model of ``comparison`` on the validation data with its 99 %
+        band from the parameter covariance (empty for a k-step measure).
     """
 
     estimation: IOData
@@ -187,6 +196,8 @@ class Analysis:
     failures: tuple[FailureAnalysis, ...]
     timings: dict
     notes: tuple[str, ...] = ()
+    frequency: tuple[FrequencyCheck, ...] = ()
+    bands: tuple[ResponseBand, ...] = ()
 
     @property
     def final_model(self) -> ArxModel:
@@ -224,7 +235,9 @@ class Analysis:
 
         Keys ``model``, ``baseline``, ``residual_tests``, ``suspects`` and ``ladder`` as
         :meth:`Diagnosis.to_dict`; ``choice``, ``grid``, ``sweep`` (summary and best rows),
-        ``comparison``, ``where_it_fails`` (one per compared model), ``notes``.
+        ``comparison``, ``where_it_fails`` (one per compared model), ``notes``,
+        ``frequency_check`` (one per compared model, see :meth:`FrequencyCheck.to_dict`) and
+        ``error_fall`` (see :meth:`Ladder.error_fall`).
 
         Returns
         -------
@@ -239,6 +252,8 @@ class Analysis:
                 "comparison": self.comparison.to_dict(),
                 "where_it_fails": [f.to_dict() for f in self.failures],
                 "notes": list(self.notes),
+                "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
+                "error_fall": self.ladder.error_fall(),
             }
         )
         return out
@@ -280,29 +295,55 @@ class Analysis:
             f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
             f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"
         )
+        if negative_fit_note(d.fit_val):
+            lines.append(f"  ({negative_fit_note(d.fit_val)})")
         lines += self.notes
         if self.residual_tests is not None:
-            lines += ["", str(self.residual_tests)]
-        rows = [
-            [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
-            for i, s in enumerate(d.suspects[:n_suspects], start=1)
-        ]
-        if rows:
-            lines += [
-                "",
-                text_table(
-                    ["rank", "effect", "score", "p-value", "significant", "val. RMS after"],
-                    rows,
-                    title="suspects (missing effects, ranked):",
-                ),
-            ]
+            lines += ["", "residual tests:"] + [f"  {t}" for t in residual_sentences(self.residual_tests)]
+            lines += ["", "details:", str(self.residual_tests)]
+        lines += ["", *[f"frequency check of {f.model_name}: {f.summary}" for f in self.frequency]]
+        lines += self._suspect_lines(n_suspects)
         lines += [
             "",
             f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect",
         ]
         if len(self.ladder):
             lines += ["", str(self.ladder)]
+            headline = ladder_headline(self.ladder)
+            lines += [headline] if headline else []
         return lines
+
+    def short_summary(self) -> list[str]:
+        """Three lines for ``arxid report``: the model and its fit, what the ladder removed, and
+        where the final model still misses the data in frequency.
+
+        Returns
+        -------
+        list of str
+        """
+        d = self.diagnosis
+        fit = f"validation fit {format_value(d.fit_val, 3)} % ({horizon_label(self.horizon)})"
+        if negative_fit_note(d.fit_val):
+            fit += ", worse than the output's mean"
+        missing = f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect"
+        ladder = ladder_headline(self.ladder) or "Nothing was added: the first model is the final one."
+        freq = (
+            f"Final model {self.frequency[-1].model_name}: {self.frequency[-1].summary}."
+            if self.frequency
+            else "No frequency check (the validation data are too short)."
+        )
+        return [f"Model {self.model.structure_name()}: {fit}; {missing}.", ladder, freq]
+
+    def _suspect_lines(self, n: int) -> list[str]:
+        d = self.diagnosis
+        rows = [
+            [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after, s.explained_by or "-", d.why(s)]
+            for i, s in enumerate(d.suspects[:n], start=1)
+        ]
+        if not rows:
+            return []
+        head = ["rank", "effect", "score", "p-value", "significant", "val. RMS after", "explained by", "why"]
+        return ["", text_table(head, rows, title="suspects (missing effects, ranked):")]
 
 
 # ----------------------------------------------------------------------------------------- stages
@@ -353,6 +394,23 @@ def _checks(
         models["+ " + ", ".join(final.effects)] = final
     cmp = compare(models, val, horizon)
     return cmp, tuple(where_it_fails(m, val, horizon) for m in models.values())
+
+
+def _frequency(
+    models: Sequence[ArxModel], val: IOData, horizon: int | None
+) -> tuple[tuple[FrequencyCheck, ...], tuple[ResponseBand, ...], tuple[str, ...]]:
+    """Frequency checks and free-run bands of the compared models; a note when they cannot be made."""
+    try:
+        checks = tuple(frequency_check(m, val) for m in models)
+    except ArxidError as exc:
+        return (), (), (f"No frequency check: {exc}",)
+    if horizon is not None:  # a k-step prediction has no free-run band
+        return checks, (), ()
+    try:
+        bands = tuple(free_run_band(m, val) for m in models)
+    except ArxidError:
+        bands = ()
+    return checks, bands, ()
 
 
 def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
@@ -426,6 +484,10 @@ def analyse(
     t0 = time.perf_counter()
     cmp, failures = _checks(model, ladder.final_model, val, ladder.horizon)
     timings["checks"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    compared = [model] if ladder.final_model is model else [model, ladder.final_model]
+    freq, bands, freq_notes = _frequency(compared, val, ladder.horizon)
+    timings["frequency"] = time.perf_counter() - t0
     return Analysis(
         est,
         val,
@@ -439,7 +501,9 @@ def analyse(
         cmp,
         failures,
         timings,
-        _notes(res, ladder.horizon, requested),
+        _notes(res, ladder.horizon, requested) + freq_notes,
+        freq,
+        bands,
     )
 
 

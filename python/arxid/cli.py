@@ -26,6 +26,7 @@ from .exceptions import ArxidError, DataError
 from .model import arx
 from .orders import DEFAULT_GRID, sweep
 from .report.html import render_html
+from .verdicts import negative_fit_note
 
 __all__ = ["main", "load_data", "parse_range"]
 
@@ -67,6 +68,17 @@ def parse_range(text: str, name: str) -> list[int]:
     return sorted(set(out))
 
 
+def parse_units(text: str | None) -> dict[str, str]:
+    """``"V2=V,V1=V"`` → {"V2": "V", "V1": "V"} (the ``--units`` option)."""
+    out: dict[str, str] = {}
+    for part in _names(text):
+        name, sep, unit = part.partition("=")
+        if not sep or not name.strip() or not unit.strip():
+            raise UsageError(f"--units {text!r}: write NAME=UNIT pairs separated by commas, e.g. V2=V,V1=V")
+        out[name.strip()] = unit.strip()
+    return out
+
+
 def _parse_orders(text: str) -> tuple[int, int, int]:
     parts = _names(text)
     try:
@@ -86,6 +98,7 @@ def load_data(  # noqa: C901
     extra: Sequence[str] = (),
     ts: float | None = None,
     time_col: str | None = None,
+    units: dict[str, str] | None = None,
 ):
     """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
 
@@ -101,6 +114,8 @@ def load_data(  # noqa: C901
         Sampling time in seconds.
     time_col : str, optional
         Time column (uniformly sampled seconds), instead of ``ts``.
+    units : dict of str to str, optional
+        Unit of each signal by name (``--units``); overrides units in a CSV header.
 
     In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
@@ -155,12 +170,16 @@ def load_data(  # noqa: C901
             extra=list(extra),
             ts=ts,
             time=time_col,
-            units=None,
+            units=units,
             source=p.name,
         )
     else:
         try:
-            data = IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col)
+            if ts is None and time_col is None:
+                raise UsageError("give the sampling time with --ts SECONDS or a time column with --time COL")
+            data = IOData.from_csv(
+                p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col, units=units
+            )
         except UnicodeDecodeError:
             raise DataError(
                 f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
@@ -180,6 +199,12 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
     g = p.add_mutually_exclusive_group()
     g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
     g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
+    p.add_argument(
+        "--units",
+        metavar="NAME=UNIT,...",
+        default="",
+        help="units of the signals for tables and plot axes, e.g. V2=V,V1=V (a CSV header 'vbat[V]' gives them too)",
+    )
     if validation:
         v = p.add_mutually_exclusive_group()
         v.add_argument("--validation", metavar="VAL.csv", help="separate validation file with the same columns")
@@ -218,10 +243,11 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def _load(args, need_validation: bool = True):
     inputs, extra = _names(args.inputs), _names(args.extra)
-    data = load_data(args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time)
+    units = parse_units(args.units)
+    data = load_data(args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
     val = None
     if getattr(args, "validation", None):
-        val = load_data(args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time)
+        val = load_data(args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
         if abs(val.ts - data.ts) > 1e-9 * data.ts:
             raise UsageError(f"the validation data are sampled at {val.ts:g} s but DATA at {data.ts:g} s")
         return data, val
@@ -291,6 +317,8 @@ def cmd_fit(args) -> int:
         ]
     print()
     print(text_table(["measure", "value"], rows))
+    if val is not None and negative_fit_note(out["fit_val"]):
+        print(f"({negative_fit_note(out['fit_val'])})")
     if args.save:
         print(f"\nmodel saved to {args.save}")
     return EXIT_OK
@@ -307,7 +335,8 @@ def cmd_sweep(args) -> int:
     best, choice = choose(res)
     elapsed = time.perf_counter() - t0
     rank = choice.rank or 0  # a sweep's choice always has a rank
-    rows = res.summary(top=max(args.top, rank + 1))["structures"]
+    top = len(res) if args.all else args.top
+    rows = res.summary(top=max(top, rank + 1))["structures"]
     row = rows[rank]
     out = {
         "n_structures": len(res),
@@ -327,12 +356,12 @@ def cmd_sweep(args) -> int:
             "parameters": best.parameters_,
         },
         "rejected": dict(choice.skipped),
-        "table": rows[: args.top],
+        "table": rows[:top],
     }
     if args.json:
         _print_json(out)
         return EXIT_OK
-    print(res.table(args.top))
+    print(res.table(top, more_hint="--all prints every one"))
     print(f"\n{len(res)} structures in {elapsed:.2f} s")
     for name, why in choice.skipped[:8]:
         print(f"skipped {name}: {why}")
@@ -340,6 +369,8 @@ def cmd_sweep(args) -> int:
         f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
         f"fit {format_value(row['fit_val'])} %, {res.measure})"
     )
+    if negative_fit_note(row["fit_val"]):
+        print(f"({negative_fit_note(row['fit_val'])})")
     return EXIT_OK
 
 
@@ -363,7 +394,10 @@ def cmd_diagnose(args) -> int:
     if args.json:
         _print_json(a.to_dict())
     else:
-        print(a)
+        n = len(a.diagnosis.suspects)
+        print("\n".join(a.summary_lines(n_suspects=n if args.all else 12)))
+        if n > 12 and not args.all:
+            print(f"({n - 12} more suspects: --all prints every one)")
     return EXIT_OK
 
 
@@ -378,8 +412,9 @@ def cmd_report(args) -> int:
             {"report": str(path), "bytes": path.stat().st_size, "seconds": time.perf_counter() - t0, **a.to_dict()}
         )
     else:
-        print(a)
-        print(f"\nreport written to {path} ({path.stat().st_size / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")
+        print(f"report written to {path} ({path.stat().st_size / 1e6:.1f} MB, {time.perf_counter() - t0:.1f} s)")
+        print("\n".join(a.short_summary()))
+        print("(arxid diagnose with the same options prints the whole diagnosis)")
     return EXIT_OK
 
 
@@ -456,6 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--top", type=int, default=20, metavar="N", help="rows to print (default %(default)s)")
+    p.add_argument("--all", action="store_true", help="print every structure (instead of --top)")
     _common(p)
     p.set_defaults(func=cmd_sweep)
     _add_analysis_commands(sub, kw)
@@ -476,6 +512,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
+    p.add_argument("--all", action="store_true", help="print every suspect (default: the best 12)")
     _common(p)
     p.set_defaults(func=cmd_diagnose)
 

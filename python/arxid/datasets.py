@@ -7,7 +7,8 @@ third-party data.
 
 The flight simulator
 --------------------
-:func:`quadrotor_flight` flies a plus frame, motor 1 front, 2 right, 3 back, 4 left (seed 004).
+:func:`quadrotor_flight` flies a plus frame, motor 1 front, 2 right, 3 back, 4 left (as in a published
+quadrotor study, Sarıoğlu & Kural).
 Rotational dynamics (eqs. 13-17)::
 
     Ixx p' = k l (w4^2 - w2^2) + (Iyy - Izz) q r - Ir q W
@@ -61,7 +62,7 @@ PWM_FULL_SCALE = 65535.0
 
 @dataclass(frozen=True)
 class QuadrotorParameters:
-    """True parameters of the simulated quadrotor (Crazyflie 2.1 sized, plus frame of seed 004).
+    """True parameters of the simulated quadrotor (Crazyflie 2.1 sized, plus frame of Sarıoğlu & Kural).
 
     Attributes
     ----------
@@ -97,7 +98,7 @@ class QuadrotorParameters:
         Voltage the controller assumes when it turns thrust requests into duty (it does not
         compensate the battery), and the constant battery voltage when ``battery_sag`` is off [V].
     delay_samples : int
-        Samples from a motor-speed change to its first effect on the logged attitude (seed 004
+        Samples from a motor-speed change to its first effect on the logged attitude (Sarıoğlu & Kural
         found ``nk = 8`` at 2 ms): one sample of sampling plus ``delay_samples - 1`` of sensor lag.
     gyro_noise : float
         Gyro white noise [rad/s] (a BMI088 after the Crazyflie's 80 Hz filter).
@@ -277,7 +278,7 @@ def quadrotor_flight(
         ``motor_mismatch`` (default off)
             Each motor's ``a0`` and thrust coefficient deviate by ``parameters.mismatch``.
         ``gyroscopic`` (default on)
-            The ``Omega x I Omega`` and rotor terms of seed 004 eqs. 13-17.
+            The ``Omega x I Omega`` and rotor terms of Sarıoğlu & Kural eqs. 13-17.
         ``delay`` (default on)
             The logged attitude and rates lag the motors: ``nk = delay_samples`` (8) instead of 1.
         ``noise`` (default on)
@@ -552,7 +553,7 @@ def _motor_speeds(air: _Airframe, wl: list, duty: list[float], vb: float, ts: fl
 
 
 class _RigidBody:
-    """Attitude, body rates and altitude, advanced by semi-implicit Euler (seed 004 eqs. 13-17 with
+    """Attitude, body rates and altitude, advanced by semi-implicit Euler (Sarıoğlu & Kural eqs. 13-17 with
     Euler-angle kinematics)."""
 
     def __init__(self) -> None:

@@ -33,6 +33,7 @@ from ._format import format_value, horizon_label, text_table
 from .analysis import Analysis, analyse
 from .data import IOData
 from .report.html import render_html
+from .verdicts import ladder_headline, negative_fit_note
 
 __all__ = ["DemoResult", "demo_data", "run_demo"]
 
@@ -188,6 +189,8 @@ def _tell_analysis(out: TextIO, a: Analysis) -> None:
         f"   Validation: {horizon_label(a.horizon)} RMS error {format_value(d.rms_sim_val)} m/s^2, "
         f"fit {format_value(d.fit_val, 3)} %.",
     )
+    if negative_fit_note(d.fit_val):
+        _say(out, f"   ({negative_fit_note(d.fit_val)})")
     _say(out)
     rows = [
         [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after]
@@ -222,6 +225,7 @@ def _tell_ladder(out: TextIO, a: Analysis) -> None:
             f"   before {errors[0]:.4g} m/s^2 -> after {errors[-1]:.4g} m/s^2 "
             f"({100 * a.error_fall:.0f} % of the error removed).",
         )
+        _say(out, "   " + ladder_headline(a.ladder))
 
 
 def run_demo(

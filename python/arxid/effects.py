@@ -1,23 +1,34 @@
 """Effects: physical terms a user adds to an ARX model, written as short strings.
 
-=============  ===================================  ==============================
-effect         meaning                              typical physics
-=============  ===================================  ==============================
-``vbat``       a logged signal used as an input     battery voltage, temperature
-``u1*vbat``    product of two signals               command scaled by battery
-``u1^2``       power of a signal                    propeller thrust ∝ ω²
-``y^3``        power of the output                  cubic spring
-``abs(u1)``    absolute value                       direction-independent losses
-``sign(dy)``   sign of a signal's first difference  Coulomb friction
-``const``      offset                               bias
-``time``       drift                                slow drift
-=============  ===================================  ==============================
+================  ===================================  ==========================================
+effect            meaning                              typical physics
+================  ===================================  ==========================================
+``vbat``          a logged signal used as an input     battery voltage, temperature
+``u1*vbat``       product of two signals               command scaled by battery
+``u1^2``          power of a signal                    propeller thrust ∝ ω²
+``y^3``           power of the output                  cubic spring
+``abs(u1)``       absolute value                       direction-independent losses
+``sign(y)``       sign of the output                   Coulomb friction when y is a speed
+``sign(dy)``      sign of a signal's first difference  Coulomb friction when y is a position
+``dz(u1,0.2)``    dead zone of width c                 no response while |u1| < 0.2
+``sat(u1,0.8)``   saturation at c                      response flattens above |u1| > 0.8
+``pos(u1)``       positive part max(u1, 0)             different gains for u1 > 0 and u1 < 0
+``neg(u1)``       negative part min(u1, 0)             (the same, written for the negative side)
+``const``         offset                               bias
+``time``          drift                                slow drift
+================  ===================================  ==========================================
+
+``dz(x,c) = sign(x)·max(|x| − c, 0)`` and ``sat(x,c) = sign(x)·min(|x|, c)``; the threshold c > 0
+is in the signal's units (:func:`arxid.diagnose` finds it by a grid scan, see
+:mod:`arxid.candidates`). With x itself in the model, ``dz``, ``sat`` and ``x`` span the same
+space as any two of them, and so do ``pos``, ``neg`` and ``x``.
 
 Lags: an input-derived term uses the lags (nb, nk) of the input it is built from (for a product,
 of its first input factor); a signal that is not an input enters as a new input with nb = 1 and the
 smallest nk of the model's inputs; ``const`` and ``time`` enter with nb = 1, nk = 0. Terms that
-involve the output use lag 1 (``y^3`` means y(t-1)³, ``sign(dy)`` means sign(y(t-1) − y(t-2))) and
-are re-evaluated on the simulated output in free run.
+involve the output use lag 1 (``y^3`` means y(t-1)³, ``sign(y)`` means sign(y(t-1)), ``sign(dy)``
+means sign(y(t-1) − y(t-2))) and are re-evaluated on the simulated output in free run. Thresholds
+and positive/negative parts apply to inputs and logged signals only.
 """
 
 from __future__ import annotations
@@ -31,10 +42,13 @@ import numpy as np
 from .data import IOData
 from .exceptions import DataError, OrderError
 
-__all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects"]
+__all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects", "format_threshold"]
 
+_NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE]-?\d+)?"
 _FACTOR = re.compile(
     r"^(?:(?P<abs>abs)\((?P<absarg>[A-Za-z_]\w*)\)"
+    rf"|(?P<thr>dz|sat)\((?P<targ>[A-Za-z_]\w*),(?P<c>{_NUMBER})\)"
+    r"|(?P<part>pos|neg)\((?P<parg>[A-Za-z_]\w*)\)"
     r"|sign\(d(?P<sdarg>[A-Za-z_]\w*)\)"
     r"|sign\((?P<sarg>[A-Za-z_]\w*)\)"
     r"|(?P<name>[A-Za-z_]\w*)(?:\^(?P<pow>\d+))?)$"
@@ -43,11 +57,13 @@ _FACTOR = re.compile(
 
 @dataclass(frozen=True)
 class Factor:
-    """One factor of an effect: ``op`` in {"pow", "abs", "sign", "signdiff", "diff"} applied to a signal."""
+    """One factor of an effect: ``op`` in {"pow", "abs", "sign", "signdiff", "diff", "dz", "sat", "pos",
+    "neg"} applied to a signal (``threshold`` is the c of ``dz`` and ``sat``)."""
 
     signal: str
     op: str = "pow"
     power: int = 1
+    threshold: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -99,10 +115,14 @@ def parse_effect(text: str, data: IOData) -> Effect:
         if not m:
             raise OrderError(
                 f"cannot read effect {text!r}: factor {part!r} is not one of NAME, NAME^p, abs(NAME), "
-                f"sign(dNAME), sign(NAME), dNAME"
+                f"sign(dNAME), sign(NAME), dNAME, dz(NAME,c), sat(NAME,c), pos(NAME), neg(NAME)"
             )
         if m["absarg"]:
             f = Factor(m["absarg"], "abs")
+        elif m["thr"]:
+            f = Factor(m["targ"], m["thr"], threshold=_threshold(text, m["c"]))
+        elif m["part"]:
+            f = Factor(m["parg"], m["part"])
         elif m["sdarg"]:
             f = Factor(m["sdarg"], "signdiff")
         elif m["sarg"]:
@@ -123,6 +143,29 @@ def parse_effect(text: str, data: IOData) -> Effect:
     if not factors:
         raise OrderError(f"cannot read effect {text!r}")
     return Effect(clean, tuple(factors))
+
+
+def _threshold(text: str, c: str) -> float:
+    value = float(c)
+    if not 0 < value < float("inf"):
+        raise OrderError(f"effect {text!r}: the threshold c must be a positive number, got {c}")
+    return value
+
+
+def format_threshold(c: float) -> str:
+    """A threshold as the grammar writes it: four significant digits, no ``+`` in an exponent.
+
+    Parameters
+    ----------
+    c : float
+        A positive threshold.
+
+    Returns
+    -------
+    str
+        e.g. ``"0.3012"`` or ``"1.5e-05"``.
+    """
+    return f"{c:.4g}".replace("e+", "e")
 
 
 def _is_output(name: str, data: IOData) -> bool:
@@ -146,6 +189,11 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
         return np.abs(x)
     if f.op == "sign":
         return np.sign(x)
+    if f.op in ("dz", "sat"):
+        shaped = np.maximum(np.abs(x) - f.threshold, 0.0) if f.op == "dz" else np.minimum(np.abs(x), f.threshold)
+        return np.sign(x) * shaped
+    if f.op in ("pos", "neg"):
+        return np.maximum(x, 0.0) if f.op == "pos" else np.minimum(x, 0.0)
     d = np.zeros_like(x)
     for a, b in data.segments:
         d[a + 1 : b] = np.diff(x[a:b])
@@ -174,11 +222,12 @@ class EffectLayout:
 def _output_term(f: Factor, text: str) -> tuple[str, int]:
     if f.op == "pow":
         return "pow", f.power
-    if f.op == "abs":
-        return "abs", 1
-    if f.op == "signdiff":
-        return "signdiff", 1
-    raise OrderError(f"effect {text!r}: {f.op}(y) is not supported for the output; use y^p, abs(y) or sign(dy)")
+    if f.op in ("abs", "sign", "signdiff"):
+        return f.op, 1
+    raise OrderError(
+        f"effect {text!r}: {f.op}(y) is not supported for the output (thresholds and positive/negative parts "
+        f"apply to inputs); use y^p, abs(y), sign(y) or sign(dy)"
+    )
 
 
 def _check_range(text: str, value: np.ndarray) -> None:

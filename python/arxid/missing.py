@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -35,10 +36,13 @@ import numpy as np
 from . import _metrics as metrics
 from ._checks import check_data, check_horizon, check_model
 from ._format import finite_or_none, horizon_label, require_pandas, text_table
+from .added_variable import AddedVariableResult, AddedVariableTest, holm
+from .candidates import auto_candidates, output_integrates, physics, scan_threshold
 from .data import IOData
-from .effects import compile_effects, parse_effect
+from .effects import compile_effects, format_threshold, parse_effect
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
+from .nonlinearity import NonlinearDependence, dependence_sentence, nonlinear_dependence
 from .regressors import max_lag, regressor_matrix, regressor_names
 from .validation import ResidualAnalysis, error_rms, prediction_error, residuals
 
@@ -61,74 +65,10 @@ class _Candidate:
     na: int
     nb: tuple[int, ...]
     nk: tuple[int, ...]
-    kind: str  # "effect", "pair" or "dynamics"
-
-
-def _two_signed(x: np.ndarray) -> bool:
-    x = x[np.isfinite(x)]
-    return x.size > 0 and x.min() < 0 < x.max()
-
-
-def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
-    """Candidate effects and structure changes built from the signals of ``data``.
-
-    Effects (grammar of :mod:`arxid.effects`): each extra signal as a new input; products of each
-    input with every extra signal, every other input and the output; powers 2 and 3 of each input
-    and of the output; ``abs`` of signals that change sign; ``sign(dNAME)`` of the output and of
-    each input (Coulomb friction, backlash); ``const``; ``time``. Dynamics: ``na+1``, ``nb+1`` and
-    ``nk±1`` (per input, written ``nb(name)+1`` when there are several inputs). Candidates already
-    in the model are left out.
-
-    Parameters
-    ----------
-    model : ArxModel
-        The fitted model to extend (its effects and orders ``nb_``, ``nk_``).
-    data : IOData
-        The data whose input, output and extra signals the candidates are built from.
-
-    Returns
-    -------
-    list of str
-        The effect strings first, then the structure changes (``na+1``, ``nb+1``, ``nk-1``, ...).
-    """
-    m = data.n_inputs
-    # Effects are written in the grammar's words: a name that is not an identifier (``rpm[1/min]``)
-    # is called u1, u2, ... for an input and left out for an extra signal.
-    ins = [a if a.isidentifier() else f"u{i + 1}" for i, a in enumerate(data.input_names)]
-    extras = [k for k in data.extra if k.isidentifier() and k not in ins and k not in ("y", data.output_name)]
-    out: list[str] = []
-    out += extras
-    for i, a in enumerate(ins):
-        out += [f"{a}*{x}" for x in extras]
-        out += [f"{a}*{b}" for b in ins[i + 1 :]]
-        out.append(f"{a}*y")
-    for a in ins:
-        out += [f"{a}^2", f"{a}^3"]
-    out += ["y^2", "y^3"]
-    for i, a in enumerate(ins):
-        if _two_signed(data.u[:, i]):
-            out.append(f"abs({a})")
-    if _two_signed(data.y):
-        out.append("abs(y)")
-    out.append("sign(dy)")
-    out += [f"sign(d{a})" for a in ins]
-    out += ["const", "time"]
-    have = set(model.effects)
-    eff = [e for e in out if e not in have]
-    dyn = ["na+1"]
-    for i, a in enumerate(ins):
-        tag = "" if m == 1 else f"({a})"
-        if model.nb_[i] > 0:
-            dyn.append(f"nb{tag}+1")
-            if model.nk_[i] > 0:
-                dyn.append(f"nk{tag}-1")
-            dyn.append(f"nk{tag}+1")
-    return eff + dyn
+    kind: str  # "effect", "pair", "dynamics" or "scan" (a threshold to find: dz(u1), sat(u1))
 
 
 def _dynamics(label: str, model: ArxModel) -> _Candidate | None:
-    import re
-
     na, nb, nk = model.na_, list(model.nb_), list(model.nk_)
     if label == "na+1":
         return _Candidate(label, (), na + 1, tuple(nb), tuple(nk), "dynamics")
@@ -160,11 +100,25 @@ def _parse_candidate(label: str, model: ArxModel, data: IOData) -> _Candidate:
     dyn = _dynamics(label, model)
     if dyn is not None:
         return dyn
+    scan = _SCAN.fullmatch(label)
+    if scan:
+        parse_effect(f"{scan['op']}({scan['signal']},1)", data)  # the signal must exist
+        return _Candidate(label, (), model.na_, model.nb_, model.nk_, "scan")
     parts = tuple(p for p in label.split("+") if p)
     for p in parts:
         parse_effect(p, data)  # raises OrderError with a readable message
-    kind = "pair" if len(parts) > 1 else "effect"
-    return _Candidate(label, parts, model.na_, model.nb_, model.nk_, kind)
+    # An effect the model already has is not named again: "sign(y)+const" on a model with sign(y) is "const".
+    new = tuple(p for p in parts if p not in model.effects) or parts
+    kind = "pair" if len(new) > 1 else "effect"
+    return _Candidate("+".join(new), new, model.na_, model.nb_, model.nk_, kind)
+
+
+#: A threshold candidate whose threshold the diagnosis scans for.
+_SCAN = re.compile(r"(?P<op>dz|sat)\((?P<signal>[A-Za-z_]\w*)\)")
+
+
+def _has_threshold(model: ArxModel, signal: str) -> bool:
+    return any(e.startswith((f"dz({signal},", f"sat({signal},")) for e in model.effects)
 
 
 def _layout_for(c: _Candidate, model: ArxModel, data: IOData):
@@ -204,7 +158,13 @@ class Suspect:
     significant : bool
         Corrected p-value below ``alpha`` and improvement of at least ``min_improvement``.
     note : str
-        Why a candidate could not be scored or refitted, if so.
+        Why a candidate could not be scored or refitted, or why it is not significant, if so.
+    physics : str
+        What the candidate stands for (``"Coulomb friction on a speed output"``; see
+        :data:`arxid.candidates.CATALOGUE`).
+    explained_by : str
+        The suspect that makes this one unnecessary (``""`` when none): once it is in the model,
+        adding this one gains less than ``min_improvement``.
     """
 
     effect: str
@@ -223,6 +183,8 @@ class Suspect:
     significant: bool
     note: str = ""
     model: ArxModel | None = field(default=None, repr=False, compare=False)
+    physics: str = ""
+    explained_by: str = ""
 
     @property
     def refitted(self) -> bool:
@@ -235,7 +197,8 @@ class Suspect:
         Returns
         -------
         dict
-            Those keys plus ``kind``, ``improvement`` and ``note``; NaN and inf become None.
+            Those keys plus ``kind``, ``improvement``, ``note`` and ``explained_by`` (None when no
+            other suspect explains it); NaN and inf become None.
         """
         return {
             "effect": self.effect,
@@ -246,6 +209,8 @@ class Suspect:
             "rms_sim_val_after": finite_or_none(float(self.rms_sim_val_after)),
             "improvement": finite_or_none(float(self.improvement)),
             "note": self.note,
+            "physics": self.physics,
+            "explained_by": self.explained_by or None,
         }
 
 
@@ -275,6 +240,9 @@ class Diagnosis:
         Number of hypotheses in the multiple-comparison correction.
     validation_is_estimation : bool
         True when no separate validation data were given.
+    nonlinear_dependence : tuple of NonlinearDependence
+        Signals and lags on which the model's residual still depends nonlinearly
+        (:func:`arxid.nonlinearity.nonlinear_dependence`, on the estimation data).
     """
 
     model: ArxModel
@@ -290,6 +258,13 @@ class Diagnosis:
     min_improvement: float = 0.05
     n_tested: int = 0
     validation_is_estimation: bool = False
+    nonlinear_dependence: tuple[NonlinearDependence, ...] = ()
+
+    @property
+    def unexplained(self) -> str:
+        """The sentence for a nonlinear dependence no candidate removes (``""`` when there is a
+        significant suspect, or no such dependence)."""
+        return "" if self.significant else dependence_sentence(self.nonlinear_dependence)
 
     @property
     def significant(self) -> tuple[Suspect, ...]:
@@ -377,6 +352,34 @@ class Diagnosis:
             return s.model
         return _refit(self.model, self.data, s)
 
+    def why(self, s: Suspect) -> str:
+        """Why ``s`` is or is not significant, in one phrase (its ``note`` when it has one).
+
+        Parameters
+        ----------
+        s : Suspect
+
+        Returns
+        -------
+        str
+            e.g. ``explained by y^3+const: no gain once it is added`` or ``validation error falls
+            only 2 % (needs 5 %)``.
+        """
+        if s.note:
+            return s.note
+        need = f"{100 * self.min_improvement:.0f} %"
+        if not math.isfinite(s.p_value) or s.p_value >= self.alpha:
+            return f"p-value {s.p_value:.2g} is not below {self.alpha:g}: no evidence it is missing"
+        if not s.refitted:
+            return "not refitted: only the best-scored candidates are judged on validation data"
+        if not math.isfinite(s.improvement):
+            return "the free run with it diverges"
+        if s.significant:
+            return f"validation error falls {100 * s.improvement:.0f} %"
+        if s.improvement < 0:
+            return f"validation error rises {-100 * s.improvement:.0f} % (needs to fall {need})"
+        return f"validation error falls only {100 * s.improvement:.1f} % (needs {need})"
+
     def __str__(self) -> str:
         base = (
             f"diagnosis of {self.model.structure_name()}: validation error ({horizon_label(self.horizon)}) "
@@ -414,10 +417,13 @@ class Diagnosis:
                 "no significant missing effect: no candidate passes both the corrected F-test "
                 f"(alpha {self.alpha}) and a {100 * self.min_improvement:.0f}% validation improvement"
             )
+            if self.unexplained:
+                lines.append(self.unexplained)
         else:
             top = self.significant[0]
+            what = f" — {top.physics}" if top.physics else ""
             lines.append(
-                f"best: add {top.effect} (validation error {self.rms_sim_val:.4g} -> "
+                f"best: add {top.effect}{what} (validation error {self.rms_sim_val:.4g} -> "
                 f"{top.rms_sim_val_after:.4g}); diagnosis.apply(0) refits with it"
             )
         return "\n".join(lines)
@@ -460,9 +466,21 @@ class Diagnosis:
                 "horizon": self.horizon,
             },
             "residual_tests": self.residual_tests.to_dict() if self.residual_tests is not None else {},
-            "suspects": [s.to_dict() for s in self.suspects],
+            "suspects": [{**s.to_dict(), "why": self.why(s)} for s in self.suspects],
             "ladder": steps,
+            "nonlinear_dependence": (ladder.diagnoses[-1] if ladder and ladder.diagnoses else self).dependence_dict(),
         }
+
+    def dependence_dict(self) -> dict:
+        """``{"signals": [...], "unexplained": sentence}``: where the residual still depends nonlinearly.
+
+        Returns
+        -------
+        dict
+            ``signals`` one dict per :class:`~arxid.nonlinearity.NonlinearDependence`;
+            ``unexplained`` the sentence of :attr:`unexplained`.
+        """
+        return {"signals": [d.to_dict() for d in self.nonlinear_dependence], "unexplained": self.unexplained}
 
     def to_json(self, indent: int | None = 2, ladder: Ladder | None = None) -> str:
         """JSON of :meth:`to_dict` (the ``arxid diagnose --json`` output).
@@ -531,65 +549,6 @@ class Diagnosis:
 def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
     effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
-
-
-def _is_integrating(model: ArxModel) -> bool:
-    p = model.poles()
-    return bool(np.any(np.abs(p - 1.0) < 1e-3))
-
-
-def _holm(p: np.ndarray) -> np.ndarray:
-    m = len(p)
-    if m == 0:
-        return p
-    order = np.argsort(p)
-    adj = np.empty(m)
-    running = 0.0
-    for i, j in enumerate(order):
-        running = max(running, min(1.0, (m - i) * p[j]))
-        adj[j] = running
-    return adj
-
-
-class _Projector:
-    """Added-variable statistics against the model's regressors on fixed rows."""
-
-    def __init__(self, phi: np.ndarray, y: np.ndarray):
-        scale = np.linalg.norm(phi, axis=0)
-        scale[scale == 0] = 1.0
-        self.q, _ = np.linalg.qr(phi / scale)
-        self.e = y - self.q @ (self.q.T @ y)
-        self.rss0 = float(self.e @ self.e)
-        self.n, self.p = phi.shape
-
-    def test(self, z: np.ndarray):
-        """(score, F, p_raw, q, note) for the columns ``z`` (rows aligned with the projector)."""
-        from scipy import stats
-
-        norms = np.linalg.norm(z, axis=0)
-        keep = norms > 0
-        if not keep.any():
-            return None, "the candidate is zero on these data"
-        z = z[:, keep] / norms[keep]
-        zr = z - self.q @ (self.q.T @ z)
-        rn = np.linalg.norm(zr, axis=0)
-        ok = rn > 1e-7
-        if not ok.any():
-            return None, "already explained by the model's regressors (collinear)"
-        zr = zr[:, ok] / rn[ok]
-        qz, rz = np.linalg.qr(zr)
-        d = np.abs(np.diag(rz))
-        qz = qz[:, d > 1e-7 * d.max()]
-        q = qz.shape[1]
-        dof = self.n - self.p - q
-        if dof < 1 or self.rss0 <= 0:
-            return None, "too few rows to test it"
-        drss = float(np.sum((qz.T @ self.e) ** 2))
-        drss = min(drss, self.rss0)
-        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
-        f = (drss / q) / (rss1 / dof)
-        p = float(stats.f.sf(f, q, dof))
-        return (math.sqrt(drss / self.rss0), float(f), p, q), ""
 
 
 def diagnose(
@@ -663,13 +622,18 @@ def diagnose(
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
     base = _baseline(model, validation, horizon, residual_max_lag)
     cands, auto = _candidate_list(candidates, model, data)
-    scored, notes = _Scoring(model, data, cands).run(alpha, n_pairs)
+    scoring = _Scoring(model, data, cands)
+    scored, notes = scoring.run(alpha, n_pairs)
     judge = _Judge(model, data, validation, base.horizon, base.rms, min_improvement)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = _demote_pairs(suspects, min_improvement)
     suspects = judge.conditional_on_top(suspects)
+    if auto and not any(s.significant for s in suspects):
+        # Two effects can hide each other: try the strongest candidate with its strongest partner.
+        masked = scoring.masked_pairs(scored, alpha)
+        suspects = _demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
     suspects += _unscored(notes, cands, suspects)
-    suspects.sort(key=_rank_key)
+    suspects = sorted((replace(s, physics=physics(s.effect, data)) for s in suspects), key=_rank_key)
     return Diagnosis(
         model,
         data,
@@ -684,7 +648,15 @@ def diagnose(
         min_improvement,
         len(scored),
         same,
+        _dependence(model, data, alpha),
     )
+
+
+def _dependence(model: ArxModel, data: IOData, alpha: float) -> tuple[NonlinearDependence, ...]:
+    try:
+        return nonlinear_dependence(model, data, alpha)
+    except ArxidError:  # too few rows for the extra lags: nothing to say
+        return ()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -719,7 +691,7 @@ class _Baseline:
 
 def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int) -> _Baseline:
     """The model's validation errors; a free run that drifts or diverges is measured k steps ahead."""
-    if horizon is None and _is_integrating(model):
+    if horizon is None and output_integrates(model):
         horizon = INTEGRATING_HORIZON
     rms = error_rms(model, validation, horizon)
     if math.isnan(rms):  # no sample of the validation data has a prediction
@@ -748,13 +720,15 @@ def _candidate_list(candidates, model: ArxModel, data: IOData) -> tuple[list[_Ca
         labels = list(candidates)
         if not labels:
             raise ArxidError("candidates is empty: give 'auto' or at least one effect such as 'u1^2'")
-    cands = []
+    cands: dict[str, _Candidate] = {}
     for lab in labels:
         c = _parse_candidate(lab, model, data)
-        if c.kind != "dynamics" and all(e in model.effects for e in c.effects):
+        if c.kind in ("effect", "pair") and all(e in model.effects for e in c.effects):
             continue
-        cands.append(c)
-    return cands, auto
+        if c.kind == "scan" and _has_threshold(model, c.label[c.label.index("(") + 1 : -1]):
+            continue
+        cands.setdefault(c.label, c)
+    return list(cands.values()), auto
 
 
 class _Scoring:
@@ -767,7 +741,11 @@ class _Scoring:
         self.base_names = set(regressor_names(data.output_name, model.na_, self.base_layout))
         lag = max(model.first_lag_, max_lag(model.na_, self.base_layout))
         self.prepared = []
+        self.scans: dict[str, list[_Candidate]] = {}
         for c in cands:
+            if c.kind == "scan":
+                self.scans.setdefault(c.label[c.label.index("(") + 1 : -1], []).append(c)
+                continue
             try:
                 _, lay = _layout_for(c, model, data)
             except (OrderError, DataError) as exc:
@@ -781,14 +759,16 @@ class _Scoring:
             raise DataError(
                 f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
             )
-        self.proj0 = _Projector(self.phi0, self.y0)
+        self.proj0 = AddedVariableTest(self.phi0, self.y0)
         self.single_z: dict[str, np.ndarray] = {}
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
         scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
+        scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
+        scored = self._one_direction_term(scored)
         if "const" not in self.model.effects and n_pairs > 0:
             scored += self._pairs_with_offset(scored, alpha, n_pairs)
-        for s, pa in zip(scored, _holm(np.array([s["p"] for s in scored]))):
+        for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
             s["p_adj"] = float(pa)
         return scored, self.notes
 
@@ -810,19 +790,131 @@ class _Scoring:
             if len(common) <= self.phi0.shape[1] + z.shape[1] + 2:
                 self.notes[c.label] = "too few rows where its signal exists"
                 return None
-            proj, z = _Projector(self.phi0[i0], self.y0[i0]), z[i1]
+            proj, z = AddedVariableTest(self.phi0[i0], self.y0[i0]), z[i1]
         res, why = proj.test(z)
         if res is None:
             self.notes[c.label] = why
             return None
         if proj is self.proj0:
             self.single_z[c.label] = z
-        return {"c": c, "score": res[0], "f": res[1], "p": res[2], "q": res[3]}
+        return _scored(c, res)
+
+    def _threshold_columns(self, op: str, signal: str, c: float) -> tuple[_Candidate, np.ndarray]:
+        """The candidate ``op(signal,c)`` and its columns on the common rows, read straight off the
+        effect's series (the scan tries some forty thresholds, so no regressor matrix is rebuilt)."""
+        label = f"{op}({signal},{format_threshold(c)})"
+        cand = _Candidate(label, (label,), self.model.na_, self.model.nb_, self.model.nk_, "effect")
+        lay = compile_effects((label,), self.data, self.model.nb_, self.model.nk_)
+        col, b, k = lay.u[:, -1], lay.nb[-1], lay.nk[-1]
+        z = np.column_stack([col[self.rows0 - k - j] for j in range(b)]) if b else np.zeros((len(self.rows0), 0))
+        return cand, z
+
+    def _scan(self, signal: str, group: list[_Candidate]) -> dict | None:
+        """The threshold of ``dz`` / ``sat`` on ``signal`` by a grid scan (:func:`arxid.candidates.scan_threshold`).
+
+        With the input in the model, ``dz(u,c)`` and ``sat(u,c)`` add the same span, so the two are
+        one hypothesis: one scan, then the name of the shape that alone replaces the input better.
+        """
+        ops = [c.label[: c.label.index("(")] for c in group]
+        x = np.asarray(self.data.signal(signal), dtype=float)
+
+        def score(c: float) -> float:
+            z = self._threshold_columns(ops[0], signal, c)[1]
+            return self.proj0.share(z) if z.shape[1] and np.isfinite(z).all() else math.nan
+
+        c, n = scan_threshold(x, score)
+        if not math.isfinite(c):
+            for cand in group:
+                why = "no threshold could be tested" if n else f"|{signal}| takes too few distinct values to scan"
+                self.notes[cand.label] = why
+            return None
+        op = self._threshold_shape(signal, c) if len(ops) > 1 else ops[0]
+        cand, z = self._threshold_columns(op, signal, c)
+        res, why = self.proj0.test(z)
+        if res is None:
+            self.notes[group[0].label] = why
+            return None
+        self.single_z[cand.label] = z
+        self.notes[cand.label] = f"threshold scanned over {n} quantiles of |{signal}| (p-value x {n})"
+        scored = _scored(cand, res)
+        scored["p"] = min(1.0, scored["p"] * n)
+        return scored
+
+    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
+        """``abs(u)`` and ``pos(u)`` are one hypothesis when u is in the model (|u| = 2 pos(u) − u):
+        keep ``abs(u)`` when the fitted gains for u > 0 and u < 0 have opposite signs (a response
+        that ignores the direction), else ``pos(u)`` (different gains for the two directions)."""
+        by_label = {s["c"].label: s for s in scored}
+        names = self.data.input_names
+        drop = set()
+        for label in by_label:
+            m = re.fullmatch(r"pos\((\w+)\)", label)
+            if not m or f"abs({m[1]})" not in by_label or label not in self.single_z:
+                continue
+            sig = m[1]
+            idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
+            base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
+            own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
+            z = self.single_z[label]
+            coef = np.linalg.lstsq(np.column_stack([self.phi0, z]), self.y0, rcond=None)[0]
+            negative = float(np.sum(coef[own]))
+            positive = negative + float(np.sum(coef[self.phi0.shape[1] :]))
+            drop.add(f"abs({sig})" if positive * negative >= 0 else label)
+        return [s for s in scored if s["c"].label not in drop]
+
+    def _threshold_shape(self, signal: str, c: float) -> str:
+        """``dz`` or ``sat``: whichever, in place of the input itself, leaves the smaller residual."""
+        names = self.data.input_names
+        idx = names.index(signal) if signal in names else int(signal[1:]) - 1 if signal[1:].isdigit() else -1
+        if not 0 <= idx < len(names):
+            return "dz"
+        rss = {}
+        for op in ("dz", "sat"):
+            cand, _ = self._threshold_columns(op, signal, c)
+            _, lay = _layout_for(cand, self.model, self.data)
+            cols = regressor_names(self.data.output_name, cand.na, lay)
+            phi, y, _ = regressor_matrix(self.data, cand.na, lay, self.lag)
+            keep = [j for j, nm in enumerate(cols) if not nm.startswith(f"{names[idx]}(")]
+            coef = np.linalg.lstsq(phi[:, keep], y, rcond=None)[0]
+            rss[op] = float(np.sum((y - phi[:, keep] @ coef) ** 2))
+        return min(rss, key=lambda k: rss[k])
+
+    def masked_pairs(self, scored: list[dict], alpha: float, n_partners: int = 3) -> list[dict]:
+        """Pairs for two effects that hide each other (each alone barely lowers the free-run error).
+
+        The strongest significant effect by score is put beside the model's regressors; every other
+        effect is scored again given it, and the ``n_partners`` strongest that pass ``alpha``
+        (Bonferroni over those re-tests) form pairs with it. A pair's p-value is the joint F-test of
+        both, Bonferroni-corrected by every hypothesis tried; it is then validated like any candidate.
+        """
+        singles = [s for s in scored if s["c"].kind == "effect" and s["c"].label in self.single_z]
+        strong = [s for s in singles if s["p_adj"] < alpha and s["c"].label not in ("const", "time")]
+        if not strong:
+            return []
+        first = max(strong, key=lambda s: s["score"])["c"]
+        z1 = self.single_z[first.label]
+        given = AddedVariableTest(np.column_stack([self.phi0, z1]), self.y0)
+        n_tests = len(singles) - 1
+        partners = []
+        for s in singles:
+            res = given.test(self.single_z[s["c"].label])[0] if s["c"] is not first else None
+            if res is not None and res.p_value * n_tests < alpha:
+                partners.append((res.score, s["c"]))
+        out = []
+        for _, c in sorted(partners, key=lambda t: -t[0])[:n_partners]:
+            res = self.proj0.test(np.column_stack([z1, self.single_z[c.label]]))[0]
+            if res is None:
+                continue
+            pair = _Candidate(f"{first.label}+{c.label}", first.effects + c.effects, c.na, c.nb, c.nk, "pair")
+            scored_pair = _scored(pair, res)
+            scored_pair["p_adj"] = min(1.0, res.p_value * (len(scored) + n_partners))
+            out.append(scored_pair)
+        return out
 
     def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
         """Strong effects tried together with ``const`` (asymmetric Coulomb friction, an output
         that was not detrended: the effect only helps together with a constant)."""
-        adj = _holm(np.array([s["p"] for s in scored]))
+        adj = holm(np.array([s["p"] for s in scored]))
         strong = sorted(
             (
                 s
@@ -844,8 +936,12 @@ class _Scoring:
             res, _ = self.proj0.test(z)
             if res is not None:
                 pc = _Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
-                out.append({"c": pc, "score": res[0], "f": res[1], "p": res[2], "q": res[3]})
+                out.append(_scored(pc, res))
         return out
+
+
+def _scored(c: _Candidate, res: AddedVariableResult) -> dict:
+    return {"c": c, "score": res.score, "f": res.f_statistic, "p": res.p_value, "q": res.n_columns}
 
 
 class _Judge:
@@ -937,7 +1033,9 @@ class _Judge:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
             return s
-        return replace(s, significant=False, note=f"explained by {top.effect}: no gain once it is added")
+        return replace(
+            s, significant=False, note=f"explained by {top.effect}: no gain once it is added", explained_by=top.effect
+        )
 
 
 def _demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspect]:
@@ -946,14 +1044,20 @@ def _demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspe
     by_label = {s.effect: s for s in suspects}
     out = []
     for s in suspects:
-        single = by_label.get(s.effect.rsplit("+", 1)[0]) if s.kind == "pair" and s.significant else None
-        if (
-            single is not None
-            and single.refitted
-            and math.isfinite(single.rms_sim_val_after)
-            and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after
-        ):
-            s = replace(s, significant=False, note=f"no better than {single.effect} alone")
+        parts: list[str] = []
+        if s.kind == "pair" and s.significant:
+            parts = [s.effect.rsplit("+", 1)[0]] if s.effect.endswith("+const") else list(s.effects)
+        for single in (by_label.get(p) for p in parts):
+            if (
+                single is not None
+                and single.refitted
+                and math.isfinite(single.rms_sim_val_after)
+                and s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after
+            ):
+                s = replace(
+                    s, significant=False, note=f"no better than {single.effect} alone", explained_by=single.effect
+                )
+                break
         out.append(s)
     return out
 

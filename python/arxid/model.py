@@ -852,6 +852,7 @@ class ArxModel:
         g = {
             "pow": f"{y}(t-1)^{power}" if power != 1 else f"{y}(t-1)",
             "abs": f"|{y}(t-1)|",
+            "sign": f"sign({y}(t-1))",
             "signdiff": f"sign(d{y}(t-1))",
         }[kind]
         return g + (" · carrier(t-1)" if mult >= 0 else "")

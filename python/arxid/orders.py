@@ -548,8 +548,8 @@ class SweepResult:
                 fh.write(text)
         return text
 
-    def table(self, n: int = 12, sanity: bool = True) -> str:
-        """The top ``n`` rows as text, like seed 004's Table 1 plus more columns.
+    def table(self, n: int = 12, sanity: bool = True, more_hint: str = ".to_pandas() has all") -> str:
+        """The top ``n`` rows as text, like Sarıoğlu & Kural's Table 1 plus more columns.
 
         Parameters
         ----------
@@ -557,6 +557,8 @@ class SweepResult:
             Ranked rows to show.
         sanity : bool
             Run the step sanity checks for the ``step`` column (else ``-``).
+        more_hint : str
+            How to see the rows left out, printed after their count (the CLI names ``--all``).
 
         Returns
         -------
@@ -566,7 +568,7 @@ class SweepResult:
         k = "" if self.horizon is None else f" k={self.horizon}"
         head = [
             "#",
-            "Model Configuration",
+            "structure",
             f"RMS est{k}",
             f"RMS val{k}",
             "fit val %",
@@ -614,7 +616,7 @@ class SweepResult:
         out.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
         out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in lines]
         if len(self) > n:
-            out.append(f"... {len(self) - n} more structures (.to_pandas() has all)")
+            out.append(f"... {len(self) - n} more structures ({more_hint})")
         return "\n".join(out)
 
     def __str__(self) -> str:

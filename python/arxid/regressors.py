@@ -114,6 +114,8 @@ def regressor_matrix(
             g = y1**power
         elif kind == "abs":
             g = np.abs(y1)
+        elif kind == "sign":
+            g = np.sign(y1)
         else:
             g = np.sign(y1 - y[rows - 2])
         if mult >= 0:

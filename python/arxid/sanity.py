@@ -1,9 +1,10 @@
 """Step sanity checks: does a model's step response look like the physics you expect?
 
-A structure can win a sweep on validation error and still be physically wrong (seed 004: the
-best-ranked ARX(2,2,0) of a quadrotor roll axis answers a step with an amplitude that "cannot be
-true"; the chosen ARX(2,1,8) grows with the sign of the step). :func:`step_sanity` applies a
-positive and a negative step of typical input amplitude over the validation horizon and flags:
+A structure can win a sweep on validation error and still be physically wrong (in a published
+quadrotor study, Sarıoğlu & Kural, the best-ranked ARX(2,2,0) of a quadrotor roll axis answers a
+step with an amplitude that "cannot be true"; the chosen ARX(2,1,8) grows with the sign of the
+step). :func:`step_sanity` applies a positive and a negative step of typical input amplitude over
+the validation horizon and flags:
 
 =====================  ==================================================================
 flag                   meaning

@@ -100,7 +100,7 @@ def thin(t: np.ndarray, *ys: np.ndarray, max_points: int = 4000) -> tuple[np.nda
     return (out_t,) + tuple(out)
 
 
-def data_overview(data: Any, max_extra: int = 4) -> Any:
+def data_overview(data: Any, max_extra: int = 4, validation_start: int | None = None) -> Any:
     """Output, inputs and up to ``max_extra`` extra signals against time, one panel each.
 
     Parameters
@@ -108,6 +108,9 @@ def data_overview(data: Any, max_extra: int = 4) -> Any:
     data : IOData
     max_extra : int
         Extra signals shown at most.
+    validation_start : int, optional
+        First sample of the validation data: a divider labelled "estimation | validation" is drawn
+        there (other experiment starts are thin dashed lines).
 
     Returns
     -------
@@ -122,8 +125,26 @@ def data_overview(data: Any, max_extra: int = 4) -> Any:
         ax.set_ylabel(_label(name, data.unit(name)), fontsize=8)
         ax.grid(alpha=0.3)
     for s in data.experiment_starts[1:]:
+        if s == validation_start:
+            continue
         for ax in axes[:, 0]:
-            ax.axvline(s * data.ts, color="k", lw=0.6, ls="--")
+            ax.axvline(s * data.ts, color="0.4", lw=0.6, ls=":")
+    if validation_start is not None:
+        tv = validation_start * data.ts
+        for ax in axes[:, 0]:
+            ax.axvline(tv, color="k", lw=1.0, ls="--")
+        top = axes[0, 0]
+        top.annotate(
+            "estimation | validation",
+            xy=(tv, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, 3),
+            textcoords="offset points",
+            ha="center",
+            va="bottom",
+            fontsize=8,
+            fontweight="bold",
+        )
     axes[-1, 0].set_xlabel("time [s] (experiments laid end to end)")
     return fig
 
@@ -133,6 +154,7 @@ def step_checks(
     ts: float,
     flags: Mapping[str, str] | None = None,
     ylabel: str = "output",
+    bands: Mapping[str, Any] | None = None,
 ) -> Any:
     """Responses to a positive and a negative step of several structures (the step sanity check a
     published quadrotor study, Sarıoğlu & Kural, used to reject its best-ranked structure).
@@ -141,25 +163,34 @@ def step_checks(
     ----------
     responses : sequence of (label, ndarray of shape (n_samples,))
         Response to a positive step of typical amplitude; the negative step is drawn as its mirror
-        computed by the caller (or, for a linear model, ``-response``).
+        (``-response``, exact for a linear model).
     ts : float
         Sampling time [s].
     flags : mapping of label to str, optional
         Why a structure was rejected; drawn dashed with the reason in the legend.
     ylabel : str
         Output name with its unit.
+    bands : mapping of label to ResponseBand, optional
+        Confidence band of a response, shaded around both steps.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     flags = dict(flags or {})
+    bands = dict(bands or {})
     fig, axes = new_figure(1, 1, height=3.0)
     ax = axes[0, 0]
     for i, (label, r) in enumerate(responses):
         t = np.arange(len(r)) * ts
         style = "--" if label in flags else "-"
-        text = f"{label}: {flags[label]}" if label in flags else f"{label}"
+        text = f"{label} (rejected: {flags[label]})" if label in flags else f"{label}"
+        if label in bands:
+            b = bands[label]
+            ax.fill_between(
+                t, b.lower, b.upper, color=f"C{i % 10}", alpha=0.25, lw=0, label=f"{label}: {b.description}"
+            )
+            ax.fill_between(t, -b.upper, -b.lower, color=f"C{i % 10}", alpha=0.15, lw=0)
         ax.plot(t, r, style, color=f"C{i % 10}", lw=1.2, label=text)
         ax.plot(t, -r, style, color=f"C{i % 10}", lw=0.6, alpha=0.6)
     ax.axhline(0, color="k", lw=0.5)
@@ -167,5 +198,8 @@ def step_checks(
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="best")
-    ax.set_title("step responses, positive (thick) and negative (thin) step; dashed: rejected", fontsize=9)
+    title = "step responses, positive (thick) and negative (thin) step"
+    if flags:
+        title += "; dashed: rejected by the sanity check"
+    ax.set_title(title, fontsize=9)
     return fig

@@ -32,40 +32,95 @@ def _axes(ax: Any, n_rows: int = 1, height: float = 3.0, sharex: bool = False) -
     return axes[0, 0].figure, axes
 
 
-def plot_comparison(cmp: Any, ax: Any = None) -> Any:
+#: Records longer than this are drawn as a min/max envelope plus a zoom on the worst window.
+LONG_RECORD = 3000
+
+
+def _envelope(ax: Any, t: np.ndarray, y: np.ndarray, color: str, label: str, lw: float = 0.9) -> None:
+    """A curve, or for a long record its min/max envelope per pixel-sized bucket (shaded)."""
+    if len(t) <= LONG_RECORD:
+        ax.plot(t, y, color=color, lw=lw, label=label)
+        return
+    tt, yy = thin(t, y, max_points=1200)
+    lo, hi = yy[0::2], yy[1::2]
+    ax.fill_between(tt[0::2], lo, hi, color=color, alpha=0.45, lw=0, label=label + " (min–max envelope)")
+
+
+def _band(ax: Any, t: np.ndarray, band: Any, color: str, sl: slice = slice(None)) -> None:
+    if band is not None:
+        ax.fill_between(t[sl], band.lower[sl], band.upper[sl], color=color, alpha=0.25, lw=0)
+
+
+def _zoom_slice(cmp: Any, zoom: tuple[float, float] | None) -> slice | None:
+    """The samples of the zoom window, widened to at least 400 samples (None: no zoom)."""
+    n = len(cmp.time)
+    if zoom is None or n <= LONG_RECORD:
+        return None
+    i0, i1 = (int(np.searchsorted(cmp.time, z)) for z in zoom)
+    half = max((i1 - i0) // 2, 200)
+    mid = (i0 + i1) // 2
+    return slice(max(mid - half, 0), min(mid + half, n))
+
+
+def plot_comparison(cmp: Any, ax: Any = None, bands: Any = None, zoom: tuple[float, float] | None = None) -> Any:
     """Measured against predicted output (top) and the error of each model (bottom).
 
     Parameters
     ----------
     cmp : Comparison
-    ax : pair of Axes, optional
-        Where to draw (output, error); default a new figure.
+    ax : sequence of Axes, optional
+        Where to draw (output, error, and the zoom when there is one); default a new figure.
+    bands : sequence of ResponseBand or None, optional
+        Confidence band of each model's prediction (same order as ``cmp.names``), shaded.
+    zoom : (float, float), optional
+        A time window in seconds (e.g. where the model fails worst), drawn at full resolution in a
+        third panel when the record is longer than :data:`LONG_RECORD` samples; the long panels
+        are min/max envelopes then.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    fig, axes = _axes(ax, 2, height=2.4, sharex=True)
+    zs = _zoom_slice(cmp, zoom)
+    fig, axes = _axes(ax, 2 if zs is None else 3, height=2.4)
     top, bottom = axes[0, 0], axes[1, 0]
+    bottom.sharex(top)
     limit = metrics.divergence_limit(cmp.y)
-    tt, y = thin(cmp.time, cmp.y)
-    top.plot(tt, y, color="k", lw=1.0, label="measured")
-    for i, (name, pred, fit, div) in enumerate(zip(cmp.names, cmp.predictions, cmp.fit_percent, cmp.diverged)):
+    bands = list(bands) if bands else [None] * len(cmp.names)
+    _envelope(top, cmp.time, cmp.y, "k", "measured")
+    for i, (name, pred, fit, div, band) in enumerate(
+        zip(cmp.names, cmp.predictions, cmp.fit_percent, cmp.diverged, bands)
+    ):
         shown = np.where(np.abs(pred) <= limit, pred, np.nan)
-        _, p, e = thin(cmp.time, shown, cmp.y - shown)
         label = f"{name}: " + ("diverged" if div else f"fit {fit:.1f} %")
-        top.plot(tt, p, color=f"C{i}", lw=0.9, label=label)
-        bottom.plot(tt, e, color=f"C{i}", lw=0.8, label=name)
+        _band(top, cmp.time, band, f"C{i}")
+        _envelope(top, cmp.time, shown, f"C{i}", label)
+        _envelope(bottom, cmp.time, cmp.y - shown, f"C{i}", name, lw=0.8)
     unit = f" [{cmp.output_unit}]" if getattr(cmp, "output_unit", "") else ""
+    shaded = " (shaded: 99 % band from the parameter covariance)" if any(b is not None for b in bands) else ""
     top.set_ylabel(cmp.output_name + unit)
-    top.set_title(f"measured output and {horizon_text(cmp.horizon)}", fontsize=9)
+    top.set_title(f"measured output and {horizon_text(cmp.horizon)}{shaded}", fontsize=9)
     bottom.axhline(0, color="k", lw=0.5)
     bottom.set_ylabel("measured − model" + unit)
     bottom.set_xlabel("time [s]")
-    for a in (top, bottom):
+    if zs is not None:
+        _zoom(axes[2, 0], cmp, bands, zs, unit)
+        top.axvspan(cmp.time[zs.start], cmp.time[zs.stop - 1], color="C3", alpha=0.12, lw=0)
+    for a in axes[:, 0]:
         a.grid(alpha=0.3)
         a.legend(fontsize=7, loc="upper right")
     return fig
+
+
+def _zoom(ax: Any, cmp: Any, bands: list, zs: slice, unit: str) -> None:
+    t = cmp.time[zs]
+    ax.plot(t, cmp.y[zs], color="k", lw=1.0, label="measured")
+    for i, (name, pred, band) in enumerate(zip(cmp.names, cmp.predictions, bands)):
+        _band(ax, cmp.time, band, f"C{i}", zs)
+        ax.plot(t, pred[zs], color=f"C{i}", lw=0.9, label=name)
+    ax.set_title(f"zoom: {t[0]:.4g}–{t[-1]:.4g} s, where the first model fails worst (shaded above)", fontsize=9)
+    ax.set_ylabel(cmp.output_name + unit)
+    ax.set_xlabel("time [s]")
 
 
 def _stems(ax: Any, lags: np.ndarray, r: np.ndarray, bound: float, color: str, title: str) -> None:
@@ -237,12 +292,16 @@ def plot_ladder(ladder: Any, ax: Any = None) -> Any:
     a = axes[0, 0]
     steps = ladder.steps[::-1]
     vals = np.array([s.rms_sim_val if np.isfinite(s.rms_sim_val) else np.nan for s in steps])
-    a.barh(range(len(vals)), np.nan_to_num(vals), color=["C0"] * (len(vals) - 1) + ["C2"])
-    a.set_yticks(range(len(vals)), [f"+ {s.added}" if s.added else s.structure for s in steps], fontsize=8)
+    # reversed: the last step (the final model, green) is the lowest bar
+    a.barh(range(len(vals)), np.nan_to_num(vals), color=["C2"] + ["C0"] * (len(vals) - 1))
+    n = len(ladder.steps)
+    kinds = [ladder.step_kind(n - 1 - i) for i in range(n)]
+    labels = [s.structure if k == "start" else f"+ {s.added} ({k})" for s, k in zip(steps, kinds)]
+    a.set_yticks(range(len(vals)), labels, fontsize=8)
     for i, v in enumerate(vals):
         a.text(v if np.isfinite(v) else 0, i, f" {v:.4g}", va="center", fontsize=8)
     a.set_xlabel(f"validation RMS error ({horizon_text(ladder.horizon)})")
-    a.set_title("the error falls as the missing effects are added (top: first model)", fontsize=9)
+    a.set_title("the error as effects and structure changes are added (top: first model; green: final)", fontsize=9)
     a.grid(alpha=0.3, axis="x")
     if np.isfinite(vals).any():
         a.set_xlim(0, np.nanmax(vals) * 1.2)

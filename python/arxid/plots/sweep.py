@@ -76,7 +76,10 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
                 ls="none",
                 label=f"chosen: {result.structure_name(chosen)}",
             )
-            ax.legend(fontsize=7, loc="upper right")
+            from matplotlib.patches import Patch
+
+            handles = ax.get_legend_handles_labels()[0] + [Patch(color="0.75", label="diverged or not fitted")]
+            fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=2)
         ax.set_xticks(nks)
         ax.set_yticks(nas)
         ax.set_title(f"nb = {b}")

@@ -1,6 +1,7 @@
 """Quadrotor identification toolkit: the workflows of arxid's five seed papers.
 
-* :mod:`~arxid.quadrotor.mixer` -- motor speeds to pseudo-torques and thrust (seed 004)
+* :mod:`~arxid.quadrotor.mixer` -- motor speeds to pseudo-torques and thrust (a published quadrotor
+  study, Sarıoğlu & Kural)
 * :mod:`~arxid.quadrotor.motor` -- motor model with battery voltage (seeds 003, 004)
 * :mod:`~arxid.quadrotor.rotational` -- grey-box roll/pitch model with delay (seed 003)
 * :mod:`~arxid.quadrotor.thrust` -- battery-aware total thrust model class (seed 001)

@@ -1,4 +1,5 @@
-"""Input mixer: motor speeds -> pseudo-torques and total thrust (seed 004, eqs. 5-12 and 24).
+"""Input mixer: motor speeds -> pseudo-torques and total thrust (a published quadrotor study,
+Sarıoğlu & Kural, eqs. 5-12 and 24).
 
 A quadrotor is nonlinear in its motor speeds but linear in their squares. The mixer forms the
 combinations of squared speeds that drive each axis, so that each axis becomes a linear system
@@ -22,7 +23,7 @@ CHANNELS = ("roll_torque", "pitch_torque", "yaw_torque", "thrust")
 
 _S = 1.0 / np.sqrt(2.0)
 # Motor positions (x forward, y left) in arm lengths and the sign of each motor's yaw reaction
-# torque. "plus" is seed 004's numbering: motor 1 front, 2 right, 3 back, 4 left, so that
+# torque. "plus" is Sarıoğlu & Kural's numbering: motor 1 front, 2 right, 3 back, 4 left, so that
 # roll = w4^2 - w2^2, pitch = w3^2 - w1^2, yaw = -w1^2 + w2^2 - w3^2 + w4^2.
 # "x" is the Crazyflie 2.x numbering: 1 front-right, 2 back-right, 3 back-left, 4 front-left.
 _FRAMES = {
@@ -38,7 +39,7 @@ class Mixer:
     Parameters
     ----------
     frame : {"plus", "x"}
-        Airframe. ``"plus"`` uses seed 004's numbering (1 front, 2 right, 3 back, 4 left);
+        Airframe. ``"plus"`` uses Sarıoğlu & Kural's numbering (1 front, 2 right, 3 back, 4 left);
         ``"x"`` the Crazyflie numbering (1 front-right, 2 back-right, 3 back-left, 4 front-left),
         with arms at 45 degrees so each motor's moment arm is ``1/sqrt(2)`` arm lengths.
     positions : array_like of shape (n_motors, 2), optional
@@ -46,7 +47,7 @@ class Mixer:
         any number of motors).
     spin : sequence of {+1, -1}, optional
         Sign of each motor's yaw reaction torque on the body (``+1`` for a clockwise propeller seen
-        from above). Default ``(-1, +1, -1, +1)`` as in seed 004 eq. 9.
+        from above). Default ``(-1, +1, -1, +1)`` as in Sarıoğlu & Kural eq. 9.
 
     Notes
     -----
@@ -57,7 +58,7 @@ class Mixer:
         yaw_torque   =  sum_i  s_i * w_i^2
         thrust       =  sum_i  w_i^2
 
-    These are seed 004's ``u'`` (eq. 24): the physical torques divided by the thrust
+    These are Sarıoğlu & Kural's ``u'`` (eq. 24): the physical torques divided by the thrust
     coefficient ``k`` (times the arm length) and, for yaw, by the drag coefficient ``b``.
 
     Examples

@@ -60,7 +60,7 @@ def _step(w: np.ndarray, v: np.ndarray, a0: float, a1: float, a2: float, ts: flo
 
 @dataclass(frozen=True)
 class MotorModel:
-    """``dw/dt = a0*V - a1*w - a2*w^2``, ``V = vbat*duty`` (seed 004 eqs. 21-22).
+    """``dw/dt = a0*V - a1*w - a2*w^2``, ``V = vbat*duty`` (Sarıoğlu & Kural eqs. 21-22).
 
     Parameters
     ----------
@@ -331,7 +331,7 @@ def speeds_from_pwm(
     data : IOData
         Holds the duty (or raw PWM) signals and the battery voltage.
     model : MotorModel
-        Identified motor model (seed 004 used one model for all four motors).
+        Identified motor model (Sarıoğlu & Kural used one model for all four motors).
     duty : sequence of str
         Names of the duty or PWM signals, motor order.
     vbat : str

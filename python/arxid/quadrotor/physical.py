@@ -159,7 +159,7 @@ def inertia_from_rotation(
     smoothing: int | None = None,
     delay: int = 0,
 ) -> LeastSquaresEstimate:
-    """Principal inertias from Newton-Euler rotational data (seed 004 eqs. 13-17).
+    """Principal inertias from Newton-Euler rotational data (Sarıoğlu & Kural eqs. 13-17).
 
     Parameters
     ----------

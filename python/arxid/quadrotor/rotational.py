@@ -6,7 +6,7 @@ Each attitude axis, seen through the input mixer, is a double integrator with a 
     y[t] - 2 y[t-1] + y[t-2] = c ts^2 u[t - delay]
 
 (ARX(2, 1, delay) with ``A = (1 - q^-1)^2`` known), where ``delay`` counts samples from an input
-change to its first effect on the logged angle (seed 004 found 8 at 2 ms).
+change to its first effect on the logged angle (Sarıoğlu & Kural found 8 at 2 ms).
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ class RotationalModel:
 
     @property
     def b(self) -> float:
-        """ARX numerator coefficient ``c ts^2`` (seed 004 eq. 29 reports 4.222e-8)."""
+        """ARX numerator coefficient ``c ts^2`` (Sarıoğlu & Kural eq. 29 reports 4.222e-8)."""
         return self.gain * self.ts**2
 
     def predict(self, data: IOData, window: int = 100) -> np.ndarray:

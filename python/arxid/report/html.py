@@ -18,6 +18,7 @@ from .._format import format_value, horizon_text, json_safe
 from ..analysis import Analysis
 from ..data import IOData
 from ..exceptions import ArxidError
+from ..verdicts import ladder_headline, negative_fit_note, percent, residual_sentences
 
 __all__ = ["render_html", "el", "script_json"]
 
@@ -76,11 +77,22 @@ def _num(v: Any, digits: int = 4) -> str:
     return format_value(v, digits)
 
 
-def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], classes: Sequence[str] = (), left: int = 1) -> Raw:
-    head = el("tr", *[el("th", h, cls="l" if i < left else "") for i, h in enumerate(headers)])
+def _table(
+    headers: Sequence[str],
+    rows: Sequence[Sequence[Any]],
+    classes: Sequence[str] = (),
+    left: int = 1,
+    wrap: Sequence[int] = (),
+) -> Raw:
+    """A table; the first ``left`` columns are left-aligned, the columns in ``wrap`` wrap their text."""
+
+    def cls(i: int) -> str:
+        return "l wrap" if i in wrap else ("l" if i < left else "")
+
+    head = el("tr", *[el("th", h, cls=cls(i)) for i, h in enumerate(headers)])
     body = []
     for k, r in enumerate(rows):
-        cells = [el("td", c if isinstance(c, Raw) else str(c), cls="l" if i < left else "") for i, c in enumerate(r)]
+        cells = [el("td", c if isinstance(c, Raw) else str(c), cls=cls(i)) for i, c in enumerate(r)]
         body.append(el("tr", *cells, cls=classes[k] if k < len(classes) else ""))
     return el("table", el("thead", head), el("tbody", *body))
 
@@ -110,8 +122,17 @@ def _data_section(a: Analysis) -> Raw:
         (a.model.structure_name(), "chosen structure"),
         (f"{_num(lad[0])} → {_num(lad[-1])}", f"validation RMS error ({horizon_text(a.horizon)})"),
     ]
-    if a.error_fall is not None:
-        cards.append((f"{100 * a.error_fall:.0f} %", "error removed along the ladder"))
+    fall = a.ladder.error_fall()
+    if fall["total"] is not None:
+        if fall["added_effects"]:
+            cards.append((percent(fall["effects"]), "of the error removed by the added effects"))
+        if fall["structure_changes"]:
+            cards.append(
+                (
+                    percent(fall["structure"]),
+                    "removed by structure changes (" + ", ".join(fall["structure_changes"]) + ")",
+                )
+            )
     cards_html = el("div", *[el("div", el("b", v), el("span", k), cls="card") for v, k in cards], cls="cards")
     full = IOData.merge([est, val])
     return _join(
@@ -119,9 +140,10 @@ def _data_section(a: Analysis) -> Raw:
             cards_html,
             el("pre", repr(est), cls="eq"),
             _img(
-                data_overview(full),
+                data_overview(full, validation_start=est.n_samples),
                 "data overview",
-                "Output (blue), inputs (orange) and extra signals (green); dashed: where the validation data begin.",
+                "Output (blue), inputs (orange) and extra signals (green); the dashed line labelled "
+                "“estimation | validation” is where the validation data begin.",
             ),
         ]
     )
@@ -180,6 +202,9 @@ def _sweep_section(a: Analysis) -> Raw:
         ),
         _table(head, rows, classes, left=2),
     ]
+    fits = [r[4] for r in rows]
+    if any(negative_fit_note(float(f)) for f in fits if f != "-"):
+        parts.append(_p(negative_fit_note(-1.0)[0].upper() + negative_fit_note(-1.0)[1:] + ".", cls="small"))
     if a.choice.skipped:
         parts.append(_p("Skipped by the step sanity check: " + "; ".join(f"{s}: {w}" for s, w in a.choice.skipped[:8])))
     try:
@@ -187,11 +212,25 @@ def _sweep_section(a: Analysis) -> Raw:
     except (ArxidError, ValueError) as exc:  # a grid with one na or nk value cannot be drawn as a map
         parts.append(_p(f"(no heat map: {exc})"))
     else:
+        grey = [
+            res.structure_name(i)
+            for i in range(len(res))
+            if res.errors[i] is not None or res.diverged_val[i] or res.diverged_est[i]
+        ]
+        greyed = (
+            f" Grey cells ({len(grey)}): "
+            + ", ".join(grey[:12])
+            + (f" and {len(grey) - 12} more" if len(grey) > 12 else "")
+            + " diverged or could not be fitted."
+            if grey
+            else " No structure diverged."
+        )
         parts.append(
             _img(
                 fig,
                 "sweep heat map",
-                "Ranking error over the order grid (lower is better); the star marks the chosen structure.",
+                f"Ranking error over the order grid (lower is better); the red star marks the chosen structure "
+                f"{a.choice.structure}.{greyed}",
             )
         )
     return _join(parts)
@@ -218,13 +257,18 @@ def _step_section(a: Analysis) -> Raw:
             if name in names:
                 models.append((name, a.sweep.model(names.index(name))))
                 flags[name] = reason
-    responses = [(label, m.step(n, amp, 0)) for label, m in models]
+    from ..uncertainty import step_band
+
+    band = step_band(a.model, n, amp, 0)
+    responses = [(models[0][0], band.response)] + [(label, m.step(n, amp, 0)) for label, m in models[1:]]
     unit = f" [{val.output_unit}]" if val.output_unit else ""
-    fig = step_checks(responses, val.ts, flags, ylabel=val.output_name + unit)
+    fig = step_checks(responses, val.ts, flags, ylabel=val.output_name + unit, bands={models[0][0]: band})
+    in_unit = f" {val.input_units[0]}" if val.input_units[0] else ""
     stable = a.model.is_stable
     dc = ", ".join(_num(g) for g in np.atleast_1d(a.model.dc_gain())) if stable else ""
     text = (
-        f"Response to a step of one standard deviation of {val.input_names[0]} ({amp:.4g}) over {n * val.ts:g} s. "
+        f"Response to a step of one standard deviation of {val.input_names[0]} ({amp:.4g}{in_unit}) over "
+        f"{n * val.ts:g} s, with its {band.description}. "
         f"A plausible model responds with the sign and size the measured output suggests (a published quadrotor "
         f"study, Sarıoğlu & Kural, rejected its best-ranked ARX(2,2,0) this way). The chosen model is "
         + ("stable" if stable else "not asymptotically stable (integrating)")
@@ -237,8 +281,8 @@ def _step_section(a: Analysis) -> Raw:
             _img(
                 fig,
                 "step responses",
-                "Positive and negative steps of the chosen structure and of "
-                "the better-ranked structures the check rejected (dashed).",
+                "Positive and negative steps of the chosen structure"
+                + (" and of the better-ranked structures the check rejected (dashed)." if flags else "."),
             ),
         ]
     )
@@ -250,11 +294,26 @@ def _compare_section(a: Analysis) -> Raw:
         [n, _num(f, 3), _num(r), "diverged" if d else ""]
         for n, f, r, d in zip(c.names, c.fit_percent, c.rms, c.diverged)
     ]
+    from ..plots import plot_comparison
+
+    notes = [negative_fit_note(f) for f in c.fit_percent if negative_fit_note(f)]
+    worst = a.failures[0].worst_segments if a.failures else ()
+    zoom = (worst[0].start_time, worst[0].end_time) if worst else None
+    long = len(c.time) > 3000
+    caption = "Measured output (black) and model outputs, error underneath" + (
+        "; shaded around each model: its 99 % band from the parameter covariance." if a.bands else "."
+    )
+    if long:
+        caption += (
+            f" {len(c.time)} samples are drawn as min–max envelopes; the bottom panel zooms in, at full resolution, "
+            "on the window where the first model fails worst."
+        )
     return _join(
         [
             _p(f"Validation data, {horizon_text(c.horizon)}."),
             _table(["model", "fit %", "RMS error", ""], rows),
-            _img(c.plot(), "measured vs simulated", "Measured output (black) and model outputs, error underneath."),
+            *[_p(n[0].upper() + n[1:] + ".", cls="small") for n in notes[:1]],
+            _img(plot_comparison(c, bands=a.bands or None, zoom=zoom), "measured vs simulated", caption),
         ]
     )
 
@@ -293,8 +352,11 @@ def _residual_section(a: Analysis) -> Raw:
         "Independence is judged by a test on the prewhitened series (Haugh), not by counting lags outside the "
         "bound: a coloured signal can leave the bound at many lags and still be independent."
     )
+    plain = el("ul", *[el("li", t) for t in residual_sentences(rt)], cls="verdicts")
     return _join(
         [
+            plain,
+            el("h3", "Details"),
             _p(lb),
             _p(auto),
             table,
@@ -343,6 +405,25 @@ def _failure_section(a: Analysis) -> Raw:
     )
 
 
+def _frequency_section(a: Analysis) -> Raw:
+    if not a.frequency:
+        return _p("No frequency check: " + " ".join(n for n in a.notes if n.startswith("No frequency check")))
+    fc = a.frequency[0]
+    sentences = el(
+        "ul", *[el("li", el("b", f"{f.model_name}: "), f.summary + ".") for f in a.frequency], cls="verdicts"
+    )
+    how = _p(
+        f"Grey: the frequency response estimated from the validation data alone (Welch averages of "
+        f"{fc.segment_length}-sample Hann segments, H1 = S_yu/S_uu, {fc.n_averages:.0f} effective averages) "
+        f"with its {100 * fc.level:g} % band; blue: the model's B/A with its band from the parameter covariance. "
+        "Red shading: frequencies where the model's error is still explained by the input beyond both "
+        "uncertainties (the test behind the sentence above). Low coherence means the input does not excite "
+        "that frequency or the output there is noise, and the data say little.",
+        cls="small",
+    )
+    return _join([sentences, _img(fc.plot(), "frequency check", f"Frequency check of {fc.model_name}."), how])
+
+
 def _suspect_section(a: Analysis) -> Raw:
     d = a.diagnosis
     top = d.top
@@ -368,25 +449,46 @@ def _suspect_section(a: Analysis) -> Raw:
                 _num(s.p_value, 3),
                 "yes" if s.significant else "no",
                 _num(s.rms_sim_val_after),
-                s.note,
+                s.explained_by or "-",
+                d.why(s).removeprefix(f"explained by {s.explained_by}: ") if s.explained_by else d.why(s),
             ]
         )
         classes.append("chosen" if s is top else "")
     table = _table(
-        ["rank", "effect", "score (partial corr.)", "p-value (Holm)", "significant", "validation error after", "note"],
+        [
+            "rank",
+            "effect",
+            "score",
+            "p-value (Holm)",
+            "significant",
+            "val. error after",
+            "explained by",
+            "why",
+        ],
         rows,
         classes,
         left=2,
+        wrap=(6, 7),
     )
-    return _join([verdict, table])
+    how = _p(
+        "A suspect is significant when its corrected p-value is below "
+        f"{d.alpha:g} and adding it lowers the validation error by at least {100 * d.min_improvement:.0f} %; "
+        "a tiny p-value alone is not enough, and a suspect that gains nothing once a better one is in the "
+        "model is “explained by” it. Rows are ranked by that verdict, then by the validation error after. "
+        "Score: partial correlation of the candidate with the model's one-step residual.",
+        cls="small",
+    )
+    return _join([verdict, table, how])
 
 
 def _ladder_section(a: Analysis) -> Raw:
     first = a.ladder.errors[0]
+    lad = a.ladder
     rows = [
         [
             i,
-            s.added or "(start)",
+            s.label(),
+            {"start": "-", "effect": "effect", "structure": "structure change"}[lad.step_kind(i)],
             s.structure,
             _num(s.rms_sim_val),
             _num(s.fit_val, 3),
@@ -394,9 +496,14 @@ def _ladder_section(a: Analysis) -> Raw:
         ]
         for i, s in enumerate(a.ladder.steps)
     ]
+    headline = ladder_headline(lad)
     return _join(
         [
-            _table(["step", "added", "model", "validation RMS error", "fit %", "fall vs. step 0"], rows, left=3),
+            *([_p(el("b", headline))] if headline else []),
+            _table(
+                ["step", "added", "kind", "model", "validation RMS error", "fit %", "fall vs. step 0"], rows, left=4
+            ),
+            *([_p(a.ladder.unexplained[0].upper() + a.ladder.unexplained[1:] + ".")] if a.ladder.unexplained else []),
             _img(a.ladder.plot(), "error ladder", "Each step adds the best significant suspect and re-diagnoses."),
         ]
     )
@@ -410,6 +517,7 @@ _SECTIONS = (
     ("compare", "Measured against simulated output", _compare_section),
     ("residuals", "Residual tests", _residual_section),
     ("fails", "Where it fails", _failure_section),
+    ("frequency", "Where it fails in frequency", _frequency_section),
     ("suspects", "Which effect is missing", _suspect_section),
     ("ladder", "Error ladder", _ladder_section),
 )
