@@ -5,7 +5,7 @@ PIP    := $(PY) -m pip
 export VIRTUAL_ENV := $(abspath $(VENV))
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: setup develop demo test test-rust test-python bench lint typecheck clean wheel smoke docs
+.PHONY: setup develop demo test test-rust test-python fuzz bench lint typecheck clean wheel smoke docs
 
 # Everything the venv needs, read from pyproject.toml (the one list): the build backend, the
 # runtime dependencies and the `test` and `dev` extras (pinned ruff and mypy). Python < 3.11 has no
@@ -65,6 +65,10 @@ test-python: develop
 	@$(PY) -m pytest -q
 
 test: setup test-rust test-python
+
+# The property-based suite at length (make test runs it derandomized with a few examples each).
+fuzz: develop
+	HYPOTHESIS_PROFILE=long $(PY) -m pytest -q tests/test_fuzz.py
 
 bench: develop
 	$(PY) benches/sweep_vs_numpy.py

@@ -1,7 +1,11 @@
 //! Least-squares fit of one structure by Householder QR, with rank check and covariance.
 
-use crate::error::{ArxError, Result};
-use crate::qr::{back_substitute, check_rank, rank_tolerance, reduce, small_qr, to_col_major};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::error::{ensure_memory, ArxError, Result};
+use crate::qr::{
+    back_substitute, check_rank, column_scale, rank_tolerance, reduce_checked, reduce_memory, small_qr, to_col_major,
+};
 use crate::structure::{fill_row, usable_rows, Data, Structure};
 
 /// A fitted parameter vector with what the Python layer needs for statistics.
@@ -24,11 +28,20 @@ pub struct Fit {
 /// `r`, restricted to the regressor columns `cols` (the output is the last column of `r`).
 /// Returns θ, the residual sum of squares, and the small re-triangularised factor (column-major,
 /// (k+1) × (k+1) with leading dimension q).
+///
+/// Each column is scaled by a power of two ([`column_scale`]) before the re-triangularisation and
+/// the solution scaled back, so outputs or inputs near 1e154 or 1e-200 do not overflow or underflow
+/// the column norms (a false rank deficiency); for other data the result is unchanged to the bit.
 pub fn solve_subset(r: &[f64], q: usize, cols: &[usize], n_rows: usize) -> Result<(Vec<f64>, f64, Vec<f64>)> {
     let k = cols.len();
     let mut a = vec![0.0; q * (k + 1)];
+    let mut scale = vec![1.0; k + 1];
     for (c, &j) in cols.iter().chain(std::iter::once(&(q - 1))).enumerate() {
-        a[c * q..c * q + q].copy_from_slice(&r[j * q..j * q + q]);
+        let col = &r[j * q..j * q + q];
+        scale[c] = column_scale(col);
+        for (dst, v) in a[c * q..c * q + q].iter_mut().zip(col) {
+            *dst = v * scale[c];
+        }
     }
     small_qr(&mut a, q, k + 1);
     check_rank(&a, q, k, rank_tolerance(n_rows, k)).map_err(|e| match e {
@@ -38,7 +51,17 @@ pub fn solve_subset(r: &[f64], q: usize, cols: &[usize], n_rows: usize) -> Resul
     let mut theta = vec![0.0; k];
     let rhs: Vec<f64> = (0..k).map(|i| a[i + k * q]).collect();
     back_substitute(&a, q, &rhs, &mut theta);
-    let rss = if k < q { a[k + k * q] * a[k + k * q] } else { 0.0 };
+    let sy = scale[k];
+    for (t, sc) in theta.iter_mut().zip(&scale) {
+        *t *= sc / sy;
+    }
+    let rss = if k < q { (a[k + k * q] / sy) * (a[k + k * q] / sy) } else { 0.0 };
+    // The factor of the unscaled columns (exact: the scales are powers of two).
+    for (c, sc) in scale.iter().enumerate() {
+        for v in &mut a[c * q..c * q + q] {
+            *v /= sc;
+        }
+    }
     Ok((theta, rss, a))
 }
 
@@ -70,13 +93,42 @@ pub fn inverse_gram(r: &[f64], ld: usize, k: usize) -> Vec<f64> {
     out
 }
 
+/// Bytes [`fit_rows_like`] allocates for `n_rows` regression rows and `n_params` parameters on
+/// `threads` threads: the row list, the QR reduction ([`reduce_memory`]) and the small factors.
+pub fn fit_memory(n_rows: usize, n_params: usize, threads: usize) -> usize {
+    let q = n_params.saturating_add(1);
+    let small = q.saturating_mul(q).saturating_mul(std::mem::size_of::<f64>()).saturating_mul(4);
+    n_rows
+        .saturating_mul(std::mem::size_of::<usize>())
+        .saturating_add(reduce_memory(n_rows, q, threads))
+        .saturating_add(small)
+}
+
+/// [`inverse_gram`] computed on power-of-two scaled columns and scaled back, so that factors with
+/// entries near 1e154 or 1e-200 do not overflow or underflow on the way.
+fn scaled_inverse_gram(mut r: Vec<f64>, ld: usize, k: usize) -> Vec<f64> {
+    let scale: Vec<f64> = (0..k).map(|j| column_scale(&r[j * ld..j * ld + ld])).collect();
+    for (j, sc) in scale.iter().enumerate() {
+        for v in &mut r[j * ld..j * ld + ld] {
+            *v *= sc;
+        }
+    }
+    let mut g = inverse_gram(&r, ld, k);
+    for i in 0..k {
+        for j in 0..k {
+            g[i * k + j] *= scale[i] * scale[j];
+        }
+    }
+    g
+}
+
 /// Fits structure `s` to `d` by least squares on rows that start `first_lag` into each experiment.
 ///
 /// # Errors
 /// `TooFewSamples` when there are fewer usable rows than parameters; `RankDeficient` naming the first
 /// regressor column that depends on the ones before it.
 pub fn fit(d: &Data, s: &Structure, first_lag: usize, parallel: bool) -> Result<Fit> {
-    fit_rows_like(d, s, first_lag, parallel, None)
+    fit_rows_like(d, s, first_lag, parallel, None, &AtomicBool::new(false))
 }
 
 /// [`fit`] on the rows where the regressors of `rows_like` (normally a sweep's grid envelope,
@@ -84,13 +136,15 @@ pub fn fit(d: &Data, s: &Structure, first_lag: usize, parallel: bool) -> Result<
 /// data with NaN uses exactly the sweep's rows. `n_skipped` then counts the rows either left out.
 ///
 /// # Errors
-/// As [`fit`]; `ShapeMismatch` or `InvalidStructure` when `rows_like` does not fit the data.
+/// As [`fit`]; `ShapeMismatch` or `InvalidStructure` when `rows_like` does not fit the data;
+/// `OutOfMemory` when the buffers cannot be allocated; `Interrupted` once `cancel` is set.
 pub fn fit_rows_like(
     d: &Data,
     s: &Structure,
     first_lag: usize,
     parallel: bool,
     rows_like: Option<&Structure>,
+    cancel: &AtomicBool,
 ) -> Result<Fit> {
     s.check(d.m)?;
     let p = s.n_params();
@@ -99,6 +153,7 @@ pub fn fit_rows_like(
     if bound < p + 1 {
         return Err(ArxError::TooFewSamples { needed: p + 1, got: bound });
     }
+    ensure_memory(bound.saturating_mul(std::mem::size_of::<usize>()), "the list of regression rows")?;
     let (rows, n_skipped) = match rows_like {
         None => usable_rows(d, s, first_lag),
         Some(env) => {
@@ -119,10 +174,10 @@ pub fn fit_rows_like(
     if rows.len() < p + 1 {
         return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
     }
-    let r = to_col_major(&reduce(d, s, &rows, parallel));
+    let r = to_col_major(&reduce_checked(d, s, &rows, parallel, &|| !cancel.load(Ordering::Relaxed))?);
     let cols: Vec<usize> = (0..p).collect();
     let (theta, rss, small) = solve_subset(&r, p + 1, &cols, rows.len())?;
-    let inv_gram = inverse_gram(&small, p + 1, p);
+    let inv_gram = scaled_inverse_gram(small, p + 1, p);
     Ok(Fit { theta, rss, n_rows: rows.len(), n_skipped, inv_gram })
 }
 

@@ -3,6 +3,8 @@
 
 pub mod error;
 pub mod fit;
+pub mod kstep;
+pub mod pem;
 pub mod qr;
 pub mod simulate;
 pub mod structure;

@@ -2,21 +2,27 @@
 //! convert results and errors back. Panics are caught here and never reach Python.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::Duration;
 
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
 };
+use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError};
 use pyo3::prelude::*;
 use pyo3::types::{PyInt, PyTuple};
+use rayon::ThreadPool;
 
 use crate::error::ArxError;
 use crate::structure::{Data, OutputKind, OutputTerm, Structure};
-use crate::sweep::{clamp_threads, envelope, SweepOptions};
+use crate::sweep::{clamp_threads, effective_threads, envelope, SweepOptions};
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
 pyo3::import_exception!(arxid.exceptions, OrderError);
 pyo3::import_exception!(arxid.exceptions, IdentifiabilityError);
+pyo3::import_exception!(arxid.exceptions, ConvergenceError);
 
 fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
     let msg = e.to_string();
@@ -28,39 +34,117 @@ fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
         }
         ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } => DataError::new_err(msg),
         ArxError::InvalidStructure(_) => OrderError::new_err(msg),
+        ArxError::NotConverged(_) => ConvergenceError::new_err(msg),
+        ArxError::OutOfMemory { .. } => PyMemoryError::new_err(msg),
+        ArxError::Interrupted => PyKeyboardInterrupt::new_err(msg),
     }
 }
 
-/// Runs `f` without the GIL on `n_threads` threads (0 = all), turning a panic into an error.
-/// Results do not depend on the thread count, so the count is capped by [`clamp_threads`].
-fn run<T: Send>(py: Python<'_>, n_threads: usize, f: impl FnOnce() -> Result<T, ArxError> + Send) -> PyResult<T> {
-    let n_threads = clamp_threads(n_threads);
-    let out = py.detach(move || {
-        catch_unwind(AssertUnwindSafe(|| {
-            if n_threads == 0 {
-                Ok(f())
-            } else {
-                match rayon::ThreadPoolBuilder::new().num_threads(n_threads).build() {
-                    Ok(pool) => Ok(pool.install(f)),
-                    Err(e) => {
-                        Err(format!("cannot start n_threads = {n_threads} threads ({e}); use n_threads=0 (all cores)"))
+/// The pool for `n_threads = 0` (all cores) and the process it was built in. rayon's worker
+/// threads do not survive `fork`: a child that used the parent's pool would wait for ever, so a
+/// child (another pid) builds its own.
+static ALL_CORES: Mutex<Option<(u32, Arc<ThreadPool>)>> = Mutex::new(None);
+
+/// How often the thread that waits for the core looks for a pending signal (Ctrl-C).
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// A rayon pool of `n_threads` threads (0 = all cores, shared by the calls of this process).
+fn pool(n_threads: usize) -> Result<Arc<ThreadPool>, String> {
+    let build = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map(Arc::new)
+            .map_err(|e| format!("cannot start {n} threads ({e}); use n_threads=1 or raise the process limit"))
+    };
+    if n_threads != 0 {
+        return build(n_threads);
+    }
+    let pid = std::process::id();
+    let mut slot = ALL_CORES.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    if let Some((owner, p)) = slot.as_ref() {
+        if *owner == pid {
+            return Ok(p.clone());
+        }
+    }
+    let fresh = build(0)?;
+    if let Some((_, inherited)) = slot.replace((pid, fresh.clone())) {
+        // The parent's pool: its threads are not in this process, so dropping it could wait for them.
+        std::mem::forget(inherited);
+    }
+    Ok(fresh)
+}
+
+/// The message of a panic payload, or the error the core unwound with (see `qr::reduce`).
+fn from_panic(py: Python<'_>, panic: Box<dyn std::any::Any + Send>) -> PyErr {
+    if let Some(e) = panic.downcast_ref::<ArxError>() {
+        return to_pyerr(py, e.clone());
+    }
+    let what = panic
+        .downcast_ref::<String>()
+        .cloned()
+        .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_else(|| "unknown".into());
+    if what.contains("AllocError") {
+        // faer's matrices panic (not abort) when their allocation fails.
+        return PyMemoryError::new_err(format!(
+            "out of memory in the arxid core ({what}); use fewer samples, lower orders or a smaller grid"
+        ));
+    }
+    ArxidError::new_err(format!("internal error in the arxid core (please report it): {what}"))
+}
+
+type Outcome<T> = std::thread::Result<Result<T, ArxError>>;
+
+/// Runs `f(cancel)` without the GIL on `n_threads` threads (0 = all), turning a panic into an
+/// error. Results do not depend on the thread count, so the count is capped by [`clamp_threads`].
+///
+/// The calling thread waits and polls for signals every [`SIGNAL_POLL`]: on Ctrl-C it sets
+/// `cancel`, which the core checks between blocks of work, and raises `KeyboardInterrupt` once
+/// the core has stopped.
+fn run<T: Send>(
+    py: Python<'_>,
+    n_threads: usize,
+    f: impl FnOnce(&AtomicBool) -> Result<T, ArxError> + Send,
+) -> PyResult<T> {
+    let pool = pool(clamp_threads(n_threads)).map_err(ArxidError::new_err)?;
+    let cancel = AtomicBool::new(false);
+    let (out, interrupt) = py.detach(|| {
+        std::thread::scope(|scope| {
+            let (tx, rx) = mpsc::channel::<Outcome<T>>();
+            let (cancel, pool) = (&cancel, &pool);
+            let spawned = std::thread::Builder::new().spawn_scoped(scope, move || {
+                let _ = tx.send(catch_unwind(AssertUnwindSafe(|| pool.install(|| f(cancel)))));
+            });
+            if let Err(e) = spawned {
+                return (Err(Box::new(format!("cannot start a thread ({e})")) as Box<dyn std::any::Any + Send>), None);
+            }
+            let mut interrupt = None;
+            loop {
+                match rx.recv_timeout(SIGNAL_POLL) {
+                    Ok(outcome) => return (outcome, interrupt),
+                    Err(mpsc::RecvTimeoutError::Timeout) if interrupt.is_none() => {
+                        if let Err(e) = Python::attach(|py| py.check_signals()) {
+                            cancel.store(true, Ordering::Relaxed);
+                            interrupt = Some(e);
+                        }
+                    }
+                    Err(mpsc::RecvTimeoutError::Timeout) => {}
+                    Err(mpsc::RecvTimeoutError::Disconnected) => {
+                        let lost: Box<dyn std::any::Any + Send> = Box::new("the worker thread ended without a result");
+                        return (Err(lost), interrupt);
                     }
                 }
             }
-        }))
+        })
     });
+    if let Some(e) = interrupt {
+        return Err(e);
+    }
     match out {
-        Ok(Ok(Ok(v))) => Ok(v),
-        Ok(Ok(Err(e))) => Err(to_pyerr(py, e)),
-        Ok(Err(msg)) => Err(ArxidError::new_err(msg)),
-        Err(panic) => {
-            let what = panic
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_else(|| "unknown".into());
-            Err(ArxidError::new_err(format!("internal error in the arxid core (please report it): {what}")))
-        }
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e)) => Err(to_pyerr(py, e)),
+        Err(panic) => Err(from_panic(py, panic)),
     }
 }
 
@@ -174,7 +258,7 @@ fn fit<'py>(
     let s = structure(py, na, nb, nk, output_terms)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
-    let f = run(py, n_threads, || crate::fit::fit_rows_like(&d, &s, first_lag, true, env.as_ref()))?;
+    let f = run(py, n_threads, |cancel| crate::fit::fit_rows_like(&d, &s, first_lag, true, env.as_ref(), cancel))?;
     let p = f.theta.len();
     Ok(FitOutput {
         theta: f.theta.into_pyarray(py).unbind(),
@@ -214,7 +298,14 @@ fn predict<'py>(
             s.n_params()
         )));
     }
-    let out = run(py, 1, || Ok(crate::simulate::predict(&d, &s, th, horizon, first_lag)))?;
+    let linear_complete = s.output_terms.is_empty() && ys.iter().chain(us).all(|v| v.is_finite());
+    let out = run(py, 1, |_| {
+        Ok(match horizon {
+            // The k-step predictor of a linear structure is a filter: O(N (na + nb)) for any k.
+            Some(k) if k >= 2 && linear_complete => crate::kstep::predict_k(&d, &s, th, k, first_lag),
+            _ => crate::simulate::predict(&d, &s, th, horizon, first_lag),
+        })
+    })?;
     Ok(out.into_pyarray(py))
 }
 
@@ -292,15 +383,27 @@ fn sweep<'py>(
         Some((a, b, mv)) => Some(Data::new(a, b, mv, &sv).map_err(|e| to_pyerr(py, e))?),
         None => None,
     };
-    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk };
-    let report = |done: usize| {
-        if let Some(cb) = &progress {
-            Python::attach(|py| {
-                let _ = cb.call1(py, (done,));
-            });
-        }
-    };
-    let (res, n_est, n_val) = run(py, n_threads, || crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report))?;
+    // The core reports after every group (chunk 1) so that a Ctrl-C stops it within one group;
+    // Python's callback still hears about every `chunk` structures.
+    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk: 1 };
+    let (chunk, reported) = (chunk.max(1), AtomicUsize::new(0));
+    let (res, n_est, n_val) = run(py, n_threads, |cancel| {
+        let report = |done: usize| {
+            if cancel.load(Ordering::Relaxed) {
+                // Unwinds out of the sweep's parallel loop to `run`, which raises KeyboardInterrupt.
+                std::panic::resume_unwind(Box::new(ArxError::Interrupted));
+            }
+            let before = reported.fetch_max(done, Ordering::Relaxed);
+            if done / chunk > before / chunk || done == grid.len() {
+                if let Some(cb) = &progress {
+                    Python::attach(|py| {
+                        let _ = cb.call1(py, (done,));
+                    });
+                }
+            }
+        };
+        crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report)
+    })?;
     // The same envelope the sweep built (it succeeded, so this cannot fail).
     let env = envelope(&grid).map_err(|e| to_pyerr(py, e))?;
     let s = res.len();
@@ -416,16 +519,140 @@ fn sweep_memory(
     ))
 }
 
+/// Bytes a fit of `n_rows` regression rows and `n_params` parameters allocates on `n_threads`
+/// threads as passed to `fit` (0 = all cores); saturates at 2^64 − 1 for absurd sizes.
+#[pyfunction]
+fn fit_memory(n_rows: &Bound<'_, PyAny>, n_params: &Bound<'_, PyAny>, n_threads: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let threads = effective_threads(saturating_usize(n_threads)?);
+    Ok(crate::fit::fit_memory(saturating_usize(n_rows)?, saturating_usize(n_params)?, threads))
+}
+
 /// Magnitude beyond which a prediction of `y` counts as diverged (the core's one divergence rule).
 #[pyfunction]
 fn divergence_limit(y: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
     Ok(crate::simulate::divergence_limit(y.as_slice()?))
 }
 
+// ---------------------------------------------------------------- prediction-error models (pem.rs)
+
+/// Orders `(na, nb, nc, nd, nf, nk)` of a polynomial model, as passed from Python.
+type PolyOrders = (usize, Vec<usize>, usize, usize, Vec<usize>, Vec<usize>);
+
+fn poly_structure(py: Python<'_>, o: PolyOrders) -> PyResult<crate::pem::PolyStructure> {
+    crate::pem::PolyStructure::new(o.0, o.1, o.2, o.3, o.4, o.5).map_err(|e| to_pyerr(py, e))
+}
+
+/// What `pem_fit` returns.
+#[pyclass(frozen, get_all, module = "arxid._core")]
+pub struct PemOutput {
+    /// Parameters in MATLAB's `getpvec` order (A, B, C, D, F), shape (p,).
+    theta: Py<PyArray1<f64>>,
+    /// The start (ARX / SRIV / Hannan–Rissanen, stabilised), shape (p,).
+    start: Py<PyArray1<f64>>,
+    /// Sum of squared prediction errors on the scored samples.
+    rss: f64,
+    /// Same at the start.
+    start_rss: f64,
+    /// Number of scored samples.
+    n_rows: usize,
+    /// (Jᵀ J)⁻¹ at the estimate, shape (p, p); times the noise variance it is the covariance.
+    inv_gram: Py<PyArray2<f64>>,
+    /// Accepted Gauss–Newton steps.
+    iterations: usize,
+    /// Loss after each accepted step, the start first.
+    losses: Py<PyArray1<f64>>,
+    /// Why the iterations stopped, in words.
+    termination: String,
+    /// True when they stopped at a (local) minimum.
+    converged: bool,
+}
+
+/// Prediction-error fit of a polynomial model on finite `segments` `[start, end)` of the data.
+#[pyfunction]
+#[pyo3(signature = (y, u, segments, orders, start = None, max_iterations = 100, tolerance = 1e-6, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+fn pem_fit<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    orders: PolyOrders,
+    start: Option<PyReadonlyArray1<'py, f64>>,
+    max_iterations: usize,
+    tolerance: f64,
+    n_threads: usize,
+) -> PyResult<PemOutput> {
+    let s = poly_structure(py, orders)?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
+    let start = match &start {
+        Some(a) => Some(a.as_slice()?),
+        None => None,
+    };
+    let opts = crate::pem::PemOptions { max_iterations, tolerance, parallel: n_threads != 1, ..Default::default() };
+    let f = run(py, n_threads, |_| crate::pem::pem(&d, &s, &opts, start))?;
+    let p = f.theta.len();
+    Ok(PemOutput {
+        theta: f.theta.into_pyarray(py).unbind(),
+        start: f.start.into_pyarray(py).unbind(),
+        rss: f.rss,
+        start_rss: f.start_rss,
+        n_rows: f.n_rows,
+        inv_gram: PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?.unbind(),
+        iterations: f.iterations,
+        losses: f.losses.into_pyarray(py).unbind(),
+        termination: f.termination.to_string(),
+        converged: f.termination.converged(),
+    })
+}
+
+/// Prediction of a polynomial model: `horizon` k steps ahead, None the free run; NaN outside the
+/// scored samples of `segments`.
+#[pyfunction]
+#[pyo3(signature = (y, u, segments, orders, theta, horizon = None))]
+fn pem_predict<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    orders: PolyOrders,
+    theta: PyReadonlyArray1<'py, f64>,
+    horizon: Option<usize>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let s = poly_structure(py, orders)?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
+    let th = theta.as_slice()?;
+    if th.len() != s.n_params() || s.nb.len() != m || horizon == Some(0) {
+        return Err(OrderError::new_err(format!(
+            "theta has {} entries and nb {} inputs; the structure has {} parameters and the data {m} inputs \
+             (horizon must be >= 1 or None)",
+            th.len(),
+            s.nb.len(),
+            s.n_params()
+        )));
+    }
+    let out = run(py, 1, |_| Ok(crate::pem::predict(&d, &s, th, horizon)))?;
+    Ok(out.into_pyarray(py))
+}
+
+/// Samples at the start of each run of finite data that a polynomial model treats as initial
+/// conditions (not scored).
+#[pyfunction]
+fn pem_max_lag(py: Python<'_>, orders: PolyOrders) -> PyResult<usize> {
+    Ok(poly_structure(py, orders)?.max_lag())
+}
+
+// ---------------------------------------------------------------- end of prediction-error models
+
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
-    use super::{divergence_limit, fit, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput};
+    use super::{
+        divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
+    };
+    #[pymodule_export]
+    use super::{pem_fit, pem_max_lag, pem_predict, PemOutput};
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

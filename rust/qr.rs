@@ -6,7 +6,7 @@ use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, re
 use faer::{Mat, MatMut, Par};
 use rayon::prelude::*;
 
-use crate::error::{ArxError, Result};
+use crate::error::{ensure_memory, ArxError, Result};
 use crate::structure::{fill_row, Data, Structure};
 
 /// Rows per TSQR block. Fixed (not derived from the thread count) so that the reduction tree,
@@ -27,18 +27,46 @@ pub fn qr_r_in_place(a: MatMut<'_, f64>) {
 }
 
 /// Upper-triangular (q × q) copy of the first q rows of `a`'s R, zero-padded when `a` had fewer rows.
-fn take_r(a: &Mat<f64>, q: usize) -> Mat<f64> {
+pub fn take_r(a: &Mat<f64>, q: usize) -> Mat<f64> {
     let rows = a.nrows().min(q);
     Mat::from_fn(q, q, |i, j| if i < rows && i <= j { a[(i, j)] } else { 0.0 })
+}
+
+/// Bytes [`reduce_checked`] allocates for `n_rows` rows of a `q`-column regressor on `threads`
+/// threads: one block buffer per thread, every block's R, their stack, and the final R.
+pub fn reduce_memory(n_rows: usize, q: usize, threads: usize) -> usize {
+    let f = std::mem::size_of::<f64>();
+    let blocks = (n_rows / BLOCK_ROWS).saturating_add(1);
+    let per_block = q.saturating_mul(q).saturating_mul(f);
+    let block_buffers = threads.saturating_mul(BLOCK_ROWS.min(n_rows.max(1))).saturating_mul(q).saturating_mul(f);
+    blocks.saturating_mul(per_block).saturating_mul(2).saturating_add(block_buffers).saturating_add(per_block)
 }
 
 /// R factor ((p+1) × (p+1), last column the output) of the regressor `[Φ | y]` of `s` over `rows`.
 /// Blocks of rows are factored in parallel when `parallel`; the block R's are stacked and factored
 /// again in block order.
-pub fn reduce(d: &Data, s: &Structure, rows: &[usize], parallel: bool) -> Mat<f64> {
+///
+/// `keep_going()` is asked before each block of [`BLOCK_ROWS`] rows (a caller may also unwind
+/// from it).
+///
+/// # Errors
+/// `OutOfMemory` when the buffers ([`reduce_memory`]) cannot be allocated; `Interrupted` when
+/// `keep_going()` says no.
+pub fn reduce_checked(
+    d: &Data,
+    s: &Structure,
+    rows: &[usize],
+    parallel: bool,
+    keep_going: &(dyn Fn() -> bool + Sync),
+) -> Result<Mat<f64>> {
     let p = s.n_params();
     let q = p + 1;
-    let block_r = |block: &[usize]| -> Mat<f64> {
+    let threads = if parallel { rayon::current_num_threads() } else { 1 };
+    ensure_memory(reduce_memory(rows.len(), q, threads), "the QR reduction of the regressor")?;
+    let block_r = |block: &[usize]| -> Option<Mat<f64>> {
+        if !keep_going() {
+            return None;
+        }
         let mut a = Mat::<f64>::zeros(block.len(), q);
         if s.output_terms.is_empty() {
             // Column by column: every column is the output or an input read at a fixed lag.
@@ -54,14 +82,31 @@ pub fn reduce(d: &Data, s: &Structure, rows: &[usize], parallel: bool) -> Mat<f6
             }
         }
         qr_r_in_place(a.as_mut());
-        take_r(&a, q)
+        Some(take_r(&a, q))
     };
-    let blocks: Vec<Mat<f64>> = if parallel {
+    let blocks: Option<Vec<Mat<f64>>> = if parallel {
         rows.par_chunks(BLOCK_ROWS).map(block_r).collect()
     } else {
         rows.chunks(BLOCK_ROWS).map(block_r).collect()
     };
-    stack_and_reduce(&blocks, q)
+    Ok(stack_and_reduce(&blocks.ok_or(ArxError::Interrupted)?, q))
+}
+
+/// [`reduce_checked`] for callers without an error path: its error unwinds, with the [`ArxError`]
+/// as payload, to the boundary that runs the computation (`py.rs` turns it back into the error).
+pub fn reduce(d: &Data, s: &Structure, rows: &[usize], parallel: bool) -> Mat<f64> {
+    reduce_with(d, s, rows, parallel, &|| true)
+}
+
+/// [`reduce`] asking `keep_going()` before each block (a sweep passes its progress heartbeat).
+pub fn reduce_with(
+    d: &Data,
+    s: &Structure,
+    rows: &[usize],
+    parallel: bool,
+    keep_going: &(dyn Fn() -> bool + Sync),
+) -> Mat<f64> {
+    reduce_checked(d, s, rows, parallel, keep_going).unwrap_or_else(|e| std::panic::resume_unwind(Box::new(e)))
 }
 
 /// Writes `[Φ | y]` of a linear structure for the rows `block` into `a`, one contiguous column at a
@@ -153,6 +198,18 @@ pub fn back_substitute(r: &[f64], ld: usize, rhs: &[f64], theta: &mut [f64]) {
         }
         theta[i] = acc / r[i + i * ld];
     }
+}
+
+/// A power of two that brings the largest magnitude of `col` near 1 (1 for a zero or non-finite
+/// column). Multiplying by it is exact, so scaled and unscaled solutions agree to the last bit
+/// whenever neither overflows; it keeps sums of squares of columns near 1e154 or 1e-200 in range.
+pub fn column_scale(col: &[f64]) -> f64 {
+    let big = col.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if big == 0.0 || !big.is_finite() {
+        return 1.0;
+    }
+    let e = big.log2().floor().clamp(-1000.0, 1000.0) as i32;
+    2f64.powi(-e)
 }
 
 /// Relative tolerance below which a diagonal entry of R marks a dependent column.

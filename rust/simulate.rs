@@ -117,139 +117,14 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
     out
 }
 
-/// Coefficients of the s-step-ahead predictors of a linear ARX structure, s = 1..=k:
-/// $\hat y(b+s) = \sum_i g^y_{s,i}\, y(b-i) + \sum_m \sum_j g^u_{s,m,j}\, u_m(b+s-j)$, with b the last
-/// measured sample. Built by running the model recursion on coefficient vectors instead of numbers.
-struct KStepCoefficients {
-    /// `gy[s][i]`, i < na.
-    gy: Vec<Vec<f64>>,
-    /// `gu[s][m][j]`, j < k + largest input lag.
-    gu: Vec<Vec<Vec<f64>>>,
-}
-
-impl KStepCoefficients {
-    /// Largest coefficient table (in f64 entries) [`predict_k_linear`] builds; longer horizons
-    /// predict step by step instead.
-    const MAX_ENTRIES: usize = 1 << 22;
-
-    /// Entries of the table for horizon `k`: (k + 1) (na + m (k + lag + 1)).
-    fn entries(s: &Structure, k: usize) -> usize {
-        let width = k.saturating_add(s.max_lag() + 1);
-        k.saturating_add(1).saturating_mul(s.nb.len().max(1).saturating_mul(width).saturating_add(s.na))
-    }
-
-    fn new(s: &Structure, theta: &[f64], k: usize) -> Self {
-        let na = s.na;
-        let m = s.nb.len();
-        let width = k + s.max_lag() + 1;
-        let mut gy = vec![vec![0.0; na]; k + 1];
-        let mut gu = vec![vec![vec![0.0; width]; m]; k + 1];
-        for step in 1..=k {
-            let (mut y_s, mut u_s) = (vec![0.0; na], vec![vec![0.0; width]; m]);
-            for i in 1..=na {
-                let a = theta[i - 1];
-                if step <= i {
-                    // y(b + step - i) is measured: y(b - (i - step)).
-                    y_s[i - step] -= a;
-                } else {
-                    let r = step - i;
-                    for (dst, src) in y_s.iter_mut().zip(&gy[r]) {
-                        *dst -= a * src;
-                    }
-                    for (um, gm) in u_s.iter_mut().zip(&gu[r]) {
-                        // u(b + r - j) = u(b + step - (j + i)).
-                        for j in 0..width - i {
-                            um[j + i] -= a * gm[j];
-                        }
-                    }
-                }
-            }
-            let mut c = na;
-            for (mi, (&nb, &nk)) in s.nb.iter().zip(&s.nk).enumerate() {
-                for j in 0..nb {
-                    u_s[mi][nk + j] += theta[c];
-                    c += 1;
-                }
-            }
-            gy[step] = y_s;
-            gu[step] = u_s;
-        }
-        KStepCoefficients { gy, gu }
-    }
-}
-
 /// k-step-ahead prediction of a linear structure (no output terms) on complete data: the same
-/// numbers as [`predict`] with `Some(k)` (up to rounding), at a cost of O(N (na + k + lag)) instead
-/// of O(N k (na + nb)): the k-step predictor of an ARX model is itself a FIR filter of past outputs
-/// and inputs, applied here one coefficient at a time over all samples (vectorised).
-///
-/// A horizon longer than every experiment is shortened to the longest one (same predictions); when
-/// the coefficient table would still be large, the prediction runs step by step ([`predict`]).
+/// numbers as [`predict`] with `Some(k)` (up to rounding) at a cost of O(N (na + nb)) for any k,
+/// computed as a filter by [`crate::kstep::predict_k`].
 ///
 /// # Panics
 /// When `s` has output terms or `k == 0`.
 pub fn predict_k_linear(d: &Data, s: &Structure, theta: &[f64], k: usize, first_lag: usize) -> Vec<f64> {
-    assert!(s.output_terms.is_empty() && k >= 1);
-    let n = d.len();
-    let lag = first_lag.max(s.max_lag());
-    let longest = d.segments().iter().map(|&(a, b)| (b - a).saturating_sub(lag)).max().unwrap_or(0);
-    let k = k.min(longest.max(1));
-    if KStepCoefficients::entries(s, k) > KStepCoefficients::MAX_ENTRIES {
-        return predict(d, s, theta, Some(k), first_lag);
-    }
-    let co = KStepCoefficients::new(s, theta, k);
-    let mut out = vec![f64::NAN; n];
-    let mut ucol = vec![0.0; n];
-    for (a, b) in d.segments() {
-        let start = a + lag;
-        if start >= b {
-            continue;
-        }
-        // First k - 1 rows: shorter horizons from the measured outputs before `start`.
-        let steady = (start + k - 1).min(b);
-        for (t, o) in out.iter_mut().enumerate().take(steady).skip(start) {
-            let step = t - start + 1;
-            let mut v = 0.0;
-            for (i, g) in co.gy[step].iter().enumerate() {
-                v += g * d.y[start - 1 - i];
-            }
-            for (mi, gm) in co.gu[step].iter().enumerate() {
-                for (j, g) in gm.iter().enumerate() {
-                    if *g != 0.0 {
-                        v += g * d.u[(t - j) * d.m + mi];
-                    }
-                }
-            }
-            *o = v;
-        }
-        if steady >= b {
-            continue;
-        }
-        // Steady part: horizon k for every row, one coefficient at a time over all rows.
-        let rows = &mut out[steady..b];
-        rows.fill(0.0);
-        for (i, &g) in co.gy[k].iter().enumerate() {
-            let src = &d.y[steady - k - i..b - k - i];
-            for (o, &y) in rows.iter_mut().zip(src) {
-                *o += g * y;
-            }
-        }
-        for (mi, gm) in co.gu[k].iter().enumerate() {
-            for (t, u) in ucol.iter_mut().enumerate().take(b).skip(a) {
-                *u = d.u[t * d.m + mi];
-            }
-            for (j, &g) in gm.iter().enumerate() {
-                if g == 0.0 {
-                    continue;
-                }
-                let src = &ucol[steady - j..b - j];
-                for (o, &u) in rows.iter_mut().zip(src) {
-                    *o += g * u;
-                }
-            }
-        }
-    }
-    out
+    crate::kstep::predict_k(d, s, theta, k, first_lag)
 }
 
 /// Outcome of a free-run (or k-step) check of one structure.

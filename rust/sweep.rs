@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
-use crate::qr::{reduce, to_col_major, BLOCK_ROWS};
+use crate::qr::{reduce_with, to_col_major, BLOCK_ROWS};
 use crate::simulate::{
     divergence_limit, free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES,
 };
@@ -214,7 +214,9 @@ fn simulate_group(
 /// [`divergence_limit`]`(y)` of that data set is stopped and reported as diverged.
 ///
 /// `progress(done)` is called about every `opts.chunk` simulated structures (from a worker thread,
-/// possibly out of order) and once at the end with the total.
+/// possibly out of order) and once at the end with the total; `progress(0)` before each structure
+/// is solved and before each block of rows is reduced. A caller stops the sweep by unwinding from
+/// `progress` (Ctrl-C, see `py.rs`).
 ///
 /// # Errors
 /// `InvalidStructure` for an empty or inconsistent grid, `ShapeMismatch` when the validation data
@@ -242,7 +244,11 @@ pub fn sweep(
         return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
     }
     let n_est = rows.len();
-    let r_est = to_col_major(&reduce(est, &env, &rows, opts.parallel));
+    let heartbeat = || {
+        progress(0);
+        true
+    };
+    let r_est = to_col_major(&reduce_with(est, &env, &rows, opts.parallel, &heartbeat));
     drop(rows);
     let (r_val, n_val) = match val {
         Some(v) => {
@@ -251,7 +257,7 @@ pub fn sweep(
             }
             let vrows = rows_of(v, &env, first_lag);
             let n = vrows.len();
-            (Some(to_col_major(&reduce(v, &env, &vrows, opts.parallel))), n)
+            (Some(to_col_major(&reduce_with(v, &env, &vrows, opts.parallel, &heartbeat))), n)
         }
         None => (None, 0),
     };
@@ -259,6 +265,7 @@ pub fn sweep(
 
     // 1. Parameters and one-step losses of every structure, from R alone.
     let fit_one = |s: &Structure| -> StructureResult {
+        progress(0); // a heartbeat: the caller may stop the sweep here (see `progress` above)
         let cols = columns_in(&env, s);
         match solve_subset(&r_est, q, &cols, n_est) {
             Ok((theta, rss_est, _)) => {

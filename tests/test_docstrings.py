@@ -42,6 +42,8 @@ PUBLIC_MODULES = (
     "arxid",
     "arxid.data",
     "arxid.model",
+    "arxid.polynomial",
+    "arxid.pem",
     "arxid.convert",
     "arxid.orders",
     "arxid.validation",

@@ -8,7 +8,9 @@ python-control and scipy.
 The map (one module per concept):
 
 * :mod:`arxid.data` — :class:`IOData`; :mod:`arxid.effects` — the physical-term grammar;
-* :mod:`arxid.model` — :func:`arx`, :class:`ArxModel`; :mod:`arxid.convert` — python-control, scipy, d2c;
+* :mod:`arxid.model` — :func:`arx`, :class:`ArxModel`; :mod:`arxid.polynomial` — :class:`PolynomialModel`;
+* :mod:`arxid.pem` — :func:`oe`, :func:`armax`, :func:`bj`, :func:`delayest`, :func:`refine`;
+  :mod:`arxid.convert` — python-control, scipy, d2c;
 * :mod:`arxid.orders` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`;
 * :mod:`arxid.validation` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`;
 * :mod:`arxid.frequency` — :func:`frequency_check`; :mod:`arxid.uncertainty` — confidence bands;
@@ -27,6 +29,8 @@ from .data import IOData
 from .exceptions import (
     ArxidError,
     ArxidWarning,
+    ConvergenceError,
+    ConversionError,
     DataError,
     IdentifiabilityError,
     MissingDependencyError,
@@ -38,6 +42,8 @@ from .ladder import Ladder
 from .missing import Diagnosis, diagnose
 from .model import ArxModel, arx
 from .orders import DEFAULT_GRID, SweepResult, sweep
+from .pem import RefinedSweep, armax, bj, delayest, oe, refine
+from .polynomial import PolynomialModel
 from .validation import compare, residuals, where_it_fails
 
 __all__ = [
@@ -47,6 +53,13 @@ __all__ = [
     "sweep",
     "SweepResult",
     "DEFAULT_GRID",
+    "PolynomialModel",
+    "oe",
+    "armax",
+    "bj",
+    "delayest",
+    "refine",
+    "RefinedSweep",
     "compare",
     "residuals",
     "where_it_fails",
@@ -63,6 +76,8 @@ __all__ = [
     "IdentifiabilityError",
     "NotFittedError",
     "MissingDependencyError",
+    "ConvergenceError",
+    "ConversionError",
     "ArxidWarning",
     "quadrotor",
     "datasets",

@@ -14,6 +14,7 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 __all__ = [
     "divergence_limit",
     "fit",
+    "fit_memory",
     "grid_envelope",
     "max_lag",
     "predict",
@@ -22,6 +23,10 @@ __all__ = [
     "FitOutput",
     "SweepOutput",
     "DIVERGENCE_FACTOR",
+    "pem_fit",
+    "pem_predict",
+    "pem_max_lag",
+    "PemOutput",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -121,4 +126,48 @@ def sweep(
 def grid_envelope(structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]) -> tuple[int, _Orders]: ...
 def max_lag(na: int, nb: Sequence[int], nk: Sequence[int], output_terms: Sequence[_Term]) -> int: ...
 def sweep_memory(n_structures: int, p_max: int, q: int, n_est: int, n_val: int, n_cols: int, n_threads: int) -> int: ...
+def fit_memory(n_rows: int, n_params: int, n_threads: int) -> int: ...
 def divergence_limit(y: _F) -> float: ...
+
+# ---------------------------------------------------------------- prediction-error models
+_PolyOrders = tuple[int, Sequence[int], int, int, Sequence[int], Sequence[int]]
+
+@final
+class PemOutput:
+    """What :func:`pem_fit` returns."""
+
+    @property
+    def theta(self) -> _F: ...
+    @property
+    def start(self) -> _F: ...
+    @property
+    def rss(self) -> float: ...
+    @property
+    def start_rss(self) -> float: ...
+    @property
+    def n_rows(self) -> int: ...
+    @property
+    def inv_gram(self) -> _F: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def losses(self) -> _F: ...
+    @property
+    def termination(self) -> str: ...
+    @property
+    def converged(self) -> bool: ...
+
+def pem_fit(
+    y: _F,
+    u: _F,
+    segments: Sequence[tuple[int, int]],
+    orders: _PolyOrders,
+    start: _F | None = None,
+    max_iterations: int = 100,
+    tolerance: float = 1e-6,
+    n_threads: int = 0,
+) -> PemOutput: ...
+def pem_predict(
+    y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F, horizon: int | None = None
+) -> _F: ...
+def pem_max_lag(orders: _PolyOrders) -> int: ...

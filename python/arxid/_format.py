@@ -16,6 +16,7 @@ __all__ = [
     "text_table",
     "format_value",
     "require_pandas",
+    "format_polynomial",
 ]
 
 
@@ -108,3 +109,23 @@ def require_pandas() -> Any:
     except ImportError:  # pragma: no cover
         raise ImportError("this needs pandas: pip install 'arxid[pandas]'") from None
     return pd
+
+
+def format_polynomial(coefs: Sequence[float], var: str = "z", start: int = 0) -> str:
+    """``1 - 1.959 z^-1 + 0.9567 z^-2`` from coefficients of z^-start, z^-(start+1), ..."""
+    parts = []
+    for i, c in enumerate(coefs):
+        if c == 0 and len(coefs) > 1:
+            continue
+        p = start + i
+        mag = f"{abs(c):.4g}"
+        term = mag if p == 0 else (f"{mag} {var}^-{p}" if mag != "1" else f"{var}^-{p}")
+        sign = "-" if c < 0 else "+"
+        parts.append((sign, term))
+    if not parts:
+        return "0"
+    first_sign, first = parts[0]
+    out = ("-" if first_sign == "-" else "") + first
+    for sign, term in parts[1:]:
+        out += f" {sign} {term}"
+    return out

@@ -15,6 +15,9 @@ Definitions (MATLAB's System Identification Toolbox where it has one):
 * ``fpe``, ``aic``, ``aicc``, ``naic``, ``bic`` — from the loss V = RSS / N of the one-step residual on N
   rows with p parameters: FPE = V (1 + p/N) / (1 − p/N); AIC = N log V + 2p + N (log 2π + 1);
   AICc = AIC + 2p (p + 1) / (N − p − 1); nAIC = log V + 2p / N; BIC = N log V + p log N + N (log 2π + 1).
+* ``selstruc`` — MATLAB ``selstruc(V, c)``'s modified loss V (1 + c d / N) of a loss V (``arxstruc``:
+  the one-step loss on the validation data), d parameters and N estimation rows; c = 2 is its
+  ``'aic'``, c = log N its ``'mdl'``, c = 0 the plain loss.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ __all__ = [
     "aicc",
     "naic",
     "bic",
+    "selstruc",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged (owned by the Rust core).
@@ -107,9 +111,13 @@ def fit_percent(y: _ArrayLike, pred: _ArrayLike) -> float:
     ok = np.isfinite(y) & np.isfinite(pred)
     if not ok.any():
         return math.nan
+    # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
+    # or 1e-200 neither overflow nor underflow the sums of squares.
+    big = float(np.max(np.abs(y[ok])))
+    scale = 1.0 / big if big > 0 and math.isfinite(1.0 / big) else 1.0
     with np.errstate(over="ignore", invalid="ignore"):
-        e = float(np.linalg.norm(y[ok] - pred[ok]))
-    d = float(np.linalg.norm(y[ok] - y[ok].mean()))
+        e = float(np.linalg.norm((y[ok] - pred[ok]) * scale))
+        d = float(np.linalg.norm((y[ok] - y[ok].mean()) * scale))
     return float(fit_percent_from_norms(e, d))
 
 
@@ -171,3 +179,9 @@ def bic(rss: _Float, n: int, p: _Float) -> _Float:
     """BIC as MATLAB's ``aic(..., 'BIC')``: N log V + p log N + N (log 2π + 1)."""
     p = np.asarray(p, dtype=float)
     return _scalar(n * _log_loss(rss, n) + p * math.log(n) + n * (math.log(2 * math.pi) + 1))
+
+
+def selstruc(loss: _Float, n: int, p: _Float, c: float) -> _Float:
+    """MATLAB ``selstruc``'s criterion V (1 + c p / N): c = 2 is ``'aic'``, c = log N ``'mdl'``."""
+    p = np.asarray(p, dtype=float)
+    return _scalar(np.asarray(loss, dtype=float) * (1 + c * p / n))

@@ -63,12 +63,15 @@ class Choice:
         One sentence: how it was chosen.
     skipped : tuple of (str, str)
         Better-ranked structures the step sanity check rejected, with the reason.
+    grid_edge : str
+        When the structure sits on an edge of the swept grid: which, and the ranges to try.
     """
 
     structure: str
     rank: int | None
     reason: str
     skipped: tuple[tuple[str, str], ...] = ()
+    grid_edge: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready: structure, rank (1-based, or None), reason, skipped (structure, why).
@@ -82,6 +85,7 @@ class Choice:
             "rank": None if self.rank is None else self.rank + 1,
             "reason": self.reason,
             "skipped": [{"structure": s, "why": w} for s, w in self.skipped],
+            "grid_edge": self.grid_edge or None,
         }
 
 
@@ -121,12 +125,18 @@ def _as_range(v: Any) -> Sequence[int]:
     return [v] if isinstance(v, int) else list(v)
 
 
-def choose(result: SweepResult) -> tuple[ArxModel, Choice]:
+def choose(result: SweepResult, rule: str = "lowest") -> tuple[ArxModel, Choice]:
     """The best-ranked structure of a sweep that passes the step sanity check, and why.
+
+    The step sanity check includes stability for a plant the sweep does not call integrating, so
+    the choice never has a pole outside the unit circle there; every better-ranked structure it
+    passed over is listed with its reasons, and a choice on an edge of the grid says so.
 
     Parameters
     ----------
     result : SweepResult
+    rule : {"lowest", "smallest-within-noise"}
+        See :meth:`SweepResult.select`. ``"lowest"`` (MATLAB's pick) is the default.
 
     Returns
     -------
@@ -134,14 +144,16 @@ def choose(result: SweepResult) -> tuple[ArxModel, Choice]:
         The structure refitted on the sweep's rows (its parameters equal the sweep's).
     choice : Choice
     """
-    sel = result.select(sane=True)
+    sel = result.select(sane=True, rule=rule)
     model = result.model(sel.rank)
     reason = (
         f"the lowest {result.ranking_text} of {len(result)} structures among those whose step response "
         f"passes the sanity check"
     )
+    if sel.note:
+        reason = f"{sel.note}, among the structures whose step response passes the sanity check"
     skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
-    return model, Choice(sel.structure, sel.rank, reason, skipped)
+    return model, Choice(sel.structure, sel.rank, reason, skipped, sel.grid_edge)
 
 
 @dataclass(frozen=True, eq=False)
@@ -291,6 +303,8 @@ class Analysis:
         what = horizon_label(self.horizon)
         lines = [f"model: {self.model.structure_name()} ({self.choice.reason})"]
         lines += [f"  skipped {s}: {w}" for s, w in self.choice.skipped[:3]]
+        if self.choice.grid_edge:
+            lines.append(f"  {self.choice.grid_edge}")
         lines.append(
             f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
             f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"

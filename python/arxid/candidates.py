@@ -29,6 +29,7 @@ import numpy as np
 
 from .data import IOData
 from .effects import Factor, parse_effect
+from .integrator import structure_integrates
 from .model import ArxModel
 
 __all__ = [
@@ -120,7 +121,8 @@ def changes_sign(x: np.ndarray) -> bool:
 
 
 def output_integrates(model: ArxModel) -> bool:
-    """True when the model has a pole at 1 (its output is the integral of something: a position).
+    """True when the model's output integrates (a position): the sweep's integrator rule
+    (:func:`arxid.integrator.structure_integrates`) applied to this one model.
 
     Parameters
     ----------
@@ -131,7 +133,7 @@ def output_integrates(model: ArxModel) -> bool:
     -------
     bool
     """
-    return bool(np.any(np.abs(model.poles() - 1.0) < 1e-3))
+    return structure_integrates(model.parameters_, model.covariance_, model.na_, model.n_rows_)
 
 
 def threshold_grid(x: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ._format import format_value, json_safe, text_table
+from ._limits import MAX_ORDER
 from ._version import __version__
 from .analysis import DEFAULT_SPLIT, Analysis, analyse, choose
 from .data import IOData
@@ -47,17 +48,27 @@ def _names(text: str | None) -> list[str]:
     return [s.strip() for s in (text or "").split(",") if s.strip()]
 
 
-def parse_range(text: str, name: str) -> list[int]:
-    """``"1:4"`` → [1, 2, 3, 4] (inclusive), ``"0,2,5"`` → [0, 2, 5], ``"3"`` → [3]."""
+def parse_range(text: str, name: str) -> Sequence[int]:
+    """``"1:4"`` → range(1, 5) (inclusive), ``"0,2,5"`` → [0, 2, 5], ``"3"`` → [3].
+
+    A single ``LOW:HIGH`` stays a lazy ``range``: its size is judged by the sweep's memory check,
+    not by building it here.
+    """
     out: list[int] = []
     try:
-        for part in text.split(","):
-            part = part.strip()
+        parts = [p.strip() for p in text.split(",")]
+        for part in parts:
             if ":" in part:
                 a, b = part.split(":", 1)
                 lo, hi = int(a), int(b)
                 if hi < lo:
                     raise UsageError(f"--{name} {text!r}: the range {part} is empty (write LOW:HIGH, inclusive)")
+                if lo >= 0 and hi > MAX_ORDER:
+                    raise UsageError(f"--{name} {text!r}: {hi} is too large (at most {MAX_ORDER})")
+                if len(parts) == 1 and lo >= 0:
+                    return range(lo, hi + 1)
+                if hi - lo > 10**6:
+                    raise UsageError(f"--{name} {text!r}: the range {part} is too long to combine with others")
                 out.extend(range(lo, hi + 1))
             elif part:
                 out.append(int(part))
@@ -121,8 +132,10 @@ def load_data(  # noqa: C901
     array ``ts`` in the archive.
     """
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise DataError(f"data file {path!r} does not exist")
+    if not p.is_file():
+        raise DataError(f"data file {path!r} is not a regular file (a directory, device or pipe)")
     if not inputs:
         raise UsageError("name the input column(s) with --inputs A[,B,...]")
     if not output:
@@ -137,7 +150,7 @@ def load_data(  # noqa: C901
         try:
             with np.load(p, allow_pickle=False) as z:
                 arrays = {k: np.asarray(z[k]) for k in z.files}
-        except (ValueError, OSError, EOFError) as exc:
+        except Exception as exc:  # any failure to read the archive: BadZipFile, zlib.error, EOFError, ...
             raise DataError(f"{p.name} is not a readable .npz archive ({' '.join(str(exc).split()[:12])})") from None
         if ts is None and time_col is None and "ts" in arrays and arrays["ts"].size == 1:
             if not np.issubdtype(arrays["ts"].dtype, np.number) or np.iscomplexobj(arrays["ts"]):
@@ -287,6 +300,11 @@ def cmd_fit(args) -> int:
     effects = _names(args.effects)
     model = arx(est, *orders, effects=effects)
     h = args.horizon
+    if val is not None and not np.isfinite(model.predict(val, h)).any():
+        raise DataError(
+            f"the validation data ({val.n_samples} samples) are too short for {model.structure_name()}: no "
+            "sample is left to predict after its initial conditions; give longer validation data"
+        )
     out = {
         "model": model.to_dict(),
         "structure": model.structure_name(),
@@ -341,7 +359,7 @@ def cmd_sweep(args) -> int:
     out = {
         "n_structures": len(res),
         "seconds": elapsed,
-        "grid": grid,
+        "grid": {k: list(v) for k, v in grid.items()},
         "measure": res.measure,
         "horizon": res.horizon,
         "integrating": res.integrating,
@@ -365,6 +383,8 @@ def cmd_sweep(args) -> int:
     print(f"\n{len(res)} structures in {elapsed:.2f} s")
     for name, why in choice.skipped[:8]:
         print(f"skipped {name}: {why}")
+    if choice.grid_edge:
+        print(choice.grid_edge)
     print(
         f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
         f"fit {format_value(row['fit_val'])} %, {res.measure})"
@@ -567,7 +587,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     except BrokenPipeError:  # pragma: no cover - `arxid ... | head`
         return EXIT_OK
-    except (ArxidError, OSError) as exc:
+    except (ArxidError, OSError, MemoryError) as exc:
         msg = " ".join(str(exc).split()) or type(exc).__name__
         print(f"arxid: error: {msg}", file=sys.stderr)
         return EXIT_USAGE

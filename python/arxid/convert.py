@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ._optional import require
-from .exceptions import ArxidError
+from .continuous import d2c
+from .exceptions import ArxidError, DataError
 
 if TYPE_CHECKING:
     from .model import ArxModel
@@ -38,10 +40,12 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
         raise ArxidError(
             f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no transfer function"
         )
-    num_z1 = model.layout_numerators()
-    n = max([model.na_] + [len(x) - 1 for x in num_z1])
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    num_z1, den_z1 = model.common_denominator() if hasattr(model, "common_denominator") else (None, model.a)
+    num_z1 = model.layout_numerators() if num_z1 is None else num_z1
+    n = max([len(den_z1) - 1] + [len(x) - 1 for x in num_z1])
     den = np.zeros(n + 1)
-    den[: model.na_ + 1] = model.a
+    den[: len(den_z1)] = den_z1
     nums = []
     for x in num_z1:
         v = np.zeros(n + 1)
@@ -50,7 +54,7 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
     return nums, den
 
 
-def to_control(model: ArxModel, continuous: bool = False, input: int | None = None) -> Any:
+def to_control(model: ArxModel, continuous: bool = False, input: int | None = None, method: str = "zoh") -> Any:
     """python-control transfer function with ``dt = ts`` (descending powers of z).
 
     Parameters
@@ -58,11 +62,15 @@ def to_control(model: ArxModel, continuous: bool = False, input: int | None = No
     model : ArxModel
         A fitted linear model.
     continuous : bool
-        Invert the zero-order-hold sampling (matrix logarithm). The input delay of ``(nk − 1)·ts``
-        that ZOH sampling of a strictly proper system does not explain is returned in the
-        attribute ``dead_time`` of the result (seconds).
+        Convert to continuous time (d2c, see :mod:`arxid.continuous`). The input delay is returned
+        in the attribute ``dead_time`` of each result (seconds; with ``method="zoh"`` and
+        nb = na + 1 it includes a fraction of a sample).
     input : int, optional
         Only this column's transfer function.
+    method : {"zoh", "tustin", "matched"}
+        d2c method (only with ``continuous``): ``"zoh"`` is the exact inverse of zero-order-hold
+        sampling, ``"tustin"`` and ``"matched"`` the inverses of python-control's
+        ``sample_system`` methods of those names.
 
     Returns
     -------
@@ -70,14 +78,28 @@ def to_control(model: ArxModel, continuous: bool = False, input: int | None = No
         One input gives a ``TransferFunction``; several inputs (including input-derived effect
         columns) a list with one SISO ``TransferFunction`` per input (MIMO conversions in
         python-control need slycot), or the one picked with ``input``.
+
+    Raises
+    ------
+    ConversionError
+        When ``continuous`` and the model has no exact continuous counterpart by ``method`` (a pole
+        on the negative real axis for ``"zoh"``, more numerator coefficients than ZOH sampling
+        produces, ...); the message names the methods that work.
     """
     model.check_fitted()
     control = _control()
     nums, den = tf_coefficients(model)
     labels = model.input_labels()
+    if input is not None and (
+        isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= input < len(nums)
+    ):
+        raise DataError(
+            f"input {input!r} does not exist: the model has {len(nums)} input column(s) {labels}, "
+            f"numbered 0 to {len(nums) - 1}"
+        )
     idx = range(len(nums)) if input is None else [input]
     if continuous:
-        return _d2c(model, [nums[i] for i in idx], den, [model.layout_.nk[i] for i in idx], [labels[i] for i in idx])
+        return _d2c(model, list(idx), [labels[i] for i in idx], method)
     tfs = [
         control.TransferFunction(nums[i], den, model.ts, inputs=[labels[i]], outputs=[model.output_name]) for i in idx
     ]
@@ -115,48 +137,19 @@ def to_scipy(model: ArxModel) -> Any:
     return signal.dlti(a, b, c, dmat, dt=model.ts)
 
 
-def _d2c(
-    model: ArxModel, nums: Sequence[np.ndarray], den: np.ndarray, nks: Sequence[int], labels: Sequence[str]
-) -> Any:
-    """Continuous-time model whose ZOH sampling is the discrete model (input delays split off)."""
-    import control
-    from scipy.linalg import logm
-
+def _d2c(model: ArxModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
+    """Continuous transfer functions (one per layout column) whose sampling is the discrete model."""
+    control = _control()
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    if hasattr(model, "common_denominator"):
+        nums, den = model.common_denominator()
+    else:
+        nums, den = model.layout_numerators(), model.a
     results = []
-    for num, nk, label in zip(nums, nks, labels):
-        # Pure delay beyond the one sample ZOH sampling of a strictly proper system implies.
-        shift = max(nk - 1, 0)
-        n = np.trim_zeros(num, "f")
-        n = np.concatenate([np.zeros(len(num) - len(n) - shift), n]) if shift else num
-        n = np.concatenate([n, np.zeros(len(num) - len(n))])[: len(num)]
-        dd = np.trim_zeros(den, "b")
-        trimmed = len(den) - len(dd)
-        n = n[: len(n) - trimmed] if trimmed else n
-        # Remove common trailing zeros (poles and zeros at the origin) from both.
-        while len(dd) > 1 and dd[-1] == 0 and n[-1] == 0:
-            dd, n = dd[:-1], n[:-1]
-        if len(dd) > 1 and dd[-1] == 0:
-            raise ArxidError(
-                "the model has a pole at z = 0 that cannot be a zero-order-hold sample of a continuous system"
-            )
-        sys_d = control.tf2ss(control.TransferFunction(n, dd, model.ts))
-        a, b, c, d = (np.asarray(x) for x in (sys_d.A, sys_d.B, sys_d.C, sys_d.D))
-        k = a.shape[0]
-        big = np.zeros((k + 1, k + 1))
-        big[:k, :k], big[:k, k:] = a, b
-        big[k, k] = 1.0
-        with np.errstate(all="ignore"):
-            lg = logm(big)
-        if np.iscomplexobj(lg):
-            if np.max(np.abs(lg.imag)) > 1e-8 * max(1.0, np.max(np.abs(lg.real))):
-                raise ArxidError(
-                    "the model has poles on the negative real axis: it is not the zero-order-hold sample of a real continuous system"  # noqa: E501
-                )
-            lg = lg.real
-        lg = lg / model.ts
-        sys_c = control.ss(lg[:k, :k], lg[:k, k:], c, d)
-        tf_c = control.ss2tf(sys_c)
-        tf_c = control.TransferFunction(tf_c.num[0][0], tf_c.den[0][0], inputs=[label], outputs=[model.output_name])
-        tf_c.dead_time = shift * model.ts
+    for i, label in zip(columns, labels):
+        cont = d2c(den, nums[i], model.ts, method)
+        tf_c = control.TransferFunction(cont.num, cont.den, inputs=[label], outputs=[model.output_name])
+        tf_c.dead_time = cont.dead_time
+        tf_c.d2c_method = cont.method
         results.append(tf_c)
     return results[0] if len(results) == 1 else results

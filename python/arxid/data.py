@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -16,6 +17,13 @@ __all__ = ["IOData"]
 
 
 def _as_float(name: str, values, ndim: int) -> np.ndarray:
+    if values is None:
+        raise DataError(f"{name} is None; pass a list or numpy array of numbers")
+    if isinstance(values, np.ma.MaskedArray):
+        # A masked sample is a missing one: NaN, as everywhere in arxid (the mask would be lost).
+        if values.dtype.kind not in "biuf":
+            raise DataError(f"{name} is a masked array of {values.dtype}; it must hold numbers")
+        values = np.ma.filled(values.astype(np.float64), np.nan)
     try:
         arr = np.asarray(values)
     except Exception as exc:  # ragged lists and the like
@@ -42,6 +50,12 @@ def _as_float(name: str, values, ndim: int) -> np.ndarray:
         idx = int(np.argwhere(np.isinf(arr))[0][0])
         raise DataError(f"{name} holds an infinite value at sample {idx}; mark missing samples with NaN instead")
     return arr
+
+
+def _sample_at(time: float, ts: float, n: int) -> int:
+    """The first sample at or after ``time`` seconds, clamped to ``[0, n]``."""
+    k = time / ts - 1e-9
+    return 0 if k <= 0 else n if k >= n else int(math.ceil(k))
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,6 +106,7 @@ class IOData:
     experiment_starts: tuple[int, ...] = (0,)
 
     def __post_init__(self):
+        self._check_optional_fields()
         y = _as_float("y (output)", self.y, 1)
         u = _as_float("u (inputs)", self.u, 2)
         n = y.shape[0]
@@ -139,6 +154,29 @@ class IOData:
         object.__setattr__(self, "extra", extra)
         object.__setattr__(self, "extra_units", dict(self.extra_units))
         object.__setattr__(self, "experiment_starts", starts)
+
+    def _check_optional_fields(self) -> None:
+        """None means "not given" for the optional fields; other wrong types are DataErrors (not a
+        TypeError from deep inside the constructor)."""
+        defaults = {"input_names": (), "input_units": (), "extra": {}, "extra_units": {}, "experiment_starts": (0,)}
+        for name, default in defaults.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, default)
+        for name in ("extra", "extra_units"):
+            if not isinstance(getattr(self, name), Mapping):
+                raise DataError(f"{name} must be a mapping from signal name to values, got {getattr(self, name)!r:.80}")
+        for name in ("input_names", "input_units"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not isinstance(value, Iterable):
+                raise DataError(f"{name} must be a sequence of strings (one per input), got {value!r:.80}")
+        starts = self.experiment_starts
+        if isinstance(starts, str) or not isinstance(starts, Iterable):
+            raise DataError(f"experiment_starts must be a sequence of sample indices, got {starts!r:.80}")
+        if not all(isinstance(v, numbers.Integral) and not isinstance(v, bool) for v in starts):
+            raise DataError(f"experiment_starts must hold integer sample indices, got {list(starts)!r:.80}")
+        for name in ("output_name", "output_unit"):
+            if not isinstance(getattr(self, name), str):
+                raise DataError(f"{name} must be a string, got {getattr(self, name)!r:.80}")
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -399,8 +437,12 @@ class IOData:
         """
         if self.n_experiments > 1:
             raise DataError("time_slice works on a single experiment; slice by sample index instead")
-        a = 0 if start is None else int(math.ceil(start / self.ts - 1e-9))
-        b = self.n_samples if stop is None else int(math.ceil(stop / self.ts - 1e-9))
+        for name, v in (("start", start), ("stop", stop)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(v)):
+                raise DataError(f"time_slice {name} must be a time in seconds or None, got {v!r}")
+        # ±inf means "unbounded"; the clamping below keeps every index inside the data.
+        a = 0 if start is None or start == -math.inf else _sample_at(start, self.ts, self.n_samples)
+        b = self.n_samples if stop is None or stop == math.inf else _sample_at(stop, self.ts, self.n_samples)
         return self[max(a, 0) : min(b, self.n_samples)]
 
     def split(self, fraction: float = 0.7) -> tuple[IOData, IOData]:

@@ -36,13 +36,14 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .data import IOData
 from .exceptions import DataError, OrderError
 
-__all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects", "format_threshold"]
+__all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects", "format_threshold", "effect_names"]
 
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE]-?\d+)?"
 _FACTOR = re.compile(
@@ -77,6 +78,34 @@ class Effect:
     def special(self) -> str | None:
         """``"const"`` or ``"time"`` for those two effects, else None."""
         return self.text if self.text in ("const", "time") else None
+
+
+def effect_names(effects: Any) -> tuple[str, ...]:
+    """``effects`` as a tuple of effect strings, refusing what is not a sequence of strings.
+
+    A single string is refused rather than split into characters: ``effects="const"`` most likely
+    meant ``effects=["const"]``.
+
+    Parameters
+    ----------
+    effects : sequence of str
+
+    Returns
+    -------
+    tuple of str
+    """
+    if isinstance(effects, str):
+        raise OrderError(f"effects must be a list of effect strings, e.g. [{effects!r}], not the string {effects!r}")
+    try:
+        names = tuple(effects)
+    except TypeError:
+        raise OrderError(
+            f"effects must be a list of effect strings such as ['u1^2', 'const'], got {effects!r}"
+        ) from None
+    bad = [e for e in names if not isinstance(e, str)]
+    if bad:
+        raise OrderError(f"effects must be strings such as 'u1^2' or 'const', got {bad[0]!r}")
+    return names
 
 
 def _split_product(text: str) -> list[str]:

@@ -13,6 +13,8 @@ __all__ = [
     "IdentifiabilityError",
     "NotFittedError",
     "MissingDependencyError",
+    "ConversionError",
+    "ConvergenceError",
     "ArxidWarning",
 ]
 
@@ -45,8 +47,17 @@ class IdentifiabilityError(ArxidError):
         self.regressors = tuple(regressors)
 
 
+class ConvergenceError(ArxidError):
+    """Prediction-error iterations (``oe``, ``armax``, ``bj``) could not proceed; the message says why."""
+
+
 class NotFittedError(ArxidError, AttributeError):
     """A fitted attribute was used before the model was fitted."""
+
+
+class ConversionError(ArxidError):
+    """A model has no exact conversion of the requested kind (continuous time with a zero-order hold,
+    pole-zero matching); the message says why and which method to use instead."""
 
 
 class ArxidWarning(UserWarning):

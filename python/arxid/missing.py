@@ -614,6 +614,11 @@ def diagnose(
     'u1^2'
     """
     model = check_model(model)
+    if not isinstance(model, ArxModel):
+        raise ArxidError(
+            f"diagnose adds effect terms to ARX models and refits them; {model.structure_name()} is not one: "
+            f"diagnose arxid.arx(data, na, nb, nk) with comparable orders instead"
+        )
     data, validation, same = _data_pair(model, data, validation)
     horizon = check_horizon(horizon)
     if not 0 < alpha < 1:

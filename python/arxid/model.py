@@ -11,10 +11,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import _core
+from . import _core, modelfile
 from . import _metrics as metrics
+from ._format import format_polynomial as _format_poly
+from ._limits import check_memory, check_order, check_work
 from .data import IOData
-from .effects import EffectLayout, compile_effects
+from .effects import EffectLayout, compile_effects, effect_names
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names
 
@@ -23,52 +25,16 @@ if TYPE_CHECKING:
 
 __all__ = ["ArxModel", "FittedLayout", "arx"]
 
-_JSON_FORMAT = "arxid.ArxModel"
-_JSON_VERSION = 1
-# Same bound as the Rust core: larger orders cannot describe sampled data and would overflow lags.
-_MAX_ORDER = 2**40
-
-
-def _order(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise OrderError(f"{name} must be a non-negative integer, got {value!r}")
-    value = int(value)
-    if value < 0:
-        raise OrderError(f"{name} must be >= 0, got {value}")
-    if value > _MAX_ORDER:
-        raise OrderError(f"{name} = {value} is too large (at most {_MAX_ORDER}); orders and delays count samples")
-    return value
-
 
 def _per_input(name: str, value, m: int) -> tuple[int, ...]:
     if isinstance(value, (list, tuple, np.ndarray)):
-        vals = tuple(_order(f"{name}[{i}]", v) for i, v in enumerate(value))
+        vals = tuple(check_order(f"{name}[{i}]", v) for i, v in enumerate(value))
         if len(vals) != m:
             raise OrderError(
                 f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input or a single integer"
             )
         return vals
-    return (_order(name, value),) * m
-
-
-def _format_poly(coefs: Sequence[float], var: str = "z", start: int = 0) -> str:
-    """``1 - 1.959 z^-1 + 0.9567 z^-2`` from coefficients of z^-start, z^-(start+1), ..."""
-    parts = []
-    for i, c in enumerate(coefs):
-        if c == 0 and len(coefs) > 1:
-            continue
-        p = start + i
-        mag = f"{abs(c):.4g}"
-        term = mag if p == 0 else (f"{mag} {var}^-{p}" if mag != "1" else f"{var}^-{p}")
-        sign = "-" if c < 0 else "+"
-        parts.append((sign, term))
-    if not parts:
-        return "0"
-    first_sign, first = parts[0]
-    out = ("-" if first_sign == "-" else "") + first
-    for sign, term in parts[1:]:
-        out += f" {sign} {term}"
-    return out
+    return (check_order(name, value),) * m
 
 
 @dataclass(frozen=True)
@@ -155,8 +121,9 @@ class FittedLayout:
         return cls(nb, tuple(int(v) for v in d["nk"]), terms, tuple(labels), tuple(of_column), tuple(of_term))
 
 
-def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> int:
-    """The parameter count, after checking the data leave enough regression rows for it.
+def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> tuple[int, int]:
+    """The parameter count and the regression rows at most available, after checking the data leave
+    enough rows for the parameters.
 
     Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
     """
@@ -171,7 +138,7 @@ def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> 
             f"but {data.n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
             f"lower na/nb/nk or use more data"
         )
-    return p
+    return p, usable
 
 
 def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
@@ -272,7 +239,7 @@ class ArxModel:
         self.na = na
         self.nb = nb
         self.nk = nk
-        self.effects = tuple(effects)
+        self.effects = effect_names(effects)
 
     # ------------------------------------------------------------------ fitting
     def fit(
@@ -309,13 +276,19 @@ class ArxModel:
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
             )
         m = data.n_inputs
-        na, nb, nk = _order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
-        first_lag = _order("first_lag", first_lag)
+        na, nb, nk = check_order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
+        first_lag = check_order("first_lag", first_lag)
+        n_threads = check_order("n_threads", n_threads)
         layout = compile_effects(self.effects, data, nb, nk)
-        _check_size(na, layout, data, first_lag)
+        p, usable = _check_size(na, layout, data, first_lag)
+        check_memory(
+            _core.fit_memory(usable, p, n_threads) + layout.u.nbytes,
+            f"the fit of {self.structure_name()} ({p} parameters) on {usable:,} regression rows",
+            "lower the orders or use fewer samples",
+        )
         _check_excitation(data, nb)
         names = regressor_names(data.output_name, na, layout)
-        res = _solve(data, na, layout, names, first_lag, _order("n_threads", n_threads), rows_like)
+        res = _solve(data, na, layout, names, first_lag, n_threads, rows_like)
         self._store(data, (na, nb, nk), layout, names, first_lag, res)
         return self
 
@@ -335,7 +308,10 @@ class ArxModel:
         self.n_skipped_ = int(res.n_skipped)
         self.first_lag_ = first_lag
         self.rss_ = float(res.rss)
-        self.covariance_ = self.noise_variance_ * self.covariance_
+        # rss · (ΦᵀΦ)⁻¹ / (N − p): the same as noise_variance_ · (ΦᵀΦ)⁻¹, in an order that stays in
+        # range for outputs near the limits of floating point (beyond them an entry is inf or NaN).
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.covariance_ = (self.covariance_ * self.rss_) / max(self.n_rows_ - self.n_params, 1)
         self.data_ = data
         self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
 
@@ -350,6 +326,10 @@ class ArxModel:
             raise NotFittedError("this ArxModel is not fitted yet: call .fit(data) or use arxid.arx(data, na, nb, nk)")
 
     def __getattr__(self, name: str) -> Any:
+        # A property of the class (``a``, ``b``) that needs the fitted state raised NotFittedError,
+        # an AttributeError, so Python asked here: say why instead of "no attribute 'a'".
+        if hasattr(type(self), name):
+            self.check_fitted()
         if name.endswith("_") and not name.startswith("__"):
             raise NotFittedError(f"{name} is not available: this ArxModel is not fitted yet; call .fit(data) first")
         raise AttributeError(name)
@@ -495,8 +475,20 @@ class ArxModel:
         -------
         ndarray of complex
         """
+        input = self._input_index(input)
         b = np.trim_zeros(self.b[input][self.nk_[input] :], "f")
         return np.roots(b) if len(b) > 1 else np.zeros(0)
+
+    def _input_index(self, input: Any) -> int:
+        """``input`` as an index of the model's inputs, else a DataError listing them."""
+        self.check_fitted()
+        m = len(self.input_names_)
+        if isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= int(input) < m:
+            raise DataError(
+                f"input {input!r} does not exist: the model has {m} input(s) {list(self.input_names_)}, "
+                f"numbered 0 to {m - 1}"
+            )
+        return int(input)
 
     @property
     def is_stable(self) -> bool:
@@ -544,10 +536,11 @@ class ArxModel:
         if not isinstance(data, IOData):
             raise DataError(f"predict needs an arxid.IOData, got {type(data).__name__}")
         if horizon is not None:
-            horizon = _order("horizon", horizon)
+            horizon = check_order("horizon", horizon)
             if horizon < 1:
                 raise OrderError("horizon must be >= 1 (or None for free-run simulation)")
         layout = self._layout(data)
+        self._check_prediction_work(data, layout, horizon)
         return np.asarray(
             _core.predict(
                 np.ascontiguousarray(data.y),
@@ -561,6 +554,22 @@ class ArxModel:
                 horizon=horizon,
                 first_lag=self.first_lag_,
             )
+        )
+
+    def _check_prediction_work(self, data: IOData, layout: EffectLayout, horizon: int | None) -> None:
+        """A k-step prediction of a linear model on complete data is a filter (O(N p) for any k);
+        with output-derived terms or missing samples it runs k steps per sample: refuse it when
+        that is hours of work."""
+        if horizon is None or horizon < 2:
+            return
+        if not layout.output_terms and np.isfinite(data.y).all() and np.isfinite(layout.u).all():
+            return
+        longest = max(b - a for a, b in data.segments)
+        check_work(
+            data.n_samples * min(horizon, longest) * max(self.n_params, 1),
+            f"the {horizon}-step prediction of {self.structure_name()} on {data.n_samples:,} samples "
+            "(output-derived effects or missing samples need a k-step simulation per sample)",
+            "use a shorter horizon or fewer samples",
         )
 
     def fit_percent(self, data: IOData, horizon: int | None = None) -> float:
@@ -644,7 +653,8 @@ class ArxModel:
         ndarray of shape (n_samples,)
         """
         self.check_fitted()
-        u = np.zeros((_order("n_samples", n_samples), len(self.input_names_)))
+        input = self._input_index(input)
+        u = np.zeros((check_order("n_samples", n_samples), len(self.input_names_)))
         u[:, input] = amplitude
         return self.simulate(u)
 
@@ -681,15 +691,17 @@ class ArxModel:
         """
         return list(self.input_names_) + list(self.layout_.column_labels[len(self.input_names_) :])
 
-    def to_control(self, continuous: bool = False, input: int | None = None) -> Any:
+    def to_control(self, continuous: bool = False, input: int | None = None, method: str = "zoh") -> Any:
         """python-control transfer function(s); see :func:`arxid.convert.to_control`.
 
         Parameters
         ----------
         continuous : bool
-            Invert the zero-order-hold sampling (matrix logarithm); the dead time is in ``.dead_time``.
+            Convert to continuous time (d2c); the dead time is in ``.dead_time``.
         input : int, optional
             Only this input's transfer function.
+        method : {"zoh", "tustin", "matched"}
+            d2c method with ``continuous`` (exact ZOH inverse by default).
 
         Returns
         -------
@@ -697,7 +709,7 @@ class ArxModel:
         """
         from .convert import to_control
 
-        return to_control(self, continuous=continuous, input=input)
+        return to_control(self, continuous=continuous, input=input, method=method)
 
     def to_scipy(self) -> Any:
         """``scipy.signal.dlti``; see :func:`arxid.convert.to_scipy`.
@@ -719,8 +731,8 @@ class ArxModel:
         """
         self.check_fitted()
         return {
-            "format": _JSON_FORMAT,
-            "version": _JSON_VERSION,
+            "format": modelfile.FORMAT,
+            "version": modelfile.VERSION,
             "na": self.na_,
             "nb": list(self.nb_),
             "nk": list(self.nk_),
@@ -761,32 +773,61 @@ class ArxModel:
         return text
 
     @classmethod
-    def from_json(cls, text_or_path: str) -> ArxModel:
+    def from_json(cls, path_or_text: Any) -> ArxModel:
         """Load a model written by :meth:`to_json`; it behaves as the fitted one, except that
         refitting (``with_effects``, ``diagnose``) needs the estimation data passed explicitly.
 
+        The rule: a ``str`` whose first character other than a byte-order mark or white space is
+        ``{`` is JSON text (as :meth:`from_json_text`); any other ``str`` or path-like is a file
+        path (as :meth:`from_json_file`). Anything else is refused.
+
         Parameters
         ----------
-        text_or_path : str
-            A JSON string or a file path.
+        path_or_text : str or os.PathLike
+            A model file, or JSON text.
+
+        Returns
+        -------
+        ArxModel
+
+        Raises
+        ------
+        DataError
+            The file cannot be read or breaks the schema (see :mod:`arxid.modelfile`); the message
+            names the field.
+        """
+        if isinstance(path_or_text, str) and path_or_text.lstrip("\ufeff \t\r\n").startswith("{"):
+            return cls.from_json_text(path_or_text)
+        return cls.from_json_file(path_or_text)
+
+    @classmethod
+    def from_json_file(cls, path: Any) -> ArxModel:
+        """Load a model from a file written by :meth:`to_json` (a regular file, UTF-8 JSON).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
 
         Returns
         -------
         ArxModel
         """
-        text = text_or_path
-        if not (isinstance(text, str) and text.lstrip().startswith("{")):
-            try:
-                with open(text_or_path) as fh:
-                    text = fh.read()
-            except OSError as exc:
-                raise DataError(f"cannot read model file {text_or_path!r}: {exc}") from None
-        try:
-            return _model_from_dict(cls, json.loads(text))
-        except DataError:
-            raise
-        except (ValueError, KeyError, TypeError, OrderError) as exc:
-            raise DataError(f"corrupt model file: {exc}; write models with ArxModel.to_json()") from None
+        return cls.from_json_text(modelfile.read_text(path))
+
+    @classmethod
+    def from_json_text(cls, text: str) -> ArxModel:
+        """Load a model from JSON text written by :meth:`to_json`, checked against the schema of
+        :mod:`arxid.modelfile`.
+
+        Parameters
+        ----------
+        text : str
+
+        Returns
+        -------
+        ArxModel
+        """
+        return _model_from_dict(cls, modelfile.parse(text))
 
     # ------------------------------------------------------------------ printing
     def structure_name(self) -> str:
@@ -867,33 +908,24 @@ def _as_tuple(v: Any) -> tuple:
     return tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else (v,)
 
 
-def _model_from_dict(cls: type[ArxModel], d: Any) -> ArxModel:
-    if not isinstance(d, dict) or d.get("format") != _JSON_FORMAT:
-        raise ValueError(
-            f"not an arxid model (format {d.get('format') if isinstance(d, dict) else type(d).__name__!r})"
-        )
-    if d.get("version") != _JSON_VERSION:
-        raise ValueError(f"unsupported version {d.get('version')!r}")
-    na, nb, nk = _order("na", d["na"]), tuple(_order("nb", v) for v in d["nb"]), tuple(_order("nk", v) for v in d["nk"])
+def _model_from_dict(cls: type[ArxModel], d: dict) -> ArxModel:
+    """The model of validated model-file content (:func:`arxid.modelfile.validate`)."""
+    na, nb, nk = d["na"], tuple(d["nb"]), tuple(d["nk"])
     model = cls(na=na, nb=nb, nk=nk, effects=tuple(d["effects"]))
     model.na_, model.nb_, model.nk_ = na, nb, nk
-    model.ts_, model.output_name_ = float(d["ts"]), str(d["output_name"])
-    model.input_names_ = tuple(map(str, d["input_names"]))
-    model.output_unit_ = str(d.get("output_unit", ""))
+    model.ts_, model.output_name_ = float(d["ts"]), d["output_name"]
+    model.input_names_ = tuple(d["input_names"])
+    model.output_unit_ = d.get("output_unit", "")
     model.input_units_ = tuple(d.get("input_units", ("",) * len(model.input_names_)))
     model.parameters_ = np.array(d["parameters"], dtype=float)
     p = len(model.parameters_)
     model.covariance_ = np.array(d["covariance"], dtype=float).reshape(p, p)
     model.regressor_names_ = tuple(d["regressor_names"])
-    model.n_rows_, model.n_skipped_ = int(d["n_rows"]), int(d["n_skipped"])
-    model.first_lag_, model.rss_ = int(d["first_lag"]), float(d["rss"])
+    model.n_rows_, model.n_skipped_ = d["n_rows"], d["n_skipped"]
+    model.first_lag_, model.rss_ = d["first_lag"], float(d["rss"])
     model.fit_percent_ = float(d["fit_percent"])
     model.layout_ = FittedLayout.from_dict(d["layout"], model.input_names_, model.effects)
     model.data_ = None
-    if len(nb) != len(model.input_names_) or len(model.regressor_names_) != p:
-        raise ValueError("orders, inputs and parameters do not agree")
-    if p != na + sum(model.layout_.nb) + len(model.layout_.output_terms):
-        raise ValueError("the parameter count does not match the model structure")
     return model
 
 

@@ -3,6 +3,7 @@ grid from one factorization in the Rust core and ranks them in a :class:`SweepRe
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import math
@@ -17,11 +18,17 @@ import numpy as np
 
 from . import _core
 from . import _metrics as metrics
+from ._checks import check_same_signals
+from ._format import json_safe
+from ._limits import available_memory, check_order
 from ._optional import optional
 from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
+from .grid_edges import Edge, edge_text, grid_edges, grown_grid
+from .integrator import VOTERS, IntegratorTest, integrator_test, pole_excess, slowest_time_constant, unit_root_t
 from .model import ArxModel
+from .parsimony import DM_CRITICAL, diebold_mariano
 from .sanity import (
     EXPECTATIONS,
     SanityLimits,
@@ -34,18 +41,31 @@ from .sanity import (
 
 __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
-SORT_KEYS = ("val_sim", "val_one_step", "est_sim", "est_one_step", "fpe", "aic", "bic")
+#: Ranking criteria. ``aic`` and ``mdl`` are MATLAB ``selstruc``'s, on the validation loss when there are
+#: validation data; ``est_aic`` and ``est_bic`` (alias ``bic``) are MATLAB ``aic``'s on the estimation fit.
+SORT_KEYS = ("val_sim", "val_one_step", "est_sim", "est_one_step", "fpe", "aic", "mdl", "est_aic", "est_bic", "bic")
+
+#: How :meth:`SweepResult.select` picks among the structures that qualify.
+SELECTION_RULES = ("lowest", "smallest-within-noise")
+
+#: Criteria that judge a free-run (or k-step) simulation: only these move diverged structures last.
+FREE_RUN_KEYS = ("val_sim", "est_sim")
 
 #: The order grid every sweep uses unless told otherwise: the API's :func:`sweep`, :func:`arxid.analyse`
 #: and every CLI command. na 1..4 poles, nb 1..3 input coefficients, nk 0..5 samples of delay.
 DEFAULT_GRID: dict[str, range] = {"na": range(1, 5), "nb": range(1, 4), "nk": range(0, 6)}
 
-#: A pole this close to 1 (or |A(1)| below this share of sum |a_i|) marks an integrating plant.
-INTEGRATOR_TOLERANCE = 1e-3
-
 
 # ---------------------------------------------------------------------------------------------- grid
-def _order_range(name: str, value) -> tuple[int, ...]:
+def _order_range(name: str, value) -> Sequence[int]:
+    if isinstance(value, range):
+        # Kept lazy: its size is checked against the memory before any structure is built.
+        if len(value) == 0:
+            raise OrderError(f"{name} is an empty range: give at least one order")
+        ascending = value if value.step > 0 else value[::-1]
+        check_order(name, ascending[0])
+        check_order(name, ascending[-1])
+        return ascending
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
         vals = (int(value),)
     else:
@@ -59,11 +79,21 @@ def _order_range(name: str, value) -> tuple[int, ...]:
     for v in vals:
         if isinstance(v, bool) or not isinstance(v, numbers.Integral) or int(v) < 0:
             raise OrderError(f"{name} must hold non-negative integers, got {v!r}")
-        out.append(int(v))
+        out.append(check_order(name, v))
     return tuple(dict.fromkeys(out))
 
 
-def _per_input_ranges(name: str, value, m: int) -> list[tuple[int, ...]]:
+def _lowest(r: Sequence[int]) -> int:
+    """Smallest order of a range from :func:`_order_range` (O(1) for a ``range``)."""
+    return r[0] if isinstance(r, range) else min(r)
+
+
+def _highest(r: Sequence[int]) -> int:
+    """Largest order of a range from :func:`_order_range` (O(1) for a ``range``)."""
+    return r[-1] if isinstance(r, range) else max(r)
+
+
+def _per_input_ranges(name: str, value, m: int) -> list[Sequence[int]]:
     """One shared range for every input, or a list of ranges (one per input)."""
     if isinstance(value, (list, tuple)) and value and all(not isinstance(v, numbers.Integral) for v in value):
         if len(value) != m:
@@ -74,17 +104,6 @@ def _per_input_ranges(name: str, value, m: int) -> list[tuple[int, ...]]:
         return [_order_range(f"{name}[{i}]", v) for i, v in enumerate(value)]
     r = _order_range(name, value)
     return [r] * m
-
-
-def _available_memory() -> int:
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 4 * 2**30
 
 
 def _gib(b: float) -> str:
@@ -99,6 +118,9 @@ class Selection:
     rank: int
     structure: str
     skipped: tuple[tuple[int, str, tuple[str, ...]], ...]
+    rule: str = "lowest"
+    note: str = ""
+    grid_edge: str = ""
 
     def __str__(self) -> str:
         return self.describe()
@@ -116,10 +138,12 @@ class Selection:
         str
             One line for the chosen structure, then one per skipped structure with its failed checks.
         """
-        lines = [f"chose {self.structure} (rank {self.rank + 1})"]
+        lines = [f"chose {self.structure} (rank {self.rank + 1})" + (f": {self.note}" if self.note else "")]
         shown = self.skipped if limit is None else self.skipped[:limit]
         for rank, name, reasons in shown:
             lines.append(f"  skipped {name} (rank {rank + 1}): " + "; ".join(reasons))
+        if self.grid_edge:
+            lines.append(f"  {self.grid_edge}")
         if len(shown) < len(self.skipped):
             lines.append(
                 f"  ... and {len(self.skipped) - len(shown)} more skipped (model.selection_.describe(None) lists all)"
@@ -145,7 +169,12 @@ class SweepResult:
     fit_val : ndarray of shape (S,)
         Validation fit in percent, 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), of the same simulation.
     fpe, aic, bic : ndarray of shape (S,)
-        Akaike's FPE, AIC and BIC of the estimation fit (MATLAB's definitions).
+        Akaike's FPE, AIC and BIC of the estimation fit (MATLAB ``fpe`` / ``aic``; also
+        ``est_aic`` / ``est_bic``).
+    selstruc_aic, selstruc_mdl : ndarray of shape (S,)
+        MATLAB ``selstruc``'s criteria ``V (1 + 2d/N)`` and ``V (1 + d log N / N)``, V the one-step
+        loss on the validation data (estimation data without them), d the parameters, N the
+        estimation rows (see docs/selection.md).
     stable : ndarray of bool, max_pole : ndarray (properties, computed on first use)
         All poles inside the unit circle; largest pole magnitude.
     diverged_est, diverged_val : ndarray of bool
@@ -156,6 +185,14 @@ class SweepResult:
         None: free-run simulation; k: k-step-ahead prediction (integrating plants).
     integrating : bool
         The plant was expected or detected to integrate.
+    integrating_reason : str
+        Why it was (or was not) called integrating, with the unit-root test's numbers.
+    integrator : IntegratorTest or None
+        The unit-root test of the best structures (None when ``expect`` decided).
+    grid : dict
+        The orders swept: ``{"na": tuple, "nb": [tuple per input], "nk": [tuple per input]}``.
+    settings : dict
+        The other arguments of :func:`sweep` (what :meth:`extend` re-runs with).
     sort_by : str
     first_lag : int
         The grid's largest lag: every structure uses rows from here on.
@@ -179,6 +216,8 @@ class SweepResult:
     fpe: np.ndarray
     aic: np.ndarray
     bic: np.ndarray
+    selstruc_aic: np.ndarray
+    selstruc_mdl: np.ndarray
     diverged_est: np.ndarray
     diverged_val: np.ndarray
     errors: tuple
@@ -195,6 +234,9 @@ class SweepResult:
     limits: SanityLimits
     estimation: IOData = field(repr=False)
     validation: IOData | None = field(repr=False)
+    integrator: IntegratorTest | None = None
+    grid: dict = field(default_factory=dict, repr=False)
+    settings: dict = field(default_factory=dict, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ basics
@@ -318,8 +360,7 @@ class SweepResult:
 
     def _compute_sanity(self, i: int) -> StepSanity:
         data = self.validation if self.validation is not None else self.estimation
-        # A detected integrator is checked as one (growth, no upper amplitude bound).
-        expect = self.expect if self.expect is not None or not self.integrating else "integrating"
+        expect = self.expectation
         name = self.structure_name(i)
         if self.errors[i] is not None:
             return StepSanity(name, ("not-fitted",), (self.errors[i],), math.nan, output_range(data), (), 0, expect)
@@ -346,25 +387,63 @@ class SweepResult:
                 neg.append(-s)
         poles = np.roots(a) if na else np.zeros(0)
         return check_responses(
-            name, pos, neg, poles, out_range=output_range(data), amplitudes=amps, expect=expect, limits=self.limits
+            name,
+            pos,
+            neg,
+            poles,
+            out_range=output_range(data),
+            amplitudes=amps,
+            expect=expect,
+            limits=self.limits,
+            pole_excess=self._pole_excess(i, poles),
+            record=self.n_est,
         )
 
-    def _usable(self, i: int) -> bool:
-        return (
-            self.errors[i] is None
-            and not self.diverged_val[i]
-            and not self.diverged_est[i]
-            and np.isfinite(self.ranking_score()[i])
-        )
+    @property
+    def expectation(self) -> str:
+        """What the step sanity checks assume: ``expect`` when given, else ``"integrating"`` for a
+        detected integrator and ``"stable"`` otherwise (so a sane model of a plant that is not
+        integrating has every pole inside the unit circle)."""
+        if self.expect is not None:
+            return self.expect
+        return "integrating" if self.integrating else "stable"
 
-    def select(self, sane: bool = True) -> Selection:
+    def _pole_excess(self, i: int, poles: np.ndarray) -> float | None:
+        """Standard errors by which the largest pole lies outside the unit circle (only computed
+        when it does; needs the structure's parameter covariance)."""
+        if not poles.size or np.max(np.abs(poles)) <= 1.0 or self.expectation == "stable":
+            return None
+        m = self.model(i)
+        return pole_excess(m.parameters_, m.covariance_, m.na_)[1]
+
+    def _unusable(self, i: int) -> str | None:
+        """Why structure ``i`` cannot be chosen at all (None when it can)."""
+        if self.errors[i] is not None:
+            return f"could not be fitted: {self.errors[i]}"
+        if not np.isfinite(self.ranking_score()[i]):
+            return f"its {_SORT_TEXT[self.sort_by]} is not a finite number"
+        return None
+
+    def _diverged(self, i: int) -> str | None:
+        if self.diverged_val[i] or self.diverged_est[i]:
+            where = "validation" if self.diverged_val[i] else "estimation"
+            return f"its {self.measure} diverged on the {where} data"
+        return None
+
+    def select(self, sane: bool = True, rule: str = "lowest") -> Selection:
         """The best-ranked usable structure; with ``sane``, the best one whose step sanity passes.
 
         Parameters
         ----------
         sane : bool
-            Also skip structures whose step sanity checks fail; without it, only structures that were
-            not fitted, diverged or have no finite ranking error are skipped.
+            Also skip structures whose step sanity checks fail (which include stability for a
+            plant that is not integrating, and a free run that diverged); without it, only
+            structures that were not fitted or have no finite ranking error are skipped (and, for
+            a free-run criterion, those whose simulation diverged).
+        rule : {"lowest", "smallest-within-noise"}
+            ``"lowest"``: the best-ranked one. ``"smallest-within-noise"``: then the structure with
+            the fewest parameters (that also qualifies) whose validation error is not
+            significantly worse than that one's (Diebold–Mariano test, :mod:`arxid.parsimony`).
 
         Returns
         -------
@@ -376,35 +455,163 @@ class SweepResult:
         ArxidError
             When no structure qualifies (the message lists why the best ones were rejected).
         """
-        skipped = []
+        if rule not in SELECTION_RULES:
+            raise ArxidError(f"rule must be one of {SELECTION_RULES}, got {rule!r}")
+        skipped: list[tuple[int, str, tuple[str, ...]]] = []
         for i in range(len(self)):
-            if not self._usable(i):
+            hard = self._unusable(i)
+            if hard is None and self.sort_by in FREE_RUN_KEYS:
+                hard = self._diverged(i)
+            if hard is not None:
+                skipped.append((i, self.structure_name(i), (hard,)))
                 continue
             if sane:
-                verdict = self.sanity(i)
-                if not verdict.ok:
-                    skipped.append((i, self.structure_name(i), verdict.reasons))
+                reasons = self._sane_reasons(i)
+                if reasons:
+                    skipped.append((i, self.structure_name(i), reasons))
                     continue
-            return Selection(i, self.structure_name(i), tuple(skipped))
+            sel = Selection(i, self.structure_name(i), tuple(skipped))
+            if rule == "smallest-within-noise":
+                sel = self._smallest_within_noise(sel, sane)
+            return dataclasses.replace(sel, grid_edge=self.grid_edge_text(sel.rank))
         why = "; ".join(f"{n}: {', '.join(r)}" for _, n, r in skipped[:5])
-        if not why:
-            n_err = sum(e is not None for e in self.errors)
-            first = next((f"{self.structure_name(i)}: {e}" for i, e in enumerate(self.errors) if e is not None), None)
-            why = f"{len(self) - n_err} structures diverged or have no finite error, {n_err} could not be fitted" + (
-                f", e.g. {first}" if first else ""
-            )
         raise ArxidError(
             f"no structure of the sweep passes {'the step sanity checks' if sane else 'validation'} ({why}); "
             f"widen the grid, check expect={self.expect!r}, or relax SanityLimits"
         )
 
-    def best(self, sane: bool = False, *, explain: bool = True) -> ArxModel:
+    def _sane_reasons(self, i: int) -> tuple[str, ...]:
+        return tuple(r for r in (self._diverged(i),) if r) + self.sanity(i).reasons
+
+    def _prediction_errors(self, i: int) -> np.ndarray:
+        """Validation errors of ranked structure ``i`` at the ranking's own measure (free run from
+        rest or one step by filtering the data with its polynomials when the structure is linear
+        and the data complete; else the model's own prediction)."""
+        from scipy.signal import lfilter
+
+        from .validation import prediction_error
+
+        data = self.validation if self.validation is not None else self.estimation
+        horizon = self.horizon if self.sort_by in FREE_RUN_KEYS else 1
+        linear = not self.effects and np.isfinite(data.y).all() and np.isfinite(data.u).all()
+        if not linear or horizon not in (None, 1):
+            err = prediction_error(self.model(i), data, horizon)[1]
+        else:
+            theta, na = self.parameters[i], int(self.na[i])
+            a = np.concatenate([[1.0], theta[:na]])
+            c, out = na, np.zeros(data.n_samples)
+            for j, (nb, nk) in enumerate(zip(self.nb[i], self.nk[i])):
+                b = np.concatenate([np.zeros(int(nk)), theta[c : c + int(nb)]])
+                c += int(nb)
+                out += lfilter(b, a if horizon is None else [1.0], data.u[:, j])
+            with np.errstate(all="ignore"):
+                err = data.y - out if horizon is None else lfilter(a, [1.0], data.y) - out
+        err = np.array(err, dtype=float)
+        err[: self.first_lag] = np.nan  # the sweep scores from its first row on
+        return err
+
+    def _smallest_within_noise(self, sel: Selection, sane: bool) -> Selection:
+        best_err = self._prediction_errors(sel.rank)
+        n_best = int(self.n_params[sel.rank])
+        order = sorted(
+            (i for i in range(len(self)) if self.n_params[i] < n_best), key=lambda i: (int(self.n_params[i]), i)
+        )
+        for i in order:
+            if self._unusable(i) or (self.sort_by in FREE_RUN_KEYS and self._diverged(i)):
+                continue
+            cmp = diebold_mariano(self._prediction_errors(i), best_err)
+            if not cmp.worse and not (sane and self._sane_reasons(i)):
+                note = (
+                    f"the fewest parameters ({int(self.n_params[i])} against {n_best} of the best-ranked "
+                    f"{sel.structure}) with a validation error not significantly worse (Diebold-Mariano "
+                    f"{cmp.statistic:.2f} <= {DM_CRITICAL} on {cmp.n} samples)"
+                )
+                return Selection(i, self.structure_name(i), sel.skipped, "smallest-within-noise", note)
+        note = "no structure with fewer parameters is as good (Diebold-Mariano test at 5%)"
+        return dataclasses.replace(sel, rule="smallest-within-noise", note=note)
+
+    def grid_edges(self, i: int) -> tuple[Edge, ...]:
+        """The grid edges ranked structure ``i`` touches (see :mod:`arxid.grid_edges`).
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure.
+
+        Returns
+        -------
+        tuple of Edge
+            Empty when it lies inside the grid.
+        """
+        i = self._index(i)
+        if not self.grid:
+            return ()
+        return grid_edges(self.grid, int(self.na[i]), self.nb[i].tolist(), self.nk[i].tolist(), self.nb.shape[1] > 1)
+
+    def grid_edge_text(self, i: int) -> str:
+        """One sentence when ranked structure ``i`` sits on a grid edge, with the ranges to try; else "".
+
+        Parameters
+        ----------
+        i : int
+            Rank of the structure.
+
+        Returns
+        -------
+        str
+        """
+        return edge_text(self.structure_name(i), self.grid_edges(i))
+
+    def extend(self, max_rounds: int = 3, limit: int = 30, sane: bool = True) -> SweepResult:
+        """Grow the grid past the edges the chosen structure sits on, until it is inside or a limit.
+
+        Each round re-runs :func:`sweep` with the same data and settings on the grid whose edge
+        ranges are grown by ``max(2, ⌈len/2⌉)`` values (:func:`arxid.grid_edges.grown_grid`).
+
+        Parameters
+        ----------
+        max_rounds : int
+            Largest number of re-runs.
+        limit : int
+            Largest na, nb or nk tried.
+        sane : bool
+            Judge the choice as :meth:`select` with ``sane`` does.
+
+        Returns
+        -------
+        SweepResult
+            The last sweep (this one when the choice is already inside the grid).
+        """
+        res = self
+        for _ in range(max_rounds):
+            rank = res._choice_rank(sane)
+            new = grown_grid(res.grid, res.grid_edges(rank), limit)
+            if new is None:
+                break
+            res = sweep(res.estimation, na=new["na"], nb=new["nb"], nk=new["nk"], **res.settings)
+        return res
+
+    def _choice_rank(self, sane: bool) -> int:
+        try:
+            return self.select(sane).rank
+        except ArxidError:
+            return self.select(False).rank
+
+    def best(self, sane: bool = False, *, rule: str = "lowest", explain: bool = True) -> ArxModel:
         """The best-ranked structure as a fitted :class:`~arxid.ArxModel`.
 
         Parameters
         ----------
         sane : bool
             Skip structures flagged by the step sanity checks (see :mod:`arxid.sanity`).
+        rule : {"lowest", "smallest-within-noise"}
+            See :meth:`select`. For control design prefer ``"smallest-within-noise"`` when the
+            top of the ranking is flat: the fewest parameters whose validation error the data
+            cannot tell from the best's give a controller fewer states and a model less fitted to
+            noise. ``"lowest"`` is the default: it is MATLAB's ``selstruc`` pick, and parsimony
+            trades structure for parameters without regard to what a controller needs most, the
+            delay (on the simulated quadrotor roll axis it gives ARX(3,1,9) for ARX(3,2,8), one
+            coefficient fewer and one sample more dead time than the plant has).
         explain : bool
             With ``sane``, warn (:class:`~arxid.ArxidWarning`) which better-ranked structures were
             skipped and why.
@@ -420,7 +627,7 @@ class SweepResult:
         ArxidError
             When no structure qualifies (see :meth:`select`).
         """
-        sel = self.select(sane)
+        sel = self.select(sane, rule)
         if sane and explain and sel.skipped:
             warnings.warn(f"arxid.sweep best(sane=True): {sel}", ArxidWarning, stacklevel=2)
         model = self.model(sel.rank)
@@ -542,7 +749,7 @@ class SweepResult:
         str
             The JSON text.
         """
-        text = json.dumps(self.to_dict(sanity), indent=indent, allow_nan=False)
+        text = json.dumps(json_safe(self.to_dict(sanity)), indent=indent, allow_nan=False)
         if path is not None:
             with open(path, "w") as fh:
                 fh.write(text)
@@ -641,6 +848,9 @@ class SweepResult:
         """
         from .plots.sweep import plot_sweep
 
+        m = self.nb.shape[1]
+        if isinstance(nb_input, bool) or not isinstance(nb_input, numbers.Integral) or not 0 <= nb_input < m:
+            raise DataError(f"nb_input {nb_input!r} does not exist: the sweep has {m} input(s), numbered 0 to {m - 1}")
         return plot_sweep(self, nb_input=nb_input, chosen=chosen)
 
 
@@ -650,8 +860,11 @@ _SORT_TEXT = {
     "est_sim": "estimation RMS",
     "est_one_step": "estimation one-step RMS",
     "fpe": "FPE",
-    "aic": "AIC",
-    "bic": "BIC",
+    "aic": "AIC (MATLAB selstruc, validation loss)",
+    "mdl": "MDL (MATLAB selstruc, validation loss)",
+    "est_aic": "AIC of the estimation fit",
+    "est_bic": "BIC of the estimation fit",
+    "bic": "BIC of the estimation fit",
 }
 
 
@@ -666,36 +879,41 @@ def _fmt(x, spec: str = ".4g") -> str:
 
 
 def _ranking_column(r, key: str) -> np.ndarray:
-    col = {
-        "val_sim": r.rms_val,
-        "val_one_step": r.rms_val_one_step,
-        "est_sim": r.rms_est,
-        "est_one_step": r.rms_est_one_step,
-        "fpe": r.fpe,
-        "aic": r.aic,
-        "bic": r.bic,
+    """The column ``key`` of a :class:`SweepResult` (or of the builder's columns)."""
+    one = {"val_one_step": "rms_val_one_step", "est_one_step": "rms_est_one_step"}
+    if isinstance(r, _Columns):
+        one = {"val_one_step": "val_one_step", "est_one_step": "est_one_step"}
+    name = {
+        "val_sim": "rms_val",
+        "est_sim": "rms_est",
+        **one,
+        "fpe": "fpe",
+        "aic": "selstruc_aic",
+        "mdl": "selstruc_mdl",
+        "est_aic": "aic",
+        "est_bic": "bic",
+        "bic": "bic",
     }[key]
-    return col
+    return getattr(r, name)
 
 
 # ---------------------------------------------------------------------------------------------- sweep
-def _detect_integrator(na, theta, order) -> tuple[bool, str]:
-    """Integrating if most of the best structures have A(1) ≈ 0 or a pole on/outside the unit circle
-    near z = 1."""
-    votes, looked = 0, 0
-    for i in order[:5]:
-        a = np.concatenate([[1.0], theta[i][: na[i]]])
-        if na[i] == 0 or not np.isfinite(a).all():
+def _integrator_verdict(result: SweepResult) -> IntegratorTest:
+    """Unit-root test (:mod:`arxid.integrator`) of the best structures by FPE of a free-run sweep."""
+    fpe = np.where(np.isfinite(result.fpe), result.fpe, np.inf)
+    names: list[str] = []
+    t_values: list[float] = []
+    taus: list[float] = []
+    for i in np.argsort(fpe, kind="stable"):
+        if len(names) == VOTERS or not np.isfinite(fpe[i]):
+            break
+        if result.errors[i] is not None or result.na[i] == 0:
             continue
-        looked += 1
-        a1 = abs(a.sum()) / np.abs(a).sum()
-        poles = np.roots(a)
-        near = poles[(np.abs(poles.imag) < 1e-9) & (poles.real >= 1 - INTEGRATOR_TOLERANCE)]
-        if a1 < INTEGRATOR_TOLERANCE or near.size:
-            votes += 1
-    if looked and votes * 2 > looked:
-        return True, f"detected: {votes} of the {looked} best structures by FPE have a pole at z = 1 (A(1) ~ 0)"
-    return False, ""
+        m = result.model(int(i))
+        names.append(result.structure_name(int(i)))
+        t_values.append(unit_root_t(m.parameters_, m.covariance_, m.na_))
+        taus.append(slowest_time_constant(m.parameters_, m.na_))
+    return integrator_test(names, t_values, taus, result.n_est)
 
 
 def sweep(
@@ -714,6 +932,7 @@ def sweep(
     max_memory: int | None = None,
     limits: SanityLimits | None = None,
     simulate_estimation: bool = True,
+    auto_extend: bool = False,
 ) -> SweepResult:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
@@ -749,6 +968,9 @@ def sweep(
         Thresholds of the step sanity checks.
     simulate_estimation : bool
         Also simulate every structure on the estimation data (``rms_est``).
+    auto_extend : bool
+        When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
+        again (:meth:`SweepResult.extend`, at most 3 rounds, orders up to 30).
 
     Returns
     -------
@@ -788,8 +1010,10 @@ def sweep(
     est, val = _validation_split(data, validation)
     if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
         raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
+    horizon = None if horizon is None else check_order("horizon", horizon)
     if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
         raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
+    n_threads = check_order("n_threads", n_threads)
     m = est.n_inputs
     nas, nbs, nks = _order_range("na", na), _per_input_ranges("nb", nb, m), _per_input_ranges("nk", nk, m)
     effects = tuple(effects)
@@ -800,43 +1024,44 @@ def sweep(
     _check_validation_length(val, first_lag)
     run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
-    # runs first and, when its best structures by FPE have a pole at 1, is redone with k steps.
+    # runs first and, when the unit-root test calls the plant integrating, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
-    reason = f"expect={expect!r}" if integrating else ""
+    reason = f"expect={expect!r}: declared" + (" integrating" if integrating else " (not tested)")
     k_default = int(horizon) if horizon is not None else max(10, 2 * first_lag)
     k_step = k_default if integrating else (int(horizon) if horizon is not None else None)
-    res = run(k_step)
-    if expect is None and k_step is None:
-        p = g.layout[:, 0] + g.layout[:, 1 : 1 + g.n_columns].sum(axis=1) + len(inputs.terms)
-        fpe_pre = metrics.fpe(res.rss_est, res.n_est, p)
-        order_pre = np.argsort(np.where(np.isfinite(fpe_pre), fpe_pre, np.inf), kind="stable")
-        integrating, reason = _detect_integrator(g.layout[:, 0], res.theta, order_pre)
-        if integrating:
-            k_step = k_default
-            res = run(k_step)
-    return _build_result(
-        res,
-        g.layout,
-        g.user_nb,
-        g.user_nk,
-        inputs.terms,
-        est,
-        val,
-        k_step,
-        integrating,
-        reason,
-        sort_by,
-        effects,
-        expect,
-        limits or SanityLimits(),
-        m,
+    grid = {"na": nas, "nb": nbs, "nk": nks}
+    settings = dict(
+        validation=val,
+        sort_by=sort_by,
+        n_threads=n_threads,
+        progress=progress,
+        effects=effects,
+        expect=expect,
+        horizon=horizon,
+        max_memory=max_memory,
+        limits=limits,
+        simulate_estimation=simulate_estimation,
     )
+    build = _ResultBuilder(
+        g, inputs.terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings
+    )
+    result = build(run(k_step), k_step, integrating, reason)
+    if expect is None:
+        verdict = _integrator_verdict(result)
+        if verdict.integrating and k_step is None:
+            result = build(run(k_default), k_default, True, verdict.reason, verdict)
+        else:
+            result = dataclasses.replace(
+                result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
+            )
+    return result.extend() if auto_extend else result
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
     if isinstance(validation, IOData):
         if validation.n_inputs != data.n_inputs:
             raise DataError(f"validation data have {validation.n_inputs} inputs, the estimation data {data.n_inputs}")
+        check_same_signals(data.ts, data.output_name, data.input_names, validation, "the validation data")
         return data, validation
     if validation is None:
         return data, None
@@ -851,7 +1076,7 @@ def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | N
 def _check_memory(
     est: IOData,
     val: IOData | None,
-    nas: tuple[int, ...],
+    nas: Sequence[int],
     nbs: list,
     nks: list,
     effects: tuple[str, ...],
@@ -860,15 +1085,16 @@ def _check_memory(
 ) -> None:
     """Size and memory before building anything (the core's own estimate)."""
     n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
-    probe = compile_effects(effects, est[: min(est.n_samples, 8)], [max(r) for r in nbs], [max(r) for r in nks])
+    top_nb, top_nk = [_highest(r) for r in nbs], [_highest(r) for r in nks]
+    probe = compile_effects(effects, est[: min(est.n_samples, 8)], top_nb, top_nk)
     n_cols, n_terms = len(probe.nb), len(probe.output_terms)
-    span = max(max(k) + max(b) - 1 - min(k) + 1 for b, k in zip(nbs, nks))
-    p_max = max(nas) + n_cols * max(max(b) for b in nbs) + n_terms
-    q = max(nas) + n_cols * span + n_terms + 1
+    span = max(k + b - _lowest(ks) for b, k, ks in zip(top_nb, top_nk, nks))
+    p_max = _highest(nas) + n_cols * max(top_nb) + n_terms
+    q = _highest(nas) + n_cols * span + n_terms + 1
     need = _core.sweep_memory(
         n_structures, p_max, q, est.n_samples, val.n_samples if val is not None else 0, n_cols, n_threads
     )
-    limit = int(max_memory) if max_memory is not None else _available_memory() // 2
+    limit = int(max_memory) if max_memory is not None else available_memory() // 2
     if need > limit:
         raise DataError(
             f"the grid is too large: {n_structures:,} structures with up to {p_max} parameters and a largest regressor of "  # noqa: E501
@@ -887,7 +1113,7 @@ class _Grid:
     n_columns: int
 
     @classmethod
-    def build(cls, est: IOData, nas: tuple[int, ...], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
+    def build(cls, est: IOData, nas: Sequence[int], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
         head = est[: min(est.n_samples, 8)]
         layouts: dict = {}
         n_terms = len(compile_effects(effects, head, [max(r) for r in nbs], [max(r) for r in nks]).output_terms)
@@ -1057,65 +1283,99 @@ def _validation_fit(res: _core.SweepOutput, rms_val: np.ndarray, val: IOData | N
         return np.asarray(metrics.fit_percent_from_norms(rms_val * np.sqrt(res.n_sim_val), norm))
 
 
+@dataclass(frozen=True)
+class _ResultBuilder:
+    """Everything but the core's output a :class:`SweepResult` needs."""
+
+    g: _Grid
+    terms: list
+    est: IOData
+    val: IOData | None
+    sort_by: str
+    effects: tuple[str, ...]
+    expect: str | None
+    limits: SanityLimits
+    m: int
+    grid: dict
+    settings: dict
+
+    def __call__(
+        self,
+        res: _core.SweepOutput,
+        k_step: int | None,
+        integrating: bool,
+        reason: str,
+        verdict: IntegratorTest | None = None,
+    ) -> SweepResult:
+        return _build_result(self, res, k_step, integrating, reason, verdict)
+
+
+def _criteria(res: _core.SweepOutput, p: np.ndarray) -> dict[str, np.ndarray]:
+    """Every ranking column but the simulations (one definition each in :mod:`arxid._metrics`)."""
+    s = len(p)
+    n_est, n_val = res.n_est, res.n_val
+    with np.errstate(all="ignore"):
+        v_val = res.rss_val / n_val if n_val else res.rss_est / n_est  # arxstruc's V
+        return {
+            "est_one_step": np.sqrt(res.rss_est / n_est),
+            "val_one_step": np.sqrt(res.rss_val / n_val) if n_val else np.full(s, np.nan),
+            "fpe": np.asarray(metrics.fpe(res.rss_est, n_est, p)),
+            "aic": np.asarray(metrics.aic(res.rss_est, n_est, p)),
+            "bic": np.asarray(metrics.bic(res.rss_est, n_est, p)),
+            "selstruc_aic": np.asarray(metrics.selstruc(v_val, n_est, p, 2.0)),
+            "selstruc_mdl": np.asarray(metrics.selstruc(v_val, n_est, p, math.log(n_est))),
+        }
+
+
+def _ranking_order(score: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """Best first; ties keep grid order (stable); structures in ``bad`` last."""
+    s = len(score)
+    return np.lexsort((np.arange(s), np.where(bad | ~np.isfinite(score), np.inf, score), bad))
+
+
 def _build_result(
+    b: _ResultBuilder,
     res: _core.SweepOutput,
-    grid,
-    user_nb,
-    user_nk,
-    terms,
-    est,
-    val,
-    k_step,
-    integrating,
-    reason,
-    sort_by,
-    effects,
-    expect,
-    limits,
-    m,
+    k_step: int | None,
+    integrating: bool,
+    reason: str,
+    verdict: IntegratorTest | None,
 ) -> SweepResult:
+    grid, m = b.g.layout, b.m
     s = len(grid)
     mc = (grid.shape[1] - 1) // 2
     na = grid[:, 0].copy()
-    p = na + grid[:, 1 : 1 + mc].sum(axis=1) + len(terms)
-    theta_all = res.theta
-    n_est, n_val, first_lag = res.n_est, res.n_val, res.first_lag
-    rss_est, rss_val = res.rss_est, res.rss_val
-    with np.errstate(all="ignore"):
-        loss = rss_est / n_est
-        rms_est_one = np.sqrt(loss)
-        rms_val_one = np.sqrt(rss_val / n_val) if n_val else np.full(s, np.nan)
-        fpe, aic, bic = (np.asarray(f(rss_est, n_est, p)) for f in (metrics.fpe, metrics.aic, metrics.bic))
+    p = na + grid[:, 1 : 1 + mc].sum(axis=1) + len(b.terms)
+    crit = _criteria(res, p)
     div_est, div_val = res.diverged_est, res.diverged_val
     rms_est = np.where(div_est, np.nan, res.rms_sim_est)
     rms_val = np.where(div_val, np.nan, res.rms_sim_val)
     errors = tuple(res.errors)
-    fit_val = _validation_fit(res, rms_val, val, first_lag)
-    key = sort_by
-    if val is None and key in ("val_sim", "val_one_step"):
-        key = "est_sim" if key == "val_sim" else "est_one_step"
-    columns = dict(val_sim=rms_val, val_one_step=rms_val_one, est_sim=rms_est, est_one_step=rms_est_one)
-    score = {**columns, "fpe": fpe, "aic": aic, "bic": bic}[key]
-    bad = ~np.isfinite(score) | div_val | div_est | np.array([e is not None for e in errors])
-    # Diverged and unfitted structures go last; ties keep grid order (stable sort).
-    order = np.lexsort((np.arange(s), np.where(bad, np.inf, score), bad))
-    nbm = np.array(user_nb, dtype=int).reshape(s, m)
-    nkm = np.array(user_nk, dtype=int).reshape(s, m)
-    params = [theta_all[i, : p[i]].copy() for i in order]
+    fit_val = _validation_fit(res, rms_val, b.val, res.first_lag)
+    key = _effective_key(b.sort_by, b.val is not None)
+    score = _ranking_column(_Columns(rms_val=rms_val, rms_est=rms_est, **crit), key)
+    bad = np.array([e is not None for e in errors])
+    if key in FREE_RUN_KEYS:  # a diverged simulation has no free-run error to rank by
+        bad = bad | div_val | div_est
+    order = _ranking_order(score, bad)
+    nbm = np.array(b.g.user_nb, dtype=int).reshape(s, m)
+    nkm = np.array(b.g.user_nk, dtype=int).reshape(s, m)
     return SweepResult(
         na=na[order],
         nb=nbm[order],
         nk=nkm[order],
-        parameters=params,
+        parameters=[res.theta[i, : p[i]].copy() for i in order],
         n_params=p[order],
-        rms_est_one_step=rms_est_one[order],
-        rms_val_one_step=rms_val_one[order],
+        rms_est_one_step=crit["est_one_step"][order],
+        rms_val_one_step=crit["val_one_step"][order],
         rms_est=rms_est[order],
         rms_val=rms_val[order],
         fit_val=fit_val[order],
-        fpe=fpe[order],
-        aic=aic[order],
-        bic=bic[order],
+        fpe=crit["fpe"][order],
+        aic=crit["aic"][order],
+        bic=crit["bic"][order],
+        selstruc_aic=crit["selstruc_aic"][order],
+        selstruc_mdl=crit["selstruc_mdl"][order],
         diverged_est=div_est[order],
         diverged_val=div_val[order],
         errors=tuple(errors[i] for i in order),
@@ -1123,13 +1383,38 @@ def _build_result(
         integrating=integrating,
         integrating_reason=reason,
         sort_by=key,
-        first_lag=first_lag,
+        first_lag=res.first_lag,
         row_orders=res.envelope,
-        n_est=n_est,
-        n_val=n_val,
-        effects=effects,
-        expect=expect,
-        limits=limits,
-        estimation=est,
-        validation=val,
+        n_est=res.n_est,
+        n_val=res.n_val,
+        effects=b.effects,
+        expect=b.expect,
+        limits=b.limits,
+        estimation=b.est,
+        validation=b.val,
+        integrator=verdict,
+        grid=b.grid,
+        settings=b.settings,
     )
+
+
+def _effective_key(sort_by: str, has_validation: bool) -> str:
+    """``bic`` is ``est_bic``; without validation data the validation keys rank the estimation data."""
+    if sort_by == "bic":
+        return "est_bic"
+    if not has_validation and sort_by in ("val_sim", "val_one_step"):
+        return "est_sim" if sort_by == "val_sim" else "est_one_step"
+    return sort_by
+
+
+@dataclass(frozen=True)
+class _Columns:
+    rms_val: np.ndarray
+    rms_est: np.ndarray
+    est_one_step: np.ndarray
+    val_one_step: np.ndarray
+    fpe: np.ndarray
+    aic: np.ndarray
+    bic: np.ndarray
+    selstruc_aic: np.ndarray
+    selstruc_mdl: np.ndarray

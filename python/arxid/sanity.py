@@ -13,7 +13,13 @@ flag                   meaning
 ``too-small``          peak |response| < ``small`` × measured output range
 ``too-large``          peak |response| > ``large`` × measured output range (not checked
                        for integrating expectations, whose response grows without bound)
-``unstable``           a pole on or outside the unit circle while ``expect="stable"``
+``unstable``           a pole on or outside the unit circle while ``expect="stable"`` (a
+                       sweep checks every plant it does not call integrating this way);
+                       for an integrating plant, a pole significantly outside: more than
+                       ``UNIT_ROOT_CRITICAL`` standard errors (:mod:`arxid.integrator`)
+``near-integrator``    a plant that is not integrating, but a pole near z = 1 so slow (time
+                       constant over ``RECORD_SHARE`` of the estimation record) that the
+                       data cannot tell it from an integrator
 ``not-growing``        ``expect="integrating"`` / ``"double-integrating"`` but the response
                        at the end of the growth horizon is less than ``growth``
                        (``growth_double``) times the response at half of it; the growth
@@ -36,6 +42,7 @@ import numpy as np
 
 from .data import IOData
 from .exceptions import ArxidError
+from .integrator import LOW_FREQUENCY, RECORD_SHARE, UNIT_ROOT_CRITICAL, pole_excess
 
 __all__ = ["SanityLimits", "StepSanity", "step_sanity", "growth_horizon", "EXPECTATIONS"]
 
@@ -225,6 +232,8 @@ def check_responses(
     amplitudes,
     expect: str | None,
     limits: SanityLimits,
+    pole_excess: float | None = None,
+    record: int | None = None,
 ) -> StepSanity:
     """Apply the checks to given step responses (one positive and one negative per input).
 
@@ -242,6 +251,13 @@ def check_responses(
         Step amplitude of each input.
     expect : {None, "stable", "integrating", "double-integrating"}
     limits : SanityLimits
+    pole_excess : float, optional
+        Standard errors by which the largest pole lies outside the unit circle
+        (:func:`arxid.integrator.pole_excess`); for integrating expectations, above
+        ``UNIT_ROOT_CRITICAL`` flags ``unstable``.
+    record : int, optional
+        Estimation rows; with ``expect="stable"``, a low-frequency pole whose time constant exceeds
+        ``RECORD_SHARE`` of them flags ``near-integrator``.
 
     Returns
     -------
@@ -260,10 +276,13 @@ def check_responses(
             peak_all = max(peak_all, peak)
             for code, why in flags:
                 found.setdefault(code, why)
-    if expect == "stable" and poles.size and np.max(np.abs(poles)) >= 1.0:
-        found.setdefault(
-            "unstable", f"expect='stable' but the largest pole magnitude is {np.max(np.abs(poles)):.4f} (>= 1)"
-        )
+    unstable = _stability_flag(poles, expect, pole_excess)
+    if unstable:
+        found.setdefault("unstable", unstable)
+    elif expect == "stable" and record:
+        slow = _slow_pole_flag(poles, record)
+        if slow:
+            found.setdefault("near-integrator", slow)
     return StepSanity(
         structure,
         tuple(found),
@@ -273,6 +292,42 @@ def check_responses(
         tuple(float(a) for a in amplitudes),
         int(horizon),
         expect,
+    )
+
+
+def _stability_flag(poles: np.ndarray, expect: str | None, excess: float | None) -> str | None:
+    """Reason for the ``unstable`` flag, or None."""
+    if not poles.size:
+        return None
+    mag = float(np.max(np.abs(poles)))
+    if expect == "stable" and mag >= 1.0:
+        return (
+            f"a pole at |z| = {mag:.5f} (on or outside the unit circle): the model is unstable, and the plant is "
+            f"not integrating"
+        )
+    if expect in ("integrating", "double-integrating") and mag > 1.0 and excess is not None:
+        if excess > UNIT_ROOT_CRITICAL:
+            return (
+                f"a pole at |z| = {mag:.5f} lies {excess:.1f} standard errors outside the unit circle (more than "
+                f"{UNIT_ROOT_CRITICAL}): unstable beyond an integrator"
+            )
+    return None
+
+
+def _slow_pole_flag(poles: np.ndarray, record: int) -> str | None:
+    """Reason for ``near-integrator``: the slowest low-frequency pole outlasts the record."""
+    poles = poles.astype(complex)
+    with np.errstate(divide="ignore"):
+        low = poles[np.abs(np.log(poles)) < LOW_FREQUENCY]
+    if not low.size:
+        return None
+    mag = float(np.abs(low).max())
+    tau = -1.0 / np.log(mag)
+    if tau <= RECORD_SHARE * record:
+        return None
+    return (
+        f"a pole at |z| = {mag:.5f} has a time constant of {tau:.4g} samples, more than {RECORD_SHARE:g} of the "
+        f"{record} estimation samples: the data cannot tell it from an integrator, and the plant is not integrating"
     )
 
 
@@ -411,13 +466,19 @@ def step_sanity(
         with np.errstate(all="ignore"):
             pos.append(model.simulate(u, extra=extra))
             neg.append(model.simulate(-u, extra=extra))
+    poles = model.poles()
+    excess = None
+    if poles.size and np.max(np.abs(poles)) > 1.0 and expect in ("integrating", "double-integrating"):
+        excess = pole_excess(model.parameters_, model.covariance_, model.na_)[1]
     return check_responses(
         model.structure_name(),
         pos,
         neg,
-        model.poles(),
+        poles,
         out_range=output_range(data),
         amplitudes=amps,
         expect=expect,
         limits=limits,
+        pole_excess=excess,
+        record=model.n_rows_,
     )

@@ -22,11 +22,12 @@ from typing import Any
 import numpy as np
 
 from . import _metrics as metrics
-from ._checks import check_data, check_horizon, check_model
+from ._checks import check_data, check_horizon, check_model, check_same_signals
 from ._format import finite_or_none, horizon_label, require_pandas, text_table
 from .data import IOData
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
+from .polynomial import PolynomialModel
 
 __all__ = [
     "compare",
@@ -201,7 +202,7 @@ class Comparison:
 
 
 def _model_list(models) -> tuple[list[str], list[ArxModel]]:
-    if isinstance(models, ArxModel):
+    if isinstance(models, (ArxModel, PolynomialModel)):
         models = [models]
     if isinstance(models, Mapping):
         names, ms = [str(k) for k in models], list(models.values())
@@ -260,6 +261,8 @@ def compare(models, data: IOData, horizon: int | None = None) -> Comparison:
     data = check_data(data)
     horizon = check_horizon(horizon)
     names, ms = _model_list(models)
+    for m in ms:
+        check_same_signals(m.ts, m.output_name, m.input_names, data, "the data to compare with")
     fits, rmss, preds, divs = [], [], [], []
     for m in ms:
         pred, _, diverged = prediction_error(m, data, horizon)
@@ -562,6 +565,16 @@ class ResidualAnalysis:
         return plot_residuals(self, axes=axes)
 
 
+#: A one-step residual whose RMS is below this share of the output's RMS is rounding error: the
+#: model reproduces the data exactly (noise-free data) and the tests pass.
+ROUND_OFF_SHARE = 1e-9
+
+
+def _at_round_off(e: np.ndarray, y: np.ndarray) -> bool:
+    scale = float(np.sqrt(np.mean(y * y))) if y.size else 0.0
+    return scale > 0 and float(np.sqrt(np.mean(e * e))) <= ROUND_OFF_SHARE * scale
+
+
 def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0.01) -> ResidualAnalysis:
     """Residual analysis: is the one-step residual white and independent of the inputs?
 
@@ -637,6 +650,9 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
     dof = max(max_lag - model.na_, 1)
     p = float(stats.chi2.sf(q, dof))
+    if _at_round_off(e[ok], data.y[ok]):
+        # Nothing left to explain: the correlations of rounding errors say nothing about the model.
+        p, pvals = 1.0, {k: (1.0 if math.isfinite(v) else v) for k, v in pvals.items()}
     return ResidualAnalysis(
         e, n, lags, auto, Z99 / math.sqrt(n), cl, cross, bounds, q, p, dof, pvals, alpha, model.structure_name()
     )

@@ -207,6 +207,8 @@ def _sweep_section(a: Analysis) -> Raw:
         parts.append(_p(negative_fit_note(-1.0)[0].upper() + negative_fit_note(-1.0)[1:] + ".", cls="small"))
     if a.choice.skipped:
         parts.append(_p("Skipped by the step sanity check: " + "; ".join(f"{s}: {w}" for s, w in a.choice.skipped[:8])))
+    if a.choice.grid_edge:
+        parts.append(_p(a.choice.grid_edge))
     try:
         fig = res.plot(chosen=a.choice.rank)
     except (ArxidError, ValueError) as exc:  # a grid with one na or nk value cannot be drawn as a map

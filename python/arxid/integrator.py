@@ -1,0 +1,264 @@
+"""Is the plant integrating? A unit-root test on the best structures of a sweep, with a stated level.
+
+An ARX model ``A(z^-1) y = B(z^-1) u + e`` has a pole at z = 1 exactly when ``A(1) = 1 + Σ aᵢ = 0``.
+``A(1)`` is linear in the parameters, so its standard error follows from the parameter covariance,
+``se = √(gᵀ P g)`` with ``g`` one on the a's and zero elsewhere, and ``t = A(1) / se`` is the
+Dickey–Fuller statistic of the regression rewritten in differences (Δy on y(t−1), the lagged Δy
+and the inputs; its coefficient of y(t−1) is −A(1)). A stable plant has ``A(1) > 0``: the unit
+root is **rejected** when ``t > UNIT_ROOT_CRITICAL`` (2.58, the 1% one-sided critical value of
+the Dickey–Fuller test without a constant; MacKinnon 1996). Poles outside the unit circle near
+z = 1 make ``A(1) < 0`` and are not rejected either.
+
+The t statistic assumes the residuals are white; an ARX of a closed-loop double integrator is
+biased, and its t sits near the critical value (2.8 on 10 s of the simulated quadrotor roll axis,
+where Silverbox's worst is 2.8 too). So a second, data-length criterion: a real pole whose time
+constant ``−1 / ln |p|`` (in samples) exceeds ``RECORD_SHARE`` (1/5) of the estimation rows cannot be
+told from an integrator, because the record holds fewer than five time constants of its decay.
+This looks at the low-frequency poles, ``|ln p| < LOW_FREQUENCY`` (0.1 rad per sample: near z = 1),
+and counts one on or outside the unit circle as infinitely slow (a double integrator is often
+estimated as a complex pair just outside, 1.00001 ± 0.002j, whose A(1) = |1 − p|² is positive).
+A structure votes "integrating" when its unit root is not rejected or its slowest low-frequency
+pole is that slow; the plant is integrating when most of the five best structures by FPE
+(estimation data) vote so. Measured values are in docs/selection.md.
+
+A pole outside the unit circle is judged with the same covariance: its magnitude's standard
+error is ``σ = √(gᵀ P_aa g)`` with ``g_k = Re(p̄/|p| · ∂p/∂a_k)`` and ``∂p/∂a_k = −p^(n−k) / A'(p)``
+(first order in the parameters), and ``(|p| − 1) / σ > UNIT_ROOT_CRITICAL`` is a pole
+significantly outside.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "UNIT_ROOT_CRITICAL",
+    "RECORD_SHARE",
+    "IntegratorTest",
+    "unit_root_t",
+    "pole_excess",
+    "slowest_time_constant",
+    "integrator_test",
+    "structure_integrates",
+]
+
+#: One-sided 1% critical value of the Dickey–Fuller t statistic without a constant (large samples).
+UNIT_ROOT_CRITICAL = 2.58
+
+#: How many of the best structures by FPE vote.
+VOTERS = 5
+
+#: A pole near z = 1 whose time constant exceeds this share of the estimation record counts as an integrator.
+RECORD_SHARE = 0.2
+
+#: Poles with |ln p| below this (rad per sample) are the low-frequency ones the time-constant rule looks at.
+LOW_FREQUENCY = 0.1
+
+
+@dataclass(frozen=True)
+class IntegratorTest:
+    """The verdict of the unit-root test on the best structures of a sweep.
+
+    Attributes
+    ----------
+    integrating : bool
+        The plant was called integrating (or declared so with ``expect``).
+    reason : str
+        One sentence: why, with the numbers.
+    structures : tuple of str
+        The structures that voted (best by FPE first); empty when ``expect`` decided.
+    t_values : tuple of float
+        Their unit-root t statistics ``A(1) / se(A(1))``.
+    time_constants : tuple of float
+        Time constant of each one's slowest real pole, in samples (inf at or beyond z = 1).
+    record : int
+        Estimation rows.
+    critical : float
+        The critical value: t above it rejects a pole at z = 1.
+    """
+
+    integrating: bool
+    reason: str
+    structures: tuple[str, ...] = ()
+    t_values: tuple[float, ...] = ()
+    time_constants: tuple[float, ...] = ()
+    record: int = 0
+    critical: float = UNIT_ROOT_CRITICAL
+
+    def to_dict(self) -> dict:
+        """JSON-ready verdict.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "integrating": self.integrating,
+            "reason": self.reason,
+            "structures": list(self.structures),
+            "t_values": [float(t) for t in self.t_values],
+            "time_constants": [float(t) if np.isfinite(t) else None for t in self.time_constants],
+            "record": self.record,
+            "critical": self.critical,
+        }
+
+
+def unit_root_t(theta: np.ndarray, covariance: np.ndarray, na: int) -> float:
+    """Unit-root t statistic ``A(1) / se(A(1))`` of one fitted ARX structure.
+
+    Parameters
+    ----------
+    theta : ndarray of shape (p,)
+        Parameters, the ``na`` a's first.
+    covariance : ndarray of shape (p, p)
+        Their covariance.
+    na : int
+        Number of a's.
+
+    Returns
+    -------
+    float
+        Large and positive for a stable plant; near zero or negative for a pole at (or beyond) 1.
+        ``inf`` for ``na = 0`` (no pole at all).
+    """
+    if na == 0:
+        return float("inf")
+    a1 = 1.0 + float(np.sum(theta[:na]))
+    var = float(np.sum(covariance[:na, :na]))
+    if not var > 0:
+        return float("inf") if a1 > 0 else float("-inf")
+    return a1 / np.sqrt(var)
+
+
+def pole_excess(theta: np.ndarray, covariance: np.ndarray, na: int) -> tuple[float, float]:
+    """The largest pole magnitude and how many standard errors it lies outside the unit circle.
+
+    Parameters
+    ----------
+    theta : ndarray of shape (p,)
+        Parameters, the ``na`` a's first.
+    covariance : ndarray of shape (p, p)
+        Their covariance.
+    na : int
+        Number of a's.
+
+    Returns
+    -------
+    magnitude : float
+        Largest |pole|.
+    excess : float
+        ``(|p| − 1) / σ_|p|`` of that pole (negative inside; ``0`` for a repeated pole, whose
+        first-order standard error is unbounded).
+    """
+    if na == 0:
+        return 0.0, float("-inf")
+    a = np.concatenate([[1.0], theta[:na]])
+    poles = np.roots(a)
+    p = poles[np.argmax(np.abs(poles))]
+    mag = float(abs(p))
+    deriv = np.polyval(np.polyder(a), p)
+    if abs(deriv) < 1e-12 * max(1.0, np.abs(a).sum()):
+        return mag, 0.0
+    dp = -(p ** np.arange(na - 1, -1, -1)) / deriv  # ∂p/∂a_k, k = 1..na
+    g = np.real(np.conj(p) / mag * dp)
+    var = float(g @ covariance[:na, :na] @ g)
+    if not var > 0:
+        return mag, float(np.sign(mag - 1.0)) * float("inf") if mag != 1.0 else 0.0
+    return mag, (mag - 1.0) / np.sqrt(var)
+
+
+def slowest_time_constant(theta: np.ndarray, na: int) -> float:
+    """Decay time constant ``−1 / ln |p|`` in samples of the slowest low-frequency pole
+    (``|ln p| < LOW_FREQUENCY``); inf when one is on or outside the unit circle, 0 without one.
+
+    Parameters
+    ----------
+    theta : ndarray of shape (p,)
+        Parameters, the ``na`` a's first.
+    na : int
+        Number of a's.
+
+    Returns
+    -------
+    float
+    """
+    if na == 0:
+        return 0.0
+    poles = np.roots(np.concatenate([[1.0], theta[:na]])).astype(complex)
+    with np.errstate(divide="ignore"):
+        low = poles[np.abs(np.log(poles)) < LOW_FREQUENCY]
+    if not low.size:
+        return 0.0
+    mag = float(np.abs(low).max())
+    return float("inf") if mag >= 1.0 else -1.0 / np.log(mag)
+
+
+def integrator_test(
+    names: Sequence[str], t_values: Sequence[float], time_constants: Sequence[float], record: int
+) -> IntegratorTest:
+    """Verdict from the unit-root t statistics and slowest time constants of the best structures.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The voting structures, best by FPE first.
+    t_values : sequence of float
+        Their :func:`unit_root_t`.
+    time_constants : sequence of float
+        Their :func:`slowest_time_constant` (samples).
+    record : int
+        Estimation rows.
+
+    Returns
+    -------
+    IntegratorTest
+        Integrating when more than half of them vote so (see the module docstring).
+    """
+    t = np.asarray(t_values, dtype=float)
+    tau = np.asarray(time_constants, dtype=float)
+    if not t.size:
+        return IntegratorTest(False, "no structure with poles to test for an integrator", record=record)
+    votes = ~(t > UNIT_ROOT_CRITICAL) | (tau > RECORD_SHARE * record)
+    kept = int(votes.sum())
+    integrating = 2 * kept > t.size
+    slow = np.max(tau)
+    numbers = (
+        f"unit-root test of a pole at z = 1, A(1) = 0: t from {np.min(t):.3g} to {np.max(t):.3g}, rejected above "
+        f"{UNIT_ROOT_CRITICAL} at the 1% level; slowest time constant "
+        + ("infinite" if not np.isfinite(slow) else f"{slow:.4g} samples")
+        + f" against {record} estimation samples (an integrator above {RECORD_SHARE:g} of them)"
+    )
+    verdict = "integrating" if integrating else "not integrating"
+    count = kept if integrating else t.size - kept
+    reason = f"{verdict}: {count} of the {t.size} best structures by FPE say so ({numbers})"
+    return IntegratorTest(
+        integrating, reason, tuple(names), tuple(float(x) for x in t), tuple(float(x) for x in tau), record
+    )
+
+
+def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, record: int) -> bool:
+    """One structure's vote: its unit root is not rejected, or its slowest low-frequency pole is
+    too slow for the record (the rule of :func:`integrator_test`, applied to a single model).
+
+    Parameters
+    ----------
+    theta : ndarray of shape (p,)
+        Parameters, the ``na`` a's first.
+    covariance : ndarray of shape (p, p)
+        Their covariance.
+    na : int
+        Number of a's.
+    record : int
+        Estimation rows.
+
+    Returns
+    -------
+    bool
+    """
+    if na == 0:
+        return False
+    t = unit_root_t(theta, covariance, na)
+    return bool(not t > UNIT_ROOT_CRITICAL or slowest_time_constant(theta, na) > RECORD_SHARE * record)
