@@ -60,9 +60,11 @@ test-rust:
 	@echo "building and running the Rust unit tests (cargo test, release: a few minutes from scratch on 2 cores, seconds after)"
 	@cargo test --release --lib --quiet
 
+# One BLAS thread: the tests' tall-skinny products run up to 10x slower when OpenBLAS threads
+# compete for 2 shared cores (benchmarks keep the default, so numpy baselines are not handicapped).
 test-python: develop
 	@echo "running the Python tests (pytest)"
-	@$(PY) -m pytest -q
+	@OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q
 
 test: setup test-rust test-python
 
