@@ -5,7 +5,7 @@ PIP    := $(PY) -m pip
 export VIRTUAL_ENV := $(abspath $(VENV))
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: setup develop demo test test-rust test-python fuzz bench lint typecheck clean
+.PHONY: setup develop demo test test-rust test-python fuzz bench lint typecheck clean wheel smoke docs
 
 # Everything the venv needs, read from pyproject.toml (the one list): the build backend, the
 # runtime dependencies and the `test` and `dev` extras (pinned ruff and mypy). Python < 3.11 has no
@@ -15,28 +15,56 @@ REQUIREMENTS = $(PY) -c 'import sys; \
 	t = tomllib.load(open("pyproject.toml", "rb")); p = t["project"]; x = p["optional-dependencies"]; \
 	print(" ".join(t["build-system"]["requires"] + p["dependencies"] + x["test"] + x["dev"]))'
 
+# The extras that only some targets need (docs, release), installed on demand, each with its stamp.
+EXTRA_REQUIREMENTS = $(PY) -c 'import sys; \
+	exec("try:\n import tomllib\nexcept ImportError:\n from pip._vendor import tomli as tomllib"); \
+	x = tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]; \
+	print(" ".join(r for e in sys.argv[1:] for r in x[e]))'
+
+$(VENV)/.extra-%: $(VENV)/.installed pyproject.toml
+	@echo "installing the $* tools into $(VENV)"
+	@$(PIP) install -q $$($(EXTRA_REQUIREMENTS) $*)
+	@touch $@
+
 # The stamp depends on pyproject.toml: a changed dependency list reinstalls.
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
+	@echo "setting up $(VENV) (pip: the build backend, numpy, scipy and the test and lint tools)"
 	$(PIP) install -q --upgrade pip
 	$(PIP) install -q $$($(REQUIREMENTS))
 	touch $@
 
 setup: $(VENV)/.installed
 
-# Release build of the Rust core into python/arxid (incremental: target/ is the cache).
-develop: setup
-	@echo "building the Rust core (release; the first build takes a few minutes) -> $(VENV)/develop.log"
+# Release build of the Rust core into python/arxid, only when a Rust source, the manifests or the
+# venv changed (the .so is the stamp, so an unchanged tree builds nothing). cargo test (below) and
+# maturin share target/release without invalidating each other: same profile and dependency
+# features, and cargo test builds only the lib's test harness, never the cdylib maturin owns.
+CORE := python/arxid/_core.abi3.so
+RUST_SOURCES := Cargo.toml Cargo.lock $(wildcard rust/*.rs rust/*/*.rs)
+
+develop: $(CORE)
+
+$(CORE): $(VENV)/.installed $(RUST_SOURCES) pyproject.toml
+	@echo "building the Rust core for Python (maturin, release: a few minutes from scratch on 2 cores, seconds to a minute after an edit) -> $(VENV)/develop.log"
+	@rm -f python/arxid/_core*.so
 	@$(VENV)/bin/maturin develop --release > $(VENV)/develop.log 2>&1 || { cat $(VENV)/develop.log; exit 1; }
+	@touch $@
 
 demo: develop
 	$(VENV)/bin/arxid demo
 
+# --lib: the unit tests only (there are no doctests or tests/*.rs); building the lib target as a
+# dependency would rebuild the cdylib with other features than maturin's, and each would undo the other.
 test-rust:
-	cargo test --release --quiet
+	@echo "building and running the Rust unit tests (cargo test, release: a few minutes from scratch on 2 cores, seconds after)"
+	@cargo test --release --lib --quiet
 
+# One BLAS thread: the tests' tall-skinny products run up to 10x slower when OpenBLAS threads
+# compete for 2 shared cores (benchmarks keep the default, so numpy baselines are not handicapped).
 test-python: develop
-	$(PY) -m pytest -q
+	@echo "running the Python tests (pytest)"
+	@OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q
 
 test: setup test-rust test-python
 
@@ -46,6 +74,31 @@ fuzz: develop
 
 bench: develop
 	$(PY) benches/sweep_vs_numpy.py
+	$(PY) benches/csv_read.py
+
+# The wheel (abi3: one file for CPython >= 3.10) and the sdist, in dist/. The wheel is built from the
+# tree with the same profile and features as `make develop`, so after `make test` it only repackages
+# (`maturin build --sdist` would build the wheel again from the unpacked sdist, from scratch).
+# auditwheel then shows which manylinux policy the binary satisfies (maturin picked the tag).
+wheel: $(VENV)/.extra-release
+	@echo "building the wheel and the sdist (maturin, release; seconds when target/ is warm) -> dist/"
+	@rm -rf dist
+	@{ $(VENV)/bin/maturin build --release --out dist && $(VENV)/bin/maturin sdist --out dist; } \
+		> $(VENV)/wheel.log 2>&1 || { cat $(VENV)/wheel.log; exit 1; }
+	@$(PY) -m auditwheel show dist/*.whl
+	@ls -1 dist
+
+# The wheel installed in fresh venvs without cargo on PATH: base (numpy, scipy) and full (arxid[all]).
+smoke: wheel
+	@bash tests/smoke/run.sh dist/*.whl base
+	@bash tests/smoke/run.sh dist/*.whl full
+
+# The documentation site in site/: the gallery scripts run first (their figures and pages go to
+# docs/gallery/, git-ignored), then mkdocs builds with --strict (a warning fails the build).
+docs: develop $(VENV)/.extra-docs
+	@echo "running the gallery examples and building the site (mkdocs --strict) -> site/"
+	@$(PY) docs/gallery/build.py
+	@$(VENV)/bin/mkdocs build --strict --quiet
 
 # OE and ARMAX against scipy least_squares, and SIPPY when it is installed (it is not a dependency:
 # the row says "not installed" otherwise).
@@ -59,12 +112,18 @@ bench-pem: develop
 # minute from clean, seconds when warm). Every step runs, in this order; lint fails at the end if
 # any step failed, naming them.
 LINT_STEPS = \
-	"$(PY) -m ruff check python tests benches" \
-	"$(PY) -m ruff format --check python tests benches" \
+	"$(PY) -m ruff check python tests benches examples docs/gallery" \
+	"$(PY) -m ruff format --check python tests benches examples docs/gallery" \
 	"$(PY) -m mypy" \
 	"$(PY) -m mypy.stubtest arxid._core" \
 	"cargo fmt --check" \
-	"cargo clippy --release --all-targets --features python -- -D warnings"
+	"env $(MATURIN_PYO3_ENV) cargo clippy --release --all-targets --features python -- -D warnings"
+
+# clippy sees pyo3 configured as maturin configured it (the interpreter file maturin writes and the
+# extension-module flag). Otherwise pyo3's build scripts rerun, and clippy and the next maturin build
+# (make wheel, make develop after an edit) each recompile pyo3, numpy and arxid: 90 s on 2 cores.
+MATURIN_PYO3_ENV = $$(f=$$(ls $(CURDIR)/target/maturin/pyo3-config-*-abi3.txt 2>/dev/null | head -n 1); \
+	[ -n "$$f" ] && echo PYO3_BUILD_EXTENSION_MODULE=1 PYO3_CONFIG_FILE=$$f)
 
 lint: develop
 	@failed=""; for step in $(LINT_STEPS); do \
@@ -77,4 +136,4 @@ typecheck: develop
 	$(PY) -m mypy
 
 clean:
-	rm -rf $(VENV) target python/arxid/_core*.so
+	rm -rf $(VENV) target python/arxid/_core*.so dist site docs/gallery/generated

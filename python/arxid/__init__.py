@@ -33,6 +33,7 @@ from .exceptions import (
     ConversionError,
     DataError,
     IdentifiabilityError,
+    MissingDependencyError,
     NotFittedError,
     OrderError,
 )
@@ -74,6 +75,7 @@ __all__ = [
     "OrderError",
     "IdentifiabilityError",
     "NotFittedError",
+    "MissingDependencyError",
     "ConvergenceError",
     "ConversionError",
     "ArxidWarning",

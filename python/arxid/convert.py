@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._optional import require
 from .continuous import d2c
 from .exceptions import ArxidError, DataError
 
@@ -18,11 +19,7 @@ __all__ = ["to_control", "to_scipy", "tf_coefficients"]
 
 
 def _control() -> Any:
-    try:
-        import control
-    except ImportError:  # pragma: no cover
-        raise ImportError("to_control needs python-control: pip install 'arxid[control]'") from None
-    return control
+    return require("control", "to_control")
 
 
 def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:

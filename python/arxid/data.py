@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import numbers
-import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .csvio import CsvFile
 from .exceptions import DataError
 
 __all__ = ["IOData"]
@@ -52,72 +50,6 @@ def _as_float(name: str, values, ndim: int) -> np.ndarray:
         idx = int(np.argwhere(np.isinf(arr))[0][0])
         raise DataError(f"{name} holds an infinite value at sample {idx}; mark missing samples with NaN instead")
     return arr
-
-
-def _read_csv_rows(path: Path, delimiter: str | None) -> list[list[str]]:
-    """Rows of a UTF-8 CSV file (BOM allowed), the delimiter sniffed from the header when None."""
-    if not path.is_file():
-        raise DataError(f"CSV file {str(path)!r} does not exist")
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            text = fh.read()
-    except UnicodeDecodeError as exc:
-        raise DataError(
-            f"{path.name} is not a UTF-8 text CSV file ({exc.reason} at byte {exc.start}); "
-            f"export it as CSV with a header row"
-        ) from None
-    lines = text.splitlines()
-    if not lines:
-        raise DataError(f"CSV file {str(path)!r} is empty")
-    if delimiter is None:
-        head = lines[0]
-        delimiter = max([",", ";", "\t", " "], key=head.count) if any(c in head for c in ",;\t ") else ","
-    return list(csv.reader(lines, delimiter=delimiter))
-
-
-def _clean_header(raw_header: list[str]) -> tuple[list[str], dict[str, str], dict[str, str]]:
-    """Signal names of CSV header cells (``""`` for a cell without one), the units given in
-    brackets (``vbat[V]``), and the map from raw header text to signal name."""
-    header: list[str] = []
-    header_units: dict[str, str] = {}
-    rename: dict[str, str] = {}
-    for h in raw_header:
-        m = re.fullmatch(r"(.*?)\s*\[(.*)\]", h)
-        base = m[1] if m else h
-        clean = re.sub(r"\W+", "_", base).strip("_") if base else ""
-        if clean and clean[0].isdigit():
-            clean = "_" + clean
-        header.append(clean)
-        rename[h] = clean
-        if m and clean:
-            header_units[clean] = m[2]
-    return header, header_units, rename
-
-
-def _numeric_columns(header: list[str], rows: list[list[str]], needed: set, source: str) -> dict[str, np.ndarray]:
-    """Named CSV columns as float arrays (empty, ``nan``, ``na``, ``null``: NaN). A cell that is not a
-    number is NaN too, unless its column is ``needed``: then it is a DataError."""
-    body = [r for r in rows if any(c.strip() for c in r)]
-    columns = {}
-    for j, name in enumerate(header):
-        if not name:
-            continue
-        vals = []
-        for i, r in enumerate(body):
-            cell = r[j].strip() if j < len(r) else ""
-            if cell == "" or cell.lower() in ("nan", "na", "null"):
-                vals.append(math.nan)
-                continue
-            try:
-                vals.append(float(cell))
-            except ValueError:
-                if name in needed:
-                    raise DataError(
-                        f"{source}: column {name!r} row {i + 2} holds {cell!r}, which is not a number"
-                    ) from None
-                vals.append(math.nan)
-        columns[name] = np.array(vals, dtype=float)
-    return columns
 
 
 def _sample_at(time: float, ts: float, n: int) -> int:
@@ -336,20 +268,18 @@ class IOData:
         -------
         IOData
         """
-        path = Path(path)
-        rows = _read_csv_rows(path, delimiter)
+        table = CsvFile.open(path, delimiter)
         # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
         # the raw header text is still accepted in output=/inputs=/extra=/time=.
-        header, header_units, rename = _clean_header([h.strip() for h in rows[0]])
+        rename = table.rename
         output = rename.get(output, output)
         time = rename.get(time, time) if time else time
         inputs = [rename.get(c, c) for c in ([inputs] if isinstance(inputs, str) else inputs)]
         extra = [rename.get(c, c) for c in ([extra] if isinstance(extra, str) else extra)]
-        units = {**header_units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
-        needed = {output, *inputs, *extra} | ({time} if time else set())
-        columns = _numeric_columns(header, rows[1:], needed, path.name)
+        units = {**table.units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
+        columns = table.read([output, *inputs, *extra] + ([time] if time else []))
         return cls._from_columns(
-            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source=path.name
+            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source=table.path.name
         )
 
     @classmethod

@@ -12,6 +12,7 @@ __all__ = [
     "OrderError",
     "IdentifiabilityError",
     "NotFittedError",
+    "MissingDependencyError",
     "ConversionError",
     "ConvergenceError",
     "ArxidWarning",
@@ -62,3 +63,8 @@ class ConversionError(ArxidError):
 class ArxidWarning(UserWarning):
     """Something the user should know that does not stop the work (a structure skipped by the step
     sanity check, an optional dependency missing). Filter it with ``warnings.simplefilter``."""
+
+
+class MissingDependencyError(ArxidError, ImportError):
+    """An optional dependency is not installed; the message names the extra that installs it
+    (``pip install 'arxid[plot]'``). Also an :class:`ImportError`, so ``except ImportError`` works."""

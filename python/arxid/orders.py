@@ -21,6 +21,7 @@ from . import _metrics as metrics
 from ._checks import check_same_signals
 from ._format import json_safe
 from ._limits import available_memory, check_order
+from ._optional import optional
 from .data import IOData
 from .effects import compile_effects
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
@@ -1290,12 +1291,14 @@ class _Runner:
 
 
 def _progress_bar(n: int, k: int | None) -> Any:
-    """A tqdm bar on an interactive terminal; None when stderr is not a terminal."""
+    """A tqdm bar on an interactive terminal; None when stderr is not a terminal or tqdm is not
+    installed (then one ArxidWarning per process names the extra)."""
     if not sys.stderr.isatty():
         return None
-    from tqdm.auto import tqdm
-
-    return tqdm(total=n, desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
+    auto = optional("tqdm.auto", "the progress bar of arxid.sweep")
+    if auto is None:
+        return None
+    return auto.tqdm(total=n, desc="arxid.sweep" + (f" ({k}-step)" if k else ""), unit="structure", leave=False)
 
 
 def _scored_norm(d: IOData, lag: int) -> float:

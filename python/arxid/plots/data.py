@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from .._optional import require
+
 __all__ = ["figure_to_data_uri", "data_overview", "step_checks", "thin", "new_figure"]
 
 _WIDTH = 9.0  # inches; at 100 dpi a 900 px wide image, readable on a laptop and on A4
@@ -38,10 +40,7 @@ def new_figure(
     fig : matplotlib.figure.Figure
     axes : ndarray of Axes, shape (n_rows, n_cols)
     """
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:  # pragma: no cover
-        raise ImportError("plots need matplotlib: pip install 'arxid[plot]'") from None
+    Figure = require("matplotlib.figure", "plotting").Figure
     fig = Figure(figsize=(width, max(height * n_rows, 2.0)), layout="constrained")
     axes = fig.subplots(n_rows, n_cols, sharex=sharex, squeeze=False)
     return fig, axes

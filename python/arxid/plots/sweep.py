@@ -6,6 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from .._optional import require
+
 __all__ = ["plot_sweep"]
 
 
@@ -26,10 +28,7 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
     matplotlib.figure.Figure
         Diverged or unfitted cells are grey; the chosen structure is marked.
     """
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:  # pragma: no cover
-        raise ImportError("plot needs matplotlib: pip install 'arxid[plot]'") from None
+    Figure = require("matplotlib.figure", "plotting").Figure
     score = result.ranking_score().astype(float)
     score = np.where(result.diverged_val | result.diverged_est, np.nan, score)
     nas = np.unique(result.na)
