@@ -25,6 +25,7 @@ __all__ = [
     "DIVERGENCE_FACTOR",
     "pem_fit",
     "pem_predict",
+    "pem_gradient",
     "pem_max_lag",
     "PemOutput",
 ]
@@ -170,4 +171,7 @@ def pem_fit(
 def pem_predict(
     y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F, horizon: int | None = None
 ) -> _F: ...
+def pem_gradient(
+    y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F
+) -> tuple[_F, _F]: ...
 def pem_max_lag(orders: _PolyOrders) -> int: ...
