@@ -7,12 +7,18 @@ reference runs and the table says so. A SIPPY fit runs in a child process and is
 ``--sippy-cap`` seconds (its CasADi problem grows with N).
 
     .venv/bin/python benches/pem_vs_sippy.py [--sizes 10000 200000] [--sippy-cap 600]
+
+``--real DIR`` instead fits OE(2, 2, 1) to two measured data sets read from DIR (the shared data
+folder; nothing is copied): the Silverbox circuit (samples 40 650-60 649 of SNLS80mV.csv, as the
+real-data test) and the DaISy heating system, with arxid and SIPPY, and prints both losses (mean
+squared output error on the samples arxid scores) and the time ratio.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy import signal
@@ -80,11 +86,16 @@ def fit_sippy(kind: str, d: arxid.IOData) -> np.ndarray | None:
 
 def fit_sippy_capped(kind: str, d: arxid.IOData, cap: float) -> tuple[np.ndarray | None, float | None]:
     """SIPPY's fit in a child process stopped after ``cap`` seconds; the time is None when it was stopped."""
+    return run_capped(fit_sippy, (kind, d), cap)
+
+
+def run_capped(fit, args: tuple, cap: float):
+    """``fit(*args)`` in a child process stopped after ``cap`` seconds; the time is None when it was stopped."""
     import multiprocessing
 
     with multiprocessing.get_context("fork").Pool(1) as pool:
         t = time.perf_counter()
-        job = pool.apply_async(fit_sippy, (kind, d))
+        job = pool.apply_async(fit, args)
         try:
             return job.get(timeout=cap), time.perf_counter() - t
         except multiprocessing.TimeoutError:
@@ -115,11 +126,60 @@ def bench_row(kind: str, n: int, cap: float) -> str:
     )
 
 
+def real_sets(folder: Path) -> list[tuple[str, arxid.IOData]]:
+    """The two measured data sets, loaded as tests/test_pem.py loads them (means removed)."""
+    raw = np.genfromtxt(folder / "silverbox" / "SNLS80mV.csv", delimiter=",", skip_header=1, usecols=(0, 1))
+    u, y = raw[40650:60650, 0], raw[40650:60650, 1]
+    heat = np.loadtxt(folder / "daisy-heating" / "heating_system.dat")
+    return [
+        ("Silverbox", arxid.IOData(y - y.mean(), u - u.mean(), 1 / 610.35)),
+        ("heating", arxid.IOData(heat[:, 2] - heat[:, 2].mean(), heat[:, 1] - heat[:, 1].mean(), 2.0)),
+    ]
+
+
+def sippy_oe(d: arxid.IOData, nb: int, nf: int, nk: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """SIPPY's OE fit as (numerator, denominator) in powers of z^-1; None when SIPPY is not installed."""
+    try:
+        from sippy_unipi import system_identification  # type: ignore[import-not-found]
+    except ImportError:
+        return None
+    # SIPPY's delay theta is MATLAB's nk - 1; its transfer function is in positive powers of z.
+    m = system_identification(d.y.reshape(1, -1), d.u[:, 0].reshape(1, -1), "OE", OE_orders=[nb, nf, nk - 1])
+    num, den = np.asarray(m.NUMERATOR[0][0], float), np.asarray(m.DENOMINATOR[0][0], float)
+    return np.r_[np.zeros(len(den) - len(num)), num], den
+
+
+def output_error_loss(d: arxid.IOData, num: np.ndarray, den: np.ndarray, lag: int) -> float:
+    """Mean squared output error y - (num/den) u over the samples from ``lag`` on."""
+    return float(np.mean((d.y - signal.lfilter(num, den, d.u[:, 0]))[lag:] ** 2))
+
+
+def real_row(name: str, d: arxid.IOData, cap: float, orders: tuple[int, int, int] = (2, 2, 1)) -> str:
+    """One line of the real-data table: OE(nb, nf, nk) by arxid and by SIPPY on the same samples."""
+    nb, nf, nk = orders
+    model, t_a = timed(lambda: arxid.oe(d, nb, nf, nk))
+    th, lag = model.parameters_, model.first_lag_
+    ours = output_error_loss(d, np.r_[np.zeros(nk), th[:nb]], np.r_[1, th[nb:]], lag)
+    tf, t_p = run_capped(sippy_oe, (d, nb, nf, nk), cap)
+    if tf is None:
+        sippy = "not installed"
+    elif t_p is None:
+        sippy = f"stopped after {cap:.0f} s (>{cap / t_a:.0f}x)"
+    else:
+        sippy = f"{t_p:>8.2f} s {t_p / t_a:>6.0f}x  loss {output_error_loss(d, *tf, lag):.6g}"
+    return f"{name:<10}{d.n_samples:>7}  OE{orders}  {t_a:>8.3f} s  loss {ours:.6g}   SIPPY {sippy}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 200_000])
     ap.add_argument("--sippy-cap", type=float, default=600.0, help="seconds after which a SIPPY fit is stopped")
+    ap.add_argument("--real", type=Path, help="shared data folder: fit the two measured data sets instead")
     args = ap.parse_args()
+    if args.real is not None:
+        for name, d in real_sets(args.real):
+            print(real_row(name, d, args.sippy_cap), flush=True)
+        return
     head = f"{'fit':<8}{'N':>8}{'arxid s':>10}{'scipy s':>10}{'ratio':>8}{'arxid loss':>13}{'scipy loss':>13}"
     print(head + "  SIPPY (time, ratio to arxid, loss)")
     for kind in ("oe", "armax"):

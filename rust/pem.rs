@@ -756,6 +756,25 @@ fn damped_step(r: &[f64], p: usize, lambda: f64, scale: &[f64]) -> Vec<f64> {
     delta.iter().map(|d| -d).collect()
 }
 
+/// Prediction errors ε of θ (NaN outside the scored samples) and the Jacobian ∂ε/∂θ, row-major
+/// `len(y) × p` in `getpvec` order (NaN rows outside the scored samples): the gradient ψ = −∂ε/∂θ
+/// of the prediction-error method, for score tests of terms the model lacks.
+pub fn gradient(data: &Segments<'_>, s: &PolyStructure, theta: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let p = Polys::of(s, theta);
+    let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
+    let ev = evaluate(data, s, &xs, &p, true);
+    let (n, q) = (data.y.len(), ev.columns.len());
+    let mut eps = vec![f64::NAN; n];
+    let mut jac = vec![f64::NAN; n * q];
+    for t in data.rows(s.max_lag()) {
+        eps[t] = ev.eps[t];
+        for (j, c) in ev.columns.iter().enumerate() {
+            jac[t * q + j] = c.sign * ev.signals[c.signal][t - c.lag];
+        }
+    }
+    (eps, jac)
+}
+
 /// Predicted output: `horizon = Some(k)` the k-step-ahead predictor
 /// $\hat y(t|t-k) = y(t) - \sum_{j<k} h_j\, \varepsilon(t-j)$ ($h$ the impulse response of
 /// $C/(A D)$), `None` the free run $\sum_i B_i/(A F_i)\, u_i$. NaN outside the scored samples.
@@ -792,6 +811,31 @@ pub fn predict(data: &Segments<'_>, s: &PolyStructure, theta: &[f64], horizon: O
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let mut seed = 7u64;
+        let n = 400;
+        let u: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let y: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let segs = [(0usize, n)];
+        let d = Segments::new(&y, &u, 1, &segs).unwrap();
+        let s = PolyStructure::new(0, vec![2], 1, 1, vec![1], vec![1]).unwrap();
+        let theta = [0.5, 0.2, 0.3, -0.4, -0.6];
+        let (eps, jac) = gradient(&d, &s, &theta);
+        let q = theta.len();
+        let rows = d.rows(s.max_lag());
+        for j in 0..q {
+            let mut th = theta;
+            th[j] += 1e-6;
+            let (e2, _) = gradient(&d, &s, &th);
+            for &t in &rows {
+                let fd = (e2[t] - eps[t]) / 1e-6;
+                assert!((fd - jac[t * q + j]).abs() < 1e-4, "column {j} row {t}: {fd} vs {}", jac[t * q + j]);
+            }
+        }
+        assert!(eps[..s.max_lag()].iter().all(|e| e.is_nan()));
+    }
 
     fn lcg(seed: &mut u64) -> f64 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);

@@ -775,6 +775,37 @@ fn pem_predict<'py>(
     Ok(out.into_pyarray(py))
 }
 
+/// Prediction errors and their Jacobian, as `pem_gradient` returns them.
+type ErrorsAndJacobian<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// Prediction errors of a polynomial model (NaN outside the scored samples of `segments`) and
+/// their Jacobian ∂ε/∂θ, shape (n, p), in `getpvec` order.
+#[pyfunction]
+fn pem_gradient<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    orders: PolyOrders,
+    theta: PyReadonlyArray1<'py, f64>,
+) -> PyResult<ErrorsAndJacobian<'py>> {
+    let s = poly_structure(py, orders)?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
+    let th = theta.as_slice()?;
+    if th.len() != s.n_params() || s.nb.len() != m {
+        return Err(OrderError::new_err(format!(
+            "theta has {} entries and nb {} inputs; the structure has {} parameters and the data {m} inputs",
+            th.len(),
+            s.nb.len(),
+            s.n_params()
+        )));
+    }
+    let (eps, jac) = run(py, 1, |_| Ok(crate::pem::gradient(&d, &s, th)))?;
+    let jac = PyArray1::from_vec(py, jac).reshape([ys.len(), th.len()])?;
+    Ok((eps.into_pyarray(py), jac))
+}
+
 /// Samples at the start of each run of finite data that a polynomial model treats as initial
 /// conditions (not scored).
 #[pyfunction]
@@ -793,7 +824,7 @@ mod core_module {
     #[pymodule_export]
     use super::{fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
-    use super::{pem_fit, pem_max_lag, pem_predict, PemOutput};
+    use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

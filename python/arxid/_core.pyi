@@ -29,6 +29,7 @@ __all__ = [
     "DIVERGENCE_FACTOR",
     "pem_fit",
     "pem_predict",
+    "pem_gradient",
     "pem_max_lag",
     "PemOutput",
 ]
@@ -177,6 +178,9 @@ def pem_fit(
 def pem_predict(
     y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F, horizon: int | None = None
 ) -> _F: ...
+def pem_gradient(
+    y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F
+) -> tuple[_F, _F]: ...
 def pem_max_lag(orders: _PolyOrders) -> int: ...
 
 # Sweeps at scale (arxid.fleet, benches).

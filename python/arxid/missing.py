@@ -29,7 +29,7 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -43,6 +43,8 @@ from .effects import compile_effects, format_threshold, parse_effect
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
 from .nonlinearity import NonlinearDependence, dependence_sentence, nonlinear_dependence
+from .polynomial import PolynomialModel
+from .polynomial_diagnosis import OUTPUT_TERM_NOTE, effect_columns, refit_with_effects, score_effects, with_effects
 from .regressors import max_lag, regressor_matrix, regressor_names
 from .validation import ResidualAnalysis, error_rms, prediction_error, residuals
 
@@ -547,6 +549,8 @@ class Diagnosis:
 # the procedure
 # ---------------------------------------------------------------------------------------------
 def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
+    if isinstance(model, PolynomialModel):  # the effects become extra inputs
+        return cast(ArxModel, refit_with_effects(model, data, c.effects))
     effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
 
@@ -614,15 +618,7 @@ def diagnose(
     'u1^2'
     """
     model = check_model(model)
-    if not isinstance(model, ArxModel):
-        raise ArxidError(
-            f"diagnose adds effect terms to ARX models and refits them; {model.structure_name()} is not one. "
-            "Both halves are ARX-only: the significance test regresses the one-step residual on the "
-            "candidate's columns next to the ARX regressors (past outputs and inputs), which are the "
-            "gradient of an ARX residual but not of an output-error or Box-Jenkins one, and the refit "
-            "adds the columns to that linear regression. Diagnose arxid.arx(data, na, nb, nk) with "
-            "comparable orders instead; arxid.residuals and arxid.where_it_fails accept this model"
-        )
+    polynomial = isinstance(model, PolynomialModel)
     data, validation, same = _data_pair(model, data, validation)
     horizon = check_horizon(horizon)
     if not 0 < alpha < 1:
@@ -631,13 +627,13 @@ def diagnose(
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
     base = _baseline(model, validation, horizon, residual_max_lag)
     cands, auto = _candidate_list(candidates, model, data)
-    scoring = _Scoring(model, data, cands)
-    scored, notes = scoring.run(alpha, n_pairs)
+    scoring = None if polynomial else _Scoring(model, data, cands)
+    scored, notes = _score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
     judge = _Judge(model, data, validation, base.horizon, base.rms, min_improvement)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = _demote_pairs(suspects, min_improvement)
     suspects = judge.conditional_on_top(suspects)
-    if auto and not any(s.significant for s in suspects):
+    if scoring is not None and auto and not any(s.significant for s in suspects):
         # Two effects can hide each other: try the strongest candidate with its strongest partner.
         masked = scoring.masked_pairs(scored, alpha)
         suspects = _demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
@@ -657,8 +653,36 @@ def diagnose(
         min_improvement,
         len(scored),
         same,
-        _dependence(model, data, alpha),
+        () if polynomial else _dependence(model, data, alpha),
     )
+
+
+def _score_polynomial(model, data: IOData, cands: list[_Candidate]) -> tuple[list[dict], dict[str, str]]:
+    """Score tests of input-derived effects on a polynomial model (see arxid.polynomial_diagnosis);
+    terms of the output, threshold scans and structure changes are listed with the reason."""
+    scored, notes = [], {}
+    for c in cands:
+        if c.kind in ("dynamics", "scan"):
+            notes[c.label] = "not tested on a polynomial model: refit it with other orders or thresholds"
+        elif effect_columns(c.effects, data) is None:
+            notes[c.label] = OUTPUT_TERM_NOTE
+        else:
+            res, why = score_effects(model, data, c.effects)
+            if res is None:
+                notes[c.label] = why
+            else:
+                scored.append(_scored(c, res))
+    for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
+        s["p_adj"] = float(pa)
+    return scored, notes
+
+
+def _refit_and_validate(model, data: IOData, validation: IOData, c, horizon: int | None) -> tuple[ArxModel, float]:
+    """The model refitted with candidate ``c`` and its validation error at ``horizon``."""
+    fitted = _refit(model, data, c)
+    if isinstance(model, PolynomialModel):
+        validation = with_effects(validation, c.effects)
+    return fitted, error_rms(fitted, validation, horizon)
 
 
 def _dependence(model: ArxModel, data: IOData, alpha: float) -> tuple[NonlinearDependence, ...]:
@@ -989,8 +1013,7 @@ class _Judge:
         after, fitted = math.nan, None
         if refit:
             try:
-                fitted = _refit(self.model, self.data, c)
-                after = error_rms(fitted, self.validation, self.horizon)
+                fitted, after = _refit_and_validate(self.model, self.data, self.validation, c, self.horizon)
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:
@@ -1037,7 +1060,7 @@ class _Judge:
         nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
         both = _Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
         try:
-            after = error_rms(_refit(m, self.data, both), self.validation, self.horizon)
+            after = _refit_and_validate(m, self.data, self.validation, both, self.horizon)[1]
         except ArxidError:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
