@@ -74,6 +74,8 @@ fuzz: develop
 
 bench: develop
 	$(PY) benches/sweep_vs_numpy.py
+	$(PY) benches/sweep_miso.py
+	$(PY) benches/fleet.py
 	$(PY) benches/csv_read.py
 
 # The wheel (abi3: one file for CPython >= 3.10) and the sdist, in dist/. The wheel is built from the

@@ -54,7 +54,7 @@ fn benches(c: &mut Criterion) {
     let mut grp = c.benchmark_group("sweep_50k");
     grp.sample_size(10);
     grp.bench_function("tsqr_reduce_envelope", |b| b.iter(|| black_box(reduce(&d, &env, &rows, true))));
-    let fit_only = SweepOptions { simulate_estimation: false, horizon: None, parallel: true, chunk: 64 };
+    let fit_only = SweepOptions { simulate_estimation: false, horizon: None, parallel: true, chunk: 64, top: None };
     grp.bench_function("fit_1100_structures", |b| {
         b.iter(|| black_box(sweep(&d, None, &g, &fit_only, &|_| {}).unwrap()))
     });

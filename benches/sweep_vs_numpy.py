@@ -9,6 +9,11 @@ validation samples, every structure fitted and simulated (free run) on the valid
     simulation (all structures).
 
 Also: the fit part alone against one Gram pass, peak memory, and scaling in N.
+``expect="stable"``: the plant is known to be stable, so arxid skips its integrator test (five
+refits of the best structures), which the baselines do not do either. Every structure is simulated
+(``top=None``). The machine's limit for the free run is measured in the same run: the multiply-adds
+the simulations need, at the FMA throughput of all cores (``_core.fma_limit``).
+
 Run with ``make bench`` (or ``python benches/sweep_vs_numpy.py [--quick]``). Timings are medians.
 """
 
@@ -165,7 +170,17 @@ def main():
     )
 
     def run_arxid():
-        return arxid.sweep(est, na=NA, nb=NB, nk=NK, validation=val, progress=False, simulate_estimation=False)
+        return arxid.sweep(
+            est,
+            na=NA,
+            nb=NB,
+            nk=NK,
+            validation=val,
+            progress=False,
+            simulate_estimation=False,
+            top=None,
+            expect="stable",  # the plant is known stable: no integrator test (the baselines do none)
+        )
 
     res = run_arxid()
     t_arxid = median_time(run_arxid, rep)
@@ -190,6 +205,10 @@ def main():
     t_core = median_time(
         lambda: _core.sweep(y, ua, [0], grid_arr, [], yv=yv, uv=uva, starts_v=[0], simulate_estimation=False), rep
     )
+    t_fit_val = median_time(
+        lambda: _core.sweep(y, ua, [0], grid_arr, [], yv=yv, uv=uva, starts_v=[0], simulate_estimation=False, top=0),
+        rep,
+    )
 
     print()
     print(
@@ -200,8 +219,18 @@ def main():
         f"(timed on {len(subset)} structures, extrapolated to {len(structures)})"
     )
     print(f"  (b) vectorised numpy: Gram + Cholesky + lfilter       {t_vec:8.3f} s   (all structures)")
-    print(f"  ratio vs (a): {t_naive / t_arxid:7.1f} x   (target >= 150 x)")
-    print(f"  ratio vs (b): {t_vec / t_arxid:7.1f} x   (target >= 10 x)")
+    print(f"  ratio vs (a): {t_naive / t_arxid:7.1f} x   (target >= 250 x)")
+    print(f"  ratio vs (b): {t_vec / t_arxid:7.1f} x   (target >= 20 x)")
+    # The machine's limit for the free-run part: the multiply-adds it needs (each structure's na + nb
+    # coefficients and its error, per sample, eight structures per vector) at the FMA throughput.
+    n_sim = len(yv) - lag
+    vectors = sum(na + nb + 1 for na, nb, _ in structures) * n_sim // 8
+    t_limit = median_time(lambda: _core.fma_limit(vectors), rep)
+    t_sim = max(t_core - t_fit_val, 1e-9)
+    print(
+        f"  free-run part {t_sim:.3f} s (core minus fits on both data sets); the same {vectors * 8 / 1e9:.1f} G "
+        f"multiply-adds at the FMA throughput {t_limit:.3f} s: {t_sim / t_limit:.1f} x from the limit"
+    )
     print(
         f"  validation RMS agreement with the baselines on {len(check)} structures: "
         f"max rel. diff {worst:.1e} (lstsq), {worst_v:.1e} (Cholesky)"

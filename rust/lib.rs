@@ -4,6 +4,7 @@
 pub mod error;
 pub mod fit;
 pub mod kstep;
+pub mod one_step;
 pub mod pem;
 pub mod qr;
 pub mod simulate;

@@ -344,15 +344,20 @@ pub struct SweepOutput {
     first_lag: usize,
     /// `(na, nb, nk)` of the grid envelope (the largest regressor), per layout column.
     envelope: Py<PyTuple>,
+    /// 2: fitted by QR and simulated; 1: ranked by its one-step loss only (sweeps with `top`).
+    stage: Py<PyArray1<u8>>,
 }
 
 /// Fits and validates every structure of a grid from one factorization (returns a `SweepOutput`).
 ///
 /// `structures` is an (S, 1 + 2m) integer array of rows (na, nb_1..nb_m, nk_1..nk_m). A simulation
 /// beyond `divergence_limit` of the measured output of its data set is stopped as diverged.
+/// `top = k` ranks every structure by its one-step loss first and fits exactly and simulates only
+/// the k best (`stage` says which).
 #[pyfunction]
 #[pyo3(signature = (y, u, starts, structures, output_terms, yv = None, uv = None, starts_v = None,
-                    simulate_estimation = true, horizon = None, n_threads = 0, chunk = 64, progress = None))]
+                    simulate_estimation = true, horizon = None, n_threads = 0, chunk = 64, progress = None,
+                    top = None))]
 #[allow(clippy::too_many_arguments)]
 fn sweep<'py>(
     py: Python<'py>,
@@ -369,6 +374,7 @@ fn sweep<'py>(
     n_threads: usize,
     chunk: usize,
     progress: Option<Py<PyAny>>,
+    top: Option<usize>,
 ) -> PyResult<SweepOutput> {
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
@@ -385,7 +391,7 @@ fn sweep<'py>(
     };
     // The core reports after every group (chunk 1) so that a Ctrl-C stops it within one group;
     // Python's callback still hears about every `chunk` structures.
-    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk: 1 };
+    let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk: 1, top };
     let (chunk, reported) = (chunk.max(1), AtomicUsize::new(0));
     let (res, n_est, n_val) = run(py, n_threads, |cancel| {
         let report = |done: usize| {
@@ -404,8 +410,19 @@ fn sweep<'py>(
         };
         crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report)
     })?;
+    sweep_output(py, res, n_est, n_val, &grid)
+}
+
+/// The Python view of a sweep's results (grid order).
+fn sweep_output(
+    py: Python<'_>,
+    res: Vec<crate::sweep::StructureResult>,
+    n_est: usize,
+    n_val: usize,
+    grid: &[Structure],
+) -> PyResult<SweepOutput> {
     // The same envelope the sweep built (it succeeded, so this cannot fail).
-    let env = envelope(&grid).map_err(|e| to_pyerr(py, e))?;
+    let env = envelope(grid).map_err(|e| to_pyerr(py, e))?;
     let s = res.len();
     let pmax = res.iter().map(|r| r.theta.len()).max().unwrap_or(0);
     let mut theta = vec![f64::NAN; s * pmax];
@@ -413,7 +430,9 @@ fn sweep<'py>(
     let mut diverged_est = Vec::with_capacity(s);
     let mut diverged_val = Vec::with_capacity(s);
     let mut errors: Vec<Option<String>> = Vec::with_capacity(s);
+    let mut stage = Vec::with_capacity(s);
     for (i, r) in res.into_iter().enumerate() {
+        stage.push(r.stage);
         theta[i * pmax..i * pmax + r.theta.len()].copy_from_slice(&r.theta);
         cols[0].push(r.rss_est);
         cols[1].push(r.rss_val);
@@ -446,6 +465,7 @@ fn sweep<'py>(
         n_val,
         first_lag: env.max_lag(),
         envelope: orders_tuple(py, &env)?.unbind(),
+        stage: PyArray1::from_vec(py, stage).unbind(),
     })
 }
 
@@ -531,6 +551,125 @@ fn fit_memory(n_rows: &Bound<'_, PyAny>, n_params: &Bound<'_, PyAny>, n_threads:
 #[pyfunction]
 fn divergence_limit(y: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
     Ok(crate::simulate::divergence_limit(y.as_slice()?))
+}
+
+// ---- Sweeps at scale (issue 15): fleet partials, fits from factors, simulation of groups, limit kernel.
+
+/// `(R, n_rows)`: the triangular factor (q × q, output last) of the grid envelope's regressor on
+/// these data, a partial of a fleet sweep (combine partials by QR of their stacked factors).
+#[pyfunction]
+fn grid_factor<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    starts: Vec<usize>,
+    structures: PyReadonlyArray2<'py, i64>,
+    output_terms: Vec<(String, i32, i64)>,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, usize)> {
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
+    let terms = parse_output_terms(output_terms)?;
+    let grid = parse_grid(py, &structures, m, &terms)?;
+    let (r, n) = run(py, 1, |_| crate::sweep::grid_factor(&d, &grid, false))?;
+    let q = (r.len() as f64).sqrt() as usize;
+    // Column-major q × q as a (q, q) array: the transpose of the row-major reading.
+    let a = PyArray1::from_vec(py, r).reshape([q, q])?;
+    Ok((a.transpose()?.cast_into::<PyArray2<f64>>()?, n))
+}
+
+/// A column-major copy of a square (q × q) factor given as a numpy array.
+fn factor_from(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<f64>> {
+    let shape = a.shape();
+    if shape[0] != shape[1] {
+        return Err(DataError::new_err(format!("a factor must be square, got {} × {}", shape[0], shape[1])));
+    }
+    let v = a.as_array();
+    Ok((0..shape[1]).flat_map(|j| (0..shape[0]).map(move |i| (i, j))).map(|(i, j)| v[[i, j]]).collect())
+}
+
+/// Every structure solved from combined factors (one or two stages as `sweep`, nothing simulated):
+/// a `SweepOutput` whose simulation columns are NaN, and the indices a sweep would simulate.
+#[pyfunction]
+#[pyo3(signature = (r_est, n_est, structures, output_terms, r_val = None, n_val = 0, top = None, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+fn sweep_factors<'py>(
+    py: Python<'py>,
+    r_est: PyReadonlyArray2<'py, f64>,
+    n_est: usize,
+    structures: PyReadonlyArray2<'py, i64>,
+    output_terms: Vec<(String, i32, i64)>,
+    r_val: Option<PyReadonlyArray2<'py, f64>>,
+    n_val: usize,
+    top: Option<usize>,
+    n_threads: usize,
+) -> PyResult<(SweepOutput, Bound<'py, PyArray1<usize>>)> {
+    let width = structures.shape()[1];
+    if width % 2 == 0 {
+        return Err(OrderError::new_err(format!("structures need 1 + 2·m columns, got {width}")));
+    }
+    let terms = parse_output_terms(output_terms)?;
+    let grid = parse_grid(py, &structures, (width - 1) / 2, &terms)?;
+    let re = factor_from(&r_est)?;
+    let rv = r_val.as_ref().map(factor_from).transpose()?;
+    let parallel = n_threads != 1;
+    let (res, simulate) =
+        run(py, n_threads, |_| crate::sweep::fits_from_factors(&grid, re, n_est, rv, n_val, top, parallel))?;
+    Ok((sweep_output(py, res, n_est, n_val, &grid)?, simulate.into_pyarray(py)))
+}
+
+/// `(rms, n, norm, diverged)` of fitted structures simulated on these data from `first_lag` on (free run,
+/// or `horizon`-step prediction), exactly as `sweep` simulates them. `theta` is (S, p_max), NaN-padded;
+/// `limit` replaces the divergence limit of these data.
+#[pyfunction]
+#[pyo3(signature = (y, u, starts, structures, output_terms, theta, first_lag, horizon = None, n_threads = 0,
+                    limit = None))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn simulate_structures<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    starts: Vec<usize>,
+    structures: PyReadonlyArray2<'py, i64>,
+    output_terms: Vec<(String, i32, i64)>,
+    theta: PyReadonlyArray2<'py, f64>,
+    first_lag: usize,
+    horizon: Option<usize>,
+    n_threads: usize,
+    limit: Option<f64>,
+) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<bool>>,
+)> {
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
+    let terms = parse_output_terms(output_terms)?;
+    let grid = parse_grid(py, &structures, m, &terms)?;
+    let th = theta.as_array();
+    if th.shape()[0] != grid.len() {
+        return Err(DataError::new_err(format!("theta has {} rows for {} structures", th.shape()[0], grid.len())));
+    }
+    let thetas: Vec<Vec<f64>> = grid
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (0..s.n_params().min(th.shape()[1])).map(|j| th[[i, j]]).collect())
+        .collect();
+    let opts = SweepOptions { simulate_estimation: false, horizon, parallel: n_threads != 1, chunk: 64, top: None };
+    let scores = run(py, n_threads, |_| crate::sweep::simulate_structures(&d, &grid, thetas, first_lag, limit, &opts))?;
+    let rms: Vec<f64> = scores.iter().map(|s| s.rms).collect();
+    let n: Vec<f64> = scores.iter().map(|s| s.n as f64).collect();
+    let norm: Vec<f64> = scores.iter().map(|s| s.norm).collect();
+    let diverged: Vec<bool> = scores.iter().map(|s| s.diverged).collect();
+    Ok((rms.into_pyarray(py), n.into_pyarray(py), norm.into_pyarray(py), diverged.into_pyarray(py)))
+}
+
+/// Seconds for `n_vectors` multiply-adds of eight lanes each at the machine's throughput (many
+/// independent chains, on every core): the limit a free-run sweep of the same work could reach.
+#[pyfunction]
+#[pyo3(signature = (n_vectors, n_threads = 0))]
+fn fma_limit(py: Python<'_>, n_vectors: u64, n_threads: usize) -> PyResult<f64> {
+    run(py, n_threads, |_| Ok(crate::simulate::fma_throughput_seconds(n_vectors)))
 }
 
 // ---------------------------------------------------------------- prediction-error models (pem.rs)
@@ -682,6 +821,8 @@ mod core_module {
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
+    #[pymodule_export]
+    use super::{fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
 

@@ -222,6 +222,9 @@ pub const LANES: usize = 8;
 /// Samples per divergence check.
 const BLOCK: usize = 1024;
 
+/// Time steps whose input part is computed together ([`LaneState::input_steps`]).
+const STEPS: usize = 4;
+
 #[inline(always)]
 fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     if FMA {
@@ -395,6 +398,32 @@ impl LaneState {
         v
     }
 
+    /// [`Self::input_part`] for the [`STEPS`] steps `t..t + STEPS` at once: each coefficient is
+    /// loaded once for all of them, and the steps are independent chains of multiply-adds (a single
+    /// step's chain runs one multiply-add after the other and leaves the FMA units waiting on its
+    /// latency). Every step sums in the same order as [`Self::input_part`]: the same numbers.
+    #[inline(always)]
+    fn input_steps<const FMA: bool>(&self, ucol: &[f64], n: usize, t: usize) -> [[f64; LANES]; STEPS] {
+        let mut v = [[0.0; LANES]; STEPS];
+        for (i, (lo, c)) in self.fir.iter().enumerate() {
+            if c.is_empty() {
+                continue;
+            }
+            // u_i(t - hi) ..= u_i(t + STEPS - 1 - lo); lag lo + j at step t + s is w[len - 1 - j + s].
+            let len = c.len();
+            let w = &ucol[i * n + t + 1 - lo - len..i * n + t + STEPS - lo];
+            for (j, cl) in c.iter().enumerate() {
+                let x = &w[len - 1 - j..len - 1 - j + STEPS];
+                for s in 0..STEPS {
+                    for l in 0..LANES {
+                        v[s][l] = madd::<FMA>(cl[l], x[s], v[s][l]);
+                    }
+                }
+            }
+        }
+        v
+    }
+
     /// Folds one block's per-lane sums in; stops lanes that diverged (their coefficients are zeroed
     /// so they idle at 0). Returns the lanes stopped.
     fn close_block(&mut self, sse: &[f64; LANES], mx: &[f64; LANES], len: usize, limit: f64) -> Vec<usize> {
@@ -484,21 +513,37 @@ fn lanes_kernel<const NA: usize, const FMA: bool>(
             a.copy_from_slice(&st.neg_a);
             let mut sse = [0.0; LANES];
             let mut mx = [0.0; LANES];
-            for t in t0..t0 + len {
-                let mut v = st.input_part::<FMA>(ucol, n, t);
-                // Oldest lags first: only the last multiply-add waits for the newest output.
-                for i in (0..NA).rev() {
-                    for l in 0..LANES {
-                        v[l] = madd::<FMA>(a[i][l], hl[i][l], v[l]);
+            // The recursion of one step from its input part (a macro, so that the history and the
+            // sums stay in registers).
+            macro_rules! ar_step {
+                ($v:expr, $t:expr) => {{
+                    let mut v = $v;
+                    // Oldest lags first: only the last multiply-add waits for the newest output.
+                    for i in (0..NA).rev() {
+                        for l in 0..LANES {
+                            v[l] = madd::<FMA>(a[i][l], hl[i][l], v[l]);
+                        }
                     }
+                    for i in (1..NA).rev() {
+                        hl[i] = hl[i - 1];
+                    }
+                    if NA > 0 {
+                        hl[0] = v;
+                    }
+                    account::<FMA>(d.y[$t], &v, &mut sse, &mut mx);
+                }};
+            }
+            let end = t0 + len;
+            let mut t = t0;
+            while t + STEPS <= end {
+                let vs = st.input_steps::<FMA>(ucol, n, t);
+                for (s, v) in vs.into_iter().enumerate() {
+                    ar_step!(v, t + s);
                 }
-                for i in (1..NA).rev() {
-                    hl[i] = hl[i - 1];
-                }
-                if NA > 0 {
-                    hl[0] = v;
-                }
-                account::<FMA>(d.y[t], &v, &mut sse, &mut mx);
+                t += STEPS;
+            }
+            for t in t..end {
+                ar_step!(st.input_part::<FMA>(ucol, n, t), t);
             }
             h = hl;
             for l in st.close_block(&sse, &mx, len, limit) {
@@ -564,6 +609,64 @@ fn lanes_kernel_dyn<const FMA: bool>(
         }
     }
     st.scores(models.len())
+}
+
+/// Seconds for `n_vectors` multiply-adds of [`LANES`] lanes each, at the machine's throughput:
+/// many independent chains (no latency to wait on), on every thread of the current pool, with no
+/// memory traffic. The limit a free-run sweep doing the same number of multiply-adds could reach.
+pub fn fma_throughput_seconds(n_vectors: u64) -> f64 {
+    use rayon::prelude::*;
+    let threads = rayon::current_num_threads() as u64;
+    let per_thread = n_vectors.div_ceil(threads.max(1));
+    let t = std::time::Instant::now();
+    let total: f64 = (0..threads).into_par_iter().map(|_| fma_chains(per_thread)).sum();
+    let seconds = t.elapsed().as_secs_f64();
+    std::hint::black_box(total);
+    seconds
+}
+
+fn fma_chains(n: u64) -> f64 {
+    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+    {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { fma_chains_avx512(n) };
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: as above.
+            return unsafe { fma_chains_avx2(n) };
+        }
+    }
+    fma_chains_impl::<false>(n)
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn fma_chains_avx512(n: u64) -> f64 {
+    fma_chains_impl::<true>(n)
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn fma_chains_avx2(n: u64) -> f64 {
+    fma_chains_impl::<true>(n)
+}
+
+#[inline(always)]
+fn fma_chains_impl<const FMA: bool>(n: u64) -> f64 {
+    // More chains than the FMA latency times the units: the units never wait.
+    const CHAINS: usize = 12;
+    let mut acc = [[1.0f64; LANES]; CHAINS];
+    let a = std::hint::black_box([0.999_999_9; LANES]);
+    let b = std::hint::black_box([1e-9; LANES]);
+    for _ in 0..n.div_ceil(CHAINS as u64) {
+        for c in acc.iter_mut() {
+            for l in 0..LANES {
+                c[l] = madd::<FMA>(c[l], a[l], b[l]);
+            }
+        }
+    }
+    acc.iter().flatten().sum()
 }
 
 /// A prediction whose magnitude exceeds this many times the largest measured |y| has diverged.

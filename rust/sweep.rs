@@ -7,7 +7,8 @@ use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
-use crate::qr::{reduce_with, to_col_major, BLOCK_ROWS};
+use crate::one_step::{one_step_all, Factors, OneStep};
+use crate::qr::{reduce, reduce_with, to_col_major, BLOCK_ROWS};
 use crate::simulate::{
     divergence_limit, free_run_rms_lanes, input_columns, predict, predict_k_linear, score, SimScore, LANES,
 };
@@ -25,6 +26,10 @@ pub struct SweepOptions {
     pub parallel: bool,
     /// Structures per progress report.
     pub chunk: usize,
+    /// Two stages: rank every structure by its one-step loss from the R factors (validation rows,
+    /// else estimation rows), then fit exactly and simulate only the best `top`. `None`: every
+    /// structure is fitted exactly and simulated.
+    pub top: Option<usize>,
 }
 
 /// At most this many threads per core are started for an explicit `n_threads`: results do not
@@ -88,6 +93,9 @@ pub struct StructureResult {
     pub sim_val: SimScore,
     /// Set when the structure could not be fitted (rank deficient); the numbers are then NaN.
     pub error: Option<ArxError>,
+    /// 2: fitted by QR and simulated (stage 2, or every structure without `top`); 1: ranked by its
+    /// one-step loss only (parameters from the normal equations refined against R), not simulated.
+    pub stage: u8,
 }
 
 /// The regressor holding every column any structure of the grid needs: `na_max` output lags and,
@@ -121,7 +129,15 @@ pub fn envelope(structures: &[Structure]) -> Result<Structure> {
 
 /// Column indices of `s` inside the envelope `env`'s regressor.
 pub fn columns_in(env: &Structure, s: &Structure) -> Vec<usize> {
-    let mut cols: Vec<usize> = (0..s.na).collect();
+    let mut cols = Vec::with_capacity(s.n_params());
+    columns_into(env, s, &mut cols);
+    cols
+}
+
+/// [`columns_in`] into a reused buffer.
+pub fn columns_into(env: &Structure, s: &Structure, cols: &mut Vec<usize>) {
+    cols.clear();
+    cols.extend(0..s.na);
     let mut off = env.na;
     for i in 0..s.nb.len() {
         for j in 0..s.nb[i] {
@@ -132,7 +148,6 @@ pub fn columns_in(env: &Structure, s: &Structure) -> Vec<usize> {
     for l in 0..s.output_terms.len() {
         cols.push(off + l);
     }
-    cols
 }
 
 /// `‖R[:, cols ∪ y] · [−θ; 1]‖²`: the residual sum of squares of θ on the rows that produced R.
@@ -202,6 +217,131 @@ fn simulate_group(
     }
 }
 
+/// The triangular factors every structure of a grid is solved from.
+struct GridFactors {
+    env: Structure,
+    first_lag: usize,
+    q: usize,
+    r_est: Vec<f64>,
+    n_est: usize,
+    r_val: Option<Vec<f64>>,
+    n_val: usize,
+}
+
+/// Checks the grid and reduces the envelope's regressor on both data sets to R.
+fn factor_grid(
+    est: &Data,
+    val: Option<&Data>,
+    structures: &[Structure],
+    parallel: bool,
+    heartbeat: &(dyn Fn() + Sync),
+) -> Result<GridFactors> {
+    let keep_going = || {
+        heartbeat();
+        true
+    };
+    let env = envelope(structures)?;
+    env.check(est.m)?;
+    for s in structures {
+        s.check(est.m)?;
+    }
+    let first_lag = env.max_lag();
+    let q = env.n_params() + 1;
+    let bound = est.max_rows(first_lag);
+    if bound < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: bound });
+    }
+    let rows = rows_of(est, &env, first_lag);
+    if rows.len() < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
+    }
+    let n_est = rows.len();
+    let r_est = to_col_major(&reduce_with(est, &env, &rows, parallel, &keep_going));
+    drop(rows);
+    let (r_val, n_val) = match val {
+        Some(v) => {
+            if v.m != est.m {
+                return Err(ArxError::ShapeMismatch { what: "validation inputs".into(), expected: est.m, got: v.m });
+            }
+            let vrows = rows_of(v, &env, first_lag);
+            let n = vrows.len();
+            (Some(to_col_major(&reduce_with(v, &env, &vrows, parallel, &keep_going))), n)
+        }
+        None => (None, 0),
+    };
+    Ok(GridFactors { env, first_lag, q, r_est, n_est, r_val, n_val })
+}
+
+const NAN_SCORE: SimScore = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN };
+
+/// Exact QR solve of one structure from the factors, with its one-step losses (stage 2).
+fn fit_exact(f: &GridFactors, s: &Structure) -> StructureResult {
+    let cols = columns_in(&f.env, s);
+    match solve_subset(&f.r_est, f.q, &cols, f.n_est) {
+        Ok((theta, rss_est, _)) => {
+            let rss_val = f.r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, f.q, &cols, &theta));
+            StructureResult { theta, rss_est, rss_val, sim_est: NAN_SCORE, sim_val: NAN_SCORE, error: None, stage: 2 }
+        }
+        Err(e) => StructureResult {
+            theta: vec![f64::NAN; cols.len()],
+            rss_est: f64::NAN,
+            rss_val: f64::NAN,
+            sim_est: NAN_SCORE,
+            sim_val: NAN_SCORE,
+            error: Some(e),
+            stage: 2,
+        },
+    }
+}
+
+/// Stage 1 for every structure, then stage 2 (exact fit) for the `top` best by one-step loss on
+/// the validation rows (estimation rows without validation data). Returns the results and the
+/// structures of stage 2.
+fn two_stage_fits(
+    f: &GridFactors,
+    structures: &[Structure],
+    top: usize,
+    parallel: bool,
+    heartbeat: &(dyn Fn() + Sync),
+) -> Result<(Vec<StructureResult>, Vec<usize>)> {
+    let factors = Factors::new(&f.r_est, f.r_val.as_deref(), f.q, f.n_est);
+    let stage1 = one_step_all(&factors, &f.env, structures, parallel, heartbeat)?;
+    let key = |r: &OneStep| {
+        let v = if f.r_val.is_some() { r.rss_val } else { r.rss_est };
+        if v.is_finite() {
+            v
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut ranked: Vec<usize> = (0..structures.len()).collect();
+    ranked.sort_by(|&i, &j| key(&stage1[i]).total_cmp(&key(&stage1[j])).then(i.cmp(&j)));
+    ranked.truncate(top);
+    ranked.sort_unstable();
+    let mut out: Vec<StructureResult> = stage1
+        .into_iter()
+        .map(|r| StructureResult {
+            theta: r.theta,
+            rss_est: r.rss_est,
+            rss_val: r.rss_val,
+            sim_est: NAN_SCORE,
+            sim_val: NAN_SCORE,
+            error: r.error,
+            stage: 1,
+        })
+        .collect();
+    let fit_one = |&i: &usize| {
+        heartbeat();
+        fit_exact(f, &structures[i])
+    };
+    let exact: Vec<StructureResult> =
+        if parallel { ranked.par_iter().map(fit_one).collect() } else { ranked.iter().map(fit_one).collect() };
+    for (&i, r) in ranked.iter().zip(exact) {
+        out[i] = r;
+    }
+    Ok((out, ranked))
+}
+
 /// Fits and validates every structure. All structures use the rows from the grid's largest lag on,
 /// so their losses compare on the same samples (as MATLAB `arxstruc`).
 ///
@@ -209,6 +349,10 @@ fn simulate_group(
 /// independent of N), then simulated: linear structures on complete data in groups of
 /// [`LANES`](crate::simulate::LANES) with the same `na` side by side, the others one by one.
 /// Groups are formed from the grid alone, so results do not depend on the number of threads.
+///
+/// With `opts.top = Some(k)` (and more than k structures) the sweep runs in two stages: every
+/// structure is ranked by its one-step loss from the factors ([`one_step_all`], stage 1), and only
+/// the k best are fitted by QR and simulated (stage 2); [`StructureResult::stage`] tells which.
 ///
 /// Each data set's simulations are judged against its own measured output: a prediction beyond
 /// [`divergence_limit`]`(y)` of that data set is stopped and reported as diverged.
@@ -228,79 +372,165 @@ pub fn sweep(
     opts: &SweepOptions,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<(Vec<StructureResult>, usize, usize)> {
-    let env = envelope(structures)?;
-    env.check(est.m)?;
-    for s in structures {
-        s.check(est.m)?;
-    }
-    let first_lag = env.max_lag();
-    let q = env.n_params() + 1;
-    let bound = est.max_rows(first_lag);
-    if bound < q {
-        return Err(ArxError::TooFewSamples { needed: q, got: bound });
-    }
-    let rows = rows_of(est, &env, first_lag);
-    if rows.len() < q {
-        return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
-    }
-    let n_est = rows.len();
-    let heartbeat = || {
-        progress(0);
-        true
-    };
-    let r_est = to_col_major(&reduce_with(est, &env, &rows, opts.parallel, &heartbeat));
-    drop(rows);
-    let (r_val, n_val) = match val {
-        Some(v) => {
-            if v.m != est.m {
-                return Err(ArxError::ShapeMismatch { what: "validation inputs".into(), expected: est.m, got: v.m });
-            }
-            let vrows = rows_of(v, &env, first_lag);
-            let n = vrows.len();
-            (Some(to_col_major(&reduce_with(v, &env, &vrows, opts.parallel, &heartbeat))), n)
-        }
-        None => (None, 0),
-    };
-    let nan = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN };
+    let heartbeat = || progress(0);
+    let f = factor_grid(est, val, structures, opts.parallel, &heartbeat)?;
+    let (n_est, n_val) = (f.n_est, f.n_val);
 
-    // 1. Parameters and one-step losses of every structure, from R alone.
-    let fit_one = |s: &Structure| -> StructureResult {
-        progress(0); // a heartbeat: the caller may stop the sweep here (see `progress` above)
-        let cols = columns_in(&env, s);
-        match solve_subset(&r_est, q, &cols, n_est) {
-            Ok((theta, rss_est, _)) => {
-                let rss_val = r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, q, &cols, &theta));
-                StructureResult { theta, rss_est, rss_val, sim_est: nan, sim_val: nan, error: None }
-            }
-            Err(e) => StructureResult {
-                theta: vec![f64::NAN; cols.len()],
-                rss_est: f64::NAN,
-                rss_val: f64::NAN,
-                sim_est: nan,
-                sim_val: nan,
-                error: Some(e),
-            },
+    // 1. Parameters and one-step losses of every structure, from R alone. `progress(0)` before each
+    //    structure is a heartbeat: the caller may stop the sweep there (see `progress` above).
+    let (mut out, simulated) = match opts.top {
+        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, opts.parallel, &heartbeat)?,
+        _ => {
+            let fit_one = |s: &Structure| {
+                progress(0);
+                fit_exact(&f, s)
+            };
+            let all: Vec<StructureResult> = if opts.parallel {
+                structures.par_iter().map(fit_one).collect()
+            } else {
+                structures.iter().map(fit_one).collect()
+            };
+            (all, (0..structures.len()).collect())
         }
-    };
-    let mut out: Vec<StructureResult> = if opts.parallel {
-        structures.par_iter().map(fit_one).collect()
-    } else {
-        structures.iter().map(fit_one).collect()
     };
 
     // 2. Simulation, in groups of structures with the same na (fitted ones only).
-    let sim_est = opts.simulate_estimation;
-    if !sim_est && val.is_none() {
+    if !opts.simulate_estimation && val.is_none() {
         progress(structures.len());
         return Ok((out, n_est, n_val));
     }
-    let lanes_est = sim_est && lanes_apply(est, &env, opts);
-    let lanes_val = val.is_some_and(|v| lanes_apply(v, &env, opts));
+    let order: Vec<usize> = simulated.into_iter().filter(|&i| out[i].error.is_none()).collect();
+    let scores = simulate_all(est, val, structures, &out, order, (&f.env, f.first_lag, None), opts, progress);
+    for (i, se, sv) in scores {
+        out[i].sim_est = se;
+        out[i].sim_val = sv;
+    }
+    progress(structures.len());
+    Ok((out, n_est, n_val))
+}
+
+/// The triangular factor (column-major q × q, output last) of the grid envelope's regressor on one
+/// part of a data set, and its number of rows: a partial of a fleet sweep. Partials of disjoint
+/// experiments combine by QR of their stacked factors ([`crate::qr::stack_and_reduce`]); a part
+/// may have fewer rows than columns.
+///
+/// # Errors
+/// As [`sweep`] for the grid.
+pub fn grid_factor(d: &Data, structures: &[Structure], parallel: bool) -> Result<(Vec<f64>, usize)> {
+    let env = envelope(structures)?;
+    env.check(d.m)?;
+    for s in structures {
+        s.check(d.m)?;
+    }
+    let rows = rows_of(d, &env, env.max_lag());
+    Ok((to_col_major(&reduce(d, &env, &rows, parallel)), rows.len()))
+}
+
+/// Parameters and one-step losses of every structure from the factors of the grid's envelope
+/// (as [`grid_factor`] gives them, combined over all parts), in one or two stages as [`sweep`];
+/// nothing is simulated. Returns the results and the structures a sweep would simulate.
+///
+/// # Errors
+/// `InvalidStructure` for factors that do not match the grid, `TooFewSamples` when the
+/// estimation rows are fewer than the envelope's columns.
+pub fn fits_from_factors(
+    structures: &[Structure],
+    r_est: Vec<f64>,
+    n_est: usize,
+    r_val: Option<Vec<f64>>,
+    n_val: usize,
+    top: Option<usize>,
+    parallel: bool,
+) -> Result<(Vec<StructureResult>, Vec<usize>)> {
+    let env = envelope(structures)?;
+    let q = env.n_params() + 1;
+    if r_est.len() != q * q || r_val.as_ref().is_some_and(|r| r.len() != q * q) {
+        return Err(ArxError::InvalidStructure(format!("the factors must be {q} × {q}, the grid envelope's size")));
+    }
+    if n_est < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: n_est });
+    }
+    let f = GridFactors { first_lag: env.max_lag(), env, q, r_est, n_est, r_val, n_val };
+    match top {
+        Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, parallel, &|| {}),
+        _ => {
+            let all: Vec<StructureResult> = if parallel {
+                structures.par_iter().map(|s| fit_exact(&f, s)).collect()
+            } else {
+                structures.iter().map(|s| fit_exact(&f, s)).collect()
+            };
+            Ok((all, (0..structures.len()).collect()))
+        }
+    }
+}
+
+/// Free-run (or k-step) scores of fitted structures on `d`, from `first_lag` (the whole grid's) on,
+/// exactly as [`sweep`] simulates them: a fleet's simulation, spread over the workers. `limit`
+/// replaces the divergence limit of `d` (a part of a fleet is judged by the whole fleet's output).
+///
+/// # Errors
+/// As [`sweep`] for the structures; `ShapeMismatch` when a parameter vector has the wrong length.
+pub fn simulate_structures(
+    d: &Data,
+    structures: &[Structure],
+    thetas: Vec<Vec<f64>>,
+    first_lag: usize,
+    limit: Option<f64>,
+    opts: &SweepOptions,
+) -> Result<Vec<SimScore>> {
+    let env = envelope(structures)?;
+    env.check(d.m)?;
+    let mut out = Vec::with_capacity(structures.len());
+    for (s, theta) in structures.iter().zip(thetas) {
+        s.check(d.m)?;
+        if theta.len() != s.n_params() {
+            return Err(ArxError::ShapeMismatch {
+                what: "parameters".into(),
+                expected: s.n_params(),
+                got: theta.len(),
+            });
+        }
+        out.push(StructureResult {
+            theta,
+            rss_est: f64::NAN,
+            rss_val: f64::NAN,
+            sim_est: NAN_SCORE,
+            sim_val: NAN_SCORE,
+            error: None,
+            stage: 2,
+        });
+    }
+    let lag = first_lag.max(env.max_lag());
+    let opts = SweepOptions { simulate_estimation: false, ..*opts };
+    let order = (0..structures.len()).filter(|&i| out[i].theta.iter().all(|v| v.is_finite())).collect();
+    let mut scores = vec![NAN_SCORE; structures.len()];
+    for (i, _, sv) in simulate_all(d, Some(d), structures, &out, order, (&env, lag, limit), &opts, &|_| {}) {
+        scores[i] = sv;
+    }
+    Ok(scores)
+}
+
+/// Simulates the structures `order` (fitted ones) on the estimation data (when asked) and the
+/// validation data, in lane groups of the same `na`; returns `(index, estimation, validation)`.
+#[allow(clippy::too_many_arguments)]
+fn simulate_all(
+    est: &Data,
+    val: Option<&Data>,
+    structures: &[Structure],
+    out: &[StructureResult],
+    mut order: Vec<usize>,
+    (env, first_lag, limit): (&Structure, usize, Option<f64>),
+    opts: &SweepOptions,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Vec<(usize, SimScore, SimScore)> {
+    let sim_est = opts.simulate_estimation;
+    let nan = NAN_SCORE;
+    let lanes_est = sim_est && lanes_apply(est, env, opts);
+    let lanes_val = val.is_some_and(|v| lanes_apply(v, env, opts));
     let ucol_est = if lanes_est { Some(input_columns(est)) } else { None };
     let ucol_val = if lanes_val { Some(input_columns(val.unwrap_or(est))) } else { None };
-    let limit_est = divergence_limit(est.y);
-    let limit_val = val.map_or(f64::NAN, |v| divergence_limit(v.y));
-    let mut order: Vec<usize> = (0..structures.len()).filter(|&i| out[i].error.is_none()).collect();
+    let limit_est = limit.unwrap_or_else(|| divergence_limit(est.y));
+    let limit_val = limit.unwrap_or_else(|| val.map_or(f64::NAN, |v| divergence_limit(v.y)));
     // Same na in a group; neighbouring delays and orders so the lanes share most input lags.
     order.sort_by(|&i, &j| {
         let (a, b) = (&structures[i], &structures[j]);
@@ -346,18 +576,13 @@ pub fn sweep(
     } else {
         groups.iter().map(run_and_report).collect()
     };
-    let mut scores: Vec<(usize, SimScore, SimScore)> = Vec::with_capacity(order.len());
+    let mut scores = Vec::with_capacity(order.len());
     for (g, r) in groups.iter().zip(res) {
         for (&i, (se, sv)) in g.iter().zip(r) {
             scores.push((i, se, sv));
         }
     }
-    for (i, se, sv) in scores {
-        out[i].sim_est = se;
-        out[i].sim_val = sv;
-    }
-    progress(structures.len());
-    Ok((out, n_est, n_val))
+    scores
 }
 
 #[cfg(test)]
@@ -388,7 +613,7 @@ mod tests {
                 }
             }
         }
-        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: true, chunk: 7 };
+        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: true, chunk: 7, top: None };
         let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
         let lag = envelope(&grid).unwrap().max_lag();
         for (s, r) in grid.iter().zip(&res) {
@@ -428,7 +653,7 @@ mod tests {
         let d = Data::new(&y, &u, 1, &starts).unwrap();
         let v = Data::new(&yv, &u, 1, &starts).unwrap();
         let grid = vec![Structure::new(1, vec![1], vec![1], vec![]).unwrap()];
-        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: false, chunk: 1 };
+        let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: false, chunk: 1, top: None };
         let (res, _, _) = sweep(&d, Some(&v), &grid, &opts, &|_| {}).unwrap();
         assert!(!res[0].sim_est.diverged && res[0].sim_est.rms < 0.1, "{:?}", res[0].sim_est);
         assert!(res[0].sim_val.diverged, "{:?}", res[0].sim_val);

@@ -101,7 +101,7 @@ def test_delayest_recovers_the_delay_under_output_noise():
 def test_refined_sweep_ranks_a_small_model_with_the_right_response_first():
     data = issue_plant(1)
     grid = dict(na=range(1, 9), nb=range(1, 11), nk=range(0, 6), validation=0.5, progress=False)
-    refined = arxid.sweep(data, **grid, refine="oe", top=3)
+    refined = arxid.sweep(data, **grid, refine="oe", refine_top=3)
     assert isinstance(refined, arxid.RefinedSweep)
     assert refined.sweep.n_params[0] > 6  # the plain ARX sweep compensates with many parameters
     best = refined.rows[0]

@@ -13,6 +13,10 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
     "divergence_limit",
+    "fma_limit",
+    "grid_factor",
+    "simulate_structures",
+    "sweep_factors",
     "fit",
     "fit_memory",
     "grid_envelope",
@@ -84,6 +88,8 @@ class SweepOutput:
     def first_lag(self) -> int: ...
     @property
     def envelope(self) -> _Orders: ...
+    @property
+    def stage(self) -> npt.NDArray[np.uint8]: ...
 
 def fit(
     y: _F,
@@ -123,6 +129,7 @@ def sweep(
     n_threads: int = 0,
     chunk: int = 64,
     progress: Callable[[int], object] | None = None,
+    top: int | None = None,
 ) -> SweepOutput: ...
 def grid_envelope(structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]) -> tuple[int, _Orders]: ...
 def max_lag(na: int, nb: Sequence[int], nk: Sequence[int], output_terms: Sequence[_Term]) -> int: ...
@@ -175,3 +182,31 @@ def pem_gradient(
     y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F
 ) -> tuple[_F, _F]: ...
 def pem_max_lag(orders: _PolyOrders) -> int: ...
+
+# Sweeps at scale (arxid.fleet, benches).
+def grid_factor(
+    y: _F, u: _F, starts: Sequence[int], structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]
+) -> tuple[_F, int]: ...
+def sweep_factors(
+    r_est: _F,
+    n_est: int,
+    structures: npt.NDArray[np.int64],
+    output_terms: Sequence[_Term],
+    r_val: _F | None = None,
+    n_val: int = 0,
+    top: int | None = None,
+    n_threads: int = 0,
+) -> tuple[SweepOutput, npt.NDArray[np.uintp]]: ...
+def simulate_structures(
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    structures: npt.NDArray[np.int64],
+    output_terms: Sequence[_Term],
+    theta: _F,
+    first_lag: int,
+    horizon: int | None = None,
+    n_threads: int = 0,
+    limit: float | None = None,
+) -> tuple[_F, _F, _F, _B]: ...
+def fma_limit(n_vectors: int, n_threads: int = 0) -> float: ...

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
-from . import _core
+from . import _core, fleet, stages
 from . import _metrics as metrics
 from ._checks import check_same_signals
 from ._format import json_safe
@@ -204,12 +204,15 @@ class SweepResult:
         it touches a NaN are left out for every structure.
     n_est, n_val : int
         Regression rows of estimation and validation data.
+    stage : ndarray of shape (S,)
+        Which stage ranked each row: 2 = fitted by QR and simulated, 1 = ranked by its one-step
+        error only (two-stage sweeps of grids larger than ``top``; its simulation columns are NaN).
     """
 
     na: np.ndarray
     nb: np.ndarray
     nk: np.ndarray
-    parameters: list
+    parameters: Sequence
     n_params: np.ndarray
     rms_est_one_step: np.ndarray
     rms_val_one_step: np.ndarray
@@ -240,6 +243,7 @@ class SweepResult:
     integrator: IntegratorTest | None = None
     grid: dict = field(default_factory=dict, repr=False)
     settings: dict = field(default_factory=dict, repr=False)
+    stage: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8), repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ basics
@@ -673,6 +677,7 @@ class SweepResult:
                     "diverged_est": bool(self.diverged_est[i]),
                     "diverged_val": bool(self.diverged_val[i]),
                     "horizon": self.horizon,
+                    "stage": int(self.stage[i]),
                     "error": self.errors[i],
                     "step_sanity": None if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
                     "parameters": [float(x) for x in self.parameters[i]],
@@ -789,11 +794,13 @@ class SweepResult:
             "p",
             "stable",
             "step",
+            "stage",
         ]
         lines = []
         for i in range(min(n, len(self))):
             if self.errors[i] is not None:
                 cells = [str(i + 1), self.structure_name(i), "not fitted", "not fitted"] + ["-"] * 7 + ["collinear"]
+                cells.append(str(int(self.stage[i])))
             else:
                 sv = self.sanity(i) if sanity else None
                 cells = [
@@ -809,6 +816,7 @@ class SweepResult:
                     str(int(self.n_params[i])),
                     "yes" if self.stable[i] else "no",
                     "-" if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
+                    str(int(self.stage[i])),
                 ]
             lines.append(cells)
         widths = [max(len(h), *(len(r[j]) for r in lines)) if lines else len(h) for j, h in enumerate(head)]
@@ -818,6 +826,8 @@ class SweepResult:
             + (f", horizon {self.horizon} samples = {self.horizon * self.estimation.ts:g} s" if self.horizon else "")
             + ")",
         ]
+        if stages.stages_text(self.stage, self.validation is not None):
+            out.append(stages.stages_text(self.stage, self.validation is not None))
         if self.integrating:
             out.append(
                 f"integrating plant ({self.integrating_reason}): free-run error is meaningless, "
@@ -938,7 +948,12 @@ def sweep(
     simulate_estimation: bool = ...,
     auto_extend: bool = ...,
     refine: None = None,
-    top: int = ...,
+    refine_top: int = ...,
+    top: int | None = ...,
+    max_seconds: float | None = ...,
+    client: Any = ...,
+    per_experiment: bool = ...,
+    read: Any = ...,
 ) -> SweepResult: ...
 
 
@@ -961,7 +976,12 @@ def sweep(
     simulate_estimation: bool = ...,
     auto_extend: bool = ...,
     refine: Literal["oe"],
-    top: int = ...,
+    refine_top: int = ...,
+    top: int | None = ...,
+    max_seconds: float | None = ...,
+    client: Any = ...,
+    per_experiment: bool = ...,
+    read: Any = ...,
 ) -> RefinedSweep: ...
 
 
@@ -983,8 +1003,13 @@ def sweep(
     simulate_estimation: bool = True,
     auto_extend: bool = False,
     refine: Literal["oe"] | None = None,
-    top: int = 5,
-) -> SweepResult | RefinedSweep:
+    refine_top: int = 5,
+    top: int | None = stages.DEFAULT_TOP,
+    max_seconds: float | None = 3600.0,
+    client: Any = None,
+    per_experiment: bool = False,
+    read: Any = None,
+) -> Any:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
     Parameters
@@ -1023,15 +1048,31 @@ def sweep(
         When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
         again (:meth:`SweepResult.extend`, at most 3 rounds, orders up to 30).
     refine : {None, "oe"}
-        ``"oe"`` refits the ``top`` best ARX structures (and a small grid of nb, nf, nk) as
+        ``"oe"`` refits the ``refine_top`` best ARX structures (and a small grid of nb, nf, nk) as
         output-error models and ranks all of them by validation free-run error
         (:func:`arxid.refine`); the table says which model class each row is.
-    top : int
+    refine_top : int
         Number of best ARX structures refined when ``refine`` is given.
+
+    top : int or None
+        Grids larger than this run in two stages (see :mod:`arxid.stages`): every structure is
+        ranked by its one-step validation error (MATLAB ``arxstruc``), and only the best ``top`` are
+        fitted again and simulated; ``stage`` says which rows. None simulates every structure.
+    max_seconds : float or None
+        Refuse grids whose estimated run time exceeds this many seconds, before anything is
+        allocated (None: no limit).
+    client : dask.distributed.Client, optional
+        With a list of logs as ``data``: run on this Dask cluster (see :mod:`arxid.fleet`).
+    per_experiment : bool
+        With a list of logs: sweep each log separately and return a :class:`arxid.fleet.FleetSweep`.
+    read : dict or callable, optional
+        With file paths in ``data``: how to read them (see :func:`arxid.fleet.load_experiment`).
 
     Returns
     -------
-    SweepResult, or RefinedSweep when ``refine`` is given
+    SweepResult
+        For a list of logs, the sweep of all of them at once (a :class:`arxid.fleet.FleetSweep`
+        with ``per_experiment=True``); a RefinedSweep when ``refine`` is given.
 
     Notes
     -----
@@ -1056,6 +1097,15 @@ def sweep(
     >>> res.structure_name(0)
     'ARX(2,1,3)'
     """
+    engine = None
+    if isinstance(data, (list, tuple)):
+        options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
+        options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
+        options.update(simulate_estimation=simulate_estimation, max_seconds=max_seconds, auto_extend=auto_extend)
+        fraction = fleet.check_validation(validation)
+        if per_experiment:
+            return fleet.sweep_each(data, client, read, fraction, sweep, options)
+        engine, (data, validation) = _fleet_engine(client, data, read, fraction)
     if not isinstance(data, IOData):
         raise DataError(
             f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
@@ -1076,12 +1126,17 @@ def sweep(
     m = est.n_inputs
     nas, nbs, nks = _order_range("na", na), _per_input_ranges("nb", nb, m), _per_input_ranges("nk", nk, m)
     effects = tuple(effects)
-    _check_memory(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
+    top = _check_top(top)
+    n_structures, p_max, q = _check_memory(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
+    n_val = val.n_samples if val is not None else 0
+    n_sim = n_val + (est.n_samples if simulate_estimation else 0)
+    seconds = stages.estimated_seconds(n_structures, top, p_max, q, est.n_samples + n_val, n_sim, int(n_threads))
+    stages.check_time_budget(n_structures, top, seconds, max_seconds)
     g = _Grid.build(est, nas, nbs, nks, effects)
     inputs = _core_inputs(est, val, g, effects)
     first_lag, _ = _core.grid_envelope(g.layout, inputs.terms)
     _check_validation_length(val, first_lag)
-    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation)
+    run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when the unit-root test calls the plant integrating, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
@@ -1100,6 +1155,8 @@ def sweep(
         max_memory=max_memory,
         limits=limits,
         simulate_estimation=simulate_estimation,
+        top=top,
+        max_seconds=max_seconds,
     )
     build = _ResultBuilder(
         g, inputs.terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings
@@ -1114,7 +1171,7 @@ def sweep(
                 result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
             )
     result = result.extend() if auto_extend else result
-    return result if refine is None else _refined(result, refine, top)
+    return result if refine is None else _refined(result, refine, refine_top)
 
 
 def _refined(result: SweepResult, structure: str, top: int) -> RefinedSweep:
@@ -1122,6 +1179,12 @@ def _refined(result: SweepResult, structure: str, top: int) -> RefinedSweep:
     from .pem import refine
 
     return refine(result, structure, top=top)
+
+
+def _fleet_engine(client: Any, logs: Sequence, read: Any, fraction: float | None) -> tuple[Any, tuple]:
+    """The merged logs of a fleet, and the Dask engine that sweeps them (None in process)."""
+    engine = fleet.DaskEngine(client, logs, read, fraction)
+    return (engine if client is not None else None), engine.merged()
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
@@ -1149,8 +1212,9 @@ def _check_memory(
     effects: tuple[str, ...],
     n_threads: int,
     max_memory: int | None,
-) -> None:
-    """Size and memory before building anything (the core's own estimate)."""
+) -> tuple[int, int, int]:
+    """Size and memory before building anything (the core's own estimate); returns the number of
+    structures, the largest number of parameters and the columns of the largest regressor."""
     n_structures = len(nas) * math.prod(len(r) for r in nbs) * math.prod(len(r) for r in nks)
     top_nb, top_nk = [_highest(r) for r in nbs], [_highest(r) for r in nks]
     probe = compile_effects(effects, est[: min(est.n_samples, 8)], top_nb, top_nk)
@@ -1168,6 +1232,17 @@ def _check_memory(
             f"{q} columns need about {_gib(need)}, more than the limit of {_gib(limit)} (max_memory); "
             f"narrow the ranges or split the sweep into parts"
         )
+    return n_structures, p_max, q
+
+
+def _check_top(top: Any) -> int | None:
+    if top is None:
+        return None
+    if isinstance(top, bool) or not isinstance(top, numbers.Integral) or top < 1:
+        raise OrderError(
+            f"top must be an integer >= 1 (structures simulated after the one-step ranking) or None, got {top!r}"
+        )
+    return int(top)
 
 
 @dataclass(frozen=True)
@@ -1175,12 +1250,17 @@ class _Grid:
     """Every structure as the user wrote it (per input) and as the core sees it (per layout column)."""
 
     layout: np.ndarray  # (S, 1 + 2 n_columns): na, nb per column, nk per column
-    user_nb: list
-    user_nk: list
+    user_nb: Any  # per structure (nb per input): a list of tuples, or an (S, m) array
+    user_nk: Any
     n_columns: int
 
     @classmethod
     def build(cls, est: IOData, nas: Sequence[int], nbs: list, nks: list, effects: tuple[str, ...]) -> _Grid:
+        if not effects:
+            layout, nb_rows, nk_rows = stages.product_layout(nas, nbs, nks)
+            if not len(layout):
+                raise OrderError("the grid has no structure with a parameter: use na >= 1 or nb >= 1")
+            return cls(layout, nb_rows, nk_rows, len(nbs))
         head = est[: min(est.n_samples, 8)]
         layouts: dict = {}
         n_terms = len(compile_effects(effects, head, [max(r) for r in nbs], [max(r) for r in nks]).output_terms)
@@ -1253,9 +1333,12 @@ class _Runner:
         n_threads: int,
         progress: bool,
         simulate_estimation: bool,
+        top: int | None = None,
+        engine: Any = None,
     ):
         self.est, self.val, self.g, self.inputs = est, val, g, inputs
         self.n_threads, self.progress, self.simulate_estimation = n_threads, progress, simulate_estimation
+        self.top, self.core = top, engine if engine is not None else _core.sweep
 
     def __call__(self, k: int | None) -> Any:
         n = len(self.g.layout)
@@ -1270,7 +1353,7 @@ class _Runner:
 
         val = self.val
         try:
-            return _core.sweep(
+            return self.core(
                 np.ascontiguousarray(self.est.y),
                 self.inputs.u_est,
                 list(self.est.experiment_starts),
@@ -1284,6 +1367,7 @@ class _Runner:
                 n_threads=self.n_threads,
                 chunk=max(64, n // 100),
                 progress=report,
+                top=self.top,
             )
         finally:
             if bar is not None:
@@ -1421,17 +1505,20 @@ def _build_result(
     fit_val = _validation_fit(res, rms_val, b.val, res.first_lag)
     key = _effective_key(b.sort_by, b.val is not None)
     score = _ranking_column(_Columns(rms_val=rms_val, rms_est=rms_est, **crit), key)
-    bad = np.array([e is not None for e in errors])
+    bad = np.array([e is not None for e in errors], dtype=bool)
     if key in FREE_RUN_KEYS:  # a diverged simulation has no free-run error to rank by
         bad = bad | div_val | div_est
-    order = _ranking_order(score, bad)
+    # Stage-1 rows of a two-stage sweep (not simulated) follow the ranked ones, by one-step error.
+    order = stages.rank_order(
+        score, bad | ~np.isfinite(score), res.stage, crit["val_one_step" if b.val is not None else "est_one_step"]
+    )
     nbm = np.array(b.g.user_nb, dtype=int).reshape(s, m)
     nkm = np.array(b.g.user_nk, dtype=int).reshape(s, m)
     return SweepResult(
         na=na[order],
         nb=nbm[order],
         nk=nkm[order],
-        parameters=[res.theta[i, : p[i]].copy() for i in order],
+        parameters=stages.RankedParameters(res.theta, p, order),
         n_params=p[order],
         rms_est_one_step=crit["est_one_step"][order],
         rms_val_one_step=crit["val_one_step"][order],
@@ -1462,6 +1549,7 @@ def _build_result(
         integrator=verdict,
         grid=b.grid,
         settings=b.settings,
+        stage=res.stage[order],
     )
 
 
