@@ -195,7 +195,7 @@ def _solve(
     return res
 
 
-class ArxModel:
+class ArxModel(metrics.FitCriteria):
     """An ARX model, possibly with effect terms, in MATLAB's sign convention.
 
     Parameters
@@ -360,55 +360,7 @@ class ArxModel:
         """Units of the inputs ('' when unknown)."""
         return tuple(self.input_units_)
 
-    # ------------------------------------------------------------------ statistics
-    @property
-    def n_params(self) -> int:
-        """Number of estimated parameters."""
-        self.check_fitted()
-        return len(self.parameters_)
-
-    @property
-    def loss_(self) -> float:
-        """Loss V = RSS / N of the one-step residual on the estimation rows."""
-        return self.rss_ / self.n_rows_
-
-    @property
-    def noise_variance_(self) -> float:
-        """Unbiased noise variance RSS / (N − p)."""
-        return self.rss_ / max(self.n_rows_ - self.n_params, 1)
-
-    @property
-    def standard_errors_(self) -> np.ndarray:
-        """Standard error of each parameter, √diag(covariance)."""
-        self.check_fitted()
-        return np.sqrt(np.diag(self.covariance_))
-
-    @property
-    def fpe_(self) -> float:
-        """Akaike's final prediction error (see :mod:`arxid._metrics`)."""
-        return float(metrics.fpe(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def aic_(self) -> float:
-        """AIC as MATLAB computes it: N log V + 2p + N (log 2π + 1)."""
-        return float(metrics.aic(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def aicc_(self) -> float:
-        """Small-sample corrected AIC, AIC + 2p (p + 1) / (N − p − 1)."""
-        return float(metrics.aicc(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def naic_(self) -> float:
-        """MATLAB's normalised AIC, log V + 2p / N."""
-        return float(metrics.naic(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def bic_(self) -> float:
-        """BIC: N log V + p log N + N (log 2π + 1)."""
-        return float(metrics.bic(self.rss_, self.n_rows_, self.n_params))
-
-    # ------------------------------------------------------------------ polynomials
+    # ------------------------------------------------------------------ polynomials (loss and criteria: metrics.FitCriteria)
     @property
     def a(self) -> np.ndarray:
         """Denominator A(z⁻¹) = [1, a1, ..., a_na]."""

@@ -74,7 +74,7 @@ def finite_segments(data: IOData, lag: int, need_output: bool = True) -> list[tu
     return out
 
 
-class PolynomialModel:
+class PolynomialModel(metrics.FitCriteria):
     """A polynomial model in MATLAB's form, fitted by prediction-error minimisation.
 
     Parameters
@@ -292,49 +292,6 @@ class PolynomialModel:
         if nd == 0 and not any(nf):
             return "ARMAX" if nc else "ARX"
         return "BJ" if na == 0 else "polynomial"
-
-    # ------------------------------------------------------------------ statistics
-    @property
-    def n_params(self) -> int:
-        """Number of estimated parameters."""
-        self.check_fitted()
-        return len(self.parameters_)
-
-    @property
-    def loss_(self) -> float:
-        """Loss V = RSS / N of the one-step prediction error on the scored samples."""
-        return self.rss_ / self.n_rows_
-
-    @property
-    def noise_variance_(self) -> float:
-        """Unbiased noise variance RSS / (N − p)."""
-        return self.rss_ / max(self.n_rows_ - self.n_params, 1)
-
-    @property
-    def standard_errors_(self) -> np.ndarray:
-        """Standard error of each parameter, √diag(covariance)."""
-        self.check_fitted()
-        return np.sqrt(np.diag(self.covariance_))
-
-    @property
-    def fpe_(self) -> float:
-        """Akaike's final prediction error (see :mod:`arxid._metrics`)."""
-        return float(metrics.fpe(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def aic_(self) -> float:
-        """AIC as MATLAB computes it: N log V + 2p + N (log 2π + 1)."""
-        return float(metrics.aic(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def aicc_(self) -> float:
-        """Small-sample corrected AIC."""
-        return float(metrics.aicc(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def bic_(self) -> float:
-        """BIC: N log V + p log N + N (log 2π + 1)."""
-        return float(metrics.bic(self.rss_, self.n_rows_, self.n_params))
 
     # ------------------------------------------------------------------ polynomials
     def polynomials(self) -> dict[str, Any]:
