@@ -323,18 +323,20 @@ def test_demo_short_flight(capsys, tmp_path):
     assert "error ladder" in err.lower()  # the story goes to stderr with --json
 
 
-def test_default_demo_under_60_s_tells_the_battery_story(capsys, tmp_path):
-    """``make demo`` runs exactly this: the default 20 s flight, under a minute, before/after numbers."""
+def test_default_demo_tells_the_battery_story(capsys, tmp_path):
+    """``make demo`` runs exactly this: the default 20 s flight, before/after numbers, the grid edge."""
     import re
-    import time
+
+    import arxid
+    from arxid.demo import demo_data
 
     path = tmp_path / "arxid-demo-report.html"
-    t0 = time.perf_counter()
     code, out, err = run(capsys, "demo", "-o", path, "--no-progress")
-    elapsed = time.perf_counter() - t0
     assert code == 0, err
-    assert elapsed < 60, f"the demo took {elapsed:.1f} s"
     assert "Missing effect: collective*vbat" in out and "battery" in out
+    # The demo says what the API says about the grid edge (its choice sits on the default grid's nk edge).
+    edge = arxid.analyse(demo_data()[0], max_steps=2).choice.grid_edge
+    assert edge and edge in out
     m = re.search(r"before ([0-9.e+-]+) m/s\^2 -> after ([0-9.e+-]+) m/s\^2", out)
     assert m, out
     before, after = float(m.group(1)), float(m.group(2))

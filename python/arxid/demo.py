@@ -184,6 +184,8 @@ def _tell_analysis(out: TextIO, a: Analysis) -> None:
     )
     for name, why in a.choice.skipped[:3]:
         _say(out, f"   rejected {name}: {why}")
+    if a.choice.grid_edge:
+        _say(out, f"   {a.choice.grid_edge}.")
     _say(
         out,
         f"   Validation: {horizon_label(a.horizon)} RMS error {format_value(d.rms_sim_val)} m/s^2, "

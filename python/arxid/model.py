@@ -360,7 +360,8 @@ class ArxModel(metrics.FitCriteria):
         """Units of the inputs ('' when unknown)."""
         return tuple(self.input_units_)
 
-    # ------------------------------------------------------------------ polynomials (loss and criteria: metrics.FitCriteria)
+    # ------------------------------------------------------------------ polynomials
+    # (loss, noise variance and criteria come from metrics.FitCriteria)
     @property
     def a(self) -> np.ndarray:
         """Denominator A(z⁻¹) = [1, a1, ..., a_na]."""
