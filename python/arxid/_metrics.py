@@ -30,7 +30,6 @@ import numpy.typing as npt
 from . import _core
 
 __all__ = [
-    "FitCriteria",
     "DIVERGENCE_FACTOR",
     "divergence_limit",
     "diverged",
@@ -186,64 +185,3 @@ def selstruc(loss: _Float, n: int, p: _Float, c: float) -> _Float:
     """MATLAB ``selstruc``'s criterion V (1 + c p / N): c = 2 is ``'aic'``, c = log N ``'mdl'``."""
     p = np.asarray(p, dtype=float)
     return _scalar(np.asarray(loss, dtype=float) * (1 + c * p / n))
-
-
-class FitCriteria:
-    """Loss, noise variance, standard errors and FPE/AIC/AICc/nAIC/BIC of a fitted model, from its
-    ``rss_``, ``n_rows_``, ``parameters_`` and ``covariance_`` (shared by every model class)."""
-
-    rss_: float
-    n_rows_: int
-    parameters_: np.ndarray
-    covariance_: np.ndarray
-
-    def check_fitted(self) -> None:  # pragma: no cover - every model class defines it
-        """Raise unless fitted (each model class says how)."""
-        raise NotImplementedError
-
-    @property
-    def n_params(self) -> int:
-        """Number of estimated parameters."""
-        self.check_fitted()
-        return len(self.parameters_)
-
-    @property
-    def loss_(self) -> float:
-        """Loss V = RSS / N of the one-step prediction error on the scored samples."""
-        return self.rss_ / self.n_rows_
-
-    @property
-    def noise_variance_(self) -> float:
-        """Unbiased noise variance RSS / (N − p)."""
-        return self.rss_ / max(self.n_rows_ - self.n_params, 1)
-
-    @property
-    def standard_errors_(self) -> np.ndarray:
-        """Standard error of each parameter, √diag(covariance)."""
-        self.check_fitted()
-        return np.sqrt(np.diag(self.covariance_))
-
-    @property
-    def fpe_(self) -> float:
-        """Akaike's final prediction error, V (N + p) / (N − p)."""
-        return float(fpe(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def aic_(self) -> float:
-        """AIC as MATLAB computes it: N log V + 2p + N (log 2π + 1)."""
-        return float(aic(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def aicc_(self) -> float:
-        """Small-sample corrected AIC, AIC + 2p (p + 1) / (N − p − 1)."""
-        return float(aicc(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def naic_(self) -> float:
-        """MATLAB's normalised AIC, log V + 2p / N."""
-        return float(naic(self.rss_, self.n_rows_, self.n_params))
-
-    @property
-    def bic_(self) -> float:
-        """BIC: N log V + p log N + N (log 2π + 1)."""
-        return float(bic(self.rss_, self.n_rows_, self.n_params))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
 from collections.abc import Mapping, Sequence
@@ -18,6 +17,7 @@ from ._limits import check_memory, check_order, check_work
 from .data import IOData
 from .effects import EffectLayout, compile_effects, effect_names
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .fitted import FittedModel
 from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names
 
 if TYPE_CHECKING:
@@ -195,7 +195,7 @@ def _solve(
     return res
 
 
-class ArxModel(metrics.FitCriteria):
+class ArxModel(FittedModel):
     """An ARX model, possibly with effect terms, in MATLAB's sign convention.
 
     Parameters
@@ -334,34 +334,8 @@ class ArxModel(metrics.FitCriteria):
             raise NotFittedError(f"{name} is not available: this ArxModel is not fitted yet; call .fit(data) first")
         raise AttributeError(name)
 
-    # ------------------------------------------------------------------ what the data named
-    @property
-    def ts(self) -> float:
-        """Sampling time in seconds (of the estimation data)."""
-        return float(self.ts_)
-
-    @property
-    def output_name(self) -> str:
-        """Name of the output signal."""
-        return str(self.output_name_)
-
-    @property
-    def input_names(self) -> tuple[str, ...]:
-        """Names of the input signals."""
-        return tuple(self.input_names_)
-
-    @property
-    def output_unit(self) -> str:
-        """Unit of the output ('' when unknown)."""
-        return str(self.output_unit_)
-
-    @property
-    def input_units(self) -> tuple[str, ...]:
-        """Units of the inputs ('' when unknown)."""
-        return tuple(self.input_units_)
-
     # ------------------------------------------------------------------ polynomials
-    # (loss, noise variance and criteria come from metrics.FitCriteria)
+    # (names, units, loss, criteria, fit_percent, rms and to_json come from FittedModel)
     @property
     def a(self) -> np.ndarray:
         """Denominator A(z⁻¹) = [1, a1, ..., a_na]."""
@@ -525,38 +499,6 @@ class ArxModel(metrics.FitCriteria):
             "use a shorter horizon or fewer samples",
         )
 
-    def fit_percent(self, data: IOData, horizon: int | None = None) -> float:
-        """NRMSE fit in percent of the prediction with ``horizon`` (see :mod:`arxid._metrics`).
-
-        Parameters
-        ----------
-        data : IOData
-        horizon : int or None
-            None: free run; k: k-step-ahead prediction.
-
-        Returns
-        -------
-        float
-            ``-inf`` when the prediction diverges.
-        """
-        return metrics.fit_percent(data.y, self.predict(data, horizon))
-
-    def rms(self, data: IOData, horizon: int | None = None) -> float:
-        """RMS of measured − predicted output over the predicted samples.
-
-        Parameters
-        ----------
-        data : IOData
-        horizon : int or None
-            None: free run; k: k-step-ahead prediction.
-
-        Returns
-        -------
-        float
-            ``inf`` when the prediction diverges.
-        """
-        return metrics.prediction_rms(data.y, self.predict(data, horizon))
-
     def simulate(self, u: Any, initial: Any = None, extra: Mapping[str, Any] | None = None) -> np.ndarray:
         """Free-run response to the inputs ``u``.
 
@@ -705,25 +647,6 @@ class ArxModel(metrics.FitCriteria):
             "fit_percent": self.fit_percent_,
             "layout": self.layout_.to_dict(),
         }
-
-    def to_json(self, path: str | None = None, indent: int | None = 2) -> str:
-        """Plain JSON (no pickle); floats round-trip exactly.
-
-        Parameters
-        ----------
-        path : str, optional
-            Also write it to this file.
-        indent : int or None
-
-        Returns
-        -------
-        str
-        """
-        text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
-        if path is not None:
-            with open(path, "w") as fh:
-                fh.write(text)
-        return text
 
     @classmethod
     def from_json(cls, path_or_text: Any) -> ArxModel:

@@ -20,6 +20,7 @@ from . import _metrics as metrics
 from ._format import format_polynomial
 from .data import IOData
 from .exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .fitted import FittedModel
 from .model import FittedLayout
 
 __all__ = ["PolynomialModel", "finite_segments"]
@@ -74,7 +75,7 @@ def finite_segments(data: IOData, lag: int, need_output: bool = True) -> list[tu
     return out
 
 
-class PolynomialModel(metrics.FitCriteria):
+class PolynomialModel(FittedModel):
     """A polynomial model in MATLAB's form, fitted by prediction-error minimisation.
 
     Parameters
@@ -233,26 +234,6 @@ class PolynomialModel(metrics.FitCriteria):
         raise AttributeError(name)
 
     # ------------------------------------------------------------------ names
-    @property
-    def ts(self) -> float:
-        """Sampling time in seconds."""
-        return float(self.ts_)
-
-    @property
-    def output_name(self) -> str:
-        """Name of the output signal."""
-        return str(self.output_name_)
-
-    @property
-    def input_names(self) -> tuple[str, ...]:
-        """Names of the input signals."""
-        return tuple(self.input_names_)
-
-    @property
-    def output_unit(self) -> str:
-        """Unit of the output ('' when unknown)."""
-        return str(self.output_unit_)
-
     @property
     def effects(self) -> tuple[str, ...]:
         """Effect terms (none: polynomial models are linear)."""
@@ -465,35 +446,6 @@ class PolynomialModel(metrics.FitCriteria):
             )
         )
 
-    def fit_percent(self, data: IOData, horizon: int | None = None) -> float:
-        """NRMSE fit in percent (see :mod:`arxid._metrics`).
-
-        Parameters
-        ----------
-        data : IOData
-        horizon : int or None
-            None: free run; k: k-step-ahead prediction.
-
-        Returns
-        -------
-        float
-        """
-        return metrics.fit_percent(data.y, self.predict(data, horizon))
-
-    def rms(self, data: IOData, horizon: int | None = None) -> float:
-        """RMS of measured − predicted output over the predicted samples.
-
-        Parameters
-        ----------
-        data : IOData
-        horizon : int or None
-
-        Returns
-        -------
-        float
-        """
-        return metrics.prediction_rms(data.y, self.predict(data, horizon))
-
     def simulate(self, u: Any) -> np.ndarray:
         """Free-run response to ``u`` from rest (noise-free).
 
@@ -603,25 +555,6 @@ class PolynomialModel(metrics.FitCriteria):
             "converged": self.converged_,
             "losses": [float(x) for x in self.losses_],
         }
-
-    def to_json(self, path: str | None = None, indent: int | None = 2) -> str:
-        """Plain JSON (no pickle); floats round-trip exactly.
-
-        Parameters
-        ----------
-        path : str, optional
-            Also write it to this file.
-        indent : int or None
-
-        Returns
-        -------
-        str
-        """
-        text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
-        if path is not None:
-            with open(path, "w") as fh:
-                fh.write(text)
-        return text
 
     @classmethod
     def from_json(cls, text_or_path: str) -> PolynomialModel:

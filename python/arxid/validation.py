@@ -87,7 +87,7 @@ def error_rms(model: ArxModel, data: IOData, horizon: int | None = None) -> floa
     -------
     float
     """
-    return metrics.prediction_rms(data.y, model.predict(data, horizon))
+    return model.rms(data, horizon)
 
 
 # ---------------------------------------------------------------------------------------------
