@@ -175,15 +175,34 @@ pub fn fit_rows_like(
         return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
     }
     let r = to_col_major(&reduce_checked(d, s, &rows, parallel, &|| !cancel.load(Ordering::Relaxed))?);
+    fit_from_factor(&r, p + 1, rows.len(), n_skipped)
+}
+
+/// Fits a structure from the column-major (q × q) triangular factor `r` of its `[Φ | y]` (output
+/// last), as [`fit`] does after its reduction: a fleet's fit, whose factor was combined from the
+/// factors of many experiments.
+///
+/// # Errors
+/// `TooFewSamples` when `n_rows` < q; `RankDeficient` naming the first regressor column that
+/// depends on the ones before it; `ShapeMismatch` when `r` is not q × q.
+pub fn fit_from_factor(r: &[f64], q: usize, n_rows: usize, n_skipped: usize) -> Result<Fit> {
+    if q == 0 || r.len() != q * q {
+        return Err(ArxError::ShapeMismatch { what: "factor entries (q × q)".into(), expected: q * q, got: r.len() });
+    }
+    if n_rows < q {
+        return Err(ArxError::TooFewSamples { needed: q, got: n_rows });
+    }
+    let p = q - 1;
     let cols: Vec<usize> = (0..p).collect();
-    let (theta, rss, small) = solve_subset(&r, p + 1, &cols, rows.len())?;
-    let inv_gram = scaled_inverse_gram(small, p + 1, p);
-    Ok(Fit { theta, rss, n_rows: rows.len(), n_skipped, inv_gram })
+    let (theta, rss, small) = solve_subset(r, q, &cols, n_rows)?;
+    let inv_gram = scaled_inverse_gram(small, q, p);
+    Ok(Fit { theta, rss, n_rows, n_skipped, inv_gram })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::qr::stack_and_reduce;
     use crate::structure::Structure;
 
     fn lcg(seed: &mut u64) -> f64 {
@@ -233,6 +252,35 @@ mod tests {
         let d = Data::new(&y, &y, 1, &starts).unwrap();
         let s = Structure::new(1 << 39, vec![1], vec![0], vec![]).unwrap();
         assert!(matches!(fit(&d, &s, 0, false), Err(ArxError::TooFewSamples { got: 0, .. })));
+    }
+
+    #[test]
+    fn fit_from_two_stacked_factors_equals_the_fit_of_both_experiments() {
+        let n = 600;
+        let mut seed = 11;
+        let u: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let y: Vec<f64> = (0..n).map(|t| if t > 0 { 0.3 * u[t - 1] + lcg(&mut seed) } else { 0.0 }).collect();
+        let s = Structure::new(1, vec![2], vec![1], vec![]).unwrap();
+        let starts = [0, 250];
+        let whole = fit(&Data::new(&y, &u, 1, &starts).unwrap(), &s, 0, false).unwrap();
+        let (p, q) = (s.n_params(), s.n_params() + 1);
+        let blocks: Vec<_> = [(0, 250), (250, n)]
+            .iter()
+            .map(|&(a, b)| {
+                let d = Data::new(&y[a..b], &u[a..b], 1, &[0]).unwrap();
+                let (rows, _) = usable_rows(&d, &s, 0);
+                reduce_checked(&d, &s, &rows, false, &|| true).unwrap()
+            })
+            .collect();
+        let r = to_col_major(&stack_and_reduce(&blocks, q));
+        let f = fit_from_factor(&r, q, whole.n_rows, 0).unwrap();
+        for (a, b) in f.theta.iter().zip(&whole.theta) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        assert!((f.rss - whole.rss).abs() < 1e-10 * whole.rss);
+        assert_eq!(f.inv_gram.len(), p * p);
+        assert!(matches!(fit_from_factor(&r[1..], q, 500, 0), Err(ArxError::ShapeMismatch { .. })));
+        assert!(matches!(fit_from_factor(&r, q, 2, 0), Err(ArxError::TooFewSamples { .. })));
     }
 
     #[test]

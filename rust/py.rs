@@ -587,6 +587,29 @@ fn factor_from(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<f64>> {
     Ok((0..shape[1]).flat_map(|j| (0..shape[0]).map(move |i| (i, j))).map(|(i, j)| v[[i, j]]).collect())
 }
 
+/// A `FitOutput` from the triangular factor (q × q, output last) of one structure's `[Φ | y]`,
+/// as `fit` computes it after its reduction (a fleet's fit from combined factors).
+#[pyfunction]
+#[pyo3(signature = (r, n_rows, n_skipped = 0))]
+fn fit_factor<'py>(
+    py: Python<'py>,
+    r: PyReadonlyArray2<'py, f64>,
+    n_rows: usize,
+    n_skipped: usize,
+) -> PyResult<FitOutput> {
+    let q = r.shape()[0];
+    let rc = factor_from(&r)?;
+    let f = crate::fit::fit_from_factor(&rc, q, n_rows, n_skipped).map_err(|e| to_pyerr(py, e))?;
+    let p = f.theta.len();
+    Ok(FitOutput {
+        theta: f.theta.into_pyarray(py).unbind(),
+        rss: f.rss,
+        n_rows: f.n_rows,
+        n_skipped: f.n_skipped,
+        inv_gram: PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?.unbind(),
+    })
+}
+
 /// Every structure solved from combined factors (one or two stages as `sweep`, nothing simulated):
 /// a `SweepOutput` whose simulation columns are NaN, and the indices a sweep would simulate.
 #[pyfunction]
@@ -822,7 +845,7 @@ mod core_module {
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
     #[pymodule_export]
-    use super::{fma_limit, grid_factor, simulate_structures, sweep_factors};
+    use super::{fit_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
 

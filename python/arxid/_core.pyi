@@ -13,6 +13,7 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
     "divergence_limit",
+    "fit_factor",
     "fma_limit",
     "grid_factor",
     "simulate_structures",
@@ -187,6 +188,7 @@ def pem_max_lag(orders: _PolyOrders) -> int: ...
 def grid_factor(
     y: _F, u: _F, starts: Sequence[int], structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]
 ) -> tuple[_F, int]: ...
+def fit_factor(r: _F, n_rows: int, n_skipped: int = 0) -> FitOutput: ...
 def sweep_factors(
     r_est: _F,
     n_est: int,
