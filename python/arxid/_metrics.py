@@ -127,20 +127,29 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
     """
     y = np.asarray(y, dtype=float)
     pred = np.asarray(pred, dtype=float)
-    ok = np.isfinite(y) & np.isfinite(pred)
-    fy, fp = np.abs(y[np.isfinite(y)]), np.abs(pred[np.isfinite(pred)])
-    head = [ok.sum(), fy.max() if fy.size else 0.0, fp.max() if fp.size else 0.0, np.isinf(pred).any()]
-    if not ok.any():
+    finite_y, finite_pred = np.isfinite(y), np.isfinite(pred)
+    ok = finite_y & finite_pred
+    n = int(np.count_nonzero(ok))
+    peak_y, peak_pred = _peak(y, finite_y), _peak(pred, finite_pred)
+    head = [n, peak_y, peak_pred, np.isinf(pred).any()]
+    if n == 0:
         return np.array(head + [0.0, 0.0, 0.0, 0.0], dtype=float)
+    yo, po = (y, pred) if n == len(y) else (y[ok], pred[ok])
     # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
     # or 1e-200 neither overflow nor underflow the sums of squares.
-    big = float(np.max(np.abs(y[ok])))
+    big = peak_y if n == len(y) else _peak(yo, np.ones(n, dtype=bool))
     scale = _unit_scale(big)
     with np.errstate(over="ignore", invalid="ignore"):
-        e = (y[ok] - pred[ok]) * scale
-        mean = y[ok].mean()
-        c = (y[ok] - mean) * scale
+        e = (yo - po) * scale
+        mean = yo.mean()
+        c = (yo - mean) * scale
         return np.array(head + [big, np.dot(e, e), mean, np.dot(c, c)], dtype=float)
+
+
+def _peak(x: np.ndarray, finite: np.ndarray) -> float:
+    """Largest |x| over the finite samples (0 when there are none)."""
+    x = x if finite.all() else x[finite]
+    return float(max(np.max(x), -np.min(x))) if x.size else 0.0  # max |x| without a copy
 
 
 def _unit_scale(big: float) -> float:
