@@ -49,10 +49,11 @@ def simulate_arx(a, bs, nks, u, noise=None):
 @pytest.fixture(scope="session")
 def dask_client():
     """One ``LocalCluster(n_workers=2, processes=True)`` for every fleet test of the session (started
-    here, closed at the end); skipped without the dask extra."""
+    here, closed at the end; its dashboard on a random port, as 8787 may be taken by a concurrent
+    cluster); skipped without the dask extra."""
     distributed = pytest.importorskip("distributed", reason="needs the dask extra: pip install 'arxid[dask]'")
     cluster = distributed.LocalCluster(
-        n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None, silence_logs=40
+        n_workers=2, processes=True, threads_per_worker=1, dashboard_address=":0", silence_logs=40
     )
     client = distributed.Client(cluster)
     yield client
