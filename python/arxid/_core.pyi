@@ -13,12 +13,12 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
     "divergence_limit",
-    "fit_factor",
     "fma_limit",
     "grid_factor",
     "simulate_structures",
     "sweep_factors",
     "fit",
+    "fit_from_factor",
     "fit_memory",
     "grid_envelope",
     "max_lag",
@@ -91,6 +91,8 @@ class SweepOutput:
     def envelope(self) -> _Orders: ...
     @property
     def stage(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def r_est(self) -> _F: ...
 
 def fit(
     y: _F,
@@ -103,6 +105,13 @@ def fit(
     first_lag: int = 0,
     n_threads: int = 0,
     rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
+) -> FitOutput: ...
+def fit_from_factor(
+    r_est: _F,
+    n_rows: int,
+    envelope: tuple[int, Sequence[int], Sequence[int]],
+    structure: tuple[int, Sequence[int], Sequence[int]],
+    output_terms: Sequence[_Term],
 ) -> FitOutput: ...
 def predict(
     y: _F,
@@ -188,7 +197,6 @@ def pem_max_lag(orders: _PolyOrders) -> int: ...
 def grid_factor(
     y: _F, u: _F, starts: Sequence[int], structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]
 ) -> tuple[_F, int]: ...
-def fit_factor(r: _F, n_rows: int, n_skipped: int = 0) -> FitOutput: ...
 def sweep_factors(
     r_est: _F,
     n_est: int,

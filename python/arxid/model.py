@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import numbers
+import types
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, overload
@@ -328,12 +329,21 @@ class ArxModel(FittedModel):
         lag = max_lag(na, layout)
         _check_rows(na, layout, usable, n_samples, lag)
         names = regressor_names(sig.output_name, na, layout)
+        orders = (na, list(layout.nb), list(layout.nk))
+        if n_rows < r.shape[0]:
+            raise DataError(
+                f"too few complete regression rows on these logs: {r.shape[0] - 1} parameters need at least "
+                f"{r.shape[0]}, the logs have {n_rows} without missing samples; lower na/nb/nk or use more data"
+            )
         try:
-            res = _core.fit_factor(r, n_rows, usable - n_rows)
+            out = _core.fit_from_factor(r, n_rows, orders, orders, list(layout.output_terms))
         except IdentifiabilityError as exc:
             if getattr(exc, "column", None) is None:
                 raise
             raise _collinear(exc.column, r[:, :-1], names) from None  # type: ignore[attr-defined]
+        res = types.SimpleNamespace(
+            theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows, inv_gram=out.inv_gram
+        )
         self._store(sig, (na, nb, nk), layout, names, 0, res, fit_percent=logs.fit_percent)
         return self
 
@@ -355,16 +365,12 @@ class ArxModel(FittedModel):
         self.output_unit_, self.input_units_ = data.output_unit, data.input_units
         self.layout_ = FittedLayout.of(layout)
         self.parameters_ = np.asarray(res.theta)
-        self.covariance_ = np.asarray(res.inv_gram)
         self.regressor_names_ = tuple(names)
         self.n_rows_ = int(res.n_rows)
         self.n_skipped_ = int(res.n_skipped)
         self.first_lag_ = first_lag
         self.rss_ = float(res.rss)
-        # rss · (ΦᵀΦ)⁻¹ / (N − p): the same as noise_variance_ · (ΦᵀΦ)⁻¹, in an order that stays in
-        # range for outputs near the limits of floating point (beyond them an entry is inf or NaN).
-        with np.errstate(over="ignore", invalid="ignore"):
-            self.covariance_ = (self.covariance_ * self.rss_) / max(self.n_rows_ - self.n_params, 1)
+        self.covariance_ = metrics.parameter_covariance(res.inv_gram, self.rss_, self.n_rows_)
         self.data_ = data if isinstance(data, IOData) else None
         if fit_percent is not None:
             self.fit_percent_ = fit_percent(self)
