@@ -19,7 +19,7 @@ from . import _core
 from . import _metrics as metrics
 from ._format import format_polynomial
 from .data import IOData
-from .exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .fitted import FittedModel
 from .model import FittedLayout
 
@@ -29,6 +29,23 @@ _JSON_FORMAT = "arxid.PolynomialModel"
 _JSON_VERSION = 1
 _MAX_ORDER = 2**40
 _POLY_NAMES = ("a", "b", "c", "d", "f")
+_INITIAL = ("zero", "estimate")
+
+
+def check_initial(initial: Any) -> str:
+    """The initial-condition option checked: ``"zero"`` or ``"estimate"`` (MATLAB's names).
+
+    Parameters
+    ----------
+    initial : str
+
+    Returns
+    -------
+    str
+    """
+    if initial not in _INITIAL:
+        raise ArxidError(f"initial must be 'zero' or 'estimate' (MATLAB's InitialCondition), got {initial!r}")
+    return str(initial)
 
 
 def _order(name: str, value: Any) -> int:
@@ -145,6 +162,7 @@ class PolynomialModel(FittedModel):
         max_iterations: int = 100,
         tolerance: float = 1e-6,
         n_threads: int = 0,
+        initial: str = "zero",
     ) -> PolynomialModel:
         """Minimise the sum of squared one-step prediction errors (Gauss–Newton, Levenberg–Marquardt).
 
@@ -161,6 +179,12 @@ class PolynomialModel(FittedModel):
             Stop when a step would improve the loss by less than this fraction.
         n_threads : int
             Threads for the QR of the gradient (0 = all cores).
+        initial : {"zero", "estimate"}
+            How the filters start in each run of finite samples (MATLAB's ``InitialCondition``).
+            ``"zero"``: at rest, and the first ``first_lag_`` samples of each run are not scored
+            (they only feed the lags). ``"estimate"``: the initial state of each run is estimated
+            with the parameters and every sample is scored; use it when a record starts
+            mid-transient. The states are kept in ``initial_states_``.
 
         Returns
         -------
@@ -172,7 +196,8 @@ class PolynomialModel(FittedModel):
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
             )
         orders = self.orders_for(data)
-        lag = int(_core.pem_max_lag(orders))
+        initial = check_initial(initial)
+        lag = int(_core.pem_max_lag(orders)) if initial == "zero" else 0
         segments = finite_segments(data, lag)
         _check_size(orders, segments, lag, data)
         _check_excitation(data, orders[1])
@@ -186,8 +211,9 @@ class PolynomialModel(FittedModel):
             max_iterations=_order("max_iterations", max_iterations),
             tolerance=float(tolerance),
             n_threads=_order("n_threads", n_threads),
+            initial=initial,
         )
-        self._store(data, orders, lag, res)
+        self._store(data, orders, lag, res, initial)
         if not res.converged:
             warnings.warn(
                 f"{self.structure_name()}: {res.termination} after {res.iterations} iterations; the estimate may be a "
@@ -197,7 +223,7 @@ class PolynomialModel(FittedModel):
             )
         return self
 
-    def _store(self, data: IOData, orders: tuple, lag: int, res: Any) -> None:
+    def _store(self, data: IOData, orders: tuple, lag: int, res: Any, initial: str) -> None:
         """Fitted state from the core's result (constructor arguments stay as given)."""
         self.na_, self.nb_, self.nc_, self.nd_, self.nf_, self.nk_ = orders
         self.ts_ = data.ts
@@ -215,8 +241,10 @@ class PolynomialModel(FittedModel):
         )
         self.losses_ = np.asarray(res.losses)
         self.covariance_ = self.noise_variance_ * np.asarray(res.inv_gram)
+        self.initial_ = initial
+        self.initial_states_ = {tuple(seg): np.asarray(x) for seg, x in zip(res.initial_segments, res.initial_states)}
         self.data_ = data
-        self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
+        self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1, initial=initial))
 
     def check_fitted(self) -> None:
         """Raise :class:`NotFittedError` unless the model is fitted (or loaded from JSON).
@@ -409,7 +437,7 @@ class PolynomialModel(FittedModel):
         return np.array(out)
 
     # ------------------------------------------------------------------ prediction
-    def predict(self, data: IOData, horizon: int | None = 1) -> np.ndarray:
+    def predict(self, data: IOData, horizon: int | None = 1, initial: str = "zero") -> np.ndarray:
         """Predicted output; NaN where no prediction exists.
 
         Parameters
@@ -417,8 +445,13 @@ class PolynomialModel(FittedModel):
         data : IOData
         horizon : int or None
             1: one-step prediction with the noise model; k: k steps ahead; None: free-run
-            simulation (MATLAB ``compare``). The first ``first_lag_`` samples of each run of finite
-            samples are initial conditions.
+            simulation (MATLAB ``compare``).
+        initial : {"zero", "estimate"}
+            ``"zero"``: the filters start at rest in each run of finite samples and its first
+            ``first_lag_`` samples are not predicted. ``"estimate"``: each run's initial state is
+            fitted to these data first (to the prediction errors for a horizon, to the measured
+            output for the free run, as MATLAB's ``compare`` does) and every sample is predicted;
+            on the estimation data with a horizon this reproduces the fit's ``initial_states_``.
 
         Returns
         -------
@@ -432,7 +465,9 @@ class PolynomialModel(FittedModel):
         if data.n_inputs != len(self.input_names_):
             raise DataError(f"the model has {len(self.input_names_)} inputs but the data have {data.n_inputs}")
         orders = (self.na_, list(self.nb_), self.nc_, self.nd_, list(self.nf_), list(self.nk_))
-        segments = finite_segments(data, self.first_lag_, need_output=horizon is not None)
+        estimate = check_initial(initial) == "estimate"
+        lag = 0 if estimate else int(_core.pem_max_lag(orders))
+        segments = finite_segments(data, lag, need_output=horizon is not None or estimate)
         if not segments:
             return np.full(data.n_samples, np.nan)
         return np.asarray(
@@ -443,6 +478,7 @@ class PolynomialModel(FittedModel):
                 orders,
                 np.ascontiguousarray(self.parameters_, dtype=float),
                 horizon=None if horizon is None else int(horizon),
+                initial=initial,
             )
         )
 
@@ -554,6 +590,8 @@ class PolynomialModel(FittedModel):
             "termination": self.termination_,
             "converged": self.converged_,
             "losses": [float(x) for x in self.losses_],
+            "initial": self.initial_,
+            "initial_states": [[a, b, [float(x) for x in v]] for (a, b), v in self.initial_states_.items()],
         }
 
     @classmethod
@@ -704,5 +742,7 @@ def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
     model.rss_, model.fit_percent_ = float(d["rss"]), float(d["fit_percent"])
     model.iterations_, model.termination_ = int(d["iterations"]), str(d["termination"])
     model.converged_, model.losses_ = bool(d["converged"]), np.array(d["losses"], dtype=float)
+    model.initial_ = check_initial(d.get("initial", "zero"))
+    model.initial_states_ = {(int(a), int(b)): np.array(v, dtype=float) for a, b, v in d.get("initial_states", [])}
     model.data_ = None
     return model
