@@ -834,6 +834,7 @@ struct Problem<'a, 'b> {
     xs: Vec<Vec<f64>>,
     rows: Vec<usize>,
     opts: &'a PemOptions,
+    cancel: &'a AtomicBool,
 }
 
 impl Problem<'_, '_> {
@@ -841,24 +842,31 @@ impl Problem<'_, '_> {
         sum_squares(&evaluate(self.data, self.s, &self.xs, polys, false, self.opts.initial).eps, &self.rows)
     }
 
-    fn iterate(&self, polys: Polys) -> Iterate {
+    fn stop(&self) -> Result<()> {
+        if self.cancel.load(Ordering::Relaxed) {
+            return Err(ArxError::Interrupted);
+        }
+        Ok(())
+    }
+
+    fn iterate(&self, polys: Polys) -> Result<Iterate> {
+        self.stop()?;
         let ev = evaluate(self.data, self.s, &self.xs, &polys, true, self.opts.initial);
         let rss = sum_squares(&ev.eps, &self.rows);
+        self.stop()?;
         let r = jacobian_r(&ev, &self.rows, self.opts.parallel);
-        Iterate { polys, ev, rss, r }
+        Ok(Iterate { polys, ev, rss, r })
     }
 
     /// The first damped step that lowers the loss (λ raised tenfold until one does), with the λ
     /// it used; None when λ reaches 1e12 first.
-    fn damped(&self, it: &Iterate, lambda: &mut f64, cancel: &AtomicBool) -> Result<Option<(Polys, f64, f64)>> {
+    fn damped(&self, it: &Iterate, lambda: &mut f64) -> Result<Option<(Polys, f64, f64)>> {
         let p = self.s.n_params();
         let scale: Vec<f64> = (0..p)
             .map(|j| (0..=j).map(|i| it.r[i + j * (p + 1)].powi(2)).sum::<f64>().sqrt().max(f64::MIN_POSITIVE))
             .collect();
         while *lambda < 1e12 {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(ArxError::Interrupted);
-            }
+            self.stop()?;
             let delta = damped_step(&it.r, p, *lambda, &scale);
             let theta: Vec<f64> = it.polys.theta().iter().zip(&delta).map(|(a, b)| a + b).collect();
             let mut cand = Polys::of(self.s, &theta);
@@ -909,8 +917,8 @@ pub fn pem(
     let mut polys = Polys::of(s, &theta0);
     polys.stabilise();
     let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
-    let problem = Problem { data, s, xs, rows, opts };
-    let mut it = problem.iterate(polys);
+    let problem = Problem { data, s, xs, rows, opts, cancel };
+    let mut it = problem.iterate(polys)?;
     if !it.rss.is_finite() {
         return Err(ArxError::NotConverged(
             "the prediction errors of the start are not finite (check the data for huge values)".into(),
@@ -939,12 +947,12 @@ pub fn pem(
             fit.termination = Termination::Converged;
             break;
         }
-        let Some((cand, cand_rss, used)) = problem.damped(&it, &mut lambda, cancel)? else {
+        let Some((cand, cand_rss, used)) = problem.damped(&it, &mut lambda)? else {
             fit.termination = Termination::Stalled;
             break;
         };
         let improvement = (it.rss - cand_rss) / it.rss;
-        it = problem.iterate(cand);
+        it = problem.iterate(cand)?;
         fit.iterations += 1;
         fit.losses.push(it.rss / n);
         // A small gain from a strongly damped step is no sign of a minimum: keep going then.
