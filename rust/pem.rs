@@ -667,9 +667,9 @@ fn evaluate(
     ev
 }
 
-/// The columns of ∂ε/∂θ. With an initial-state part $-\sum_k \eta_k g(t-k)$ in ε (η held fixed):
-/// its derivatives add $-\varepsilon/C$-type terms to the C columns (taken from the full ε) and
-/// $+(1/F_i)\sum_k \eta_k g$ to the F columns.
+/// The columns of ∂ε/∂θ. With an initial-state part $s = -\sum_k \eta_k g(t-k)$ in ε (η held
+/// fixed, $g$ = 1/(C ΠF) δ): $\partial s/\partial c_k = -s(t-k)/C$, so the C columns filter the full
+/// ε, and $\partial s/\partial f_{ik} = -s(t-k)/F_i$ is added to the F columns.
 fn add_gradient(
     data: &Segments<'_>,
     s: &PolyStructure,

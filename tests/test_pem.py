@@ -226,6 +226,13 @@ def test_typed_errors():
         # A sine excites two parameters only: OE(3,3) is not identifiable from it.
         t = np.arange(2000)
         arxid.oe(arxid.IOData(np.sin(0.3 * t + 0.4), np.sin(0.3 * t), ts=1.0), 3, 3, 1)
+    # Orders above the plant's: the extra pole and zero cancel, so they are not determined.
+    noise_free = arxid.IOData(signal.lfilter(B_TRUE, F_TRUE, data.u[:, 0]), data.u, ts=1.0)
+    with pytest.raises(IdentifiabilityError, match=r"OE\(3,3,3\).*orders may be too high"):
+        arxid.oe(noise_free, 3, 3, 3)
+    # A noise model asked of noise-free data.
+    with pytest.raises(IdentifiabilityError, match="noise-free"):
+        arxid.armax(noise_free, 2, 2, 1, 3)
     with pytest.raises(ConvergenceError, match="not finite"):
         arxid.oe(data, 2, 2, 3, start=[np.nan, 0.0, -1.0, 0.5])
     with pytest.raises(arxid.NotFittedError):

@@ -202,17 +202,24 @@ class PolynomialModel(FittedModel):
         _check_size(orders, segments, lag, data)
         _check_excitation(data, orders[1])
         st = None if start is None else np.ascontiguousarray(start, dtype=float)
-        res = _core.pem_fit(
-            np.ascontiguousarray(data.y),
-            np.ascontiguousarray(data.u),
-            segments,
-            orders,
-            start=st,
-            max_iterations=_order("max_iterations", max_iterations),
-            tolerance=float(tolerance),
-            n_threads=_order("n_threads", n_threads),
-            initial=initial,
-        )
+        try:
+            res = _core.pem_fit(
+                np.ascontiguousarray(data.y),
+                np.ascontiguousarray(data.u),
+                segments,
+                orders,
+                start=st,
+                max_iterations=_order("max_iterations", max_iterations),
+                tolerance=float(tolerance),
+                n_threads=_order("n_threads", n_threads),
+                initial=initial,
+            )
+        except IdentifiabilityError as exc:
+            raise IdentifiabilityError(
+                f"{self.structure_name()}: these data cannot determine the parameters ({exc}). The orders may be "
+                f"too high (a pole and a zero that cancel), the input may not excite enough frequencies, or a "
+                f"noise model (nc, nd) was asked of noise-free data: lower the orders or use richer data"
+            ) from None
         self._store(data, orders, lag, res, initial)
         if not res.converged:
             warnings.warn(
