@@ -274,3 +274,27 @@ def test_real_data_oe_loss_no_higher_than_scipy_least_squares(shared_data):
         model = arxid.oe(data, *orders)
         for start in (model.start_parameters_, np.r_[np.zeros(orders[0]), -0.5, 0.1][: model.n_params]):
             assert model.loss_ <= _scipy_oe_loss(data, model, start) * (1 + 1e-6)
+
+
+# ----------------------------------------------------------------------------- general structure
+def test_polyest_with_both_a_and_f_recovers_every_polynomial():
+    """A y = B/F u + C e (MATLAB polyest [1 2 1 0 2 1]): A's pole is shared by input and noise."""
+    a, b, f, c = [1, -0.8], [0, 1.0, 0.5], [1, -1.2, 0.5], [1, 0.4]
+
+    def make(rng):
+        u, e = np.sign(rng.standard_normal(1000)), 0.3 * rng.standard_normal(1000)
+        y = signal.lfilter(b, np.convolve(a, f), u) + signal.lfilter(c, a, e)
+        return arxid.IOData(y, u, ts=1.0)
+
+    truth = np.r_[a[1:], b[1:], c[1:], f[1:]]
+    cover = _coverage(lambda d: arxid.polyest(d, 1, 2, 1, 0, 2, 1), truth, make)
+    assert np.all(cover >= 0.95), cover
+    data = make(np.random.default_rng(0))
+    model = arxid.polyest(data, 1, 2, 1, 0, 2, 1)
+    assert model.kind == "polynomial" and model.structure_name() == "poly(1,2,1,0,2,1)"
+    assert str(model).startswith("Discrete-time polynomial model: A(z)y(t) = [B(z)/F(z)]u(t) + [C(z)/D(z)]e(t)")
+    # The input path is B/(A F): free run and simulate agree, the poles are A's and F's.
+    free = model.predict(data, None)
+    ok = np.isfinite(free)
+    np.testing.assert_allclose(free[ok], model.simulate(data.u)[ok], atol=1e-9)
+    assert np.sort(np.abs(model.poles())) == pytest.approx(np.sort(np.abs(np.r_[np.roots(a), np.roots(f)])), abs=0.03)

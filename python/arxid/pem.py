@@ -1,4 +1,4 @@
-"""Prediction-error estimation: :func:`oe`, :func:`armax`, :func:`bj`, :func:`delayest` and the
+"""Prediction-error estimation: :func:`oe`, :func:`armax`, :func:`bj`, :func:`polyest`, :func:`delayest` and the
 output-error refinement of a sweep (:func:`refine`, behind ``arxid.sweep(..., refine="oe")``).
 
 The iterations run in the Rust core (Gauss–Newton with Levenberg–Marquardt damping, each step
@@ -27,7 +27,7 @@ from .polynomial import PolynomialModel, check_initial
 if TYPE_CHECKING:
     from .orders import SweepResult
 
-__all__ = ["oe", "armax", "bj", "delayest", "refine", "RefinedSweep", "RefinedRow"]
+__all__ = ["oe", "armax", "bj", "polyest", "delayest", "refine", "RefinedSweep", "RefinedRow"]
 
 
 def _fit(model: PolynomialModel, data: IOData, options: dict[str, Any]) -> PolynomialModel:
@@ -101,6 +101,32 @@ def bj(data: IOData, nb: Any, nc: int, nd: int, nf: Any, nk: Any, **options: Any
     PolynomialModel
     """
     return _fit(PolynomialModel(nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), data, options)
+
+
+def polyest(data: IOData, na: int, nb: Any, nc: int, nd: int, nf: Any, nk: Any, **options: Any) -> PolynomialModel:
+    """Fit the general polynomial model A y = B/F u + C/D e (MATLAB ``polyest(data, [na nb nc nd nf nk])``).
+
+    Parameters
+    ----------
+    data : IOData
+    na, nc, nd : int
+        Orders of A (poles shared by the input and the noise paths), C and D.
+    nb, nf, nk : int or sequence of int
+        Per input: numerator coefficients, poles of F and delay.
+    **options
+        As :func:`oe`.
+
+    Returns
+    -------
+    PolynomialModel
+
+    Notes
+    -----
+    The start is ARX for A and B (F = 1), Hannan–Rissanen for C and D; the Gauss–Newton iterations
+    then fit every polynomial. Prefer the named structures when one fits: OE, ARMAX and BJ are
+    special cases with fewer parameters to determine.
+    """
+    return _fit(PolynomialModel(na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), data, options)
 
 
 def _int(name: str, value: Any, low: int = 0) -> int:

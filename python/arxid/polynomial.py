@@ -150,8 +150,6 @@ class PolynomialModel(FittedModel):
             _per_input("nf", self.nf, m),
             _per_input("nk", self.nk, m),
         )
-        if orders[0] and any(orders[4]):
-            raise OrderError("a model with both A (na > 0) and F (nf > 0) is not supported; use oe, armax or bj")
         return orders
 
     def fit(
