@@ -116,3 +116,23 @@ def test_initial_option_round_trips_and_is_checked():
         arxid.oe(data, 2, 2, 1, initial="auto")
     with pytest.raises(arxid.ArxidError, match="'zero' or 'estimate'"):
         model.predict(data, None, initial=True)
+
+
+def test_compare_estimates_initial_states_of_every_linear_model():
+    est, _, _, _ = mid_transient(6, noise=0.05)
+    val, x, _, _ = mid_transient(7, noise=0.05)
+    oe = arxid.oe(est, 2, 2, 1, initial="estimate")
+    arx = arxid.arx(est, 2, 2, 1)
+    at_rest = arxid.compare({"oe": oe, "arx": arx}, val)
+    estimated = arxid.compare({"oe": oe, "arx": arx}, val, initial="estimate")
+    # The validation record starts mid-transient: from rest the OE model misses it.
+    assert at_rest.fit_percent[0] < 90 < 99 < estimated.fit_percent[0]
+    assert estimated.fit_percent[1] > at_rest.fit_percent[1]
+    # The ARX model is compared in its polynomial form, with the same parameters and the same
+    # one-step predictions from rest.
+    poly = arxid.PolynomialModel.from_arx(arx)
+    np.testing.assert_array_equal(poly.parameters_, arx.parameters_)
+    np.testing.assert_allclose(poly.predict(val, 1), arx.predict(val, 1), atol=1e-9, equal_nan=True)
+    np.testing.assert_allclose(estimated.predictions[0], oe.predict(val, None, initial="estimate"))
+    with pytest.raises(arxid.ArxidError, match="effect terms"):
+        arxid.compare(arxid.arx(est, 2, 2, 1, effects=["const"]), val, initial="estimate")

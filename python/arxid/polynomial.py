@@ -23,7 +23,7 @@ from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityErro
 from .fitted import FittedModel
 from .model import FittedLayout
 
-__all__ = ["PolynomialModel", "finite_segments"]
+__all__ = ["PolynomialModel", "finite_segments", "as_polynomial", "check_initial"]
 
 _JSON_FORMAT = "arxid.PolynomialModel"
 _JSON_VERSION = 1
@@ -600,6 +600,51 @@ class PolynomialModel(FittedModel):
         }
 
     @classmethod
+    def from_arx(cls, model: Any) -> PolynomialModel:
+        """The same fitted ARX model as a polynomial model (C = D = F = 1), as MATLAB's ``idpoly(sys)``.
+
+        Parameters
+        ----------
+        model : ArxModel
+            A fitted ARX model without effect terms.
+
+        Returns
+        -------
+        PolynomialModel
+            Same parameters, covariance, loss and names; ``iterations_`` 0.
+        """
+        model.check_fitted()
+        if model.effects:
+            raise ArxidError(
+                f"the ARX model has effect terms {list(model.effects)}: it has no polynomial form; "
+                f"use a model without effects"
+            )
+        m = len(model.input_names_)
+        d = {
+            "format": _JSON_FORMAT,
+            "version": _JSON_VERSION,
+            "orders": {"na": model.na_, "nb": list(model.nb_), "nc": 0, "nd": 0, "nf": [0] * m, "nk": list(model.nk_)},
+            "ts": model.ts_,
+            "output_name": model.output_name_,
+            "input_names": list(model.input_names_),
+            "output_unit": model.output_unit_,
+            "input_units": list(model.input_units_),
+            "parameters": model.parameters_,
+            "start_parameters": model.parameters_,
+            "covariance": model.covariance_,
+            "n_rows": model.n_rows_,
+            "n_skipped": model.n_skipped_,
+            "first_lag": model.first_lag_,
+            "rss": model.rss_,
+            "fit_percent": model.fit_percent_,
+            "iterations": 0,
+            "termination": "linear least squares (ARX)",
+            "converged": True,
+            "losses": [model.rss_ / model.n_rows_],
+        }
+        return _model_from_dict(cls, d)
+
+    @classmethod
     def from_json(cls, text_or_path: str) -> PolynomialModel:
         """Load a model written by :meth:`to_json`.
 
@@ -723,6 +768,20 @@ def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
                 f"cannot be identified; use data where it varies, or set nb=0 for it",
                 (data.input_names[i],),
             )
+
+
+def as_polynomial(model: Any) -> PolynomialModel:
+    """``model`` itself when it is a :class:`PolynomialModel`, else :meth:`PolynomialModel.from_arx`.
+
+    Parameters
+    ----------
+    model : PolynomialModel or ArxModel
+
+    Returns
+    -------
+    PolynomialModel
+    """
+    return model if isinstance(model, PolynomialModel) else PolynomialModel.from_arx(model)
 
 
 def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
