@@ -299,6 +299,12 @@ impl<'a> Segments<'a> {
         if let Some(&(a, b)) = segments.iter().find(|&&(a, b)| a >= b || b > y.len()) {
             return Err(ArxError::InvalidStructure(format!("segment [{a}, {b}) is empty or outside the data")));
         }
+        if let Some(w) = segments.windows(2).find(|w| w[1].0 < w[0].1) {
+            return Err(ArxError::InvalidStructure(format!(
+                "segments [{}, {}) and [{}, {}) overlap or are out of order: give them sorted and disjoint",
+                w[0].0, w[0].1, w[1].0, w[1].1
+            )));
+        }
         Ok(Segments { y, u, m, segments })
     }
 
@@ -663,6 +669,10 @@ fn evaluate(
     let mut ev = Evaluation { eps, signals: vec![], columns: vec![], initial };
     if gradient {
         add_gradient(data, s, xs, p, &ws, &v, &mut ev);
+        // The initial-state basis goes last, for the projection in `jacobian_r`.
+        if let Some(init) = &ev.initial {
+            ev.signals.push(init.basis.clone());
+        }
     }
     ev
 }
@@ -719,17 +729,15 @@ fn jacobian_r(ev: &Evaluation, rows: &[usize], parallel: bool) -> Vec<f64> {
         return reduce_columns(&ev.signals, &ev.columns, &ev.eps, rows, 0, parallel);
     };
     let (n, p) = (init.n, ev.columns.len());
-    let mut signals = ev.signals.clone();
-    signals.push(init.basis.clone());
-    let cols: Vec<Column> =
-        lagged(signals.len() - 1, 0..n, 1.0).into_iter().chain(ev.columns.iter().copied()).collect();
+    let basis = ev.signals.len() - 1;
+    let cols: Vec<Column> = lagged(basis, 0..n, 1.0).into_iter().chain(ev.columns.iter().copied()).collect();
     let q = n + p + 1;
     let blocks: Vec<Mat<f64>> = init
         .segments
         .iter()
         .map(|&(a, b)| {
             let seg_rows: Vec<usize> = (a..b).collect();
-            let r = reduce_columns(&signals, &cols, &ev.eps, &seg_rows, a, parallel);
+            let r = reduce_columns(&ev.signals, &cols, &ev.eps, &seg_rows, a, parallel);
             Mat::from_fn(p + 1, p + 1, |i, j| if i <= j { r[(n + i) + (n + j) * q] } else { 0.0 })
         })
         .collect();
