@@ -136,3 +136,24 @@ def test_compare_estimates_initial_states_of_every_linear_model():
     np.testing.assert_allclose(estimated.predictions[0], oe.predict(val, None, initial="estimate"))
     with pytest.raises(arxid.ArxidError, match="effect terms"):
         arxid.compare(arxid.arx(est, 2, 2, 1, effects=["const"]), val, initial="estimate")
+
+
+@pytest.mark.parametrize("fit", ["oe_two_inputs", "polyest"])
+def test_estimated_state_of_two_inputs_and_of_a_shared_pole_reproduces_the_output(fit):
+    """The state count covers each input's delay and poles (OE with two inputs) and A with F."""
+    rng = np.random.default_rng(1)
+    u1 = np.r_[10 * np.ones(PRE), np.sign(rng.standard_normal(3000))]
+    u2 = np.r_[-5 * np.ones(PRE), rng.standard_normal(3000)]
+    if fit == "oe_two_inputs":
+        x = signal.lfilter([0, 0, 0.5, 0.3], [1, -1.5, 0.7], u1) + signal.lfilter([0.2, 0.4], [1, -0.9], u2)
+        data = arxid.IOData(x[PRE:], np.c_[u1, u2][PRE:], ts=1.0)
+        model = arxid.oe(data, [2, 2], [2, 1], [2, 0], initial="estimate")
+        truth = [0.5, 0.3, 0.2, 0.4, -1.5, 0.7, -0.9]
+    else:
+        x = signal.lfilter([0, 1.0, 0.5], np.convolve([1, -0.8], [1, -1.2, 0.5]), u1)
+        data = arxid.IOData(x[PRE:], u1[PRE:], ts=1.0)
+        model = arxid.polyest(data, 1, 2, 0, 0, 2, 1, initial="estimate")
+        truth = [-0.8, 1.0, 0.5, -1.2, 0.5]
+    np.testing.assert_allclose(model.parameters_, truth, atol=1e-9)
+    np.testing.assert_allclose(model.predict(data, None, initial="estimate"), x[PRE:], atol=1e-8)
+    np.testing.assert_allclose(model.predict(data, 1, initial="estimate"), x[PRE:], atol=1e-8)
