@@ -18,6 +18,7 @@ __all__ = [
     "simulate_structures",
     "sweep_factors",
     "fit",
+    "fit_from_factor",
     "fit_memory",
     "grid_envelope",
     "max_lag",
@@ -90,6 +91,8 @@ class SweepOutput:
     def envelope(self) -> _Orders: ...
     @property
     def stage(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def r_est(self) -> _F: ...
 
 def fit(
     y: _F,
@@ -102,6 +105,13 @@ def fit(
     first_lag: int = 0,
     n_threads: int = 0,
     rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
+) -> FitOutput: ...
+def fit_from_factor(
+    r_est: _F,
+    n_rows: int,
+    envelope: tuple[int, Sequence[int], Sequence[int]],
+    structure: tuple[int, Sequence[int], Sequence[int]],
+    output_terms: Sequence[_Term],
 ) -> FitOutput: ...
 def predict(
     y: _F,
