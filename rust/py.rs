@@ -746,6 +746,15 @@ fn poly_structure(py: Python<'_>, o: PolyOrders) -> PyResult<crate::pem::PolyStr
     crate::pem::PolyStructure::new(o.0, o.1, o.2, o.3, o.4, o.5).map_err(|e| to_pyerr(py, e))
 }
 
+/// MATLAB's `InitialCondition` names: "zero" or "estimate".
+fn initial_condition(name: &str) -> PyResult<crate::pem::Initial> {
+    match name {
+        "zero" => Ok(crate::pem::Initial::Zero),
+        "estimate" => Ok(crate::pem::Initial::Estimate),
+        other => Err(ArxidError::new_err(format!("initial must be 'zero' or 'estimate', got {other:?}"))),
+    }
+}
+
 /// What `pem_fit` returns.
 #[pyclass(frozen, get_all, module = "arxid._core")]
 pub struct PemOutput {
@@ -769,11 +778,17 @@ pub struct PemOutput {
     termination: String,
     /// True when they stopped at a (local) minimum.
     converged: bool,
+    /// With initial="estimate": the segments `(start, end)` whose initial state was estimated.
+    initial_segments: Vec<(usize, usize)>,
+    /// Their initial states, one row per segment (empty with initial="zero").
+    initial_states: Vec<Vec<f64>>,
 }
 
 /// Prediction-error fit of a polynomial model on finite `segments` `[start, end)` of the data.
 #[pyfunction]
-#[pyo3(signature = (y, u, segments, orders, start = None, max_iterations = 100, tolerance = 1e-6, n_threads = 0))]
+#[pyo3(signature = (
+    y, u, segments, orders, start = None, max_iterations = 100, tolerance = 1e-6, n_threads = 0, initial = "zero"
+))]
 #[allow(clippy::too_many_arguments)]
 fn pem_fit<'py>(
     py: Python<'py>,
@@ -785,7 +800,9 @@ fn pem_fit<'py>(
     max_iterations: usize,
     tolerance: f64,
     n_threads: usize,
+    initial: &str,
 ) -> PyResult<PemOutput> {
+    let initial = initial_condition(initial)?;
     let s = poly_structure(py, orders)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
@@ -793,8 +810,10 @@ fn pem_fit<'py>(
         Some(a) => Some(a.as_slice()?),
         None => None,
     };
-    let opts = crate::pem::PemOptions { max_iterations, tolerance, parallel: n_threads != 1, ..Default::default() };
-    let f = run(py, n_threads, |_| crate::pem::pem(&d, &s, &opts, start))?;
+    let opts =
+        crate::pem::PemOptions { max_iterations, tolerance, parallel: n_threads != 1, initial, ..Default::default() };
+    let f = run(py, n_threads, |cancel| crate::pem::pem(&d, &s, &opts, start, cancel))?;
+    let (initial_segments, initial_states) = f.initial_states.into_iter().unzip();
     let p = f.theta.len();
     Ok(PemOutput {
         theta: f.theta.into_pyarray(py).unbind(),
@@ -807,13 +826,16 @@ fn pem_fit<'py>(
         losses: f.losses.into_pyarray(py).unbind(),
         termination: f.termination.to_string(),
         converged: f.termination.converged(),
+        initial_segments,
+        initial_states,
     })
 }
 
 /// Prediction of a polynomial model: `horizon` k steps ahead, None the free run; NaN outside the
-/// scored samples of `segments`.
+/// scored samples of `segments`; `initial` "zero" or "estimate" (fitted to these data first).
 #[pyfunction]
-#[pyo3(signature = (y, u, segments, orders, theta, horizon = None))]
+#[pyo3(signature = (y, u, segments, orders, theta, horizon = None, initial = "zero"))]
+#[allow(clippy::too_many_arguments)]
 fn pem_predict<'py>(
     py: Python<'py>,
     y: PyReadonlyArray1<'py, f64>,
@@ -822,7 +844,9 @@ fn pem_predict<'py>(
     orders: PolyOrders,
     theta: PyReadonlyArray1<'py, f64>,
     horizon: Option<usize>,
+    initial: &str,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let initial = initial_condition(initial)?;
     let s = poly_structure(py, orders)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
@@ -836,7 +860,7 @@ fn pem_predict<'py>(
             s.n_params()
         )));
     }
-    let out = run(py, 1, |_| Ok(crate::pem::predict(&d, &s, th, horizon)))?;
+    let out = run(py, 1, |_| Ok(crate::pem::predict(&d, &s, th, horizon, initial)))?;
     Ok(out.into_pyarray(py))
 }
 

@@ -174,6 +174,10 @@ class PemOutput:
     def termination(self) -> str: ...
     @property
     def converged(self) -> bool: ...
+    @property
+    def initial_segments(self) -> list[tuple[int, int]]: ...
+    @property
+    def initial_states(self) -> list[list[float]]: ...
 
 def pem_fit(
     y: _F,
@@ -184,9 +188,16 @@ def pem_fit(
     max_iterations: int = 100,
     tolerance: float = 1e-6,
     n_threads: int = 0,
+    initial: str = "zero",
 ) -> PemOutput: ...
 def pem_predict(
-    y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F, horizon: int | None = None
+    y: _F,
+    u: _F,
+    segments: Sequence[tuple[int, int]],
+    orders: _PolyOrders,
+    theta: _F,
+    horizon: int | None = None,
+    initial: str = "zero",
 ) -> _F: ...
 def pem_gradient(
     y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F
