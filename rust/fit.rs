@@ -194,6 +194,7 @@ pub fn fit_from_factor(r: &[f64], q: usize, cols: &[usize], n_rows: usize) -> Re
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::qr::stack_and_reduce;
     use crate::structure::Structure;
 
     fn lcg(seed: &mut u64) -> f64 {
@@ -243,6 +244,34 @@ mod tests {
         let d = Data::new(&y, &y, 1, &starts).unwrap();
         let s = Structure::new(1 << 39, vec![1], vec![0], vec![]).unwrap();
         assert!(matches!(fit(&d, &s, 0, false), Err(ArxError::TooFewSamples { got: 0, .. })));
+    }
+
+    #[test]
+    fn fit_from_two_stacked_factors_equals_the_fit_of_both_experiments() {
+        let n = 600;
+        let mut seed = 11;
+        let u: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let y: Vec<f64> = (0..n).map(|t| if t > 0 { 0.3 * u[t - 1] + lcg(&mut seed) } else { 0.0 }).collect();
+        let s = Structure::new(1, vec![2], vec![1], vec![]).unwrap();
+        let starts = [0, 250];
+        let whole = fit(&Data::new(&y, &u, 1, &starts).unwrap(), &s, 0, false).unwrap();
+        let (p, q) = (s.n_params(), s.n_params() + 1);
+        let blocks: Vec<_> = [(0, 250), (250, n)]
+            .iter()
+            .map(|&(a, b)| {
+                let d = Data::new(&y[a..b], &u[a..b], 1, &[0]).unwrap();
+                let (rows, _) = usable_rows(&d, &s, 0);
+                reduce_checked(&d, &s, &rows, false, &|| true).unwrap()
+            })
+            .collect();
+        let r = to_col_major(&stack_and_reduce(&blocks, q));
+        let cols: Vec<usize> = (0..p).collect();
+        let f = fit_from_factor(&r, q, &cols, whole.n_rows).unwrap();
+        for (a, b) in f.theta.iter().zip(&whole.theta) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        assert!((f.rss - whole.rss).abs() < 1e-10 * whole.rss);
+        assert_eq!(f.inv_gram.len(), p * p);
     }
 
     #[test]

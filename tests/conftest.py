@@ -44,3 +44,18 @@ def simulate_arx(a, bs, nks, u, noise=None):
                     acc += bj * u[t - nk - j, col]
         y[t] = acc
     return y
+
+
+@pytest.fixture(scope="session")
+def dask_client():
+    """One ``LocalCluster(n_workers=2, processes=True)`` for every fleet test of the session (started
+    here, closed at the end; its dashboard on a random port, as 8787 may be taken by a concurrent
+    cluster); skipped without the dask extra."""
+    distributed = pytest.importorskip("distributed", reason="needs the dask extra: pip install 'arxid[dask]'")
+    cluster = distributed.LocalCluster(
+        n_workers=2, processes=True, threads_per_worker=1, dashboard_address=":0", silence_logs=40
+    )
+    client = distributed.Client(cluster)
+    yield client
+    client.close()
+    cluster.close()

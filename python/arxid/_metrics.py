@@ -23,6 +23,7 @@ Definitions (MATLAB's System Identification Toolbox where it has one):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -37,6 +38,8 @@ __all__ = [
     "rms",
     "prediction_rms",
     "fit_percent",
+    "fit_percent_part",
+    "fit_percent_of_parts",
     "fit_percent_from_norms",
     "rolling_rms",
     "fpe",
@@ -104,21 +107,81 @@ def fit_percent(y: _ArrayLike, pred: _ArrayLike) -> float:
 
     ``-inf`` when the prediction diverged, NaN when no sample has both or ``y`` is constant there.
     """
+    return fit_percent_of_parts([fit_percent_part(y, pred)])
+
+
+def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
+    """What one part of the data (one worker's logs) contributes to :func:`fit_percent`.
+
+    Parameters
+    ----------
+    y, pred : array_like of shape (n_samples,)
+        Measured output and its prediction.
+
+    Returns
+    -------
+    ndarray of shape (8,)
+        Samples with both, largest finite |y|, largest finite |pred|, whether pred is infinite
+        somewhere, largest |y| where both exist, and the scaled squared error, mean and squared
+        deviation from the mean there (combine parts with :func:`fit_percent_of_parts`).
+    """
     y = np.asarray(y, dtype=float)
     pred = np.asarray(pred, dtype=float)
-    if diverged(y, pred):
-        return -math.inf
-    ok = np.isfinite(y) & np.isfinite(pred)
-    if not ok.any():
-        return math.nan
+    finite_y, finite_pred = np.isfinite(y), np.isfinite(pred)
+    ok = finite_y & finite_pred
+    n = int(np.count_nonzero(ok))
+    peak_y, peak_pred = _peak(y, finite_y), _peak(pred, finite_pred)
+    head = [n, peak_y, peak_pred, np.isinf(pred).any()]
+    if n == 0:
+        return np.array(head + [0.0, 0.0, 0.0, 0.0], dtype=float)
+    yo, po = (y, pred) if n == len(y) else (y[ok], pred[ok])
     # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
     # or 1e-200 neither overflow nor underflow the sums of squares.
-    big = float(np.max(np.abs(y[ok])))
-    scale = 1.0 / big if big > 0 and math.isfinite(1.0 / big) else 1.0
+    big = peak_y if n == len(y) else _peak(yo, np.ones(n, dtype=bool))
+    scale = _unit_scale(big)
     with np.errstate(over="ignore", invalid="ignore"):
-        e = float(np.linalg.norm((y[ok] - pred[ok]) * scale))
-        d = float(np.linalg.norm((y[ok] - y[ok].mean()) * scale))
-    return float(fit_percent_from_norms(e, d))
+        e = (yo - po) * scale
+        mean = yo.mean()
+        c = (yo - mean) * scale
+        return np.array(head + [big, np.dot(e, e), mean, np.dot(c, c)], dtype=float)
+
+
+def _peak(x: np.ndarray, finite: np.ndarray) -> float:
+    """Largest |x| over the finite samples (0 when there are none)."""
+    x = x if finite.all() else x[finite]
+    return float(max(np.max(x), -np.min(x))) if x.size else 0.0  # max |x| without a copy
+
+
+def _unit_scale(big: float) -> float:
+    return 1.0 / big if big > 0 and math.isfinite(1.0 / big) else 1.0
+
+
+def fit_percent_of_parts(parts: Sequence[np.ndarray]) -> float:
+    """:func:`fit_percent` over all the samples of several parts (:func:`fit_percent_part`).
+
+    Parameters
+    ----------
+    parts : sequence of ndarray of shape (8,)
+
+    Returns
+    -------
+    float
+        The fit of the parts' samples taken together; for one part, :func:`fit_percent` of it.
+    """
+    a = np.asarray(parts, dtype=float).reshape(-1, 8)
+    n, peak_y, peak_pred, infinite, big, sse, mean, m2 = a.T
+    if infinite.any() or peak_pred.max() > divergence_limit(np.array([peak_y.max()])):
+        return -math.inf
+    if n.sum() == 0:
+        return math.nan
+    # Each part was scaled by its own largest |y|; bring them to the largest of all.
+    ratio = np.array([_unit_scale(big.max()) / _unit_scale(b) for b in big]) ** 2
+    with np.errstate(over="ignore", invalid="ignore"):
+        total_sse, total_m2 = float(np.dot(sse, ratio)), float(np.dot(m2, ratio))
+        if len(a) > 1:  # Chan's pooled squared deviation: each part's mean differs from the whole's.
+            whole = float(np.dot(n, mean) / n.sum())
+            total_m2 += float(np.dot(n, ((mean - whole) * _unit_scale(big.max())) ** 2))
+    return float(fit_percent_from_norms(math.sqrt(total_sse), math.sqrt(total_m2)))
 
 
 def rolling_rms(e: _ArrayLike, window: int) -> np.ndarray:

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import operator
 import os
+import zipfile
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -39,9 +40,9 @@ import numpy as np
 
 from . import _core
 from .data import IOData
-from .exceptions import DataError
+from .exceptions import ArxidError, DataError
 
-__all__ = ["FleetSweep", "load_experiment", "split_experiment", "DaskEngine"]
+__all__ = ["FleetSweep", "LogSignals", "load_experiment", "read_log", "merge_logs", "split_experiment", "DaskEngine"]
 
 
 def load_experiment(source: Any, read: Any = None) -> IOData:
@@ -80,6 +81,164 @@ def load_experiment(source: Any, read: Any = None) -> IOData:
         f"cannot read {path!r}: give .npz files (y, u, ts), .csv files with read=dict(output=..., inputs=[...]), "
         f"or read=<function of the path returning an IOData>"
     )
+
+
+def read_log(source: Any, read: Any, name: str) -> IOData:
+    """One log as IOData, with any failure to read it reported as a DataError naming the log.
+
+    Parameters
+    ----------
+    source : IOData, str or path-like
+    read : dict or callable or None
+        As in :func:`load_experiment`.
+    name : str
+        The log's name in messages (:func:`log_name`).
+
+    Returns
+    -------
+    IOData
+
+    Raises
+    ------
+    DataError
+        Naming the log, for a missing, unreadable or malformed file.
+    """
+    try:
+        return load_experiment(source, read)
+    except ArxidError as exc:
+        raise DataError(f"cannot read log {name!r}: {exc}") from exc
+    except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataError(
+            f"cannot read log {name!r}: {exc}; give an IOData or the path of a readable .npz (y, u, ts) or .csv file"
+        ) from exc
+
+
+@dataclass(frozen=True)
+class LogSignals:
+    """What every log of a fleet must share to be fitted together: the sampling time in seconds and
+    the names of the output, inputs and extra signals (as :meth:`IOData.merge` requires)."""
+
+    ts: float
+    output_name: str
+    input_names: tuple
+    output_unit: str
+    input_units: tuple
+    extra: tuple
+
+    @classmethod
+    def of(cls, data: IOData) -> LogSignals:
+        """The signals of one log.
+
+        Parameters
+        ----------
+        data : IOData
+
+        Returns
+        -------
+        LogSignals
+        """
+        return cls(
+            data.ts, data.output_name, data.input_names, data.output_unit, data.input_units, tuple(sorted(data.extra))
+        )
+
+
+def check_alike(signals: Sequence[LogSignals], names: Sequence[str]) -> None:
+    """Refuse a fleet whose logs differ in sampling time or signal names, naming the odd log.
+
+    Parameters
+    ----------
+    signals : sequence of LogSignals
+        One per log.
+    names : sequence of str
+        The logs' names, in the same order.
+
+    Raises
+    ------
+    DataError
+    """
+    first, ref = signals[0], names[0]
+    for sig, name in zip(signals[1:], names[1:], strict=True):
+        if not math.isclose(sig.ts, first.ts, rel_tol=1e-9):
+            raise DataError(
+                f"log {name!r} is sampled at ts={sig.ts:g} s but log {ref!r} at ts={first.ts:g} s; "
+                "resample the logs to one sampling time"
+            )
+        for what, a, b in (
+            ("output", first.output_name, sig.output_name),
+            ("inputs", list(first.input_names), list(sig.input_names)),
+            ("extra signals", list(first.extra), list(sig.extra)),
+        ):
+            if a != b:
+                raise DataError(
+                    f"log {name!r} has {what} {b!r} but log {ref!r} has {a!r}; every log needs the same "
+                    "signals (rename the columns, or read every log with the same read=)"
+                )
+
+
+def load_logs(sources: Sequence[Any], read: Any = None) -> list[IOData]:
+    """Every log read and checked to share its sampling time and signals with the first.
+
+    Parameters
+    ----------
+    sources : sequence of IOData or paths
+    read : dict or callable, optional
+        As in :func:`load_experiment`.
+
+    Returns
+    -------
+    list of IOData
+
+    Raises
+    ------
+    DataError
+        For an empty list, or naming the log that cannot be read or does not match the first.
+    """
+    if not len(sources):
+        raise DataError("the list of logs is empty; give at least one IOData or file path")
+    names = [log_name(s, i) for i, s in enumerate(sources)]
+    logs = [read_log(s, read, n) for s, n in zip(sources, names, strict=True)]
+    check_alike([LogSignals.of(d) for d in logs], names)
+    return logs
+
+
+def merge_logs(sources: Sequence[Any], read: Any = None) -> IOData:
+    """The logs as one IOData with one experiment per log (regressors never straddle two logs).
+
+    Parameters
+    ----------
+    sources : sequence of IOData or paths
+    read : dict or callable, optional
+        As in :func:`load_experiment`.
+
+    Returns
+    -------
+    IOData
+    """
+    return IOData.merge(load_logs(sources, read))
+
+
+def reduce_tree(client: Any, futures: list, combine: Callable) -> Any:
+    """Futures combined pairwise on the cluster, level by level, down to one; its result.
+
+    Parameters
+    ----------
+    client : dask.distributed.Client
+    futures : list of futures
+        At least one.
+    combine : callable
+        Of two results, returning one of the same kind.
+
+    Returns
+    -------
+    Any
+        The combination of all.
+    """
+    while len(futures) > 1:
+        futures = [
+            client.submit(combine, futures[i], futures[i + 1]) if i + 1 < len(futures) else futures[i]
+            for i in range(0, len(futures), 2)
+        ]
+    return futures[0].result()
 
 
 def split_experiment(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
@@ -185,7 +344,17 @@ def partial_factors(parts: tuple, layout: np.ndarray) -> tuple:
     return r_est, n_est, r_val, n_val, _peak(est), _peak(val)
 
 
-def _stack(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
+def stack_factors(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
+    """The triangular factor of two stacked factors (the R of ``[a; b]``; None stands for no rows).
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (q, q) or None
+
+    Returns
+    -------
+    ndarray of shape (q, q) or None
+    """
     if a is None or b is None:
         return a if b is None else b
     return np.asarray(np.linalg.qr(np.vstack([a, b]), mode="r"))
@@ -204,7 +373,14 @@ def combine_factors(a: tuple, b: tuple) -> tuple:
     tuple
         The same for the rows of both.
     """
-    return _stack(a[0], b[0]), a[1] + b[1], _stack(a[2], b[2]), a[3] + b[3], max(a[4], b[4]), max(a[5], b[5])
+    return (
+        stack_factors(a[0], b[0]),
+        a[1] + b[1],
+        stack_factors(a[2], b[2]),
+        a[3] + b[3],
+        max(a[4], b[4]),
+        max(a[5], b[5]),
+    )
 
 
 def simulate_parts(parts: tuple, which: str, layout: np.ndarray, theta: np.ndarray, args: dict) -> tuple:
@@ -265,9 +441,7 @@ class DaskEngine:
         -------
         tuple of (IOData, IOData or None)
         """
-        if not self.sources:
-            raise DataError("the list of logs is empty")
-        split = [split_experiment(load_experiment(s, self.read), self.validation) for s in self.sources]
+        split = [split_experiment(d, self.validation) for d in load_logs(self.sources, self.read)]
         est = IOData.merge([e for e, _ in split])
         val = None if self.validation is None else IOData.merge([v for _, v in split if v is not None])
         return est, val
@@ -296,12 +470,7 @@ class DaskEngine:
         # Only the factors leave the workers (the grid travels inside the tasks, not scattered:
         # scattered data die with their worker).
         futures = [self.client.submit(operator.itemgetter(2), s) for s in shares]
-        while len(futures) > 1:
-            futures = [
-                self.client.submit(combine_factors, futures[i], futures[i + 1]) if i + 1 < len(futures) else futures[i]
-                for i in range(0, len(futures), 2)
-            ]
-        return futures[0].result()
+        return reduce_tree(self.client, futures, combine_factors)
 
     def simulate(self, shares: list, which: str, layout: np.ndarray, theta: np.ndarray, args: dict) -> tuple:
         """Scores of every given structure over all logs: each share simulates its own logs.
@@ -464,7 +633,19 @@ def _choice(res: Any) -> str:
         return "-"
 
 
-def _name(source: Any, i: int) -> str:
+def log_name(source: Any, i: int) -> str:
+    """How messages and tables name a log: its file name, or ``log 1``, ``log 2``, ... for IOData.
+
+    Parameters
+    ----------
+    source : IOData or path
+    i : int
+        Its position in the list (from 0).
+
+    Returns
+    -------
+    str
+    """
     return os.path.basename(os.fspath(source)) if not isinstance(source, IOData) else f"log {i + 1}"
 
 
@@ -515,7 +696,7 @@ def sweep_each(
         opts = {**options, "progress": False, "n_threads": 1}
         futures = [client.submit(sweep_one, s, read, validation, sweep, opts, pure=False) for s in sources]
         tables = client.gather(futures)
-    names = tuple(_name(s, i) for i, s in enumerate(sources))
+    names = tuple(log_name(s, i) for i, s in enumerate(sources))
     return FleetSweep(tuple(tables), names, tuple(_choice(t) for t in tables))
 
 

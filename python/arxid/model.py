@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
+import types
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
-from . import _core, modelfile
+from . import _core, fleet, fleet_fit, modelfile
 from . import _metrics as metrics
 from ._format import format_polynomial as _format_poly
 from ._limits import check_memory, check_order, check_work
@@ -18,7 +20,7 @@ from .data import IOData
 from .effects import EffectLayout, compile_effects, effect_names
 from .exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .fitted import FittedModel
-from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names
+from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names, row_bound
 
 if TYPE_CHECKING:
     from .orders import Selection
@@ -127,18 +129,23 @@ def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> 
 
     Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
     """
+    lag = max(first_lag, max_lag(na, layout))
+    usable = row_bound(data, lag)
+    return _check_rows(na, layout, usable, data.n_samples, lag), usable
+
+
+def _check_rows(na: int, layout: EffectLayout, usable: int, n_samples: int, lag: int) -> int:
+    """The parameter count, after checking that ``usable`` regression rows can determine them."""
     p = na + sum(layout.nb) + len(layout.output_terms)
     if p == 0:
         raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
-    lag = max(first_lag, max_lag(na, layout))
-    usable = sum(max(0, b - a - lag) for a, b in data.segments)
     if usable < p + 1:
         raise DataError(
             f"too few samples for the orders: {p} parameters need at least {p + 1} regression rows, "
-            f"but {data.n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
+            f"but {n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
             f"lower na/nb/nk or use more data"
         )
-    return p, usable
+    return p
 
 
 def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
@@ -166,7 +173,7 @@ def _solve(
     rows_like: tuple[int, Sequence[int], Sequence[int]] | None,
 ) -> Any:
     """The core's QR solve; a rank-deficient regressor is named with the columns it depends on."""
-    y = np.ascontiguousarray(data.y)
+    y = np.require(data.y, requirements=["C", "A"])  # arrays unpickled on a Dask worker may be misaligned
     try:
         res = _core.fit(
             y,
@@ -181,18 +188,23 @@ def _solve(
             rows_like=rows_like,
         )
     except IdentifiabilityError as exc:
-        col = getattr(exc, "column", None)
-        if col is None:
+        if getattr(exc, "column", None) is None:
             raise
         phi, _, _ = regressor_matrix(data, na, layout, first_lag)
-        partners = dependent_partners(phi, col, names)
-        raise IdentifiabilityError(
-            f"regressor {names[col]} is a linear combination of {', '.join(partners) or 'the regressors before it'} "
-            f"on these data (collinear regressors): remove one of them, lower the orders, or use data that excite them "
-            f"independently",
-            tuple(partners) + (names[col],),
-        ) from None
+        raise _collinear(exc.column, phi, names) from None  # type: ignore[attr-defined]
     return res
+
+
+def _collinear(col: int, phi: np.ndarray, names: list[str]) -> IdentifiabilityError:
+    """The error naming a regressor that depends on the ones before it. ``phi`` is the regressor
+    matrix, or its triangular factor R (the same least squares, so the same partners)."""
+    partners = dependent_partners(phi, col, names)
+    return IdentifiabilityError(
+        f"regressor {names[col]} is a linear combination of {', '.join(partners) or 'the regressors before it'} "
+        f"on these data (collinear regressors): remove one of them, lower the orders, or use data that excite them "
+        f"independently",
+        tuple(partners) + (names[col],),
+    )
 
 
 class ArxModel(FittedModel):
@@ -244,18 +256,21 @@ class ArxModel(FittedModel):
     # ------------------------------------------------------------------ fitting
     def fit(
         self,
-        data: IOData,
+        data: IOData | Sequence[Any],
         *,
         first_lag: int = 0,
         n_threads: int = 0,
         rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
+        client: Any = None,
+        read: Any = None,
     ) -> ArxModel:
         """Least squares by Householder QR in the Rust core.
 
         Parameters
         ----------
-        data : IOData
-            Estimation data.
+        data : IOData, or list of IOData or file paths
+            Estimation data. A list of logs is fitted as one data set with one experiment per log
+            (see :mod:`arxid.fleet_fit`).
         first_lag : int
             Start the regression rows this far into each experiment (at least the model's own
             largest lag); sweeps use it to compare structures on the same rows.
@@ -265,12 +280,23 @@ class ArxModel(FittedModel):
             Orders per column of the effect layout of a larger structure: rows where its
             regressors touch a NaN are left out too (a sweep passes its grid's envelope, so that
             on data with NaN the refit uses exactly the sweep's rows).
+        client : dask.distributed.Client, optional
+            With a list of logs: fit on this Dask cluster, each worker reducing its own logs to a
+            triangular factor (:mod:`arxid.fleet_fit`); the model then keeps no ``data_``.
+        read : dict or callable, optional
+            With file paths: how to read them (see :func:`arxid.fleet.load_experiment`).
 
         Returns
         -------
         ArxModel
             ``self``, fitted.
         """
+        if isinstance(data, (list, tuple)):
+            if client is not None:
+                return self._fit_cluster(fleet_fit.ClusterLogs(client, data, read), first_lag, rows_like)
+            data = fleet.merge_logs(data, read)
+        elif client is not None:
+            raise DataError("client= fits a list of logs: pass a list of IOData objects or file paths")
         if not isinstance(data, IOData):
             raise DataError(
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
@@ -292,10 +318,47 @@ class ArxModel(FittedModel):
         self._store(data, (na, nb, nk), layout, names, first_lag, res)
         return self
 
+    def _fit_cluster(self, logs: fleet_fit.ClusterLogs, first_lag: int, rows_like: Any) -> ArxModel:
+        """The fit of logs kept on a Dask cluster, solved from their combined factor."""
+        if first_lag or rows_like is not None:
+            raise ArxidError("first_lag and rows_like are not available with client=; fit the merged IOData instead")
+        sig = logs.signals
+        m = len(sig.input_names)
+        na, nb, nk = check_order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
+        r, n_rows, usable, layout, n_samples = logs.factor(na, nb, nk, self.effects)
+        lag = max_lag(na, layout)
+        _check_rows(na, layout, usable, n_samples, lag)
+        names = regressor_names(sig.output_name, na, layout)
+        orders = (na, list(layout.nb), list(layout.nk))
+        if n_rows < r.shape[0]:
+            raise DataError(
+                f"too few complete regression rows on these logs: {r.shape[0] - 1} parameters need at least "
+                f"{r.shape[0]}, the logs have {n_rows} without missing samples; lower na/nb/nk or use more data"
+            )
+        try:
+            out = _core.fit_from_factor(r, n_rows, orders, orders, list(layout.output_terms))
+        except IdentifiabilityError as exc:
+            if getattr(exc, "column", None) is None:
+                raise
+            raise _collinear(exc.column, r[:, :-1], names) from None  # type: ignore[attr-defined]
+        res = types.SimpleNamespace(
+            theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows, inv_gram=out.inv_gram
+        )
+        self._store(sig, (na, nb, nk), layout, names, 0, res, fit_percent=logs.fit_percent)
+        return self
+
     def _store(
-        self, data: IOData, orders: tuple, layout: EffectLayout, names: list[str], first_lag: int, res: Any
+        self,
+        data: Any,
+        orders: tuple,
+        layout: EffectLayout,
+        names: list[str],
+        first_lag: int,
+        res: Any,
+        fit_percent: Any = None,
     ) -> None:
-        """Fitted state from the core's result (constructor arguments stay as given)."""
+        """Fitted state from the core's result (constructor arguments stay as given). ``data`` is the
+        IOData, or the signals of logs kept elsewhere, with ``fit_percent`` computing the fit there."""
         self.na_, self.nb_, self.nk_ = orders
         self.ts_ = data.ts
         self.output_name_, self.input_names_ = data.output_name, data.input_names
@@ -308,8 +371,11 @@ class ArxModel(FittedModel):
         self.first_lag_ = first_lag
         self.rss_ = float(res.rss)
         self.covariance_ = metrics.parameter_covariance(res.inv_gram, self.rss_, self.n_rows_)
-        self.data_ = data
-        self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
+        self.data_ = data if isinstance(data, IOData) else None
+        if fit_percent is not None:
+            self.fit_percent_ = fit_percent(self)
+        else:
+            self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
 
     def check_fitted(self) -> None:
         """Raise :class:`NotFittedError` unless the model is fitted (or loaded from JSON).
@@ -466,14 +532,14 @@ class ArxModel(FittedModel):
         self._check_prediction_work(data, layout, horizon)
         return np.asarray(
             _core.predict(
-                np.ascontiguousarray(data.y),
+                np.require(data.y, requirements=["C", "A"]),
                 layout.u,
                 list(data.experiment_starts),
                 self.na_,
                 list(layout.nb),
                 list(layout.nk),
                 list(layout.output_terms),
-                np.ascontiguousarray(self.parameters_, dtype=float),
+                np.require(self.parameters_, dtype=float, requirements=["C", "A"]),
                 horizon=horizon,
                 first_lag=self.first_lag_,
             )
@@ -801,12 +867,55 @@ def _model_from_dict(cls: type[ArxModel], d: dict) -> ArxModel:
     return model
 
 
-def arx(data: IOData, na: int, nb, nk, effects: Sequence[str] = (), *, n_threads: int = 0) -> ArxModel:
+@overload
+def arx(
+    data: IOData | Sequence[Any],
+    na: int,
+    nb,
+    nk,
+    effects: Sequence[str] = ...,
+    *,
+    n_threads: int = ...,
+    client: Any = ...,
+    per_experiment: Literal[False] = ...,
+    read: Any = ...,
+) -> ArxModel: ...
+
+
+@overload
+def arx(
+    data: Sequence[Any],
+    na: int,
+    nb,
+    nk,
+    effects: Sequence[str] = ...,
+    *,
+    n_threads: int = ...,
+    client: Any = ...,
+    per_experiment: Literal[True],
+    read: Any = ...,
+) -> fleet_fit.FleetModels: ...
+
+
+def arx(
+    data: IOData | Sequence[Any],
+    na: int,
+    nb,
+    nk,
+    effects: Sequence[str] = (),
+    *,
+    n_threads: int = 0,
+    client: Any = None,
+    per_experiment: bool = False,
+    read: Any = None,
+) -> Any:
     """Fit an ARX model (optionally with effect terms) by Householder QR.
 
     Parameters
     ----------
-    data : IOData
+    data : IOData, or list of IOData or file paths
+        Estimation data. A list of logs is fitted as one data set with one experiment per log (no
+        regressor straddles two logs); see :mod:`arxid.fleet_fit`.
     na : int
         Number of poles.
     nb, nk : int or sequence of int
@@ -815,13 +924,27 @@ def arx(data: IOData, na: int, nb, nk, effects: Sequence[str] = (), *, n_threads
         Extra physical terms, e.g. ``["u1^2", "u1*vbat", "y^3", "sign(dy)", "const"]``.
     n_threads : int
         Threads for the QR reduction (0 = all).
+    client : dask.distributed.Client, optional
+        With a list of logs: fit on this Dask cluster; the workers read their own logs and send
+        back triangular factors, never the samples.
+    per_experiment : bool
+        With a list of logs: fit one model per log and return a :class:`arxid.fleet_fit.FleetModels`
+        (the models, and how each parameter varies across the logs).
+    read : dict or callable, optional
+        With file paths: how to read them (see :func:`arxid.fleet.load_experiment`).
 
     Returns
     -------
     ArxModel
+        A :class:`arxid.fleet_fit.FleetModels` with ``per_experiment=True``.
 
     Raises
     ------
     DataError, OrderError, IdentifiabilityError
     """
-    return ArxModel(na=na, nb=nb, nk=nk, effects=effects).fit(data, n_threads=n_threads)
+    if per_experiment:
+        if not isinstance(data, (list, tuple)):
+            raise DataError("per_experiment=True fits each log of a list: pass a list of IOData objects or file paths")
+        fit = functools.partial(arx, na=na, nb=nb, nk=nk, effects=effects, n_threads=1 if client else n_threads)
+        return fleet_fit.fit_each(data, client, read, fit)
+    return ArxModel(na=na, nb=nb, nk=nk, effects=effects).fit(data, n_threads=n_threads, client=client, read=read)

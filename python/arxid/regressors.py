@@ -15,7 +15,7 @@ from . import _core
 from .data import IOData
 from .effects import EffectLayout
 
-__all__ = ["regressor_names", "regressor_matrix", "max_lag"]
+__all__ = ["regressor_names", "regressor_matrix", "max_lag", "row_bound"]
 
 
 def _lag(k: int) -> str:
@@ -39,6 +39,22 @@ def max_lag(na: int, layout: EffectLayout) -> int:
     """
     # The core's own rule (Structure::max_lag), so Python never mirrors it.
     return int(_core.max_lag(na, list(layout.nb), list(layout.nk), list(layout.output_terms)))
+
+
+def row_bound(data: IOData, lag: int) -> int:
+    """Regression rows at most available when every experiment starts ``lag`` samples in (before
+    leaving out the rows that touch a missing sample).
+
+    Parameters
+    ----------
+    data : IOData
+    lag : int
+
+    Returns
+    -------
+    int
+    """
+    return sum(max(0, b - a - lag) for a, b in data.segments)
 
 
 def regressor_names(output_name: str, na: int, layout: EffectLayout) -> list[str]:
