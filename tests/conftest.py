@@ -59,3 +59,32 @@ def dask_client():
     yield client
     client.close()
     cluster.close()
+
+
+def _read_or_die(path, marker):
+    """Reads a log; the first worker to read the third log (flight2.npz) dies (os._exit) in the middle
+    of the run, once (``marker`` records that it happened)."""
+    import distributed
+
+    from arxid import fleet
+
+    try:
+        distributed.get_worker()
+    except ValueError:  # on the client
+        return fleet.load_experiment(path)
+    if path.endswith("flight2.npz") and not os.path.exists(marker):
+        open(marker, "w").close()
+        os._exit(1)
+    return fleet.load_experiment(path)
+
+
+def worker_killing_reader(marker: str):
+    """A ``read=`` for fleet tests that kills one Dask worker once, pickled by value (the workers do
+    not import this file)."""
+    import functools
+    import sys
+
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    return functools.partial(_read_or_die, marker=marker)

@@ -4,7 +4,6 @@ sweep of the same logs, merged and per log, also when a worker dies in the middl
 from __future__ import annotations
 
 import os
-import sys
 
 import numpy as np
 import pytest
@@ -12,6 +11,7 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid import fleet
+from conftest import worker_killing_reader
 
 distributed = pytest.importorskip("distributed", reason="needs the dask extra: pip install 'arxid[dask]'")
 
@@ -88,25 +88,8 @@ def test_per_log_fleet_on_dask_equals_each_logs_sweep(logs, client):
     assert f"{N_LOGS} logs swept separately" in got.summary()
 
 
-def _kill_once(path, marker):
-    """Reads a log; the first worker to read the third log dies (os._exit) in the middle of it."""
-    try:
-        distributed.get_worker()
-    except ValueError:  # on the client
-        return fleet.load_experiment(path)
-    if path.endswith("flight2.npz") and not os.path.exists(marker):
-        open(marker, "w").close()
-        os._exit(1)
-    return fleet.load_experiment(path)
-
-
 def test_a_worker_killed_mid_sweep_is_retried_and_the_result_is_complete(logs, client, tmp_path):
-    import functools
-
-    import cloudpickle
-
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    read = functools.partial(_kill_once, marker=str(tmp_path / "killed"))
+    read = worker_killing_reader(str(tmp_path / "killed"))
     got = arxid.sweep(logs, **GRID, validation=0.3, client=client, read=read, progress=False)
     assert os.path.exists(tmp_path / "killed"), "no worker was killed"
     _assert_equal(got, _in_process(logs))

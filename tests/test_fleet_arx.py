@@ -14,10 +14,11 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid import _metrics as metrics
-from arxid import fleet, fleet_fit
+from arxid import fleet_fit
 from arxid.effects import compile_effects
 from arxid.exceptions import DataError, IdentifiabilityError
 from arxid.regressors import regressor_matrix
+from conftest import worker_killing_reader
 
 EFFECTS = ("u1*vbat", "const", "y^3")
 ORDERS = dict(na=2, nb=2, nk=1)
@@ -142,32 +143,12 @@ def test_the_dask_fit_of_csv_files_equals_the_in_process_fit(csv_logs, logs, das
     assert got.output_unit == "rad/s" and got.input_units == ("", "V")
 
 
-def _read_or_die(path, marker):
-    """Reads a log; the first worker to read flight2.npz dies (os._exit) in the middle of the fit."""
-    import distributed
-
-    try:
-        distributed.get_worker()
-    except ValueError:  # on the client
-        return fleet.load_experiment(path)
-    if path.endswith("flight2.npz") and not os.path.exists(marker):
-        open(marker, "w").close()
-        os._exit(1)
-    return fleet.load_experiment(path)
-
-
 def test_a_worker_killed_mid_fit_is_retried_and_the_model_is_the_same(logs, dask_client, tmp_path):
-    import functools
-    import sys
-
-    import cloudpickle
-
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])
     paths = []
     for i, d in enumerate(logs):
         paths.append(str(tmp_path / f"flight{i}.npz"))
         np.savez(paths[-1], y=d.y, u=d.u, ts=d.ts)
-    read = functools.partial(_read_or_die, marker=str(tmp_path / "killed"))
+    read = worker_killing_reader(str(tmp_path / "killed"))
     got = arxid.arx(paths, **ORDERS, effects=("const",), client=dask_client, read=read)
     assert os.path.exists(tmp_path / "killed"), "no worker was killed"
     ref = arxid.arx([arxid.IOData(d.y, d.u, ts=d.ts) for d in logs], **ORDERS, effects=("const",))
