@@ -19,6 +19,7 @@ from . import _core
 from . import _metrics as metrics
 from ._format import format_polynomial
 from .data import IOData
+from .derived_inputs import DerivedInput, complete_inputs
 from .exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .fitted import FittedModel
 from .model import FittedLayout
@@ -108,6 +109,7 @@ class PolynomialModel(FittedModel):
     """
 
     data_: IOData | None
+    derived_inputs_: tuple[DerivedInput, ...]
 
     def __init__(self, *, na: int = 0, nb: Any = 1, nc: int = 0, nd: int = 0, nf: Any = 0, nk: Any = 1):
         self.na, self.nb, self.nc, self.nd, self.nf, self.nk = na, nb, nc, nd, nf, nk
@@ -235,9 +237,14 @@ class PolynomialModel(FittedModel):
 
     # ------------------------------------------------------------------ names
     @property
+    def derived_inputs(self) -> tuple[DerivedInput, ...]:
+        """The inputs computed from the data (effects the diagnosis added), after the measured ones."""
+        return tuple(self.__dict__.get("derived_inputs_", ()))
+
+    @property
     def effects(self) -> tuple[str, ...]:
-        """Effect terms (none: polynomial models are linear)."""
-        return ()
+        """Effect terms added as derived inputs (see :mod:`arxid.derived_inputs`); none for a plain fit."""
+        return tuple(d.effect for d in self.derived_inputs)
 
     @property
     def is_linear(self) -> bool:
@@ -429,6 +436,7 @@ class PolynomialModel(FittedModel):
             raise DataError(f"predict needs an arxid.IOData, got {type(data).__name__}")
         if horizon is not None and (isinstance(horizon, bool) or _order("horizon", horizon) < 1):
             raise OrderError("horizon must be >= 1 (or None for free-run simulation)")
+        data = complete_inputs(data, self.input_names_, self.derived_inputs)
         if data.n_inputs != len(self.input_names_):
             raise DataError(f"the model has {len(self.input_names_)} inputs but the data have {data.n_inputs}")
         orders = (self.na_, list(self.nb_), self.nc_, self.nd_, list(self.nf_), list(self.nk_))
@@ -598,7 +606,12 @@ class PolynomialModel(FittedModel):
             t = _as_tuple(v)
             return t[0] if len(set(t)) == 1 else list(t)
 
-        nb, nf, nk = show(get("nb")), show(get("nf")), show(get("nk"))
+        m = len(_as_tuple(get("nb"))) - len(self.derived_inputs)
+        nb, nf, nk = (show(_as_tuple(get(n))[:m]) for n in ("nb", "nf", "nk"))
+        added = "".join(f" + {e}" for e in self.effects)
+        return self._orders_name(nb, nf, nk, get) + added
+
+    def _orders_name(self, nb: Any, nf: Any, nk: Any, get: Any) -> str:
         kind = self.kind
         if kind == "OE":
             return f"OE({nb},{nf},{nk})"
