@@ -473,6 +473,7 @@ class Diagnosis:
                 "nk": list(m.nk_),
                 "structure": m.structure_name(),
                 "effects": list(m.effects),
+                **_polynomial_orders(m),
             },
             "baseline": {
                 "rms_sim_val": finite_or_none(float(self.rms_sim_val)),
@@ -556,6 +557,13 @@ class Diagnosis:
         from .plots.diagnostics import plot_diagnosis
 
         return plot_diagnosis(self, n)
+
+
+def _polynomial_orders(m: ArxModel) -> dict:
+    """A polynomial model's class and orders beyond na, nb, nk (nothing for ARX: its contract is fixed)."""
+    if not isinstance(m, PolynomialModel):
+        return {}
+    return {"kind": m.kind, "nc": m.nc_, "nd": m.nd_, "nf": list(m.nf_)}
 
 
 # ---------------------------------------------------------------------------------------------

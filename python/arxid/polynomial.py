@@ -242,6 +242,11 @@ class PolynomialModel(FittedModel):
         return tuple(self.__dict__.get("derived_inputs_", ()))
 
     @property
+    def measured_input_names(self) -> tuple[str, ...]:
+        """The inputs data must have: all but the derived ones."""
+        return self.input_names[: len(self.input_names) - len(self.derived_inputs)]
+
+    @property
     def effects(self) -> tuple[str, ...]:
         """Effect terms added as derived inputs (see :mod:`arxid.derived_inputs`); none for a plain fit."""
         return tuple(d.effect for d in self.derived_inputs)
@@ -633,6 +638,23 @@ class PolynomialModel(FittedModel):
             f"({self.iterations_} iterations)"
         )
         return "\n".join(lines)
+
+    def parameter_labels(self) -> list[str]:
+        """One label per entry of ``parameters_`` (``getpvec`` order): the polynomial, its input
+        when it has one, and the power of z, e.g. ``"F(u1) z^-2"``, ``"C z^-1"``.
+
+        Returns
+        -------
+        list of str
+        """
+        p, labels = self.polynomials(), []
+        for name in _POLY_NAMES:
+            polys = p[name] if isinstance(p[name], list) else [p[name]]
+            for i, coefs in enumerate(polys):
+                first = self.nk_[i] if name == "b" else 1
+                tag = f"({self.input_names[i]})" if name in "bf" else ""
+                labels += [f"{name.upper()}{tag} z^-{j}" for j in range(first, len(coefs))]
+        return labels
 
     def _polynomial_lines(self) -> list[str]:
         p, m = self.polynomials(), len(self.input_names_)
