@@ -147,3 +147,19 @@ def test_no_effect_is_invented_on_a_clean_oe_plant():
         d = arxid.diagnose(arxid.oe(est, 1, 2, 3), est, val)
         found[seed] = [s.effect for s in d.significant]
     assert all(not v for v in found.values()), found
+
+
+def test_coloured_output_noise_does_not_make_an_effect_of_an_oe_model_significant():
+    """OE leaves coloured noise in its prediction error; the score tests whiten it first (without,
+    sign(dy) passed the raw F-test and the validation condition on seed 1 here)."""
+    found = {}
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        u = np.sign(rng.standard_normal(3000))
+        x = signal.lfilter([0, 0, 0, 0.5, 0.3], [1, -1.5, 0.7], u)
+        v = signal.lfilter([1, 0.5], [1, -0.8], rng.standard_normal(3000))
+        data = arxid.IOData(x + 0.2 * np.std(x) * v / np.std(v), u, ts=0.01)
+        est, val = data.split(0.7)
+        d = arxid.diagnose(arxid.oe(est, 2, 2, 3), est, val)
+        found[seed] = [s.effect for s in d.significant]
+    assert all(not v for v in found.values()), found

@@ -396,7 +396,7 @@ def _given_model(
     fitted = check_model(model)
     if fitted.measured_input_names != est.input_names:
         raise DataError(f"the model's inputs {list(fitted.input_names)} differ from the data's {list(est.input_names)}")
-    return fitted, Choice(fitted.structure_name(), None, "the model was given (used as fitted, not refitted)")
+    return fitted, Choice(fitted.structure_name(), None, "the model was given and is used as fitted, not refitted")
 
 
 def _structure(

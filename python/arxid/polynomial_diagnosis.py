@@ -55,6 +55,9 @@ OUTPUT_TERM_PASSES = 4
 #: A pass that lowers the estimation loss by less than this share ends the iteration.
 OUTPUT_TERM_GAIN = 0.01
 
+#: Largest AR order used to whiten the prediction error before a score test.
+MAX_WHITENING_ORDER = 10
+
 #: Why a term of the output is not tested without a model to simulate it.
 OUTPUT_TERM_NOTE = (
     "involves the output: a polynomial model takes only known inputs, so this term is built from "
@@ -176,7 +179,43 @@ def score_effects(
     if eps is None or len(eps) <= model.n_params + q + 2:
         return None, "too few samples where its signal exists"
     own = jac[:, np.r_[0:at_b, at_b + q : at_b + q + model.n_params - at_b]]
-    return AddedVariableTest(own, eps).test(jac[:, at_b : at_b + q])
+    return _test(own, eps, jac[:, at_b : at_b + q])
+
+
+def _test(own: np.ndarray, eps: np.ndarray, new: np.ndarray) -> tuple[AddedVariableResult | None, str]:
+    """The partial F-test of ``new`` beside ``own`` on the prediction error, after the prediction
+    error and every gradient column are filtered by the AR model of the prediction error (order by
+    AIC, at most ``MAX_WHITENING_ORDER``). An output-error model leaves coloured noise in its
+    prediction error; untreated, it makes the F-test's p-values far too small (generalised least
+    squares: the test of a model whose noise model is that AR)."""
+    a = _ar_whitener(eps)
+    p = len(a)
+
+    def whiten(x: np.ndarray) -> np.ndarray:
+        out = x[p:].copy()
+        for i, ai in enumerate(a, start=1):
+            out += ai * x[p - i : len(x) - i]
+        return out
+
+    return AddedVariableTest(whiten(own), whiten(eps)).test(whiten(new))
+
+
+def _ar_whitener(e: np.ndarray) -> np.ndarray:
+    """Coefficients a of the AR model e(t) + a1 e(t-1) + ... = w(t) by Yule–Walker, order by AIC
+    (empty: white)."""
+    from scipy.linalg import solve_toeplitz
+
+    n = len(e)
+    top = min(MAX_WHITENING_ORDER, n // 10)
+    ec = e - e.mean()
+    r = np.array([float(ec[k:] @ ec[: n - k]) / n for k in range(top + 1)])
+    best, best_aic = np.zeros(0), n * np.log(max(r[0], 1e-300))
+    for p in range(1, top + 1):
+        phi = solve_toeplitz(r[:p], r[1 : p + 1])
+        aic = n * np.log(max(float(r[0] - phi @ r[1 : p + 1]), 1e-300)) + 2 * p
+        if aic < best_aic:
+            best, best_aic = -phi, aic
+    return best
 
 
 def _gradient(aug: IOData, orders: tuple, theta: np.ndarray, first_lag: int, n_dropped: int = 0):
@@ -354,7 +393,7 @@ def score_structure(
     eps, jac = _gradient(aug, full, theta, model.first_lag_)
     if eps is None or len(eps) <= len(theta) + 2:
         return None, "too few samples"
-    return AddedVariableTest(jac[:, ~new], eps).test(jac[:, new])
+    return _test(jac[:, ~new], eps, jac[:, new])
 
 
 def _pad(orders: tuple, model: PolynomialModel) -> tuple:
