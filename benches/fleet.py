@@ -60,7 +60,7 @@ def main():
         )
         ref = arxid.sweep(paths, validation=0.3, progress=False, expect="stable")
         t_local = median_time(lambda: arxid.sweep(paths, validation=0.3, progress=False, expect="stable"), rep)
-        with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster, Client(cluster) as c:
+        with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0") as cluster, Client(cluster) as c:
             got = arxid.sweep(paths, validation=0.3, progress=False, expect="stable", client=c)
             t_dask = median_time(
                 lambda: arxid.sweep(paths, validation=0.3, progress=False, expect="stable", client=c), rep

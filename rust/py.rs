@@ -185,19 +185,36 @@ fn parse_grid(
     if shape[1] != 1 + 2 * m {
         return Err(OrderError::new_err(format!("structures need 1 + 2·{m} columns, got {}", shape[1])));
     }
-    let raw = structures.as_slice()?;
-    let mut grid = Vec::with_capacity(shape[0]);
-    for row in raw.chunks(shape[1]) {
-        if row.iter().any(|&v| v < 0) {
-            return Err(OrderError::new_err("orders must be non-negative"));
-        }
-        let r: Vec<usize> = row.iter().map(|&v| v as usize).collect();
-        grid.push(
-            Structure::new(r[0], r[1..1 + m].to_vec(), r[1 + m..].to_vec(), terms.to_vec())
-                .map_err(|e| to_pyerr(py, e))?,
-        );
+    parse_rows(py, structures.as_slice()?, m, terms)
+}
+
+/// Structures from rows `(na, nb_1..nb_m, nk_1..nk_m)`, laid out one after the other.
+fn parse_rows(py: Python<'_>, raw: &[i64], m: usize, terms: &[OutputTerm]) -> PyResult<Vec<Structure>> {
+    if raw.iter().any(|&v| v < 0) {
+        return Err(OrderError::new_err("orders must be non-negative"));
     }
-    Ok(grid)
+    let usize_of = |v: &[i64]| v.iter().map(|&x| x as usize).collect::<Vec<usize>>();
+    raw.chunks(1 + 2 * m)
+        .map(|r| {
+            Structure::new(r[0] as usize, usize_of(&r[1..1 + m]), usize_of(&r[1 + m..]), terms.to_vec())
+                .map_err(|e| to_pyerr(py, e))
+        })
+        .collect()
+}
+
+/// The rows that decide a grid's envelope: the largest `na` and, per input column, the smallest
+/// delay and the largest last lag among the rows that use the input. The envelope of these rows is
+/// the envelope of the grid, without building a structure per row (a million-row grid).
+fn envelope_rows(raw: &[i64], m: usize) -> Vec<i64> {
+    let width = 1 + 2 * m;
+    let rows = || raw.chunks(width);
+    let mut picked: Vec<&[i64]> = rows().max_by_key(|r| r[0]).into_iter().collect();
+    for i in 0..m {
+        let used = move |r: &&[i64]| r[1 + i] > 0;
+        picked.extend(rows().filter(used).min_by_key(|r| r[1 + m + i]));
+        picked.extend(rows().filter(used).max_by_key(|r| r[1 + m + i] + r[1 + i]));
+    }
+    picked.concat()
 }
 
 /// `(na, (nb per input column), (nk per input column))` of a structure, as Python tuples.
@@ -486,7 +503,12 @@ fn grid_envelope<'py>(
         )));
     }
     let terms = parse_output_terms(output_terms)?;
-    let grid = parse_grid(py, &structures, (width - 1) / 2, &terms)?;
+    let m = (width - 1) / 2;
+    let raw = structures.as_slice()?;
+    if raw.iter().any(|&v| v < 0) {
+        return Err(OrderError::new_err("orders must be non-negative"));
+    }
+    let grid = parse_rows(py, &envelope_rows(raw, m), m, &terms)?;
     let env = envelope(&grid).map_err(|e| to_pyerr(py, e))?;
     Ok((env.max_lag(), orders_tuple(py, &env)?))
 }

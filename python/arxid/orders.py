@@ -1484,6 +1484,16 @@ def _ranking_order(score: np.ndarray, bad: np.ndarray) -> np.ndarray:
     return np.lexsort((np.arange(s), np.where(bad | ~np.isfinite(score), np.inf, score), bad))
 
 
+def _ranked_errors(errors: list, failed: np.ndarray, order: np.ndarray) -> tuple:
+    """``errors`` in ranked ``order``, touching only the ``failed`` structures (a million-row grid)."""
+    ranked: list = [None] * len(order)
+    rank = np.empty(len(order), dtype=np.intp)
+    rank[order] = np.arange(len(order))
+    for i in failed:
+        ranked[rank[i]] = errors[i]
+    return tuple(ranked)
+
+
 def _build_result(
     b: _ResultBuilder,
     res: _core.SweepOutput,
@@ -1501,11 +1511,13 @@ def _build_result(
     div_est, div_val = res.diverged_est, res.diverged_val
     rms_est = np.where(div_est, np.nan, res.rms_sim_est)
     rms_val = np.where(div_val, np.nan, res.rms_sim_val)
-    errors = tuple(res.errors)
+    errors = res.errors
+    failed = np.array([i for i, e in enumerate(errors) if e is not None], dtype=np.intp)
     fit_val = _validation_fit(res, rms_val, b.val, res.first_lag)
     key = _effective_key(b.sort_by, b.val is not None)
     score = _ranking_column(_Columns(rms_val=rms_val, rms_est=rms_est, **crit), key)
-    bad = np.array([e is not None for e in errors], dtype=bool)
+    bad = np.zeros(s, dtype=bool)
+    bad[failed] = True
     if key in FREE_RUN_KEYS:  # a diverged simulation has no free-run error to rank by
         bad = bad | div_val | div_est
     # Stage-1 rows of a two-stage sweep (not simulated) follow the ranked ones, by one-step error.
@@ -1532,7 +1544,7 @@ def _build_result(
         selstruc_mdl=crit["selstruc_mdl"][order],
         diverged_est=div_est[order],
         diverged_val=div_val[order],
-        errors=tuple(errors[i] for i in order),
+        errors=_ranked_errors(errors, failed, order),
         horizon=k_step,
         integrating=integrating,
         integrating_reason=reason,
