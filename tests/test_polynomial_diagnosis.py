@@ -7,6 +7,7 @@ import pytest
 from scipy import signal
 
 import arxid
+from arxid.derived_inputs import complete_inputs
 from arxid.polynomial_diagnosis import OUTPUT_TERM_NOTE, effect_columns, score_effects, with_effects
 
 
@@ -138,6 +139,10 @@ def test_a_term_of_the_output_is_computed_from_the_simulated_output_on_new_data(
     assert refit.rms(val, None) == pytest.approx(d.top.rms_sim_val_after, rel=1e-12)
     noisy = arxid.IOData(val.y + 5.0, val.u, ts=val.ts)  # the measured output never enters the free run
     np.testing.assert_allclose(refit.predict(noisy, None), refit.predict(val, None), equal_nan=True)
+    # compare takes the measured data or the data with the added input, with the same result
+    full = complete_inputs(val, refit.input_names, refit.derived_inputs)
+    assert full.input_names == ("u1", "y^3")
+    assert arxid.compare(refit, full).rms[0] == arxid.compare(refit, val).rms[0] == refit.rms(val, None)
 
 
 def test_no_effect_is_invented_on_a_clean_oe_plant():

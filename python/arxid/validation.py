@@ -262,7 +262,8 @@ def compare(models, data: IOData, horizon: int | None = None) -> Comparison:
     horizon = check_horizon(horizon)
     names, ms = _model_list(models)
     for m in ms:
-        check_same_signals(m.ts, m.output_name, m.measured_input_names, data, "the data to compare with")
+        inputs = m.input_names if data.input_names == m.input_names else m.measured_input_names
+        check_same_signals(m.ts, m.output_name, inputs, data, "the data to compare with")
     fits, rmss, preds, divs = [], [], [], []
     for m in ms:
         pred, _, diverged = prediction_error(m, data, horizon)
