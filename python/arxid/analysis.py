@@ -60,7 +60,7 @@ class Choice:
     structure : str
         The chosen structure, e.g. ``ARX(2,1,3)``.
     rank : int or None
-        Its 0-based rank in the sweep (None when the orders were given).
+        Its 0-based rank in the sweep (None when the orders or the model were given).
     reason : str
         One sentence: how it was chosen.
     skipped : tuple of (str, str)
@@ -167,9 +167,9 @@ class Analysis:
     estimation, validation : IOData
         The data the models were fitted on and judged on.
     grid : dict of str to tuple of int, or None
-        The order grid swept (None when the orders were given).
+        The order grid swept (None when the orders or the model were given).
     sweep : SweepResult or None
-        Every structure of the grid, ranked (None when the orders were given).
+        Every structure of the grid, ranked (None when the orders or the model were given).
     choice : Choice
         Which structure was chosen and why.
     model : ArxModel or PolynomialModel
