@@ -143,6 +143,10 @@ def test_a_term_of_the_output_is_computed_from_the_simulated_output_on_new_data(
     full = complete_inputs(val, refit.input_names, refit.derived_inputs)
     assert full.input_names == ("u1", "y^3")
     assert arxid.compare(refit, full).rms[0] == arxid.compare(refit, val).rms[0] == refit.rms(val, None)
+    # saved and loaded, it still computes the term from the measured input
+    loaded = arxid.PolynomialModel.from_json(refit.to_json())
+    assert loaded.effects == ("y^3",) and loaded.structure_name() == refit.structure_name()
+    np.testing.assert_array_equal(loaded.predict(val, None), refit.predict(val, None))
 
 
 def test_no_effect_is_invented_on_a_clean_oe_plant():

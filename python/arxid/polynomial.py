@@ -567,6 +567,10 @@ class PolynomialModel(FittedModel):
             "termination": self.termination_,
             "converged": self.converged_,
             "losses": [float(x) for x in self.losses_],
+            "derived_inputs": [
+                {"effect": d.effect, "source": None if d.source is None else d.source.to_dict()}
+                for d in self.derived_inputs
+            ],
         }
 
     @classmethod
@@ -740,4 +744,9 @@ def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
     model.iterations_, model.termination_ = int(d["iterations"]), str(d["termination"])
     model.converged_, model.losses_ = bool(d["converged"]), np.array(d["losses"], dtype=float)
     model.data_ = None
+    # how the inputs the diagnosis added are computed (a term of the output: from its source's simulation)
+    model.derived_inputs_ = tuple(
+        DerivedInput(str(x["effect"]), None if x["source"] is None else _model_from_dict(cls, x["source"]))
+        for x in d.get("derived_inputs", ())
+    )
     return model
