@@ -432,7 +432,8 @@ def _frequency_section(a: Analysis) -> Raw:
     how = _p(
         f"Grey: the frequency response estimated from the validation data alone (Welch averages of "
         f"{fc.segment_length}-sample Hann segments, H1 = S_yu/S_uu, {fc.n_averages:.0f} effective averages) "
-        f"with its {100 * fc.level:g} % band; blue: the model's B/A with its band from the parameter covariance. "
+        f"with its {100 * fc.level:g} % band; blue: the model's transfer function (B/A, or B/F for OE and BJ) "
+        "with its band from the parameter covariance. "
         "Red shading: frequencies where the model's error is still explained by the input beyond both "
         "uncertainties (the test behind the sentence above). Low coherence means the input does not excite "
         "that frequency or the output there is noise, and the data say little.",
