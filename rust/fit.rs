@@ -176,9 +176,19 @@ pub fn fit_rows_like(
     }
     let r = to_col_major(&reduce_checked(d, s, &rows, parallel, &|| !cancel.load(Ordering::Relaxed))?);
     let cols: Vec<usize> = (0..p).collect();
-    let (theta, rss, small) = solve_subset(&r, p + 1, &cols, rows.len())?;
-    let inv_gram = scaled_inverse_gram(small, p + 1, p);
-    Ok(Fit { theta, rss, n_rows: rows.len(), n_skipped, inv_gram })
+    Ok(Fit { n_skipped, ..fit_from_factor(&r, p + 1, &cols, rows.len())? })
+}
+
+/// The least-squares fit of the columns `cols` of a factor `r` (column-major q × q, output last) of
+/// a regressor with `n_rows` rows: parameters, loss and $(\Phi^T\Phi)^{-1}$. On a sweep's envelope
+/// factor this is the fit of a structure on the sweep's rows without going back to the data.
+///
+/// # Errors
+/// `RankDeficient` naming the first column that depends on the ones before it.
+pub fn fit_from_factor(r: &[f64], q: usize, cols: &[usize], n_rows: usize) -> Result<Fit> {
+    let (theta, rss, small) = solve_subset(r, q, cols, n_rows)?;
+    let inv_gram = scaled_inverse_gram(small, q, cols.len());
+    Ok(Fit { theta, rss, n_rows, n_skipped: 0, inv_gram })
 }
 
 #[cfg(test)]

@@ -7,10 +7,14 @@
 //! refined by simplified refined instrumental variables (SRIV) for B/F and by Hannan–Rissanen for
 //! the noise model. F, C and D are kept stable by reflecting roots into the unit circle.
 //!
-//! Data are given as finite segments `[start, end)`; filters start at rest at each segment's first
-//! sample and the first [`PolyStructure::max_lag`] samples of a segment are initial conditions.
+//! Data are given as finite segments `[start, end)`. With [`Initial::Zero`] the filters start at
+//! rest at each segment's first sample and the first [`PolyStructure::max_lag`] samples of a segment
+//! are not scored. With [`Initial::Estimate`] every sample is scored and each segment's unknown
+//! initial state is estimated with the parameters: the prediction error is affine in it, so it is
+//! projected out of every Gauss–Newton step (variable projection with Kaufman's Jacobian).
 
 use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use faer::{c64, Mat};
 use rayon::prelude::*;
@@ -80,6 +84,44 @@ impl PolyStructure {
     fn m(&self) -> usize {
         self.nb.len()
     }
+
+    /// Inputs that enter the model (`nb > 0`) with their past-dependence $\max(n_b + n_k - 1, n_f)$.
+    fn input_memory(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        (0..self.m()).filter(|&i| self.nb[i] > 0).map(|i| (i, (self.nb[i] + self.nk[i] - 1).max(self.nf[i])))
+    }
+
+    /// Initial-state parameters of one segment with [`Initial::Estimate`]: the number of
+    /// coefficients of the numerator $N$ of the free response $N(q)/(C \prod_i F_i)\,\delta(t - t_0)$
+    /// that an unknown past of y, of the inputs and of the noise filter adds to the prediction error.
+    pub fn n_initial(&self) -> usize {
+        let nf: usize = self.nf.iter().sum();
+        let noise = self.nc.max(self.nd);
+        let mut n = if noise > 0 { noise + nf } else { 0 };
+        if self.na > 0 {
+            n = n.max(self.nd + self.na + nf);
+        }
+        self.input_memory().fold(n, |n, (i, mem)| n.max(self.nd + mem + nf - self.nf[i]))
+    }
+
+    /// Initial-state parameters of one segment of the free run $\sum_i B_i/(A F_i)\, u_i$: the
+    /// numerator order of its free response over $A \prod_i F_i$.
+    pub fn n_initial_free_run(&self) -> usize {
+        let nf: usize = self.nf.iter().sum();
+        self.input_memory().fold(0, |n, (i, _)| {
+            let own = (self.nb[i] + self.nk[i] - 1).max(self.na + self.nf[i]);
+            n.max(own + nf - self.nf[i])
+        })
+    }
+}
+
+/// How the filters start at the first sample of each segment (MATLAB's `InitialCondition`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Initial {
+    /// At rest; the first [`PolyStructure::max_lag`] samples of each segment are not scored.
+    #[default]
+    Zero,
+    /// The initial state of each segment is estimated (nuisance parameters); every sample is scored.
+    Estimate,
 }
 
 /// The polynomials of a parameter vector: A, C, D, F_i monic (leading 1), B_i without the delay.
@@ -257,12 +299,32 @@ impl<'a> Segments<'a> {
         if let Some(&(a, b)) = segments.iter().find(|&&(a, b)| a >= b || b > y.len()) {
             return Err(ArxError::InvalidStructure(format!("segment [{a}, {b}) is empty or outside the data")));
         }
+        if let Some(w) = segments.windows(2).find(|w| w[1].0 < w[0].1) {
+            return Err(ArxError::InvalidStructure(format!(
+                "segments [{}, {}) and [{}, {}) overlap or are out of order: give them sorted and disjoint",
+                w[0].0, w[0].1, w[1].0, w[1].1
+            )));
+        }
         Ok(Segments { y, u, m, segments })
     }
 
     /// Scored samples: every segment's samples after its first `lag`.
     pub fn rows(&self, lag: usize) -> Vec<usize> {
         self.segments.iter().flat_map(|&(a, b)| (a + lag).min(b)..b).collect()
+    }
+
+    /// Segments longer than `n` samples (those that say something beyond `n` initial-state parameters).
+    pub fn longer_than(&self, n: usize) -> Vec<(usize, usize)> {
+        self.segments.iter().copied().filter(|&(a, b)| b - a > n).collect()
+    }
+
+    /// Scored samples of `s`: from each segment's `max_lag`-th sample on with [`Initial::Zero`],
+    /// every sample of the segments longer than [`PolyStructure::n_initial`] with [`Initial::Estimate`].
+    pub fn scored(&self, s: &PolyStructure, initial: Initial) -> Vec<usize> {
+        match initial {
+            Initial::Zero => self.rows(s.max_lag()),
+            Initial::Estimate => self.longer_than(s.n_initial()).into_iter().flat_map(|(a, b)| a..b).collect(),
+        }
     }
 
     /// Input `i` delayed by `nk` within each segment (zero before), full length.
@@ -294,15 +356,23 @@ struct Column {
     sign: f64,
 }
 
-/// R factor ((p+1) × (p+1), column-major) of `[columns | target]` over `rows`, by TSQR.
-fn reduce_columns(signals: &[Vec<f64>], cols: &[Column], target: &[f64], rows: &[usize], parallel: bool) -> Vec<f64> {
+/// R factor ((p+1) × (p+1), column-major) of `[columns | target]` over `rows`, by TSQR. Lagged
+/// values from before sample `floor` read as zero (the filters' rest before a segment).
+fn reduce_columns(
+    signals: &[Vec<f64>],
+    cols: &[Column],
+    target: &[f64],
+    rows: &[usize],
+    floor: usize,
+    parallel: bool,
+) -> Vec<f64> {
     let q = cols.len() + 1;
     let block_r = |block: &[usize]| -> Mat<f64> {
         let mut a = Mat::<f64>::zeros(block.len(), q);
         for (c, col) in cols.iter().enumerate() {
             let s = &signals[col.signal];
             for (dst, &t) in a.col_as_slice_mut(c).iter_mut().zip(block) {
-                *dst = col.sign * s[t - col.lag];
+                *dst = if t >= floor + col.lag { col.sign * s[t - col.lag] } else { 0.0 };
             }
         }
         for (dst, &t) in a.col_as_slice_mut(q - 1).iter_mut().zip(block) {
@@ -328,7 +398,7 @@ fn least_squares(
     parallel: bool,
 ) -> Result<(Vec<f64>, f64)> {
     let q = cols.len() + 1;
-    let r = reduce_columns(signals, cols, target, rows, parallel);
+    let r = reduce_columns(signals, cols, target, rows, 0, parallel);
     let idx: Vec<usize> = (0..cols.len()).collect();
     let (theta, rss, _) = solve_subset(&r, q, &idx, rows.len())?;
     Ok((theta, rss))
@@ -375,6 +445,7 @@ fn sriv(
     rows: &[usize],
     iterations: usize,
     parallel: bool,
+    cancel: &AtomicBool,
 ) -> Result<(Vec<f64>, Vec<f64>)> {
     // Signals: 0 z, 1 x (ARX); afterwards 0 zf, 1 xf, 2 instrument ẑf.
     let phi: Vec<Column> = lagged(0, 1..nf + 1, -1.0).into_iter().chain(lagged(1, 0..nb, 1.0)).collect();
@@ -386,6 +457,9 @@ fn sriv(
     }
     let zeta: Vec<Column> = lagged(2, 1..nf + 1, -1.0).into_iter().chain(lagged(1, 0..nb, 1.0)).collect();
     for _ in 0..iterations {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(ArxError::Interrupted);
+        }
         if !is_stable(&f) {
             f = reflect_into_unit_circle(&f);
         }
@@ -414,7 +488,16 @@ fn long_order(s: &PolyStructure, n_rows: usize) -> usize {
 
 /// The start of the iterations: B/F by SRIV (backfitting over inputs), A/B by ARX, the noise model
 /// C/D by Hannan–Rissanen (long AR residuals, then least squares).
-pub fn start(data: &Segments<'_>, s: &PolyStructure, sriv_iterations: usize, parallel: bool) -> Result<Vec<f64>> {
+///
+/// # Errors
+/// As [`pem`] (`Interrupted` between refinement rounds once `cancel` is set).
+pub fn start(
+    data: &Segments<'_>,
+    s: &PolyStructure,
+    sriv_iterations: usize,
+    parallel: bool,
+    cancel: &AtomicBool,
+) -> Result<Vec<f64>> {
     let rows = data.rows(s.max_lag());
     let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
     let mut p = Polys::of(s, &vec![0.0; s.n_params()]);
@@ -428,7 +511,7 @@ pub fn start(data: &Segments<'_>, s: &PolyStructure, sriv_iterations: usize, par
                 let z: Vec<f64> = (0..data.y.len())
                     .map(|t| data.y[t] - (0..s.m()).filter(|&j| j != i).map(|j| w[j][t]).sum::<f64>())
                     .collect();
-                let (b, f) = sriv(data, &z, &xs[i], s.nb[i], s.nf[i], &rows, sriv_iterations, parallel)?;
+                let (b, f) = sriv(data, &z, &xs[i], s.nb[i], s.nf[i], &rows, sriv_iterations, parallel, cancel)?;
                 w[i] = data.filter(&b, &f, &xs[i]);
                 p.b[i] = b;
                 p.f[i] = f;
@@ -515,25 +598,98 @@ fn start_noise(
     Ok(())
 }
 
+/// The part of a signal an unknown initial state explains, per segment.
+struct InitialFit {
+    /// Segments it was fitted on (those longer than `n`).
+    segments: Vec<(usize, usize)>,
+    /// Parameters per segment.
+    n: usize,
+    /// $g$: in each segment, the impulse response of $1/\mathrm{den}$ from its first sample.
+    basis: Vec<f64>,
+    /// $\eta$ per segment: the fitted part is $\sum_{k<n} \eta_k\, g(t - k)$.
+    states: Vec<Vec<f64>>,
+    /// The fitted part, full length (zero outside the segments).
+    response: Vec<f64>,
+}
+
+/// Least-squares fit of `target` by the free responses $q^{-k}/\mathrm{den}\;\delta(t - t_0)$,
+/// $k < n$, within each segment longer than `n` ($t_0$ its first sample).
+fn fit_initial(data: &Segments<'_>, den: &[f64], n: usize, target: &[f64], parallel: bool) -> InitialFit {
+    let segments = data.longer_than(n);
+    let (mut basis, mut response) = (vec![0.0; target.len()], vec![0.0; target.len()]);
+    let cols = lagged(0, 0..n, 1.0);
+    let mut states = Vec::with_capacity(segments.len());
+    for &(a, b) in &segments {
+        let mut impulse = vec![0.0; b - a];
+        impulse[0] = 1.0;
+        filter(&[1.0], den, &impulse, &mut basis[a..b]);
+        let rows: Vec<usize> = (a..b).collect();
+        let r = reduce_columns(std::slice::from_ref(&basis), &cols, target, &rows, a, parallel);
+        let rhs: Vec<f64> = (0..n).map(|i| r[i + n * (n + 1)]).collect();
+        let mut eta = vec![0.0; n];
+        back_substitute(&r, n + 1, &rhs, &mut eta);
+        for t in a..b {
+            response[t] = (0..n.min(t - a + 1)).map(|k| eta[k] * basis[t - k]).sum();
+        }
+        states.push(eta);
+    }
+    InitialFit { segments, n, basis, states, response }
+}
+
 /// Prediction errors of θ and, with `gradient`, the filtered signals and columns of ∂ε/∂θ.
 struct Evaluation {
     eps: Vec<f64>,
     signals: Vec<Vec<f64>>,
     columns: Vec<Column>,
+    /// With [`Initial::Estimate`]: the initial states, already taken out of `eps`.
+    initial: Option<InitialFit>,
 }
 
-fn evaluate(data: &Segments<'_>, s: &PolyStructure, xs: &[Vec<f64>], p: &Polys, gradient: bool) -> Evaluation {
+fn evaluate(
+    data: &Segments<'_>,
+    s: &PolyStructure,
+    xs: &[Vec<f64>],
+    p: &Polys,
+    gradient: bool,
+    initial: Initial,
+) -> Evaluation {
     let one = [1.0];
     let ws: Vec<Vec<f64>> = (0..s.m()).map(|i| data.filter(&p.b[i], &p.f[i], &xs[i])).collect();
     let mut v = data.filter(&p.a, &one, data.y);
     for w in &ws {
         v.iter_mut().zip(w).for_each(|(a, b)| *a -= b);
     }
-    let eps = data.filter(&p.d, &p.c, &v);
-    let mut ev = Evaluation { eps, signals: vec![], columns: vec![] };
-    if !gradient {
-        return ev;
+    let mut eps = data.filter(&p.d, &p.c, &v);
+    let initial = (initial == Initial::Estimate).then(|| {
+        let den = p.f.iter().fold(p.c.clone(), |acc, f| conv(&acc, f));
+        let fit = fit_initial(data, &den, s.n_initial(), &eps, false);
+        eps.iter_mut().zip(&fit.response).for_each(|(e, r)| *e -= r);
+        fit
+    });
+    let mut ev = Evaluation { eps, signals: vec![], columns: vec![], initial };
+    if gradient {
+        add_gradient(data, s, xs, p, &ws, &v, &mut ev);
+        // The initial-state basis goes last, for the projection in `jacobian_r`.
+        if let Some(init) = &ev.initial {
+            ev.signals.push(init.basis.clone());
+        }
     }
+    ev
+}
+
+/// The columns of ∂ε/∂θ. With an initial-state part $s = -\sum_k \eta_k g(t-k)$ in ε (η held
+/// fixed, $g$ = 1/(C ΠF) δ): $\partial s/\partial c_k = -s(t-k)/C$, so the C columns filter the full
+/// ε, and $\partial s/\partial f_{ik} = -s(t-k)/F_i$ is added to the F columns.
+fn add_gradient(
+    data: &Segments<'_>,
+    s: &PolyStructure,
+    xs: &[Vec<f64>],
+    p: &Polys,
+    ws: &[Vec<f64>],
+    v: &[f64],
+    ev: &mut Evaluation,
+) {
+    let one = [1.0];
     let add = |sig: Vec<f64>, lags: std::ops::Range<usize>, sign: f64, ev: &mut Evaluation| {
         if !lags.is_empty() {
             ev.signals.push(sig);
@@ -542,24 +698,50 @@ fn evaluate(data: &Segments<'_>, s: &PolyStructure, xs: &[Vec<f64>], p: &Polys, 
     };
     // ∂ε/∂a_k = (D/C) y(t−k)
     let ya = if s.na > 0 { data.filter(&p.d, &p.c, data.y) } else { vec![] };
-    add(ya, 1..s.na + 1, 1.0, &mut ev);
+    add(ya, 1..s.na + 1, 1.0, ev);
     // ∂ε/∂b_ij = −(D/(C F_i)) x_i(t−j)
     let cf: Vec<Vec<f64>> = p.f.iter().map(|f| conv(&p.c, f)).collect();
     for i in 0..s.m() {
         let g = if s.nb[i] > 0 { data.filter(&p.d, &cf[i], &xs[i]) } else { vec![] };
-        add(g, 0..s.nb[i], -1.0, &mut ev);
+        add(g, 0..s.nb[i], -1.0, ev);
     }
     // ∂ε/∂c_k = −(1/C) ε(t−k);  ∂ε/∂d_k = (1/C) v(t−k)
     let ec = if s.nc > 0 { data.filter(&one, &p.c, &ev.eps) } else { vec![] };
-    add(ec, 1..s.nc + 1, -1.0, &mut ev);
-    let vc = if s.nd > 0 { data.filter(&one, &p.c, &v) } else { vec![] };
-    add(vc, 1..s.nd + 1, 1.0, &mut ev);
-    // ∂ε/∂f_ij = (D/(C F_i)) w_i(t−j)
+    add(ec, 1..s.nc + 1, -1.0, ev);
+    let vc = if s.nd > 0 { data.filter(&one, &p.c, v) } else { vec![] };
+    add(vc, 1..s.nd + 1, 1.0, ev);
+    // ∂ε/∂f_ij = (D/(C F_i)) w_i(t−j) (+ (1/F_i) of the initial-state part)
     for i in 0..s.m() {
-        let h = if s.nf[i] > 0 { data.filter(&p.d, &cf[i], &ws[i]) } else { vec![] };
-        add(h, 1..s.nf[i] + 1, 1.0, &mut ev);
+        let mut h = if s.nf[i] > 0 { data.filter(&p.d, &cf[i], &ws[i]) } else { vec![] };
+        if let (Some(init), false) = (&ev.initial, h.is_empty()) {
+            let extra = data.filter(&one, &p.f[i], &init.response);
+            h.iter_mut().zip(&extra).for_each(|(a, b)| *a += b);
+        }
+        add(h, 1..s.nf[i] + 1, 1.0, ev);
     }
-    ev
+}
+
+/// R factor ((p+1) × (p+1), column-major) of the Gauss–Newton problem `[∂ε/∂θ | ε]` on `rows`; with
+/// estimated initial states, of its projection on the complement of each segment's free responses
+/// (the trailing block of the QR of `[G | ∂ε/∂θ | ε]` per segment).
+fn jacobian_r(ev: &Evaluation, rows: &[usize], parallel: bool) -> Vec<f64> {
+    let Some(init) = &ev.initial else {
+        return reduce_columns(&ev.signals, &ev.columns, &ev.eps, rows, 0, parallel);
+    };
+    let (n, p) = (init.n, ev.columns.len());
+    let basis = ev.signals.len() - 1;
+    let cols: Vec<Column> = lagged(basis, 0..n, 1.0).into_iter().chain(ev.columns.iter().copied()).collect();
+    let q = n + p + 1;
+    let blocks: Vec<Mat<f64>> = init
+        .segments
+        .iter()
+        .map(|&(a, b)| {
+            let seg_rows: Vec<usize> = (a..b).collect();
+            let r = reduce_columns(&ev.signals, &cols, &ev.eps, &seg_rows, a, parallel);
+            Mat::from_fn(p + 1, p + 1, |i, j| if i <= j { r[(n + i) + (n + j) * q] } else { 0.0 })
+        })
+        .collect();
+    to_col_major(&stack_and_reduce(&blocks, p + 1))
 }
 
 fn sum_squares(e: &[f64], rows: &[usize]) -> f64 {
@@ -610,11 +792,12 @@ pub struct PemOptions {
     pub tolerance: f64,
     pub sriv_iterations: usize,
     pub parallel: bool,
+    pub initial: Initial,
 }
 
 impl Default for PemOptions {
     fn default() -> Self {
-        PemOptions { max_iterations: 100, tolerance: 1e-6, sriv_iterations: 30, parallel: true }
+        PemOptions { max_iterations: 100, tolerance: 1e-6, sriv_iterations: 30, parallel: true, initial: Initial::Zero }
     }
 }
 
@@ -638,101 +821,160 @@ pub struct PemFit {
     /// Loss (rss / n_rows) after each accepted step, the start first.
     pub losses: Vec<f64>,
     pub termination: Termination,
+    /// With [`Initial::Estimate`]: each scored segment and its initial state η (the prediction error
+    /// is $\varepsilon_0(t) - \sum_k \eta_k g(t-k)$, $g$ the impulse response of $1/(C \prod_i F_i)$
+    /// from the segment's first sample, $\varepsilon_0$ the error from rest). Empty with `Zero`.
+    pub initial_states: Vec<((usize, usize), Vec<f64>)>,
+}
+
+/// The loop state of [`pem`]: current polynomials, their evaluation and the Gauss–Newton R.
+struct Iterate {
+    polys: Polys,
+    ev: Evaluation,
+    rss: f64,
+    r: Vec<f64>,
+}
+
+/// What the iterations need besides the parameters: data, delayed inputs, scored rows, settings.
+struct Problem<'a, 'b> {
+    data: &'a Segments<'b>,
+    s: &'a PolyStructure,
+    xs: Vec<Vec<f64>>,
+    rows: Vec<usize>,
+    opts: &'a PemOptions,
+    cancel: &'a AtomicBool,
+}
+
+impl Problem<'_, '_> {
+    fn rss(&self, polys: &Polys) -> f64 {
+        sum_squares(&evaluate(self.data, self.s, &self.xs, polys, false, self.opts.initial).eps, &self.rows)
+    }
+
+    fn stop(&self) -> Result<()> {
+        if self.cancel.load(Ordering::Relaxed) {
+            return Err(ArxError::Interrupted);
+        }
+        Ok(())
+    }
+
+    fn iterate(&self, polys: Polys) -> Result<Iterate> {
+        self.stop()?;
+        let ev = evaluate(self.data, self.s, &self.xs, &polys, true, self.opts.initial);
+        let rss = sum_squares(&ev.eps, &self.rows);
+        self.stop()?;
+        let r = jacobian_r(&ev, &self.rows, self.opts.parallel);
+        Ok(Iterate { polys, ev, rss, r })
+    }
+
+    /// The first damped step that lowers the loss (λ raised tenfold until one does), with the λ
+    /// it used; None when λ reaches 1e12 first.
+    fn damped(&self, it: &Iterate, lambda: &mut f64) -> Result<Option<(Polys, f64, f64)>> {
+        let p = self.s.n_params();
+        let scale: Vec<f64> = (0..p)
+            .map(|j| (0..=j).map(|i| it.r[i + j * (p + 1)].powi(2)).sum::<f64>().sqrt().max(f64::MIN_POSITIVE))
+            .collect();
+        while *lambda < 1e12 {
+            self.stop()?;
+            let delta = damped_step(&it.r, p, *lambda, &scale);
+            let theta: Vec<f64> = it.polys.theta().iter().zip(&delta).map(|(a, b)| a + b).collect();
+            let mut cand = Polys::of(self.s, &theta);
+            cand.stabilise();
+            let cand_rss = self.rss(&cand);
+            if cand_rss.is_finite() && cand_rss < it.rss {
+                let used = *lambda;
+                *lambda = (*lambda * 0.1).max(1e-12);
+                return Ok(Some((cand, cand_rss, used)));
+            }
+            *lambda *= 10.0;
+        }
+        Ok(None)
+    }
 }
 
 /// Minimises the sum of squared prediction errors of `s` on `data` from `start` (or the SRIV /
-/// Hannan–Rissanen start when None).
+/// Hannan–Rissanen start when None). With [`Initial::Estimate`] each segment's initial state is
+/// estimated as well (projected out of every step, so the covariance of θ accounts for it).
 ///
 /// # Errors
 /// `TooFewSamples` when the scored samples do not outnumber the parameters; `RankDeficient` when the
 /// gradient's columns are dependent at the start (orders not identifiable on these data);
-/// `NotConverged` when the loss is not finite at the start or every step makes it so.
-pub fn pem(data: &Segments<'_>, s: &PolyStructure, opts: &PemOptions, start_theta: Option<&[f64]>) -> Result<PemFit> {
+/// `NotConverged` when the loss is not finite at the start or every step makes it so; `Interrupted`
+/// once `cancel` is set (checked between steps and in the start's refinement rounds).
+pub fn pem(
+    data: &Segments<'_>,
+    s: &PolyStructure,
+    opts: &PemOptions,
+    start_theta: Option<&[f64]>,
+    cancel: &AtomicBool,
+) -> Result<PemFit> {
     if s.m() != data.m {
         return Err(ArxError::ShapeMismatch { what: "nb (one order per input)".into(), expected: data.m, got: s.m() });
     }
     let p = s.n_params();
-    let rows = data.rows(s.max_lag());
-    if rows.len() < p + 1 {
-        return Err(ArxError::TooFewSamples { needed: p + 1, got: rows.len() });
+    let rows = data.scored(s, opts.initial);
+    let nuisance =
+        if opts.initial == Initial::Estimate { s.n_initial() * data.longer_than(s.n_initial()).len() } else { 0 };
+    if rows.len() < p + nuisance + 1 {
+        return Err(ArxError::TooFewSamples { needed: p + nuisance + 1, got: rows.len() });
     }
     let theta0 = match start_theta {
         Some(t) if t.len() == p => t.to_vec(),
         Some(t) => return Err(ArxError::ShapeMismatch { what: "start parameters".into(), expected: p, got: t.len() }),
-        None => start(data, s, opts.sriv_iterations, opts.parallel)?,
+        None => start(data, s, opts.sriv_iterations, opts.parallel, cancel)?,
     };
     let mut polys = Polys::of(s, &theta0);
     polys.stabilise();
     let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
-    let n = rows.len() as f64;
-    let mut ev = evaluate(data, s, &xs, &polys, true);
-    let mut rss = sum_squares(&ev.eps, &rows);
-    if !rss.is_finite() {
+    let problem = Problem { data, s, xs, rows, opts, cancel };
+    let mut it = problem.iterate(polys)?;
+    if !it.rss.is_finite() {
         return Err(ArxError::NotConverged(
             "the prediction errors of the start are not finite (check the data for huge values)".into(),
         ));
     }
-    let start = polys.theta();
-    let start_rss = rss;
-    let mut r = reduce_columns(&ev.signals, &ev.columns, &ev.eps, &rows, opts.parallel);
-    check_rank(&r, p + 1, p, rank_tolerance(rows.len(), p))?;
+    check_rank(&it.r, p + 1, p, rank_tolerance(problem.rows.len(), p))?;
+    let n = problem.rows.len() as f64;
     let mut fit = PemFit {
-        theta: start.clone(),
-        start,
-        rss,
-        start_rss,
-        n_rows: rows.len(),
+        theta: it.polys.theta(),
+        start: it.polys.theta(),
+        rss: it.rss,
+        start_rss: it.rss,
+        n_rows: problem.rows.len(),
         inv_gram: vec![],
         iterations: 0,
-        losses: vec![rss / n],
+        losses: vec![it.rss / n],
         termination: Termination::MaxIterations,
+        initial_states: vec![],
     };
+    // A loss at round-off level (noise-free data fitted exactly) is a minimum whatever the gain.
+    let exact = 1e-24 * sum_squares(data.y, &problem.rows);
     let mut lambda = 1e-4;
     while fit.iterations < opts.max_iterations {
-        let gain: f64 = (0..p).map(|i| r[i + p * (p + 1)].powi(2)).sum();
-        if gain <= opts.tolerance * rss {
+        let gain: f64 = (0..p).map(|i| it.r[i + p * (p + 1)].powi(2)).sum();
+        if gain <= opts.tolerance * it.rss || it.rss <= exact {
             fit.termination = Termination::Converged;
             break;
         }
-        let scale: Vec<f64> = (0..p)
-            .map(|j| (0..=j).map(|i| r[i + j * (p + 1)].powi(2)).sum::<f64>().sqrt().max(f64::MIN_POSITIVE))
-            .collect();
-        let mut accepted = None;
-        let mut used = lambda;
-        while lambda < 1e12 {
-            let delta = damped_step(&r, p, lambda, &scale);
-            let theta: Vec<f64> = polys.theta().iter().zip(&delta).map(|(a, b)| a + b).collect();
-            let mut cand = Polys::of(s, &theta);
-            cand.stabilise();
-            let cand_rss = sum_squares(&evaluate(data, s, &xs, &cand, false).eps, &rows);
-            if cand_rss.is_finite() && cand_rss < rss {
-                accepted = Some((cand, cand_rss));
-                used = lambda;
-                lambda = (lambda * 0.1).max(1e-12);
-                break;
-            }
-            lambda *= 10.0;
-        }
-        let Some((cand, cand_rss)) = accepted else {
+        let Some((cand, cand_rss, used)) = problem.damped(&it, &mut lambda)? else {
             fit.termination = Termination::Stalled;
             break;
         };
-        let improvement = (rss - cand_rss) / rss;
-        polys = cand;
-        rss = cand_rss;
+        let improvement = (it.rss - cand_rss) / it.rss;
+        it = problem.iterate(cand)?;
         fit.iterations += 1;
-        fit.losses.push(rss / n);
-        ev = evaluate(data, s, &xs, &polys, true);
-        r = reduce_columns(&ev.signals, &ev.columns, &ev.eps, &rows, opts.parallel);
+        fit.losses.push(it.rss / n);
         // A small gain from a strongly damped step is no sign of a minimum: keep going then.
         if improvement < opts.tolerance && used <= 1e-2 {
             fit.termination = Termination::SmallImprovement;
             break;
         }
     }
-    fit.theta = polys.theta();
-    fit.rss = rss;
-    fit.inv_gram = inverse_gram(&r, p + 1, p);
+    fit.theta = it.polys.theta();
+    fit.rss = it.rss;
+    fit.inv_gram = inverse_gram(&it.r, p + 1, p);
+    if let Some(init) = it.ev.initial {
+        fit.initial_states = init.segments.into_iter().zip(init.states).collect();
+    }
     Ok(fit)
 }
 
@@ -762,7 +1004,7 @@ fn damped_step(r: &[f64], p: usize, lambda: f64, scale: &[f64]) -> Vec<f64> {
 pub fn gradient(data: &Segments<'_>, s: &PolyStructure, theta: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let p = Polys::of(s, theta);
     let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
-    let ev = evaluate(data, s, &xs, &p, true);
+    let ev = evaluate(data, s, &xs, &p, true, Initial::Zero);
     let (n, q) = (data.y.len(), ev.columns.len());
     let mut eps = vec![f64::NAN; n];
     let mut jac = vec![f64::NAN; n * q];
@@ -778,7 +1020,15 @@ pub fn gradient(data: &Segments<'_>, s: &PolyStructure, theta: &[f64]) -> (Vec<f
 /// Predicted output: `horizon = Some(k)` the k-step-ahead predictor
 /// $\hat y(t|t-k) = y(t) - \sum_{j<k} h_j\, \varepsilon(t-j)$ ($h$ the impulse response of
 /// $C/(A D)$), `None` the free run $\sum_i B_i/(A F_i)\, u_i$. NaN outside the scored samples.
-pub fn predict(data: &Segments<'_>, s: &PolyStructure, theta: &[f64], horizon: Option<usize>) -> Vec<f64> {
+/// With [`Initial::Estimate`] the initial state of each segment is fitted to the data first: to
+/// the prediction errors for a horizon, to the output for the free run (as MATLAB's `compare`).
+pub fn predict(
+    data: &Segments<'_>,
+    s: &PolyStructure,
+    theta: &[f64],
+    horizon: Option<usize>,
+    initial: Initial,
+) -> Vec<f64> {
     let p = Polys::of(s, theta);
     let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
     let mut out = vec![f64::NAN; data.y.len()];
@@ -789,23 +1039,41 @@ pub fn predict(data: &Segments<'_>, s: &PolyStructure, theta: &[f64], horizon: O
                 let w = data.filter(b, &conv(&p.a, f), x);
                 sim.iter_mut().zip(&w).for_each(|(a, b)| *a += b);
             }
-            data.rows(s.max_lag()).iter().for_each(|&t| out[t] = sim[t]);
+            let rows = match initial {
+                Initial::Zero => data.rows(s.max_lag()),
+                Initial::Estimate => free_run_initial(data, s, &p, &mut sim),
+            };
+            rows.iter().for_each(|&t| out[t] = sim[t]);
         }
         Some(k) => {
-            let eps = evaluate(data, s, &xs, &p, false).eps;
+            let ev = evaluate(data, s, &xs, &p, false, initial);
+            let (lag, segments) = match &ev.initial {
+                None => (s.max_lag(), data.segments.to_vec()),
+                Some(init) => (0, init.segments.clone()),
+            };
             let mut impulse = vec![0.0; k];
             impulse[0] = 1.0;
             let mut h = vec![0.0; k];
             filter(&p.c, &conv(&p.a, &p.d), &impulse, &mut h);
-            for &(a, b) in data.segments {
-                for t in (a + s.max_lag()).min(b)..b {
-                    let e: f64 = (0..k.min(t - a + 1)).map(|j| h[j] * eps[t - j]).sum();
-                    out[t] = data.y[t] - e;
+            for (a, b) in segments {
+                for (t, o) in out.iter_mut().enumerate().take(b).skip((a + lag).min(b)) {
+                    let e: f64 = (0..k.min(t - a + 1)).map(|j| h[j] * ev.eps[t - j]).sum();
+                    *o = data.y[t] - e;
                 }
             }
         }
     }
     out
+}
+
+/// Adds to the free run `sim` the free response of each segment's initial state fitted to the
+/// output (numerator over $A \prod_i F_i$); returns the samples it predicts.
+fn free_run_initial(data: &Segments<'_>, s: &PolyStructure, p: &Polys, sim: &mut [f64]) -> Vec<usize> {
+    let den = p.f.iter().fold(p.a.clone(), |acc, f| conv(&acc, f));
+    let gap: Vec<f64> = data.y.iter().zip(sim.iter()).map(|(y, m)| y - m).collect();
+    let fit = fit_initial(data, &den, s.n_initial_free_run(), &gap, false);
+    sim.iter_mut().zip(&fit.response).for_each(|(m, r)| *m += r);
+    fit.segments.into_iter().flat_map(|(a, b)| a..b).collect()
 }
 
 #[cfg(test)]
@@ -837,6 +1105,52 @@ mod tests {
         assert!(eps[..s.max_lag()].iter().all(|e| e.is_nan()));
     }
 
+    /// With estimated initial states the loss is $\min_\eta \|\varepsilon\|^2$; its gradient
+    /// $2 R_{11}^T r$ from the projected R must match finite differences (Kaufman's Jacobian gives the
+    /// exact gradient of the projected loss) for every polynomial of a Box–Jenkins model.
+    #[test]
+    fn projected_gradient_matches_finite_differences() {
+        let mut seed = 3u64;
+        let n = 300;
+        let u: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let y: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let segs = [(0usize, 120), (120, n)];
+        let d = Segments::new(&y, &u, 1, &segs).unwrap();
+        let s = PolyStructure::new(0, vec![2], 1, 2, vec![2], vec![2]).unwrap();
+        let theta = [0.5, 0.2, 0.3, -0.4, 0.1, -0.6, 0.2];
+        let xs = vec![d.delayed(0, 2)];
+        let rows = d.scored(&s, Initial::Estimate);
+        assert_eq!(rows.len(), n);
+        let loss = |th: &[f64]| {
+            let ev = evaluate(&d, &s, &xs, &Polys::of(&s, th), false, Initial::Estimate);
+            sum_squares(&ev.eps, &rows)
+        };
+        let ev = evaluate(&d, &s, &xs, &Polys::of(&s, &theta), true, Initial::Estimate);
+        assert_eq!(ev.initial.as_ref().unwrap().states.len(), 2);
+        let p = theta.len();
+        let r = jacobian_r(&ev, &rows, false);
+        for j in 0..p {
+            let grad: f64 = 2.0 * (0..=j).map(|i| r[i + j * (p + 1)] * r[i + p * (p + 1)]).sum::<f64>();
+            let (mut up, mut down) = (theta, theta);
+            up[j] += 1e-6;
+            down[j] -= 1e-6;
+            let fd = (loss(&up) - loss(&down)) / 2e-6;
+            assert!((fd - grad).abs() < 1e-5 * (1.0 + fd.abs()), "parameter {j}: {fd} vs {grad}");
+        }
+    }
+
+    #[test]
+    fn cancelled_fit_stops_with_interrupted() {
+        let mut seed = 5u64;
+        let u: Vec<f64> = (0..500).map(|_| lcg(&mut seed)).collect();
+        let y: Vec<f64> = (0..500).map(|_| lcg(&mut seed)).collect();
+        let segs = [(0usize, 500)];
+        let d = Segments::new(&y, &u, 1, &segs).unwrap();
+        let s = PolyStructure::new(0, vec![2], 0, 0, vec![2], vec![1]).unwrap();
+        let err = pem(&d, &s, &PemOptions::default(), None, &AtomicBool::new(true)).unwrap_err();
+        assert_eq!(err, ArxError::Interrupted);
+    }
+
     fn lcg(seed: &mut u64) -> f64 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
@@ -864,7 +1178,7 @@ mod tests {
         let segs = [(0, n)];
         let d = Segments::new(&y, &u, 1, &segs).unwrap();
         let s = PolyStructure::new(0, vec![2], 0, 0, vec![2], vec![3]).unwrap();
-        let f = pem(&d, &s, &PemOptions::default(), None).unwrap();
+        let f = pem(&d, &s, &PemOptions::default(), None, &AtomicBool::new(false)).unwrap();
         let truth = [0.5, 0.3, -1.5, 0.7];
         for (a, b) in f.theta.iter().zip(truth) {
             assert!((a - b).abs() < 0.03, "{:?}", f.theta);

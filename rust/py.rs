@@ -363,6 +363,9 @@ pub struct SweepOutput {
     envelope: Py<PyTuple>,
     /// 2: fitted by QR and simulated; 1: ranked by its one-step loss only (sweeps with `top`).
     stage: Py<PyArray1<u8>>,
+    /// (q, q) upper-triangular factor of the envelope's regressor on the estimation rows, output
+    /// column last: `fit_from_factor` solves any structure of the grid from it.
+    r_est: Py<PyArray2<f64>>,
 }
 
 /// Fits and validates every structure of a grid from one factorization (returns a `SweepOutput`).
@@ -410,7 +413,7 @@ fn sweep<'py>(
     // Python's callback still hears about every `chunk` structures.
     let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk: 1, top };
     let (chunk, reported) = (chunk.max(1), AtomicUsize::new(0));
-    let (res, n_est, n_val) = run(py, n_threads, |cancel| {
+    let swept = run(py, n_threads, |cancel| {
         let report = |done: usize| {
             if cancel.load(Ordering::Relaxed) {
                 // Unwinds out of the sweep's parallel loop to `run`, which raises KeyboardInterrupt.
@@ -427,17 +430,12 @@ fn sweep<'py>(
         };
         crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report)
     })?;
-    sweep_output(py, res, n_est, n_val, &grid)
+    sweep_output(py, swept, &grid)
 }
 
 /// The Python view of a sweep's results (grid order).
-fn sweep_output(
-    py: Python<'_>,
-    res: Vec<crate::sweep::StructureResult>,
-    n_est: usize,
-    n_val: usize,
-    grid: &[Structure],
-) -> PyResult<SweepOutput> {
+fn sweep_output(py: Python<'_>, swept: crate::sweep::Swept, grid: &[Structure]) -> PyResult<SweepOutput> {
+    let crate::sweep::Swept { results: res, n_est, n_val, r_est } = swept;
     // The same envelope the sweep built (it succeeded, so this cannot fail).
     let env = envelope(grid).map_err(|e| to_pyerr(py, e))?;
     let s = res.len();
@@ -483,6 +481,7 @@ fn sweep_output(
         first_lag: env.max_lag(),
         envelope: orders_tuple(py, &env)?.unbind(),
         stage: PyArray1::from_vec(py, stage).unbind(),
+        r_est: factor_array(py, r_est)?.unbind(),
     })
 }
 
@@ -593,10 +592,53 @@ fn grid_factor<'py>(
     let terms = parse_output_terms(output_terms)?;
     let grid = parse_grid(py, &structures, m, &terms)?;
     let (r, n) = run(py, 1, |_| crate::sweep::grid_factor(&d, &grid, false))?;
+    Ok((factor_array(py, r)?, n))
+}
+
+/// A column-major square factor as a (q, q) numpy array.
+fn factor_array(py: Python<'_>, r: Vec<f64>) -> PyResult<Bound<'_, PyArray2<f64>>> {
     let q = (r.len() as f64).sqrt() as usize;
     // Column-major q × q as a (q, q) array: the transpose of the row-major reading.
     let a = PyArray1::from_vec(py, r).reshape([q, q])?;
-    Ok((a.transpose()?.cast_into::<PyArray2<f64>>()?, n))
+    Ok(a.transpose()?.cast_into::<PyArray2<f64>>()?)
+}
+
+/// The fit of one structure of a grid from the grid envelope's factor (returns a `FitOutput`): the
+/// same parameters, loss and (Φᵀ Φ)⁻¹ as `fit` on the sweep's rows, to rounding, without the data.
+/// `envelope` and `structure` are `(na, nb, nk)` per layout column.
+#[pyfunction]
+fn fit_from_factor<'py>(
+    py: Python<'py>,
+    r_est: PyReadonlyArray2<'py, f64>,
+    n_rows: usize,
+    envelope: (usize, Vec<usize>, Vec<usize>),
+    structure: (usize, Vec<usize>, Vec<usize>),
+    output_terms: Vec<(String, i32, i64)>,
+) -> PyResult<FitOutput> {
+    let env = self::structure(py, envelope.0, envelope.1, envelope.2, output_terms.clone())?;
+    let s = self::structure(py, structure.0, structure.1, structure.2, output_terms)?;
+    let r = factor_from(&r_est)?;
+    if r.len() != (env.n_params() + 1).pow(2) {
+        return Err(DataError::new_err("the factor does not match the envelope (q = its parameters + 1)"));
+    }
+    let inside = s.na <= env.na
+        && s.nb.len() == env.nb.len()
+        && (0..s.nb.len())
+            .all(|i| s.nb[i] == 0 || (s.nk[i] >= env.nk[i] && s.nk[i] + s.nb[i] <= env.nk[i] + env.nb[i]));
+    if !inside {
+        return Err(OrderError::new_err("the structure reads columns outside the envelope"));
+    }
+    let cols = crate::sweep::columns_in(&env, &s);
+    let q = env.n_params() + 1;
+    let f = run(py, 1, |_| crate::fit::fit_from_factor(&r, q, &cols, n_rows))?;
+    let p = f.theta.len();
+    Ok(FitOutput {
+        theta: f.theta.into_pyarray(py).unbind(),
+        rss: f.rss,
+        n_rows: f.n_rows,
+        n_skipped: 0,
+        inv_gram: PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?.unbind(),
+    })
 }
 
 /// A column-major copy of a square (q × q) factor given as a numpy array.
@@ -634,9 +676,10 @@ fn sweep_factors<'py>(
     let re = factor_from(&r_est)?;
     let rv = r_val.as_ref().map(factor_from).transpose()?;
     let parallel = n_threads != 1;
+    let swept = |results| crate::sweep::Swept { results, n_est, n_val, r_est: re.clone() };
     let (res, simulate) =
-        run(py, n_threads, |_| crate::sweep::fits_from_factors(&grid, re, n_est, rv, n_val, top, parallel))?;
-    Ok((sweep_output(py, res, n_est, n_val, &grid)?, simulate.into_pyarray(py)))
+        run(py, n_threads, |_| crate::sweep::fits_from_factors(&grid, re.clone(), n_est, rv, n_val, top, parallel))?;
+    Ok((sweep_output(py, swept(res), &grid)?, simulate.into_pyarray(py)))
 }
 
 /// `(rms, n, norm, diverged)` of fitted structures simulated on these data from `first_lag` on (free run,
@@ -703,6 +746,15 @@ fn poly_structure(py: Python<'_>, o: PolyOrders) -> PyResult<crate::pem::PolyStr
     crate::pem::PolyStructure::new(o.0, o.1, o.2, o.3, o.4, o.5).map_err(|e| to_pyerr(py, e))
 }
 
+/// MATLAB's `InitialCondition` names: "zero" or "estimate".
+fn initial_condition(name: &str) -> PyResult<crate::pem::Initial> {
+    match name {
+        "zero" => Ok(crate::pem::Initial::Zero),
+        "estimate" => Ok(crate::pem::Initial::Estimate),
+        other => Err(ArxidError::new_err(format!("initial must be 'zero' or 'estimate', got {other:?}"))),
+    }
+}
+
 /// What `pem_fit` returns.
 #[pyclass(frozen, get_all, module = "arxid._core")]
 pub struct PemOutput {
@@ -726,11 +778,17 @@ pub struct PemOutput {
     termination: String,
     /// True when they stopped at a (local) minimum.
     converged: bool,
+    /// With initial="estimate": the segments `(start, end)` whose initial state was estimated.
+    initial_segments: Vec<(usize, usize)>,
+    /// Their initial states, one row per segment (empty with initial="zero").
+    initial_states: Vec<Vec<f64>>,
 }
 
 /// Prediction-error fit of a polynomial model on finite `segments` `[start, end)` of the data.
 #[pyfunction]
-#[pyo3(signature = (y, u, segments, orders, start = None, max_iterations = 100, tolerance = 1e-6, n_threads = 0))]
+#[pyo3(signature = (
+    y, u, segments, orders, start = None, max_iterations = 100, tolerance = 1e-6, n_threads = 0, initial = "zero"
+))]
 #[allow(clippy::too_many_arguments)]
 fn pem_fit<'py>(
     py: Python<'py>,
@@ -742,7 +800,9 @@ fn pem_fit<'py>(
     max_iterations: usize,
     tolerance: f64,
     n_threads: usize,
+    initial: &str,
 ) -> PyResult<PemOutput> {
+    let initial = initial_condition(initial)?;
     let s = poly_structure(py, orders)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
@@ -750,8 +810,10 @@ fn pem_fit<'py>(
         Some(a) => Some(a.as_slice()?),
         None => None,
     };
-    let opts = crate::pem::PemOptions { max_iterations, tolerance, parallel: n_threads != 1, ..Default::default() };
-    let f = run(py, n_threads, |_| crate::pem::pem(&d, &s, &opts, start))?;
+    let opts =
+        crate::pem::PemOptions { max_iterations, tolerance, parallel: n_threads != 1, initial, ..Default::default() };
+    let f = run(py, n_threads, |cancel| crate::pem::pem(&d, &s, &opts, start, cancel))?;
+    let (initial_segments, initial_states) = f.initial_states.into_iter().unzip();
     let p = f.theta.len();
     Ok(PemOutput {
         theta: f.theta.into_pyarray(py).unbind(),
@@ -764,13 +826,16 @@ fn pem_fit<'py>(
         losses: f.losses.into_pyarray(py).unbind(),
         termination: f.termination.to_string(),
         converged: f.termination.converged(),
+        initial_segments,
+        initial_states,
     })
 }
 
 /// Prediction of a polynomial model: `horizon` k steps ahead, None the free run; NaN outside the
-/// scored samples of `segments`.
+/// scored samples of `segments`; `initial` "zero" or "estimate" (fitted to these data first).
 #[pyfunction]
-#[pyo3(signature = (y, u, segments, orders, theta, horizon = None))]
+#[pyo3(signature = (y, u, segments, orders, theta, horizon = None, initial = "zero"))]
+#[allow(clippy::too_many_arguments)]
 fn pem_predict<'py>(
     py: Python<'py>,
     y: PyReadonlyArray1<'py, f64>,
@@ -779,7 +844,9 @@ fn pem_predict<'py>(
     orders: PolyOrders,
     theta: PyReadonlyArray1<'py, f64>,
     horizon: Option<usize>,
+    initial: &str,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let initial = initial_condition(initial)?;
     let s = poly_structure(py, orders)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = crate::pem::Segments::new(ys, us, m, &segments).map_err(|e| to_pyerr(py, e))?;
@@ -793,7 +860,7 @@ fn pem_predict<'py>(
             s.n_params()
         )));
     }
-    let out = run(py, 1, |_| Ok(crate::pem::predict(&d, &s, th, horizon)))?;
+    let out = run(py, 1, |_| Ok(crate::pem::predict(&d, &s, th, horizon, initial)))?;
     Ok(out.into_pyarray(py))
 }
 
@@ -844,7 +911,7 @@ mod core_module {
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
     #[pymodule_export]
-    use super::{fma_limit, grid_factor, simulate_structures, sweep_factors};
+    use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
 

@@ -342,6 +342,20 @@ fn two_stage_fits(
     Ok((out, ranked))
 }
 
+/// What [`sweep`] returns.
+pub struct Swept {
+    /// One result per structure, in grid order.
+    pub results: Vec<StructureResult>,
+    /// Regression rows of the estimation data.
+    pub n_est: usize,
+    /// Regression rows of the validation data (0 without them).
+    pub n_val: usize,
+    /// Column-major q × q factor of the envelope's regressor on the estimation rows: any
+    /// structure's fit, with its parameter covariance, follows from it
+    /// ([`fit_from_factor`](crate::fit::fit_from_factor)).
+    pub r_est: Vec<f64>,
+}
+
 /// Fits and validates every structure. All structures use the rows from the grid's largest lag on,
 /// so their losses compare on the same samples (as MATLAB `arxstruc`).
 ///
@@ -371,7 +385,7 @@ pub fn sweep(
     structures: &[Structure],
     opts: &SweepOptions,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<(Vec<StructureResult>, usize, usize)> {
+) -> Result<Swept> {
     let heartbeat = || progress(0);
     let f = factor_grid(est, val, structures, opts.parallel, &heartbeat)?;
     let (n_est, n_val) = (f.n_est, f.n_val);
@@ -397,7 +411,7 @@ pub fn sweep(
     // 2. Simulation, in lane groups of neighbouring na (fitted ones only).
     if !opts.simulate_estimation && val.is_none() {
         progress(structures.len());
-        return Ok((out, n_est, n_val));
+        return Ok(Swept { results: out, n_est, n_val, r_est: f.r_est });
     }
     let order: Vec<usize> = simulated.into_iter().filter(|&i| out[i].error.is_none()).collect();
     let scores = simulate_all(est, val, structures, &out, order, (&f.env, f.first_lag, None), opts, progress);
@@ -406,7 +420,7 @@ pub fn sweep(
         out[i].sim_val = sv;
     }
     progress(structures.len());
-    Ok((out, n_est, n_val))
+    Ok(Swept { results: out, n_est, n_val, r_est: f.r_est })
 }
 
 /// The triangular factor (column-major q × q, output last) of the grid envelope's regressor on one
@@ -620,7 +634,7 @@ mod tests {
             }
         }
         let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: true, chunk: 7, top: None };
-        let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
+        let res = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap().results;
         let lag = envelope(&grid).unwrap().max_lag();
         for (s, r) in grid.iter().zip(&res) {
             let f = fit(&d, s, lag, false).unwrap();
@@ -631,7 +645,7 @@ mod tests {
             assert!((r.rss_val - r.rss_est).abs() <= 1e-8 * f.rss);
         }
         let serial = SweepOptions { parallel: false, ..opts };
-        let (res1, _, _) = sweep(&d, Some(&d), &grid, &serial, &|_| {}).unwrap();
+        let res1 = sweep(&d, Some(&d), &grid, &serial, &|_| {}).unwrap().results;
         for (a, b) in res.iter().zip(&res1) {
             assert_eq!(a.theta, b.theta);
             assert_eq!(a.sim_val.rms.to_bits(), b.sim_val.rms.to_bits());
@@ -660,11 +674,11 @@ mod tests {
         let v = Data::new(&yv, &u, 1, &starts).unwrap();
         let grid = vec![Structure::new(1, vec![1], vec![1], vec![]).unwrap()];
         let opts = SweepOptions { simulate_estimation: true, horizon: None, parallel: false, chunk: 1, top: None };
-        let (res, _, _) = sweep(&d, Some(&v), &grid, &opts, &|_| {}).unwrap();
+        let res = sweep(&d, Some(&v), &grid, &opts, &|_| {}).unwrap().results;
         assert!(!res[0].sim_est.diverged && res[0].sim_est.rms < 0.1, "{:?}", res[0].sim_est);
         assert!(res[0].sim_val.diverged, "{:?}", res[0].sim_val);
         // The same data as validation do not diverge.
-        let (res, _, _) = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap();
+        let res = sweep(&d, Some(&d), &grid, &opts, &|_| {}).unwrap().results;
         assert!(!res[0].sim_val.diverged);
     }
 

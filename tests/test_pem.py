@@ -226,6 +226,13 @@ def test_typed_errors():
         # A sine excites two parameters only: OE(3,3) is not identifiable from it.
         t = np.arange(2000)
         arxid.oe(arxid.IOData(np.sin(0.3 * t + 0.4), np.sin(0.3 * t), ts=1.0), 3, 3, 1)
+    # Orders above the plant's: the extra pole and zero cancel, so they are not determined.
+    noise_free = arxid.IOData(signal.lfilter(B_TRUE, F_TRUE, data.u[:, 0]), data.u, ts=1.0)
+    with pytest.raises(IdentifiabilityError, match=r"OE\(3,3,3\).*orders may be too high"):
+        arxid.oe(noise_free, 3, 3, 3)
+    # A noise model asked of noise-free data.
+    with pytest.raises(IdentifiabilityError, match="noise-free"):
+        arxid.armax(noise_free, 2, 2, 1, 3)
     with pytest.raises(ConvergenceError, match="not finite"):
         arxid.oe(data, 2, 2, 3, start=[np.nan, 0.0, -1.0, 0.5])
     with pytest.raises(arxid.NotFittedError):
@@ -267,3 +274,27 @@ def test_real_data_oe_loss_no_higher_than_scipy_least_squares(shared_data):
         model = arxid.oe(data, *orders)
         for start in (model.start_parameters_, np.r_[np.zeros(orders[0]), -0.5, 0.1][: model.n_params]):
             assert model.loss_ <= _scipy_oe_loss(data, model, start) * (1 + 1e-6)
+
+
+# ----------------------------------------------------------------------------- general structure
+def test_polyest_with_both_a_and_f_recovers_every_polynomial():
+    """A y = B/F u + C e (MATLAB polyest [1 2 1 0 2 1]): A's pole is shared by input and noise."""
+    a, b, f, c = [1, -0.8], [0, 1.0, 0.5], [1, -1.2, 0.5], [1, 0.4]
+
+    def make(rng):
+        u, e = np.sign(rng.standard_normal(1000)), 0.3 * rng.standard_normal(1000)
+        y = signal.lfilter(b, np.convolve(a, f), u) + signal.lfilter(c, a, e)
+        return arxid.IOData(y, u, ts=1.0)
+
+    truth = np.r_[a[1:], b[1:], c[1:], f[1:]]
+    cover = _coverage(lambda d: arxid.polyest(d, 1, 2, 1, 0, 2, 1), truth, make)
+    assert np.all(cover >= 0.95), cover
+    data = make(np.random.default_rng(0))
+    model = arxid.polyest(data, 1, 2, 1, 0, 2, 1)
+    assert model.kind == "polynomial" and model.structure_name() == "poly(1,2,1,0,2,1)"
+    assert str(model).startswith("Discrete-time polynomial model: A(z)y(t) = [B(z)/F(z)]u(t) + [C(z)/D(z)]e(t)")
+    # The input path is B/(A F): free run and simulate agree, the poles are A's and F's.
+    free = model.predict(data, None)
+    ok = np.isfinite(free)
+    np.testing.assert_allclose(free[ok], model.simulate(data.u)[ok], atol=1e-9)
+    assert np.sort(np.abs(model.poles())) == pytest.approx(np.sort(np.abs(np.r_[np.roots(a), np.roots(f)])), abs=0.03)

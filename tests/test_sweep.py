@@ -375,3 +375,21 @@ def test_fit_percent_with_missing_validation_inputs_is_that_of_the_scored_sample
         assert res.rms_val[i] == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-9)
         fit = 100 * (1 - np.linalg.norm(e) / np.linalg.norm(val.y[ok] - val.y[ok].mean()))
         assert res.fit_val[i] == pytest.approx(fit, rel=1e-9)
+
+
+def test_any_structure_follows_from_the_estimation_factor_as_a_refit_gives_it(small):
+    """The integrator test reads parameters and covariances from the sweep's factor, not the data."""
+    from arxid import _core
+
+    est, _, res = small
+    env = (res.row_orders[0], list(res.row_orders[1]), list(res.row_orders[2]))
+    for i in (0, 5, len(res) - 1):
+        orders = (int(res.na[i]), [int(res.nb[i, 0])], [int(res.nk[i, 0])])
+        fit = _core.fit_from_factor(res.estimation_factor, res.n_est, env, orders, [])
+        m = res.model(i)
+        np.testing.assert_allclose(fit.theta, m.parameters_, rtol=1e-10, atol=1e-13)
+        cov = arxid._metrics.parameter_covariance(fit.inv_gram, fit.rss, fit.n_rows)
+        np.testing.assert_allclose(cov, m.covariance_, rtol=1e-9, atol=1e-18)
+    outside = (4, [1], [0])  # na 4 is beyond the grid's largest na 3
+    with pytest.raises(OrderError, match="outside the envelope"):
+        _core.fit_from_factor(res.estimation_factor, res.n_est, env, outside, [])

@@ -42,7 +42,7 @@ from .ladder import Ladder
 from .missing import Diagnosis, diagnose
 from .model import ArxModel, arx
 from .orders import DEFAULT_GRID, SweepResult, sweep
-from .pem import RefinedSweep, armax, bj, delayest, oe, refine
+from .pem import RefinedSweep, armax, bj, delayest, oe, polyest, refine
 from .polynomial import PolynomialModel
 from .validation import compare, residuals, where_it_fails
 
@@ -57,6 +57,7 @@ __all__ = [
     "oe",
     "armax",
     "bj",
+    "polyest",
     "delayest",
     "refine",
     "RefinedSweep",

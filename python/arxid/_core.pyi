@@ -18,6 +18,7 @@ __all__ = [
     "simulate_structures",
     "sweep_factors",
     "fit",
+    "fit_from_factor",
     "fit_memory",
     "grid_envelope",
     "max_lag",
@@ -90,6 +91,8 @@ class SweepOutput:
     def envelope(self) -> _Orders: ...
     @property
     def stage(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def r_est(self) -> _F: ...
 
 def fit(
     y: _F,
@@ -102,6 +105,13 @@ def fit(
     first_lag: int = 0,
     n_threads: int = 0,
     rows_like: tuple[int, Sequence[int], Sequence[int]] | None = None,
+) -> FitOutput: ...
+def fit_from_factor(
+    r_est: _F,
+    n_rows: int,
+    envelope: tuple[int, Sequence[int], Sequence[int]],
+    structure: tuple[int, Sequence[int], Sequence[int]],
+    output_terms: Sequence[_Term],
 ) -> FitOutput: ...
 def predict(
     y: _F,
@@ -164,6 +174,10 @@ class PemOutput:
     def termination(self) -> str: ...
     @property
     def converged(self) -> bool: ...
+    @property
+    def initial_segments(self) -> list[tuple[int, int]]: ...
+    @property
+    def initial_states(self) -> list[list[float]]: ...
 
 def pem_fit(
     y: _F,
@@ -174,9 +188,16 @@ def pem_fit(
     max_iterations: int = 100,
     tolerance: float = 1e-6,
     n_threads: int = 0,
+    initial: str = "zero",
 ) -> PemOutput: ...
 def pem_predict(
-    y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F, horizon: int | None = None
+    y: _F,
+    u: _F,
+    segments: Sequence[tuple[int, int]],
+    orders: _PolyOrders,
+    theta: _F,
+    horizon: int | None = None,
+    initial: str = "zero",
 ) -> _F: ...
 def pem_gradient(
     y: _F, u: _F, segments: Sequence[tuple[int, int]], orders: _PolyOrders, theta: _F

@@ -185,3 +185,27 @@ def selstruc(loss: _Float, n: int, p: _Float, c: float) -> _Float:
     """MATLAB ``selstruc``'s criterion V (1 + c p / N): c = 2 is ``'aic'``, c = log N ``'mdl'``."""
     p = np.asarray(p, dtype=float)
     return _scalar(np.asarray(loss, dtype=float) * (1 + c * p / n))
+
+
+def parameter_covariance(inv_gram: np.ndarray, rss: float, n_rows: int) -> np.ndarray:
+    """Covariance of least-squares parameters, rss · (ΦᵀΦ)⁻¹ / (N − p).
+
+    The same as the noise variance times (ΦᵀΦ)⁻¹, in an order that stays in range for outputs near
+    the limits of floating point (beyond them an entry is inf or NaN).
+
+    Parameters
+    ----------
+    inv_gram : ndarray of shape (p, p)
+        (ΦᵀΦ)⁻¹.
+    rss : float
+        Residual sum of squares.
+    n_rows : int
+        Regression rows N.
+
+    Returns
+    -------
+    ndarray of shape (p, p)
+    """
+    inv_gram = np.asarray(inv_gram, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return (inv_gram * rss) / max(n_rows - inv_gram.shape[0], 1)

@@ -228,7 +228,7 @@ def integrator_test(
     numbers = (
         f"unit-root test of a pole at z = 1, A(1) = 0: t from {np.min(t):.3g} to {np.max(t):.3g}, rejected above "
         f"{UNIT_ROOT_CRITICAL} at the 1% level; slowest time constant "
-        + ("infinite" if not np.isfinite(slow) else f"{slow:.4g} samples")
+        + ("infinite" if not np.isfinite(slow) else "none near z = 1" if slow == 0 else f"{slow:.4g} samples")
         + f" against {record} estimation samples (an integrator above {RECORD_SHARE:g} of them)"
     )
     verdict = "integrating" if integrating else "not integrating"

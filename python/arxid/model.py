@@ -302,16 +302,12 @@ class ArxModel(FittedModel):
         self.output_unit_, self.input_units_ = data.output_unit, data.input_units
         self.layout_ = FittedLayout.of(layout)
         self.parameters_ = np.asarray(res.theta)
-        self.covariance_ = np.asarray(res.inv_gram)
         self.regressor_names_ = tuple(names)
         self.n_rows_ = int(res.n_rows)
         self.n_skipped_ = int(res.n_skipped)
         self.first_lag_ = first_lag
         self.rss_ = float(res.rss)
-        # rss · (ΦᵀΦ)⁻¹ / (N − p): the same as noise_variance_ · (ΦᵀΦ)⁻¹, in an order that stays in
-        # range for outputs near the limits of floating point (beyond them an entry is inf or NaN).
-        with np.errstate(over="ignore", invalid="ignore"):
-            self.covariance_ = (self.covariance_ * self.rss_) / max(self.n_rows_ - self.n_params, 1)
+        self.covariance_ = metrics.parameter_covariance(res.inv_gram, self.rss_, self.n_rows_)
         self.data_ = data
         self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
 

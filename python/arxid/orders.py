@@ -207,6 +207,9 @@ class SweepResult:
     stage : ndarray of shape (S,)
         Which stage ranked each row: 2 = fitted by QR and simulated, 1 = ranked by its one-step
         error only (two-stage sweeps of grids larger than ``top``; its simulation columns are NaN).
+    estimation_factor : ndarray of shape (q, q) or None
+        Upper-triangular factor R of the envelope's regressor ``[Φ | y]`` on the estimation rows:
+        every structure's parameters and their covariance follow from it without the data.
     """
 
     na: np.ndarray
@@ -244,6 +247,7 @@ class SweepResult:
     grid: dict = field(default_factory=dict, repr=False)
     settings: dict = field(default_factory=dict, repr=False)
     stage: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8), repr=False)
+    estimation_factor: np.ndarray | None = field(default=None, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ basics
@@ -911,6 +915,19 @@ def _ranking_column(r, key: str) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------- sweep
+def _parameters_and_covariance(result: SweepResult, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters and covariance of ranked structure ``i``: from the sweep's estimation factor
+    (microseconds), or by refitting where there is none or effect columns change the layout."""
+    if result.estimation_factor is None or result.effects:
+        m = result.model(i)
+        return m.parameters_, m.covariance_
+    orders = (int(result.na[i]), [int(v) for v in result.nb[i]], [int(v) for v in result.nk[i]])
+    na_env, nb_env, nk_env = result.row_orders
+    envelope = (int(na_env), list(nb_env), list(nk_env))
+    fit = _core.fit_from_factor(result.estimation_factor, result.n_est, envelope, orders, [])
+    return np.asarray(fit.theta), metrics.parameter_covariance(fit.inv_gram, fit.rss, fit.n_rows)
+
+
 def _integrator_verdict(result: SweepResult) -> IntegratorTest:
     """Unit-root test (:mod:`arxid.integrator`) of the best structures by FPE of a free-run sweep."""
     fpe = np.where(np.isfinite(result.fpe), result.fpe, np.inf)
@@ -922,10 +939,10 @@ def _integrator_verdict(result: SweepResult) -> IntegratorTest:
             break
         if result.errors[i] is not None or result.na[i] == 0:
             continue
-        m = result.model(int(i))
+        theta, covariance = _parameters_and_covariance(result, int(i))
         names.append(result.structure_name(int(i)))
-        t_values.append(unit_root_t(m.parameters_, m.covariance_, m.na_))
-        taus.append(slowest_time_constant(m.parameters_, m.na_))
+        t_values.append(unit_root_t(theta, covariance, int(result.na[i])))
+        taus.append(slowest_time_constant(theta, int(result.na[i])))
     return integrator_test(names, t_values, taus, result.n_est)
 
 
@@ -1562,6 +1579,7 @@ def _build_result(
         grid=b.grid,
         settings=b.settings,
         stage=res.stage[order],
+        estimation_factor=getattr(res, "r_est", None),
     )
 
 

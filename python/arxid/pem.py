@@ -1,4 +1,4 @@
-"""Prediction-error estimation: :func:`oe`, :func:`armax`, :func:`bj`, :func:`delayest` and the
+"""Prediction-error estimation: :func:`oe`, :func:`armax`, :func:`bj`, :func:`polyest`, :func:`delayest` and the
 output-error refinement of a sweep (:func:`refine`, behind ``arxid.sweep(..., refine="oe")``).
 
 The iterations run in the Rust core (Gauss–Newton with Levenberg–Marquardt damping, each step
@@ -22,12 +22,12 @@ from ._format import text_table
 from .data import IOData
 from .exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from .model import ArxModel
-from .polynomial import PolynomialModel
+from .polynomial import PolynomialModel, check_initial
 
 if TYPE_CHECKING:
     from .orders import SweepResult
 
-__all__ = ["oe", "armax", "bj", "delayest", "refine", "RefinedSweep", "RefinedRow"]
+__all__ = ["oe", "armax", "bj", "polyest", "delayest", "refine", "RefinedSweep", "RefinedRow"]
 
 
 def _fit(model: PolynomialModel, data: IOData, options: dict[str, Any]) -> PolynomialModel:
@@ -45,7 +45,8 @@ def oe(data: IOData, nb: Any, nf: Any, nk: Any, **options: Any) -> PolynomialMod
     nb, nf, nk : int or sequence of int
         Per input: numerator coefficients, poles (order of F) and delay in samples.
     **options
-        ``start``, ``max_iterations``, ``tolerance``, ``n_threads`` of :meth:`PolynomialModel.fit`.
+        ``start``, ``max_iterations``, ``tolerance``, ``n_threads`` and ``initial`` (``"zero"`` or
+        ``"estimate"``: the initial state of each run estimated too) of :meth:`PolynomialModel.fit`.
 
     Returns
     -------
@@ -100,6 +101,32 @@ def bj(data: IOData, nb: Any, nc: int, nd: int, nf: Any, nk: Any, **options: Any
     PolynomialModel
     """
     return _fit(PolynomialModel(nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), data, options)
+
+
+def polyest(data: IOData, na: int, nb: Any, nc: int, nd: int, nf: Any, nk: Any, **options: Any) -> PolynomialModel:
+    """Fit the general polynomial model A y = B/F u + C/D e (MATLAB ``polyest(data, [na nb nc nd nf nk])``).
+
+    Parameters
+    ----------
+    data : IOData
+    na, nc, nd : int
+        Orders of A (poles shared by the input and the noise paths), C and D.
+    nb, nf, nk : int or sequence of int
+        Per input: numerator coefficients, poles of F and delay.
+    **options
+        As :func:`oe`.
+
+    Returns
+    -------
+    PolynomialModel
+
+    Notes
+    -----
+    The start is ARX for A and B (F = 1), Hannan–Rissanen for C and D; the Gauss–Newton iterations
+    then fit every polynomial. Prefer the named structures when one fits: OE, ARMAX and BJ are
+    special cases with fewer parameters to determine.
+    """
+    return _fit(PolynomialModel(na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), data, options)
 
 
 def _int(name: str, value: Any, low: int = 0) -> int:
@@ -264,7 +291,9 @@ class RefinedSweep:
         return self.table()
 
 
-def _candidates(result: SweepResult, top: int, grid: dict[str, Any] | None) -> list[tuple[str, Any]]:
+def _candidates(
+    result: SweepResult, top: int, grid: dict[str, Any] | None, initial: str = "zero"
+) -> list[tuple[str, Any]]:
     """The top ARX models of the sweep, their OE counterparts (nf = na) and an OE grid."""
     est = result.estimation
     out: list[tuple[str, Any]] = []
@@ -284,14 +313,18 @@ def _candidates(result: SweepResult, top: int, grid: dict[str, Any] | None) -> l
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ArxidWarning)
             try:
-                out.append(("OE", oe(est, list(nb_), list(nf_), list(nk_))))
+                out.append(("OE", oe(est, list(nb_), list(nf_), list(nk_), initial=initial)))
             except ArxidError:
                 continue
     return out
 
 
 def refine(
-    result: SweepResult, structure: str = "oe", top: int = 5, grid: dict[str, Any] | None = None
+    result: SweepResult,
+    structure: str = "oe",
+    top: int = 5,
+    grid: dict[str, Any] | None = None,
+    initial: str = "zero",
 ) -> RefinedSweep:
     """Refit the best ARX structures of a sweep (and a small grid) as output-error models and rank
     every model by its free-run error on the validation data (penalised for parameters as FPE).
@@ -306,6 +339,9 @@ def refine(
     grid : dict, optional
         ``{"nb": ..., "nf": ..., "nk": ...}`` ranges of the OE grid fitted as well (default nb and
         nf in 1..3, nk over the sweep's delays). Orders are shared by all inputs.
+    initial : {"zero", "estimate"}
+        Initial conditions of the OE fits (see :meth:`PolynomialModel.fit`). Every row is still
+        ranked by its free run from rest on the validation data, so ARX and OE rows compare.
 
     Returns
     -------
@@ -323,7 +359,7 @@ def refine(
         raise ArxidError(f"refine supports structure='oe' only, got {structure!r}")
     top = _int("top", top, 1)
     val = result.validation if result.validation is not None else result.estimation
-    cands = _candidates(result, top, grid)
+    cands = _candidates(result, top, grid, check_initial(initial))
     preds = [np.asarray(m.predict(val, None), dtype=float) for _, m in cands]
     ok = np.isfinite(val.y)
     for p in preds:

@@ -20,16 +20,33 @@ from . import _metrics as metrics
 from ._format import format_polynomial
 from .data import IOData
 from .derived_inputs import DerivedInput, complete_inputs
-from .exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
+from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .fitted import FittedModel
 from .model import FittedLayout
 
-__all__ = ["PolynomialModel", "finite_segments"]
+__all__ = ["PolynomialModel", "finite_segments", "as_polynomial", "check_initial"]
 
 _JSON_FORMAT = "arxid.PolynomialModel"
 _JSON_VERSION = 1
 _MAX_ORDER = 2**40
 _POLY_NAMES = ("a", "b", "c", "d", "f")
+_INITIAL = ("zero", "estimate")
+
+
+def check_initial(initial: Any) -> str:
+    """The initial-condition option checked: ``"zero"`` or ``"estimate"`` (MATLAB's names).
+
+    Parameters
+    ----------
+    initial : str
+
+    Returns
+    -------
+    str
+    """
+    if initial not in _INITIAL:
+        raise ArxidError(f"initial must be 'zero' or 'estimate' (MATLAB's InitialCondition), got {initial!r}")
+    return str(initial)
 
 
 def _order(name: str, value: Any) -> int:
@@ -135,8 +152,6 @@ class PolynomialModel(FittedModel):
             _per_input("nf", self.nf, m),
             _per_input("nk", self.nk, m),
         )
-        if orders[0] and any(orders[4]):
-            raise OrderError("a model with both A (na > 0) and F (nf > 0) is not supported; use oe, armax or bj")
         return orders
 
     def fit(
@@ -147,6 +162,7 @@ class PolynomialModel(FittedModel):
         max_iterations: int = 100,
         tolerance: float = 1e-6,
         n_threads: int = 0,
+        initial: str = "zero",
     ) -> PolynomialModel:
         """Minimise the sum of squared one-step prediction errors (Gauss–Newton, Levenberg–Marquardt).
 
@@ -163,6 +179,12 @@ class PolynomialModel(FittedModel):
             Stop when a step would improve the loss by less than this fraction.
         n_threads : int
             Threads for the QR of the gradient (0 = all cores).
+        initial : {"zero", "estimate"}
+            How the filters start in each run of finite samples (MATLAB's ``InitialCondition``).
+            ``"zero"``: at rest, and the first ``first_lag_`` samples of each run are not scored
+            (they only feed the lags). ``"estimate"``: the initial state of each run is estimated
+            with the parameters and every sample is scored; use it when a record starts
+            mid-transient. The states are kept in ``initial_states_``.
 
         Returns
         -------
@@ -174,22 +196,31 @@ class PolynomialModel(FittedModel):
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
             )
         orders = self.orders_for(data)
-        lag = int(_core.pem_max_lag(orders))
+        initial = check_initial(initial)
+        lag = int(_core.pem_max_lag(orders)) if initial == "zero" else 0
         segments = finite_segments(data, lag)
         _check_size(orders, segments, lag, data)
         _check_excitation(data, orders[1])
         st = None if start is None else np.ascontiguousarray(start, dtype=float)
-        res = _core.pem_fit(
-            np.ascontiguousarray(data.y),
-            np.ascontiguousarray(data.u),
-            segments,
-            orders,
-            start=st,
-            max_iterations=_order("max_iterations", max_iterations),
-            tolerance=float(tolerance),
-            n_threads=_order("n_threads", n_threads),
-        )
-        self._store(data, orders, lag, res)
+        try:
+            res = _core.pem_fit(
+                np.ascontiguousarray(data.y),
+                np.ascontiguousarray(data.u),
+                segments,
+                orders,
+                start=st,
+                max_iterations=_order("max_iterations", max_iterations),
+                tolerance=float(tolerance),
+                n_threads=_order("n_threads", n_threads),
+                initial=initial,
+            )
+        except IdentifiabilityError as exc:
+            raise IdentifiabilityError(
+                f"{self.structure_name()}: these data cannot determine the parameters ({exc}). The orders may be "
+                f"too high (a pole and a zero that cancel), the input may not excite enough frequencies, or a "
+                f"noise model (nc, nd) was asked of noise-free data: lower the orders or use richer data"
+            ) from None
+        self._store(data, orders, lag, res, initial)
         if not res.converged:
             warnings.warn(
                 f"{self.structure_name()}: {res.termination} after {res.iterations} iterations; the estimate may be a "
@@ -199,7 +230,7 @@ class PolynomialModel(FittedModel):
             )
         return self
 
-    def _store(self, data: IOData, orders: tuple, lag: int, res: Any) -> None:
+    def _store(self, data: IOData, orders: tuple, lag: int, res: Any, initial: str) -> None:
         """Fitted state from the core's result (constructor arguments stay as given)."""
         self.na_, self.nb_, self.nc_, self.nd_, self.nf_, self.nk_ = orders
         self.ts_ = data.ts
@@ -217,8 +248,10 @@ class PolynomialModel(FittedModel):
         )
         self.losses_ = np.asarray(res.losses)
         self.covariance_ = self.noise_variance_ * np.asarray(res.inv_gram)
+        self.initial_ = initial
+        self.initial_states_ = {tuple(seg): np.asarray(x) for seg, x in zip(res.initial_segments, res.initial_states)}
         self.data_ = data
-        self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
+        self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1, initial=initial))
 
     def check_fitted(self) -> None:
         """Raise :class:`NotFittedError` unless the model is fitted (or loaded from JSON).
@@ -421,7 +454,7 @@ class PolynomialModel(FittedModel):
         return np.array(out)
 
     # ------------------------------------------------------------------ prediction
-    def predict(self, data: IOData, horizon: int | None = 1) -> np.ndarray:
+    def predict(self, data: IOData, horizon: int | None = 1, initial: str = "zero") -> np.ndarray:
         """Predicted output; NaN where no prediction exists.
 
         Parameters
@@ -429,8 +462,13 @@ class PolynomialModel(FittedModel):
         data : IOData
         horizon : int or None
             1: one-step prediction with the noise model; k: k steps ahead; None: free-run
-            simulation (MATLAB ``compare``). The first ``first_lag_`` samples of each run of finite
-            samples are initial conditions.
+            simulation (MATLAB ``compare``).
+        initial : {"zero", "estimate"}
+            ``"zero"``: the filters start at rest in each run of finite samples and its first
+            ``first_lag_`` samples are not predicted. ``"estimate"``: each run's initial state is
+            fitted to these data first (to the prediction errors for a horizon, to the measured
+            output for the free run, as MATLAB's ``compare`` does) and every sample is predicted;
+            on the estimation data with a horizon this reproduces the fit's ``initial_states_``.
 
         Returns
         -------
@@ -445,7 +483,9 @@ class PolynomialModel(FittedModel):
         if data.n_inputs != len(self.input_names_):
             raise DataError(f"the model has {len(self.input_names_)} inputs but the data have {data.n_inputs}")
         orders = (self.na_, list(self.nb_), self.nc_, self.nd_, list(self.nf_), list(self.nk_))
-        segments = finite_segments(data, self.first_lag_, need_output=horizon is not None)
+        estimate = check_initial(initial) == "estimate"
+        lag = 0 if estimate else int(_core.pem_max_lag(orders))
+        segments = finite_segments(data, lag, need_output=horizon is not None or estimate)
         if not segments:
             return np.full(data.n_samples, np.nan)
         return np.asarray(
@@ -456,6 +496,7 @@ class PolynomialModel(FittedModel):
                 orders,
                 np.ascontiguousarray(self.parameters_, dtype=float),
                 horizon=None if horizon is None else int(horizon),
+                initial=initial,
             )
         )
 
@@ -567,11 +608,58 @@ class PolynomialModel(FittedModel):
             "termination": self.termination_,
             "converged": self.converged_,
             "losses": [float(x) for x in self.losses_],
+            "initial": self.initial_,
+            "initial_states": [[a, b, [float(x) for x in v]] for (a, b), v in self.initial_states_.items()],
             "derived_inputs": [
                 {"effect": d.effect, "source": None if d.source is None else d.source.to_dict()}
                 for d in self.derived_inputs
             ],
         }
+
+    @classmethod
+    def from_arx(cls, model: Any) -> PolynomialModel:
+        """The same fitted ARX model as a polynomial model (C = D = F = 1), as MATLAB's ``idpoly(sys)``.
+
+        Parameters
+        ----------
+        model : ArxModel
+            A fitted ARX model without effect terms.
+
+        Returns
+        -------
+        PolynomialModel
+            Same parameters, covariance, loss and names; ``iterations_`` 0.
+        """
+        model.check_fitted()
+        if model.effects:
+            raise ArxidError(
+                f"the ARX model has effect terms {list(model.effects)}: it has no polynomial form; "
+                f"use a model without effects"
+            )
+        m = len(model.input_names_)
+        d = {
+            "format": _JSON_FORMAT,
+            "version": _JSON_VERSION,
+            "orders": {"na": model.na_, "nb": list(model.nb_), "nc": 0, "nd": 0, "nf": [0] * m, "nk": list(model.nk_)},
+            "ts": model.ts_,
+            "output_name": model.output_name_,
+            "input_names": list(model.input_names_),
+            "output_unit": model.output_unit_,
+            "input_units": list(model.input_units_),
+            "parameters": model.parameters_,
+            "start_parameters": model.parameters_,
+            "covariance": model.covariance_,
+            "n_rows": model.n_rows_,
+            "n_skipped": model.n_skipped_,
+            "first_lag": model.first_lag_,
+            "rss": model.rss_,
+            "fit_percent": model.fit_percent_,
+            "iterations": 0,
+            "termination": "linear least squares (ARX)",
+            "converged": True,
+            "losses": [model.rss_ / model.n_rows_],
+        }
+        return _model_from_dict(cls, d)
 
     @classmethod
     def from_json(cls, text_or_path: str) -> PolynomialModel:
@@ -721,6 +809,20 @@ def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
             )
 
 
+def as_polynomial(model: Any) -> PolynomialModel:
+    """``model`` itself when it is a :class:`PolynomialModel`, else :meth:`PolynomialModel.from_arx`.
+
+    Parameters
+    ----------
+    model : PolynomialModel or ArxModel
+
+    Returns
+    -------
+    PolynomialModel
+    """
+    return model if isinstance(model, PolynomialModel) else PolynomialModel.from_arx(model)
+
+
 def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
     if not isinstance(d, dict) or d.get("format") != _JSON_FORMAT:
         raise ValueError("not an arxid polynomial model")
@@ -743,6 +845,8 @@ def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
     model.rss_, model.fit_percent_ = float(d["rss"]), float(d["fit_percent"])
     model.iterations_, model.termination_ = int(d["iterations"]), str(d["termination"])
     model.converged_, model.losses_ = bool(d["converged"]), np.array(d["losses"], dtype=float)
+    model.initial_ = check_initial(d.get("initial", "zero"))
+    model.initial_states_ = {(int(a), int(b)): np.array(v, dtype=float) for a, b, v in d.get("initial_states", [])}
     model.data_ = None
     # how the inputs the diagnosis added are computed (a term of the output: from its source's simulation)
     model.derived_inputs_ = tuple(

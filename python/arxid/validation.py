@@ -27,7 +27,7 @@ from ._format import finite_or_none, horizon_label, require_pandas, text_table
 from .data import IOData
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
-from .polynomial import PolynomialModel
+from .polynomial import PolynomialModel, as_polynomial, check_initial
 
 __all__ = [
     "compare",
@@ -45,7 +45,7 @@ __all__ = [
 Z99 = 2.5758293035489004
 
 
-def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None):
+def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, initial: str = "zero"):
     """Prediction, error and a divergence flag.
 
     Parameters
@@ -56,6 +56,9 @@ def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None):
         Measured data.
     horizon : int or None
         None: free-run simulation; k: k-step-ahead prediction.
+    initial : {"zero", "estimate"}
+        ``"estimate"``: each run's initial state is fitted to ``data`` first (see
+        :meth:`arxid.PolynomialModel.predict`; an ARX model is taken in its polynomial form).
 
     Returns
     -------
@@ -68,7 +71,10 @@ def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None):
         ``DIVERGENCE_FACTOR`` times the largest measured |y|); its RMS is reported as infinite.
     """
     with np.errstate(all="ignore"):
-        pred = np.asarray(model.predict(data, horizon), dtype=float)
+        if check_initial(initial) == "estimate":
+            pred = np.asarray(as_polynomial(model).predict(data, horizon, initial="estimate"), dtype=float)
+        else:
+            pred = np.asarray(model.predict(data, horizon), dtype=float)
         err = data.y - pred
     return pred, err, metrics.diverged(data.y, pred)
 
@@ -228,7 +234,7 @@ def _model_list(models) -> tuple[list[str], list[ArxModel]]:
     return names, ms
 
 
-def compare(models, data: IOData, horizon: int | None = None) -> Comparison:
+def compare(models, data: IOData, horizon: int | None = None, initial: str = "zero") -> Comparison:
     """Compare models with measured data.
 
     Parameters
@@ -240,6 +246,11 @@ def compare(models, data: IOData, horizon: int | None = None) -> Comparison:
     horizon : int or None
         None (default): free-run simulation, as MATLAB ``compare``; 1: one-step prediction;
         k: k-step-ahead prediction (for plants with an integrator, whose free run drifts).
+    initial : {"zero", "estimate"}
+        ``"zero"`` (default): each model starts at rest in each run of the data. ``"estimate"``:
+        each run's initial state is fitted to the data first, as MATLAB ``compare`` does, so a
+        record that starts mid-transient is not held against the model (OE, ARMAX, BJ and ARX
+        models without effect terms).
 
     Returns
     -------
@@ -266,7 +277,7 @@ def compare(models, data: IOData, horizon: int | None = None) -> Comparison:
         check_same_signals(m.ts, m.output_name, inputs, data, "the data to compare with")
     fits, rmss, preds, divs = [], [], [], []
     for m in ms:
-        pred, _, diverged = prediction_error(m, data, horizon)
+        pred, _, diverged = prediction_error(m, data, horizon, initial)
         fits.append(metrics.fit_percent(data.y, pred))
         rmss.append(metrics.prediction_rms(data.y, pred))
         preds.append(pred)
