@@ -130,3 +130,55 @@ def test_criteria_match_matlab_formulas():
     )
     np.testing.assert_allclose(metrics.fpe(np.array([rss, rss]), n, np.array([p, p])), metrics.fpe(rss, n, p))
     assert metrics.rms([3.0, np.nan, -4.0]) == pytest.approx(np.sqrt(12.5)) and np.isnan(metrics.rms([np.nan]))
+
+
+def _write_oe_csv(path, n=3000, seed=5):
+    """An output-error plant (two poles, delay 2) under 10 % output noise whose input gain sags with
+    the supply voltage vbat: the OE model misses ``u*vbat``."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(-1, 1, n // 20 + 1), 20)[:n]
+    vbat = np.linspace(4.2, 3.4, n) + 0.005 * rng.standard_normal(n)
+    x = np.zeros(n)
+    for t in range(3, n):
+        x[t] = 1.5 * x[t - 1] - 0.7 * x[t - 2] + 0.25 * u[t - 2] * vbat[t - 2]
+    y = x + 0.1 * np.std(x) * rng.standard_normal(n)
+    rows = "\n".join(f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(y, u, vbat))
+    path.write_text("y,u,vbat\n" + rows + "\n")
+    return arxid.IOData.from_csv(path, output="y", inputs=["u"], extra=["vbat"], ts=0.01)
+
+
+@pytest.fixture(scope="module")
+def oe_runs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("one_truth_oe")
+    csv = tmp / "oe.csv"
+    data = _write_oe_csv(csv)
+    api = arxid.analyse(data, model="oe:1,2,2")
+    common = [str(csv), "--output", "y", "--inputs", "u", "--extra", "vbat", "--ts", "0.01", "--json", "--no-progress"]
+    diag = _cli_json("diagnose", *common, "--model", "oe:1,2,2")
+    html_path = tmp / "oe.html"
+    rep = _cli_json("report", *common, "--model", "oe:1,2,2", "-o", str(html_path))
+    return api, diag, rep, html_path.read_text()
+
+
+def test_an_oe_model_shows_the_same_numbers_in_the_api_the_cli_and_the_report(oe_runs):
+    api, diag, rep, html = oe_runs
+    assert api.model.kind == "OE" and api.sweep is None and api.choice.rank is None
+    assert api.missing_effect == "u*vbat"  # the case is not trivial
+    expected = json_safe(api.to_dict())
+    assert expected["model"]["kind"] == "OE" and expected["model"]["nf"] == [2]
+    embedded = json.loads(re.search(r'id="diagnosis">(.*?)</script>', html, re.S).group(1))
+    for key in KEYS:
+        assert diag[key] == expected[key], key
+        assert rep[key] == expected[key], key
+        assert embedded[key] == expected[key], key
+    shown = re.sub(r"<[^>]+>", " ", html)
+    # the model in MATLAB's form, and each parameter with its standard error
+    assert "Discrete-time OE model: y(t) = [B(z)/F(z)]u(t) + e(t)" in html
+    for label, value, se in zip(api.model.parameter_labels(), api.model.parameters_, api.model.standard_errors_):
+        assert f"{label}" in shown and f"{value:.4g}" in shown and f"{se:.3g}" in shown
+    # the residual tests say what they test for an output-error model
+    assert not api.residual_tests.whiteness_expected
+    assert expected["residual_tests"]["ljung_box"]["whiteness_expected"] is False
+    assert "which an output-error model allows" in shown
+    for step in api.ladder.steps:
+        assert f"{step.rms_sim_val:.4g}" in shown

@@ -28,17 +28,19 @@ import time
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, TypedDict
+from typing import Any, TypedDict, cast
 
-from ._checks import check_data, check_horizon
+from ._checks import check_data, check_horizon, check_model
 from ._format import format_value, horizon_label, json_safe, text_table
 from .data import IOData
-from .exceptions import ArxidError, OrderError
+from .exceptions import ArxidError, DataError, OrderError
 from .frequency import FrequencyCheck, frequency_check
 from .ladder import Ladder
 from .missing import Diagnosis
 from .model import ArxModel, arx
+from .model_spec import parse_model_spec
 from .orders import DEFAULT_GRID, SweepResult, sweep
+from .polynomial import PolynomialModel
 from .uncertainty import ResponseBand, free_run_band
 from .validation import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from .verdicts import ladder_headline, negative_fit_note, residual_sentences
@@ -58,7 +60,7 @@ class Choice:
     structure : str
         The chosen structure, e.g. ``ARX(2,1,3)``.
     rank : int or None
-        Its 0-based rank in the sweep (None when the orders were given).
+        Its 0-based rank in the sweep (None when the orders or the model were given).
     reason : str
         One sentence: how it was chosen.
     skipped : tuple of (str, str)
@@ -165,13 +167,13 @@ class Analysis:
     estimation, validation : IOData
         The data the models were fitted on and judged on.
     grid : dict of str to tuple of int, or None
-        The order grid swept (None when the orders were given).
+        The order grid swept (None when the orders or the model were given).
     sweep : SweepResult or None
-        Every structure of the grid, ranked (None when the orders were given).
+        Every structure of the grid, ranked (None when the orders or the model were given).
     choice : Choice
         Which structure was chosen and why.
-    model : ArxModel
-        The chosen structure, without added effects.
+    model : ArxModel or PolynomialModel
+        The chosen structure (or the given model), without added effects.
     horizon : int or None
         The validation error measure of every number below: None = free-run simulation, k =
         k-step-ahead prediction (integrating plants, or a chosen model whose free run diverges).
@@ -378,6 +380,25 @@ def _split(data: IOData, validation: IOData | float | None, split: float) -> tup
     return data.split(float(split))
 
 
+def _given_model(
+    est: IOData, model: ArxModel | PolynomialModel | str, orders: Sequence | None, grid: Mapping | None
+) -> tuple[ArxModel, Choice]:
+    """The model the user gave (fitted, or a structure such as ``"oe:2,2,3"`` fitted here), and why."""
+    if orders is not None or grid is not None:
+        raise OrderError("give either model=... or orders/grid, not both: the model fixes the structure")
+    if isinstance(model, str):
+        spec = parse_model_spec(model)
+        fitted = spec.fit(est)
+        how = "least squares" if spec.kind == "arx" else "prediction-error minimisation"
+        return cast(ArxModel, fitted), Choice(
+            fitted.structure_name(), None, f"the structure was given and fitted by {how} on the estimation data"
+        )
+    fitted = check_model(model)
+    if fitted.measured_input_names != est.input_names:
+        raise DataError(f"the model's inputs {list(fitted.input_names)} differ from the data's {list(est.input_names)}")
+    return fitted, Choice(fitted.structure_name(), None, "the model was given and is used as fitted, not refitted")
+
+
 def _structure(
     est: IOData,
     val: IOData,
@@ -386,7 +407,11 @@ def _structure(
     horizon: int | None,
     expect: str | None,
     progress: bool,
+    given: ArxModel | PolynomialModel | str | None = None,
 ) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
+    if given is not None:
+        model, choice = _given_model(est, given, orders, grid)
+        return None, model, choice, None
     if orders is not None:
         try:
             na, nb, nk = orders
@@ -453,9 +478,10 @@ def analyse(
     expect: str | None = None,
     max_steps: int = 3,
     progress: bool = False,
+    model: ArxModel | PolynomialModel | str | None = None,
     **diagnose_kwargs: Any,
 ) -> Analysis:
-    """Sweep (unless ``orders`` are given), choose, compare, test, diagnose and climb the ladder.
+    """Sweep (unless ``orders`` or a ``model`` are given), choose, compare, test, diagnose and climb the ladder.
 
     Parameters
     ----------
@@ -478,28 +504,51 @@ def analyse(
         Largest number of effects the ladder adds.
     progress : bool
         Progress bar of the sweep on stderr.
+    model : ArxModel, PolynomialModel or str, optional
+        A model to analyse instead of sweeping: a fitted one (``arxid.oe(est, 2, 2, 3)``, used as it
+        is), or a structure written as in :mod:`arxid.model_spec` (``"oe:2,2,3"``,
+        ``"bj:2,1,1,2,3"``, ``"armax:2,2,1,3"``, ``"arx:2,2,1"``), fitted on the estimation data.
+        The diagnosis refits it with each candidate in its own class (an effect of an OE model
+        becomes one more input with its own B/F).
     **diagnose_kwargs
         Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
 
     Returns
     -------
     Analysis
+
+    Notes
+    -----
+    For an output-error model the residual tests report whiteness without expecting it (the model
+    has no noise model); the independence of the inputs is its test (see :func:`arxid.residuals`).
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> from scipy.signal import lfilter
+    >>> rng = np.random.default_rng(0)
+    >>> u = np.sign(rng.standard_normal(3000))
+    >>> y = lfilter([0, 0, 0, 0.5, 0.3], [1, -1.5, 0.7], u)
+    >>> data = arxid.IOData(y + 0.2 * np.std(y) * rng.standard_normal(3000), u, ts=0.01)
+    >>> a = arxid.analyse(data, model="oe:2,2,3", max_steps=1)
+    >>> a.model.structure_name(), a.choice.rank, a.residual_tests.whiteness_expected
+    ('OE(2,2,3)', None, False)
     """
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    res, model, choice, g = _structure(est, val, orders, grid, requested, expect, progress)
+    res, chosen, choice, g = _structure(est, val, orders, grid, requested, expect, progress, model)
     measure = res.horizon if res is not None else requested
     timings["sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ladder = Ladder.run(model, est, val, max_steps=max_steps, horizon=measure, **diagnose_kwargs)
+    ladder = Ladder.run(chosen, est, val, max_steps=max_steps, horizon=measure, **diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    cmp, failures = _checks(model, ladder.final_model, val, ladder.horizon)
+    cmp, failures = _checks(chosen, ladder.final_model, val, ladder.horizon)
     timings["checks"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    compared = [model] if ladder.final_model is model else [model, ladder.final_model]
+    compared = [chosen] if ladder.final_model is chosen else [chosen, ladder.final_model]
     freq, bands, freq_notes = _frequency(compared, val, ladder.horizon)
     timings["frequency"] = time.perf_counter() - t0
     return Analysis(
@@ -508,7 +557,7 @@ def analyse(
         g,
         res,
         choice,
-        model,
+        chosen,
         ladder.horizon,
         ladder.diagnoses[0],
         ladder,

@@ -31,11 +31,14 @@ from .data import IOData
 from .effects import Factor, parse_effect
 from .integrator import structure_integrates
 from .model import ArxModel
+from .polynomial import PolynomialModel
+from .polynomial_diagnosis import structure_changes
 
 __all__ = [
     "CATALOGUE",
     "CatalogueEntry",
     "auto_candidates",
+    "candidate_input_names",
     "changes_sign",
     "output_integrates",
     "physics",
@@ -100,6 +103,7 @@ CATALOGUE: tuple[CatalogueEntry, ...] = (
     CatalogueEntry("time", "slow drift", "model"),
     CatalogueEntry("X+const", "the effect X together with an offset (asymmetric friction)", "model", "X is strong"),
     CatalogueEntry("na+1", "one more pole (more output dynamics)", "model"),
+    CatalogueEntry("nf+1", "one more pole of the input's transfer function B/F", "model", "the model has F (OE, BJ)"),
     CatalogueEntry("nb+1", "one more input lag", "model"),
     CatalogueEntry("nk-1, nk+1", "a delay one sample shorter or longer", "model"),
 )
@@ -166,8 +170,9 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     ``sign(y)`` for an output that changes sign and is not integrated (friction on a speed);
     ``sign(dNAME)`` of the output and of each input; ``dz(u)`` / ``sat(u)`` (threshold scanned) and
     ``pos(u)`` of each input; ``const``; ``time``. Dynamics: ``na+1``, ``nb+1`` and ``nk±1`` (per
-    input, written ``nb(name)+1`` when there are several inputs). Candidates already in the model
-    are left out.
+    input, written ``nb(name)+1`` when there are several inputs); for a polynomial model those of
+    :func:`arxid.polynomial_diagnosis.structure_changes` (``nf+1`` instead of ``na+1`` for OE and
+    BJ). Candidates already in the model are left out.
 
     Parameters
     ----------
@@ -184,7 +189,7 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     """
     # Effects are written in the grammar's words: a name that is not an identifier (``rpm[1/min]``)
     # is called u1, u2, ... for an input and left out for an extra signal.
-    ins = [a if a.isidentifier() else f"u{i + 1}" for i, a in enumerate(data.input_names)]
+    ins = candidate_input_names(data)
     extras = [k for k in data.extra if k.isidentifier() and k not in ins and k not in ("y", data.output_name)]
     out: list[str] = list(extras)
     for i, a in enumerate(ins):
@@ -211,7 +216,24 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     return [e for e in out if e not in have] + _dynamics_candidates(model, ins)
 
 
+def candidate_input_names(data: IOData) -> list[str]:
+    """The inputs as candidates name them: their names, or u1, u2, ... for a name that is not an
+    identifier (``rpm[1/min]``).
+
+    Parameters
+    ----------
+    data : IOData
+
+    Returns
+    -------
+    list of str
+    """
+    return [a if a.isidentifier() else f"u{i + 1}" for i, a in enumerate(data.input_names)]
+
+
 def _dynamics_candidates(model: ArxModel, ins: list[str]) -> list[str]:
+    if isinstance(model, PolynomialModel):
+        return structure_changes(model, ins)
     dyn = ["na+1"]
     for i, a in enumerate(ins):
         tag = "" if len(ins) == 1 else f"({a})"
@@ -224,7 +246,7 @@ def _dynamics_candidates(model: ArxModel, ins: list[str]) -> list[str]:
 
 
 _BY_WRITTEN = {e.written: e for e in CATALOGUE}
-_DYNAMICS = re.compile(r"(?P<what>na|nb|nk)(?:\([^)]*\))?(?P<sign>[+-])1")
+_DYNAMICS = re.compile(r"(?P<what>na|nb|nf|nk)(?:\([^)]*\))?(?P<sign>[+-])1")
 _SCAN = re.compile(r"(?P<op>dz|sat)\((?P<signal>[A-Za-z_]\w*)\)")
 
 

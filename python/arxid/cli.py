@@ -25,6 +25,7 @@ from .analysis import DEFAULT_SPLIT, Analysis, analyse, choose
 from .data import IOData
 from .exceptions import ArxidError, DataError
 from .model import arx
+from .model_spec import MODEL_FORMS, parse_model_spec
 from .orders import DEFAULT_GRID, sweep
 from .report.html import render_html
 from .verdicts import negative_fit_note
@@ -249,6 +250,16 @@ def _order_args(p: argparse.ArgumentParser) -> None:
         )
 
 
+def _model_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--model",
+        metavar="KIND:ORDERS",
+        help="one structure to fit and diagnose instead of a sweep: "
+        + ", ".join(form for form, _ in MODEL_FORMS.values())
+        + " (e.g. oe:2,2,3)",
+    )
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
     p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
@@ -395,13 +406,19 @@ def cmd_sweep(args) -> int:
 
 
 def _analyse(args) -> Analysis:
-    est, val = _load(args)
     orders = _parse_orders(args.orders) if args.orders else None
+    spec = getattr(args, "model", None)
+    if spec is not None:
+        if orders is not None or any(getattr(args, k, None) is not None for k in ("na", "nb", "nk")):
+            raise UsageError("give either --model or --orders / --na --nb --nk, not both")
+        parse_model_spec(spec)  # a typed error with the correct form, before the data are read
+    est, val = _load(args)
     return analyse(
         est,
         val,
         orders=orders,
-        grid=_grid(args),
+        grid=None if spec is not None else _grid(args),
+        model=spec,
         horizon=args.horizon,
         expect=args.expect,
         max_steps=args.max_steps,
@@ -464,7 +481,8 @@ _EXAMPLES = {
     "sweep": "example:\n  arxid sweep flight.csv --output roll --inputs roll_torque --ts 0.002 --na 2:4 --nb 1:2 --nk 0:10\n"  # noqa: E501
     "  arxid sweep log.npz --output y --inputs u --validation val.npz --json",
     "diagnose": "example:\n  arxid diagnose flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 "
-    "--orders 2,1,8 --split 0.7 --json",
+    "--orders 2,1,8 --split 0.7 --json\n"
+    "  arxid diagnose log.csv --output y --inputs u --ts 0.01 --model oe:2,2,3",
     "report": "example:\n  arxid report flight.csv --output roll --inputs roll_torque --extra vbat --time t -o report.html",  # noqa: E501
     "demo": "example:\n  arxid demo                       # simulated quadrotor flight, writes arxid-demo-report.html\n"
     "  arxid demo -o /tmp/demo.html --seed 3",
@@ -529,6 +547,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     )
     _data_args(p)
     _order_args(p)
+    _model_arg(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
@@ -545,6 +564,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     )
     _data_args(p)
     _order_args(p)
+    _model_arg(p)
     p.add_argument("-o", metavar="REPORT.html", default="report.html", help="output file (default %(default)s)")
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")

@@ -43,7 +43,15 @@ import numpy as np
 from .data import IOData
 from .exceptions import DataError, OrderError
 
-__all__ = ["Effect", "parse_effect", "EffectLayout", "compile_effects", "format_threshold", "effect_names"]
+__all__ = [
+    "Effect",
+    "parse_effect",
+    "EffectLayout",
+    "compile_effects",
+    "format_threshold",
+    "effect_names",
+    "effect_series",
+]
 
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE]-?\d+)?"
 _FACTOR = re.compile(
@@ -341,6 +349,31 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
     return EffectLayout(
         u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term)
     )
+
+
+def effect_series(text: str, data: IOData) -> np.ndarray:
+    """The effect's signal at each sample, without lags: ``y^3`` is y(t)³, ``sign(dy)`` is
+    sign(y(t) − y(t−1)), ``u1*vbat`` is u1(t)·vbat(t) (the model applies the lags).
+
+    Parameters
+    ----------
+    text : str
+        An effect string (see the grammar above).
+    data : IOData
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+    """
+    e = parse_effect(text, data)
+    if e.special is not None:
+        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
+    prod = np.ones(data.n_samples)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for f in e.factors:
+            prod = prod * _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
+    _check_range(e.text, prod)
+    return prod
 
 
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:

@@ -58,6 +58,12 @@ class FittedModel:
         return tuple(self.input_names_)
 
     @property
+    def measured_input_names(self) -> tuple[str, ...]:
+        """The inputs data must have for this model (a polynomial model computes the inputs the
+        diagnosis added from them; see :mod:`arxid.derived_inputs`)."""
+        return self.input_names
+
+    @property
     def output_unit(self) -> str:
         """Unit of the output ('' when unknown)."""
         return str(self.output_unit_)

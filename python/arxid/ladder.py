@@ -210,7 +210,10 @@ class Ladder:
     def _settle(
         self, model: ArxModel, added: str, val: IOData, min_improvement: float
     ) -> tuple[ArxModel, tuple[str, ...]]:
-        """Take out the earlier effects that ``added`` makes unnecessary; label their steps."""
+        """Take out the earlier effects that ``added`` makes unnecessary; label their steps (ARX
+        models; a polynomial model's effects are inputs with their own dynamics and stay)."""
+        if not isinstance(model, ArxModel):
+            return model, ()
         new = set(added.split("+"))
         replaced = []
         for i, step in enumerate(self.steps):

@@ -37,14 +37,19 @@ from . import _metrics as metrics
 from ._checks import check_data, check_horizon, check_model
 from ._format import finite_or_none, horizon_label, require_pandas, text_table
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
-from .candidates import auto_candidates, output_integrates, physics, scan_threshold
+from .candidates import auto_candidates, candidate_input_names, output_integrates, physics, scan_threshold
 from .data import IOData
 from .effects import compile_effects, format_threshold, parse_effect
 from .exceptions import ArxidError, DataError, OrderError
 from .model import ArxModel
 from .nonlinearity import NonlinearDependence, dependence_sentence, nonlinear_dependence
 from .polynomial import PolynomialModel
-from .polynomial_diagnosis import OUTPUT_TERM_NOTE, effect_columns, refit_with_effects, score_effects, with_effects
+from .polynomial_diagnosis import (
+    refit_structure,
+    refit_with_effects,
+    score_effects,
+    score_structure,
+)
 from .regressors import max_lag, regressor_matrix, regressor_names
 from .validation import ResidualAnalysis, error_rms, prediction_error, residuals
 
@@ -52,6 +57,10 @@ if TYPE_CHECKING:
     from .ladder import Ladder
 
 __all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
+
+#: Validation errors within this share of the lowest count as a tie between suspects of a
+#: polynomial model (the one adding fewer parameters is then the best).
+TIE_SHARE = 0.01
 
 #: k used for the validation error of a plant with an integrator (free run drifts).
 INTEGRATING_HORIZON = 10
@@ -99,6 +108,8 @@ def _parse_candidate(label: str, model: ArxModel, data: IOData) -> _Candidate:
     if not isinstance(label, str) or not label.strip():
         raise OrderError(f"a candidate must be a non-empty string such as 'u1^2', 'y^3' or 'na+1', got {label!r}")
     label = label.replace(" ", "")
+    if isinstance(model, PolynomialModel) and _POLY_CHANGE.fullmatch(label):
+        return _Candidate(label, (), model.na_, model.nb_, model.nk_, "dynamics")
     dyn = _dynamics(label, model)
     if dyn is not None:
         return dyn
@@ -115,6 +126,8 @@ def _parse_candidate(label: str, model: ArxModel, data: IOData) -> _Candidate:
     return _Candidate("+".join(new), new, model.na_, model.nb_, model.nk_, kind)
 
 
+#: A structure change of a polynomial model (one more pole of A or F, one more zero, another delay).
+_POLY_CHANGE = re.compile(r"(na|nb|nf|nk)(\([^)]+\))?[+-]1")
 #: A threshold candidate whose threshold the diagnosis scans for.
 _SCAN = re.compile(r"(?P<op>dz|sat)\((?P<signal>[A-Za-z_]\w*)\)")
 
@@ -460,6 +473,7 @@ class Diagnosis:
                 "nk": list(m.nk_),
                 "structure": m.structure_name(),
                 "effects": list(m.effects),
+                **_polynomial_orders(m),
             },
             "baseline": {
                 "rms_sim_val": finite_or_none(float(self.rms_sim_val)),
@@ -545,11 +559,21 @@ class Diagnosis:
         return plot_diagnosis(self, n)
 
 
+def _polynomial_orders(m: ArxModel) -> dict:
+    """A polynomial model's class and orders beyond na, nb, nk (nothing for ARX: its contract is fixed)."""
+    if not isinstance(m, PolynomialModel):
+        return {}
+    return {"kind": m.kind, "nc": m.nc_, "nd": m.nd_, "nf": list(m.nf_)}
+
+
 # ---------------------------------------------------------------------------------------------
 # the procedure
 # ---------------------------------------------------------------------------------------------
 def _refit(model: ArxModel, data: IOData, c) -> ArxModel:
-    if isinstance(model, PolynomialModel):  # the effects become extra inputs
+    if isinstance(model, PolynomialModel):  # a structure change, or effects as extra inputs
+        if c.kind == "dynamics":
+            label = c.label if isinstance(c, _Candidate) else c.effect
+            return cast(ArxModel, refit_structure(model, data, label, candidate_input_names(data)))
         return cast(ArxModel, refit_with_effects(model, data, c.effects))
     effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
@@ -658,30 +682,81 @@ def diagnose(
 
 
 def _score_polynomial(model, data: IOData, cands: list[_Candidate]) -> tuple[list[dict], dict[str, str]]:
-    """Score tests of input-derived effects on a polynomial model (see arxid.polynomial_diagnosis);
-    terms of the output, threshold scans and structure changes are listed with the reason."""
-    scored, notes = [], {}
+    """Score tests on a polynomial model (see arxid.polynomial_diagnosis): effects of the inputs and
+    of the simulated output as extra inputs, threshold scans, and structure changes."""
+    scored: list[dict] = []
+    notes: dict[str, str] = {}
+    names = candidate_input_names(data)
     for c in cands:
-        if c.kind in ("dynamics", "scan"):
-            notes[c.label] = "not tested on a polynomial model: refit it with other orders or thresholds"
-        elif effect_columns(c.effects, data) is None:
-            notes[c.label] = OUTPUT_TERM_NOTE
-        else:
-            res, why = score_effects(model, data, c.effects)
-            if res is None:
-                notes[c.label] = why
+        try:
+            if c.kind == "scan":
+                res, why = _scan_polynomial(model, data, c, notes)
+            elif c.kind == "dynamics":
+                res, why = score_structure(model, data, c.label, names)
             else:
-                scored.append(_scored(c, res))
+                res, why = score_effects(model, data, c.effects)
+        except (OrderError, DataError) as exc:
+            res, why = None, str(exc)
+        if res is None:
+            notes[c.label] = why
+        elif isinstance(res, tuple) and any(x["c"].label == res[0].label for x in scored):
+            continue  # dz(u) and sat(u) scanned to the same threshold and shape
+        else:
+            scored.append(_scored(res[0], res[1]) if isinstance(res, tuple) else _scored(c, res))
+            if isinstance(res, tuple):
+                scored[-1]["p"] = min(1.0, scored[-1]["p"] * res[2])
     for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
         s["p_adj"] = float(pa)
     return scored, notes
 
 
+def _scan_polynomial(model, data: IOData, c: _Candidate, notes: dict[str, str]):
+    """The threshold of ``dz(u)`` / ``sat(u)`` on a polynomial model by the grid scan of
+    :func:`arxid.candidates.scan_threshold` on the score test. With u in the model through the same
+    B/F, ``dz(u,c)`` and ``sat(u,c)`` add the same gradient span (sat = u − dz): one scan serves
+    both, and the shape is named from the refit's static gains (a dead zone answers small inputs
+    with less gain than large ones, a saturation with more)."""
+    op, signal = c.label[: c.label.index("(")], c.label[c.label.index("(") + 1 : -1]
+    x = np.asarray(data.signal(signal), dtype=float)
+
+    def label(shape: str, t: float) -> str:
+        return f"{shape}({signal},{format_threshold(t)})"
+
+    def score(t: float) -> float:
+        res = score_effects(model, data, [label(op, t)])[0]
+        return math.nan if res is None else res.score
+
+    t, n = scan_threshold(x, score)
+    if not math.isfinite(t):
+        return None, "no threshold could be tested" if n else f"|{signal}| takes too few distinct values to scan"
+    best = label(_threshold_shape(model, data, signal, label(op, t)), t)
+    res, why = score_effects(model, data, [best])
+    if res is None:
+        return None, why
+    notes[best] = f"threshold scanned over {n} quantiles of |{signal}| (p-value x {n})"
+    cand = _Candidate(best, (best,), model.na_, model.nb_, model.nk_, "effect")
+    return (cand, res, n), ""
+
+
+def _threshold_shape(model, data: IOData, signal: str, effect: str) -> str:
+    """``dz`` or ``sat`` for a threshold on input ``signal``: the small-signal gain (|u| < c) against
+    the large-signal one (|u| > c) of ``model`` refitted with ``effect`` beside the input."""
+    op = effect[: effect.index("(")]
+    names = candidate_input_names(data)
+    if signal not in names:
+        return op
+    try:
+        gains = refit_with_effects(model, data, [effect]).dc_gain()
+    except ArxidError:
+        return op
+    own, extra = float(gains[names.index(signal)]), float(gains[-1])
+    small, large = (own, own + extra) if op == "dz" else (own + extra, own)
+    return "dz" if abs(small) < abs(large) else "sat"
+
+
 def _refit_and_validate(model, data: IOData, validation: IOData, c, horizon: int | None) -> tuple[ArxModel, float]:
     """The model refitted with candidate ``c`` and its validation error at ``horizon``."""
     fitted = _refit(model, data, c)
-    if isinstance(model, PolynomialModel):
-        validation = with_effects(validation, c.effects)
     return fitted, error_rms(fitted, validation, horizon)
 
 
@@ -1051,10 +1126,19 @@ class _Judge:
         if len(sig) < 2:
             return suspects
         top = min(sig, key=lambda s: s.rms_sim_val_after)
+        if isinstance(self.model, PolynomialModel):
+            # a tie goes to the simpler change: a delay that fits as well as one more coefficient
+            near = [s for s in sig if s.rms_sim_val_after <= (1.0 + TIE_SHARE) * top.rms_sim_val_after]
+            top = min(near, key=lambda s: (self._added_parameters(s), s.rms_sim_val_after))
         return [s if not s.significant or s is top else self._given_top(s, top) for s in suspects]
+
+    def _added_parameters(self, s: Suspect) -> int:
+        return s.model.n_params - self.model.n_params if s.model is not None else s.n_columns
 
     def _given_top(self, s: Suspect, top: Suspect) -> Suspect:
         m = self.model
+        if isinstance(m, PolynomialModel):
+            return self._given_top_polynomial(s, top)
         na = max(top.na + s.na - m.na_, 0)
         nb = tuple(max(t + x - b, 0) for t, x, b in zip(top.nb, s.nb, m.nb_))
         nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
@@ -1063,6 +1147,21 @@ class _Judge:
             after = _refit_and_validate(m, self.data, self.validation, both, self.horizon)[1]
         except ArxidError:
             after = math.nan
+        if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
+            return s
+        return replace(
+            s, significant=False, note=f"explained by {top.effect}: no gain once it is added", explained_by=top.effect
+        )
+
+    def _given_top_polynomial(self, s: Suspect, top: Suspect) -> Suspect:
+        """``s`` applied to the refit with ``top`` (a structure change or effects on top of it)."""
+        after = math.nan
+        if top.model is not None:
+            try:
+                c = _Candidate(s.effect, s.effects, s.na, s.nb, s.nk, s.kind)
+                after = _refit_and_validate(top.model, self.data, self.validation, c, self.horizon)[1]
+            except ArxidError:
+                pass
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
             return s
         return replace(

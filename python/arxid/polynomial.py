@@ -19,6 +19,7 @@ from . import _core
 from . import _metrics as metrics
 from ._format import format_polynomial
 from .data import IOData
+from .derived_inputs import DerivedInput, complete_inputs
 from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
 from .fitted import FittedModel
 from .model import FittedLayout
@@ -125,6 +126,7 @@ class PolynomialModel(FittedModel):
     """
 
     data_: IOData | None
+    derived_inputs_: tuple[DerivedInput, ...]
 
     def __init__(self, *, na: int = 0, nb: Any = 1, nc: int = 0, nd: int = 0, nf: Any = 0, nk: Any = 1):
         self.na, self.nb, self.nc, self.nd, self.nf, self.nk = na, nb, nc, nd, nf, nk
@@ -268,9 +270,19 @@ class PolynomialModel(FittedModel):
 
     # ------------------------------------------------------------------ names
     @property
+    def derived_inputs(self) -> tuple[DerivedInput, ...]:
+        """The inputs computed from the data (effects the diagnosis added), after the measured ones."""
+        return tuple(self.__dict__.get("derived_inputs_", ()))
+
+    @property
+    def measured_input_names(self) -> tuple[str, ...]:
+        """The inputs data must have: all but the derived ones."""
+        return self.input_names[: len(self.input_names) - len(self.derived_inputs)]
+
+    @property
     def effects(self) -> tuple[str, ...]:
-        """Effect terms (none: polynomial models are linear)."""
-        return ()
+        """Effect terms added as derived inputs (see :mod:`arxid.derived_inputs`); none for a plain fit."""
+        return tuple(d.effect for d in self.derived_inputs)
 
     @property
     def is_linear(self) -> bool:
@@ -467,6 +479,7 @@ class PolynomialModel(FittedModel):
             raise DataError(f"predict needs an arxid.IOData, got {type(data).__name__}")
         if horizon is not None and (isinstance(horizon, bool) or _order("horizon", horizon) < 1):
             raise OrderError("horizon must be >= 1 (or None for free-run simulation)")
+        data = complete_inputs(data, self.input_names_, self.derived_inputs)
         if data.n_inputs != len(self.input_names_):
             raise DataError(f"the model has {len(self.input_names_)} inputs but the data have {data.n_inputs}")
         orders = (self.na_, list(self.nb_), self.nc_, self.nd_, list(self.nf_), list(self.nk_))
@@ -597,6 +610,10 @@ class PolynomialModel(FittedModel):
             "losses": [float(x) for x in self.losses_],
             "initial": self.initial_,
             "initial_states": [[a, b, [float(x) for x in v]] for (a, b), v in self.initial_states_.items()],
+            "derived_inputs": [
+                {"effect": d.effect, "source": None if d.source is None else d.source.to_dict()}
+                for d in self.derived_inputs
+            ],
         }
 
     @classmethod
@@ -686,7 +703,12 @@ class PolynomialModel(FittedModel):
             t = _as_tuple(v)
             return t[0] if len(set(t)) == 1 else list(t)
 
-        nb, nf, nk = show(get("nb")), show(get("nf")), show(get("nk"))
+        m = len(_as_tuple(get("nb"))) - len(self.derived_inputs)
+        nb, nf, nk = (show(_as_tuple(get(n))[:m]) for n in ("nb", "nf", "nk"))
+        added = "".join(f" + {e}" for e in self.effects)
+        return self._orders_name(nb, nf, nk, get) + added
+
+    def _orders_name(self, nb: Any, nf: Any, nk: Any, get: Any) -> str:
         kind = self.kind
         if kind == "OE":
             return f"OE({nb},{nf},{nk})"
@@ -708,6 +730,23 @@ class PolynomialModel(FittedModel):
             f"({self.iterations_} iterations)"
         )
         return "\n".join(lines)
+
+    def parameter_labels(self) -> list[str]:
+        """One label per entry of ``parameters_`` (``getpvec`` order): the polynomial, its input
+        when it has one, and the power of z, e.g. ``"F(u1) z^-2"``, ``"C z^-1"``.
+
+        Returns
+        -------
+        list of str
+        """
+        p, labels = self.polynomials(), []
+        for name in _POLY_NAMES:
+            polys = p[name] if isinstance(p[name], list) else [p[name]]
+            for i, coefs in enumerate(polys):
+                first = self.nk_[i] if name == "b" else 1
+                tag = f"({self.input_names[i]})" if name in "bf" else ""
+                labels += [f"{name.upper()}{tag} z^-{j}" for j in range(first, len(coefs))]
+        return labels
 
     def _polynomial_lines(self) -> list[str]:
         p, m = self.polynomials(), len(self.input_names_)
@@ -809,4 +848,9 @@ def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
     model.initial_ = check_initial(d.get("initial", "zero"))
     model.initial_states_ = {(int(a), int(b)): np.array(v, dtype=float) for a, b, v in d.get("initial_states", [])}
     model.data_ = None
+    # how the inputs the diagnosis added are computed (a term of the output: from its source's simulation)
+    model.derived_inputs_ = tuple(
+        DerivedInput(str(x["effect"]), None if x["source"] is None else _model_from_dict(cls, x["source"]))
+        for x in d.get("derived_inputs", ())
+    )
     return model

@@ -273,7 +273,8 @@ def compare(models, data: IOData, horizon: int | None = None, initial: str = "ze
     horizon = check_horizon(horizon)
     names, ms = _model_list(models)
     for m in ms:
-        check_same_signals(m.ts, m.output_name, m.input_names, data, "the data to compare with")
+        inputs = m.input_names if data.input_names == m.input_names else m.measured_input_names
+        check_same_signals(m.ts, m.output_name, inputs, data, "the data to compare with")
     fits, rmss, preds, divs = [], [], [], []
     for m in ms:
         pred, _, diverged = prediction_error(m, data, horizon, initial)
@@ -403,7 +404,12 @@ class ResidualAnalysis:
         NaN when the signal has too few numbers where the residual exists (untested).
     ljung_box_statistic, ljung_box_p_value : float
         ``Q = N (N + 2) Σ_{k=1..L} ρ_ee(k)² / (N − k)`` and its χ² tail probability with
-        ``ljung_box_dof = L − na`` degrees of freedom (the AR parameters were estimated).
+        ``ljung_box_dof = L − n`` degrees of freedom, n the estimated noise-model parameters (na for
+        ARX and ARMAX plus nc, nc + nd for Box–Jenkins, none for output-error).
+    whiteness_expected : bool
+        False for an output-error model: it has no noise model, so its residual is the output noise
+        itself, white only if that noise is. MATLAB's ``resid`` draws the same test; what judges an
+        OE model is the residual's independence of the inputs.
     """
 
     residual: np.ndarray
@@ -420,6 +426,20 @@ class ResidualAnalysis:
     cross_p_values: dict = field(default_factory=dict)
     alpha: float = 0.01
     model_name: str = ""
+    whiteness_expected: bool = True
+
+    @property
+    def whiteness_text(self) -> str:
+        """The Ljung–Box verdict in words: ``white``, ``NOT white (...)``, or for an output-error model
+        why a coloured residual is expected."""
+        if self.is_white:
+            return "white"
+        if not self.whiteness_expected:
+            return (
+                "not white, which an output-error model allows: it models no noise, so coloured output noise "
+                "stays in its residual; its test is the independence of the inputs"
+            )
+        return "NOT white (the model misses dynamics or an effect)"
 
     @property
     def is_white(self) -> bool:
@@ -483,6 +503,7 @@ class ResidualAnalysis:
                 "dof": int(self.ljung_box_dof),
                 "p_value": float(self.ljung_box_p_value),
                 "white": self.is_white,
+                "whiteness_expected": self.whiteness_expected,
             },
             "autocorrelation": {
                 "bound": float(self.autocorrelation_bound),
@@ -524,7 +545,7 @@ class ResidualAnalysis:
     def __str__(self) -> str:
         lb = (
             f"Ljung–Box Q = {self.ljung_box_statistic:.4g} with {self.ljung_box_dof} dof, p = {self.ljung_box_p_value:.3g}: "  # noqa: E501
-            + ("white" if self.is_white else "NOT white (the model misses dynamics or an effect)")
+            + self.whiteness_text
         )
         lines = [
             f"residual analysis{' of ' + self.model_name if self.model_name else ''} ({self.n_samples} samples, "
@@ -609,6 +630,10 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     A residual correlated with a signal at positive lags means the model does not use all the
     information that signal carries: a missing input, a wrong delay, or a missing effect built
     from it. :func:`arxid.diagnose` ranks such effects.
+
+    For an output-error model the one-step residual is the free-run error (it has no noise model):
+    its whiteness is reported but not expected (``whiteness_expected`` is False), and its
+    independence of the inputs is the test of the model, as in MATLAB's ``resid``.
     """
     model = check_model(model)
     data = check_data(data)
@@ -659,13 +684,29 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
         pvals[name] = float(stats.chi2.sf(stat, len(cl)))
 
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
-    dof = max(max_lag - model.na_, 1)
+    noise_parameters = model.na_ + (model.nc_ + model.nd_ if isinstance(model, PolynomialModel) else 0)
+    dof = max(max_lag - noise_parameters, 1)
     p = float(stats.chi2.sf(q, dof))
     if _at_round_off(e[ok], data.y[ok]):
         # Nothing left to explain: the correlations of rounding errors say nothing about the model.
         p, pvals = 1.0, {k: (1.0 if math.isfinite(v) else v) for k, v in pvals.items()}
+    expected = not (isinstance(model, PolynomialModel) and model.kind == "OE")
     return ResidualAnalysis(
-        e, n, lags, auto, Z99 / math.sqrt(n), cl, cross, bounds, q, p, dof, pvals, alpha, model.structure_name()
+        e,
+        n,
+        lags,
+        auto,
+        Z99 / math.sqrt(n),
+        cl,
+        cross,
+        bounds,
+        q,
+        p,
+        dof,
+        pvals,
+        alpha,
+        model.structure_name(),
+        expected,
     )
 
 

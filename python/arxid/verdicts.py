@@ -85,6 +85,12 @@ def _whiteness(rt: Any) -> str:
     where = f", correlated with itself at lags {lag_ranges(out)}" if len(out) else ""
     if rt.is_white:
         return f"The residuals are white: yes (Ljung–Box p = {rt.ljung_box_p_value:.2g}{where})."
+    if not getattr(rt, "whiteness_expected", True):
+        return (
+            f"The residuals are white: no (Ljung–Box p = {rt.ljung_box_p_value:.2g}{where}), which an output-error "
+            "model allows: it models no noise, so coloured output noise stays in its residual. Its test is the "
+            "independence of the inputs below."
+        )
     return (
         f"The residuals are white: no (Ljung–Box p = {rt.ljung_box_p_value:.2g}{where}): the model misses "
         "dynamics or an effect."

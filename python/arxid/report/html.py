@@ -18,6 +18,7 @@ from .._format import format_value, horizon_text, json_safe
 from ..analysis import Analysis
 from ..data import IOData
 from ..exceptions import ArxidError
+from ..polynomial import PolynomialModel
 from ..verdicts import ladder_headline, negative_fit_note, percent, residual_sentences
 
 __all__ = ["render_html", "el", "script_json"]
@@ -177,7 +178,7 @@ def _sweep_rows(a: Analysis) -> tuple[list[list[Any]], list[str]]:
 
 def _sweep_section(a: Analysis) -> Raw:
     if a.sweep is None:
-        return _p("The orders were given, so no sweep was run.")
+        return _p(f"{a.choice.reason[0].upper()}{a.choice.reason[1:]}, so no sweep was run.")
     res = a.sweep
     rows, classes = _sweep_rows(a)
     head = [
@@ -239,10 +240,25 @@ def _sweep_section(a: Analysis) -> Raw:
 
 
 def _model_section(a: Analysis) -> Raw:
-    parts = [el("h3", "Chosen model"), el("pre", str(a.model), cls="eq")]
+    title = "Chosen model" if a.choice.rank is not None or a.sweep is not None else "The model"
+    parts = [el("h3", title), el("pre", str(a.model), cls="eq"), *_parameter_table(a.model)]
     if a.final_model is not a.model:
         parts += [el("h3", "With the added effects"), el("pre", str(a.final_model), cls="eq")]
+        parts += _parameter_table(a.final_model)
     return _join(parts)
+
+
+def _parameter_table(model: Any) -> list[Raw]:
+    """A polynomial model's parameters (A, B, C, D, F blocks in MATLAB's getpvec order) with their
+    standard errors."""
+    if not isinstance(model, PolynomialModel):
+        return []
+    se = model.standard_errors_
+    rows = [
+        [label, _num(v), _num(e, 3), _num(abs(v) / e, 3) if e > 0 else "-"]
+        for label, v, e in zip(model.parameter_labels(), model.parameters_, se)
+    ]
+    return [_table(["parameter", "value", "standard error", "|value| / s.e."], rows)]
 
 
 def _step_section(a: Analysis) -> Raw:
@@ -326,8 +342,7 @@ def _residual_section(a: Analysis) -> Raw:
         return _p("The residual tests could not be run on these validation data.")
     lb = (
         f"Ljung–Box Q = {rt.ljung_box_statistic:.4g} with {rt.ljung_box_dof} degrees of freedom, "
-        f"p = {rt.ljung_box_p_value:.3g}: the residual is "
-        + ("white." if rt.is_white else "NOT white (the model misses dynamics or an effect).")
+        f"p = {rt.ljung_box_p_value:.3g}: the residual is " + rt.whiteness_text + "."
     )
     out = rt.autocorrelation_outside
     auto = f"Autocorrelation: 99 % bound ±{rt.autocorrelation_bound:.3g}, " + (
@@ -417,7 +432,8 @@ def _frequency_section(a: Analysis) -> Raw:
     how = _p(
         f"Grey: the frequency response estimated from the validation data alone (Welch averages of "
         f"{fc.segment_length}-sample Hann segments, H1 = S_yu/S_uu, {fc.n_averages:.0f} effective averages) "
-        f"with its {100 * fc.level:g} % band; blue: the model's B/A with its band from the parameter covariance. "
+        f"with its {100 * fc.level:g} % band; blue: the model's transfer function (B/A, or B/F for OE and BJ) "
+        "with its band from the parameter covariance. "
         "Red shading: frequencies where the model's error is still explained by the input beyond both "
         "uncertainties (the test behind the sentence above). Low coherence means the input does not excite "
         "that frequency or the output there is noise, and the data say little.",
