@@ -63,14 +63,18 @@ pub fn reduce_checked(
     let q = p + 1;
     let threads = if parallel { rayon::current_num_threads() } else { 1 };
     ensure_memory(reduce_memory(rows.len(), q, threads), "the QR reduction of the regressor")?;
-    let block_r = |block: &[usize]| -> Option<Mat<f64>> {
+    // One block buffer per worker, reused: a fresh 4096-row buffer per block is a large
+    // allocation, which an allocator told to return memory eagerly (Dask workers set
+    // MALLOC_TRIM_THRESHOLD_) maps and faults in anew every time, doubling the reduction's cost.
+    let block_r = |a: &mut Mat<f64>, block: &[usize]| -> Option<Mat<f64>> {
         if !keep_going() {
             return None;
         }
-        let mut a = Mat::<f64>::zeros(block.len(), q);
+        // Every entry is written below, so the values the resize leaves do not matter.
+        a.resize_with(block.len(), q, |_, _| 0.0);
         if s.output_terms.is_empty() {
             // Column by column: every column is the output or an input read at a fixed lag.
-            fill_block_columns(d, s, block, &mut a);
+            fill_block_columns(d, s, block, a);
         } else {
             let mut row = vec![0.0; p];
             for (r, &t) in block.iter().enumerate() {
@@ -82,12 +86,13 @@ pub fn reduce_checked(
             }
         }
         qr_r_in_place(a.as_mut());
-        Some(take_r(&a, q))
+        Some(take_r(a, q))
     };
     let blocks: Option<Vec<Mat<f64>>> = if parallel {
-        rows.par_chunks(BLOCK_ROWS).map(block_r).collect()
+        rows.par_chunks(BLOCK_ROWS).map_init(|| Mat::<f64>::zeros(0, q), block_r).collect()
     } else {
-        rows.chunks(BLOCK_ROWS).map(block_r).collect()
+        let mut a = Mat::<f64>::zeros(0, q);
+        rows.chunks(BLOCK_ROWS).map(|block| block_r(&mut a, block)).collect()
     };
     Ok(stack_and_reduce(&blocks.ok_or(ArxError::Interrupted)?, q))
 }

@@ -291,9 +291,8 @@ def _arrays(d: IOData) -> tuple[np.ndarray, np.ndarray, list[int]]:
     return _aligned(d.y, np.float64), _aligned(d.u, np.float64), list(d.experiment_starts)
 
 
-def load_parts(sources: Sequence[Any], read: Any, validation: Any, layout: np.ndarray) -> tuple:
-    """A worker's logs, split into their estimation and validation parts (kept on the worker), and
-    their factors (:func:`partial_factors`), computed in the same task, where the logs were read.
+def load_split(sources: Sequence[Any], read: Any, validation: Any) -> tuple:
+    """A worker's logs, read and split into their merged estimation and validation parts.
 
     Parameters
     ----------
@@ -303,6 +302,25 @@ def load_parts(sources: Sequence[Any], read: Any, validation: Any, layout: np.nd
         As in :func:`load_experiment`.
     validation : float or None
         Fraction of each log held out.
+
+    Returns
+    -------
+    tuple
+        ``(estimation part, validation part or None)``.
+    """
+    split = [split_experiment(load_experiment(s, read), validation) for s in sources]
+    est = IOData.merge([e for e, _ in split])
+    val = None if validation is None else IOData.merge([v for _, v in split if v is not None])
+    return est, val
+
+
+def with_factors(parts: tuple, layout: np.ndarray) -> tuple:
+    """The parts of :func:`load_split` with their factors (:func:`partial_factors`) appended.
+
+    Parameters
+    ----------
+    parts : tuple
+        ``(estimation part, validation part or None)``.
     layout : ndarray of shape (S, 1 + 2m)
         The grid.
 
@@ -311,10 +329,7 @@ def load_parts(sources: Sequence[Any], read: Any, validation: Any, layout: np.nd
     tuple
         ``(estimation part, validation part or None, factors)``.
     """
-    split = [split_experiment(load_experiment(s, read), validation) for s in sources]
-    est = IOData.merge([e for e, _ in split])
-    val = None if validation is None else IOData.merge([v for _, v in split if v is not None])
-    return est, val, partial_factors((est, val), layout)
+    return parts[0], parts[1], partial_factors(parts, layout)
 
 
 def _peak(d: IOData | None) -> float:
@@ -389,7 +404,7 @@ def simulate_parts(parts: tuple, which: str, layout: np.ndarray, theta: np.ndarr
     Parameters
     ----------
     parts : tuple
-        From :func:`load_parts`.
+        From :func:`with_factors`.
     which : {"est", "val"}
         The parts to simulate on.
     layout : ndarray of shape (S, 1 + 2m)
@@ -433,24 +448,34 @@ class DaskEngine:
 
     def __init__(self, client: Any, sources: Sequence[Any], read: Any, validation: Any):
         self.client, self.sources, self.read, self.validation = client, list(sources), read, validation
+        self._loaded: list | None = None
 
     def merged(self) -> tuple[IOData, IOData | None]:
         """The estimation and validation parts of every log, read on the client (for the result).
+
+        The workers start reading their shares first, so both read at the same time.
 
         Returns
         -------
         tuple of (IOData, IOData or None)
         """
+        if self.client is not None:
+            self._loaded = self._load()
         split = [split_experiment(d, self.validation) for d in load_logs(self.sources, self.read)]
         est = IOData.merge([e for e, _ in split])
         val = None if self.validation is None else IOData.merge([v for _, v in split if v is not None])
         return est, val
 
-    def _shares(self, layout: np.ndarray) -> list:
+    def _load(self) -> list:
+        """Futures of every share's parts (:func:`load_split`), two shares per worker."""
         workers = max(1, len(self.client.scheduler_info()["workers"]))
         n_tasks = min(len(self.sources), 2 * workers)
         chunks = [self.sources[i::n_tasks] for i in range(n_tasks)]
-        return [self.client.submit(load_parts, c, self.read, self.validation, layout, pure=False) for c in chunks]
+        return [self.client.submit(load_split, c, self.read, self.validation, pure=False) for c in chunks]
+
+    def _shares(self, layout: np.ndarray) -> list:
+        loaded = self._loaded if self._loaded is not None else self._load()
+        return [self.client.submit(with_factors, part, layout, pure=False) for part in loaded]
 
     def factors(self, shares: list, layout: np.ndarray) -> tuple:
         """The combined factors of every log: partials where the logs are, then a QR tree.
@@ -458,7 +483,7 @@ class DaskEngine:
         Parameters
         ----------
         shares : list of futures
-            From :func:`load_parts`.
+            From :func:`with_factors`.
         layout : ndarray
             The grid.
 
@@ -518,6 +543,7 @@ class DaskEngine:
         if terms:
             raise DataError("a fleet sweep takes no effects yet; sweep the merged IOData in process instead")
         shares = self._shares(layout)
+        self._loaded = None  # the shares hold the parts now; nothing else keeps them on the workers
         r_est, n_est, r_val, n_val, peak_est, peak_val = self.factors(shares, layout)
         out, simulate = _core.sweep_factors(r_est, n_est, layout, [], r_val=r_val, n_val=n_val, top=kw.get("top"))
         result = FleetOutput.from_core(out)
