@@ -517,10 +517,12 @@ fn lanes_kernel<const NA: usize, const FMA: bool>(
         let mut t0 = start;
         while t0 < sb {
             let len = BLOCK.min(sb - t0);
-            // Local copies with constant indices only: they live in registers.
+            // The history as a local copy with constant indices only: it lives in registers. The
+            // coefficients are read from memory by the multiply-adds (a copy in registers too
+            // left too few of them for na around 10, and the compiler split the recursion into
+            // half and quarter vectors spilled to the stack).
             let mut hl = h;
-            let mut a = [[0.0; LANES]; NA];
-            a.copy_from_slice(&st.neg_a);
+            let a: &[[f64; LANES]; NA] = st.neg_a.as_slice().try_into().expect("na coefficient vectors");
             let mut sse = [0.0; LANES];
             let mut mx = [0.0; LANES];
             // The recursion of one step from its input part (a macro, so that the history and the
