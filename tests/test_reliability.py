@@ -97,10 +97,16 @@ _LONG_SWEEP = textwrap.dedent(
 )
 
 
+def _sigint_default() -> None:
+    """Child processes take SIGINT's default action: started from a background job (``cmd &``), a
+    test run inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interrupt(cmd: list[str], wait_for: str, delay: float = 1.0) -> tuple[str, int, float]:
     """Start ``cmd``, wait for ``wait_for`` on its stdout (or ``delay`` after the start when empty),
     send SIGINT and return (rest of stdout, exit code, seconds from the signal to the exit)."""
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_sigint_default)
     try:
         if wait_for:
             assert proc.stdout is not None and proc.stdout.readline().strip() == wait_for
@@ -154,7 +160,11 @@ _LONG_OE_FIT = textwrap.dedent(
 
 def test_ctrl_c_interrupts_a_long_output_error_fit_promptly():
     proc = subprocess.run(
-        [sys.executable, "-W", "ignore", "-c", _LONG_OE_FIT], capture_output=True, text=True, timeout=120
+        [sys.executable, "-W", "ignore", "-c", _LONG_OE_FIT],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=_sigint_default,
     )
     word, *latency = proc.stdout.split()
     assert word == "interrupted" and proc.returncode == 0, proc.stdout + proc.stderr
