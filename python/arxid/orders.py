@@ -1097,7 +1097,7 @@ def sweep(
     its free-run simulation starts there from measured outputs, so all errors compare on the same
     samples. The Rust core reduces ``[Φ_max | y]`` once to a triangular R by Householder QR and
     solves each structure from its columns of R; the simulation of linear structures runs several
-    structures with the same ``na`` side by side in SIMD lanes. A simulation that leaves
+    structures of neighbouring ``na`` side by side in SIMD lanes. A simulation that leaves
     ±``DIVERGENCE_FACTOR`` (1000) times the largest measured output of its data set is stopped and
     reported as diverged (the one divergence rule, see :mod:`arxid._metrics`).
 
