@@ -676,10 +676,11 @@ fn sweep_factors<'py>(
     let re = factor_from(&r_est)?;
     let rv = r_val.as_ref().map(factor_from).transpose()?;
     let parallel = n_threads != 1;
-    let swept = |results| crate::sweep::Swept { results, n_est, n_val, r_est: re.clone() };
-    let (res, simulate) =
-        run(py, n_threads, |_| crate::sweep::fits_from_factors(&grid, re.clone(), n_est, rv, n_val, top, parallel))?;
-    Ok((sweep_output(py, swept(res), &grid)?, simulate.into_pyarray(py)))
+    let to_fit = re.clone();
+    let (results, simulate) =
+        run(py, n_threads, |_| crate::sweep::fits_from_factors(&grid, to_fit, n_est, rv, n_val, top, parallel))?;
+    let swept = crate::sweep::Swept { results, n_est, n_val, r_est: re };
+    Ok((sweep_output(py, swept, &grid)?, simulate.into_pyarray(py)))
 }
 
 /// `(rms, n, norm, diverged)` of fitted structures simulated on these data from `first_lag` on (free run,

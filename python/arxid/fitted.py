@@ -4,11 +4,15 @@ names and units, loss and information criteria, prediction quality and JSON, def
 from __future__ import annotations
 
 import json
+import numbers
+from typing import Any
 
 import numpy as np
 
 from . import _metrics as metrics
+from ._limits import check_order
 from .data import IOData
+from .exceptions import DataError
 
 __all__ = ["FittedModel"]
 
@@ -36,6 +40,40 @@ class FittedModel:
     def predict(self, data: IOData, horizon: int | None = 1) -> np.ndarray:  # pragma: no cover
         """The prediction of ``data.y`` (each model class defines it)."""
         raise NotImplementedError
+
+    def simulate(self, u: Any) -> np.ndarray:  # pragma: no cover - every model class defines it
+        """Free-run response to the inputs ``u`` from rest (each model class defines it)."""
+        raise NotImplementedError
+
+    def step(self, n_samples: int, amplitude: float = 1.0, input: int = 0) -> np.ndarray:
+        """Response to a step of ``amplitude`` on ``input`` from rest.
+
+        Parameters
+        ----------
+        n_samples : int
+        amplitude : float
+        input : int
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+        """
+        self.check_fitted()
+        input = self._input_index(input)
+        u = np.zeros((check_order("n_samples", n_samples), len(self.input_names_)))
+        u[:, input] = amplitude
+        return self.simulate(u)
+
+    def _input_index(self, input: Any) -> int:
+        """``input`` as an index of the model's inputs, else a DataError listing them."""
+        self.check_fitted()
+        m = len(self.input_names_)
+        if isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= int(input) < m:
+            raise DataError(
+                f"input {input!r} does not exist: the model has {m} input(s) {list(self.input_names_)}, "
+                f"numbered 0 to {m - 1}"
+            )
+        return int(input)
 
     def to_dict(self) -> dict:  # pragma: no cover - every model class defines it
         """Everything needed to rebuild the fitted model (each model class defines it)."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import math
-import numbers
 import types
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -468,17 +467,6 @@ class ArxModel(FittedModel):
         b = np.trim_zeros(self.b[input][self.nk_[input] :], "f")
         return np.roots(b) if len(b) > 1 else np.zeros(0)
 
-    def _input_index(self, input: Any) -> int:
-        """``input`` as an index of the model's inputs, else a DataError listing them."""
-        self.check_fitted()
-        m = len(self.input_names_)
-        if isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= int(input) < m:
-            raise DataError(
-                f"input {input!r} does not exist: the model has {m} input(s) {list(self.input_names_)}, "
-                f"numbered 0 to {m - 1}"
-            )
-        return int(input)
-
     @property
     def is_stable(self) -> bool:
         """All poles strictly inside the unit circle."""
@@ -595,25 +583,6 @@ class ArxModel(FittedModel):
         y = np.concatenate([init, np.zeros(len(u))])
         d = IOData(y, pad_u, self.ts, output_name=self.output_name, input_names=self.input_names, extra=pad_extra)
         return self.predict(d, None)[lag:]
-
-    def step(self, n_samples: int, amplitude: float = 1.0, input: int = 0) -> np.ndarray:
-        """Response to a step of ``amplitude`` on ``input`` from rest.
-
-        Parameters
-        ----------
-        n_samples : int
-        amplitude : float
-        input : int
-
-        Returns
-        -------
-        ndarray of shape (n_samples,)
-        """
-        self.check_fitted()
-        input = self._input_index(input)
-        u = np.zeros((check_order("n_samples", n_samples), len(self.input_names_)))
-        u[:, input] = amplitude
-        return self.simulate(u)
 
     # ------------------------------------------------------------------ refit
     def with_effects(self, effects: Sequence[str], data: IOData | None = None) -> ArxModel:

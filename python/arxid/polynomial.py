@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import numbers
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -18,6 +17,7 @@ import numpy as np
 from . import _core
 from . import _metrics as metrics
 from ._format import format_polynomial
+from ._limits import check_order
 from .data import IOData
 from .derived_inputs import DerivedInput, complete_inputs
 from .exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
@@ -28,7 +28,6 @@ __all__ = ["PolynomialModel", "finite_segments", "as_polynomial", "check_initial
 
 _JSON_FORMAT = "arxid.PolynomialModel"
 _JSON_VERSION = 1
-_MAX_ORDER = 2**40
 _POLY_NAMES = ("a", "b", "c", "d", "f")
 _INITIAL = ("zero", "estimate")
 
@@ -49,19 +48,13 @@ def check_initial(initial: Any) -> str:
     return str(initial)
 
 
-def _order(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= _MAX_ORDER:
-        raise OrderError(f"{name} must be an integer between 0 and 2^40 (samples), got {value!r}")
-    return int(value)
-
-
 def _per_input(name: str, value: Any, m: int) -> tuple[int, ...]:
     if isinstance(value, (list, tuple, np.ndarray)):
-        vals = tuple(_order(f"{name}[{i}]", v) for i, v in enumerate(value))
+        vals = tuple(check_order(f"{name}[{i}]", v) for i, v in enumerate(value))
         if len(vals) != m:
             raise OrderError(f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input")
         return vals
-    return (_order(name, value),) * m
+    return (check_order(name, value),) * m
 
 
 def finite_segments(data: IOData, lag: int, need_output: bool = True) -> list[tuple[int, int]]:
@@ -145,10 +138,10 @@ class PolynomialModel(FittedModel):
         """
         m = data.n_inputs
         orders = (
-            _order("na", self.na),
+            check_order("na", self.na),
             _per_input("nb", self.nb, m),
-            _order("nc", self.nc),
-            _order("nd", self.nd),
+            check_order("nc", self.nc),
+            check_order("nd", self.nd),
             _per_input("nf", self.nf, m),
             _per_input("nk", self.nk, m),
         )
@@ -209,9 +202,9 @@ class PolynomialModel(FittedModel):
                 segments,
                 orders,
                 start=st,
-                max_iterations=_order("max_iterations", max_iterations),
+                max_iterations=check_order("max_iterations", max_iterations),
                 tolerance=float(tolerance),
-                n_threads=_order("n_threads", n_threads),
+                n_threads=check_order("n_threads", n_threads),
                 initial=initial,
             )
         except IdentifiabilityError as exc:
@@ -477,7 +470,7 @@ class PolynomialModel(FittedModel):
         self.check_fitted()
         if not isinstance(data, IOData):
             raise DataError(f"predict needs an arxid.IOData, got {type(data).__name__}")
-        if horizon is not None and (isinstance(horizon, bool) or _order("horizon", horizon) < 1):
+        if horizon is not None and (isinstance(horizon, bool) or check_order("horizon", horizon) < 1):
             raise OrderError("horizon must be >= 1 (or None for free-run simulation)")
         data = complete_inputs(data, self.input_names_, self.derived_inputs)
         if data.n_inputs != len(self.input_names_):
@@ -523,24 +516,6 @@ class PolynomialModel(FittedModel):
             num, den = self.input_transfer(i)
             out += lfilter(num, den, u[:, i])
         return out
-
-    def step(self, n_samples: int, amplitude: float = 1.0, input: int = 0) -> np.ndarray:
-        """Response to a step of ``amplitude`` on ``input`` from rest.
-
-        Parameters
-        ----------
-        n_samples : int
-        amplitude : float
-        input : int
-
-        Returns
-        -------
-        ndarray of shape (n_samples,)
-        """
-        self.check_fitted()
-        u = np.zeros((_order("n_samples", n_samples), len(self.input_names_)))
-        u[:, input] = amplitude
-        return self.simulate(u)
 
     # ------------------------------------------------------------------ export
     def to_control(self, continuous: bool = False, input: int | None = None) -> Any:
