@@ -683,7 +683,7 @@ fn sweep_factors<'py>(
     Ok((sweep_output(py, swept, &grid)?, simulate.into_pyarray(py)))
 }
 
-/// `(rms, n, norm, diverged)` of fitted structures simulated on these data from `first_lag` on (free run,
+/// `(rms, n, norm, mean, diverged)` of fitted structures simulated on these data from `first_lag` on (free run,
 /// or `horizon`-step prediction), exactly as `sweep` simulates them. `theta` is (S, p_max), NaN-padded;
 /// `limit` replaces the divergence limit of these data.
 #[pyfunction]
@@ -703,6 +703,7 @@ fn simulate_structures<'py>(
     n_threads: usize,
     limit: Option<f64>,
 ) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
@@ -726,8 +727,15 @@ fn simulate_structures<'py>(
     let rms: Vec<f64> = scores.iter().map(|s| s.rms).collect();
     let n: Vec<f64> = scores.iter().map(|s| s.n as f64).collect();
     let norm: Vec<f64> = scores.iter().map(|s| s.norm).collect();
+    let mean: Vec<f64> = scores.iter().map(|s| s.mean).collect();
     let diverged: Vec<bool> = scores.iter().map(|s| s.diverged).collect();
-    Ok((rms.into_pyarray(py), n.into_pyarray(py), norm.into_pyarray(py), diverged.into_pyarray(py)))
+    Ok((
+        rms.into_pyarray(py),
+        n.into_pyarray(py),
+        norm.into_pyarray(py),
+        mean.into_pyarray(py),
+        diverged.into_pyarray(py),
+    ))
 }
 
 /// Seconds for `n_vectors` multiply-adds of eight lanes each at the machine's throughput (many

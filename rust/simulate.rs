@@ -139,6 +139,9 @@ pub struct SimScore {
     /// ‖y − ȳ‖ over the scored samples, for the fit percent, when [`score`] scored a subset of the
     /// samples (missing data); NaN on the paths that score every sample from the first lag on.
     pub norm: f64,
+    /// Mean of y over the same samples as `norm` (NaN where `norm` is), so that the norms of parts of
+    /// a fleet scored apart can be pooled.
+    pub mean: f64,
 }
 
 /// Free-run RMS of a linear structure (no output terms), the hot loop of a sweep.
@@ -195,7 +198,7 @@ pub fn free_run_rms_linear(
             // NaN must count as diverged, hence the negated comparison.
             #[allow(clippy::neg_cmp_op_on_partial_ord)]
             if !(v.abs() <= limit) {
-                return SimScore { rms: f64::NAN, n: count, diverged: true, norm: f64::NAN };
+                return SimScore { rms: f64::NAN, n: count, diverged: true, norm: f64::NAN, mean: f64::NAN };
             }
             if na > 0 {
                 h.copy_within(0..na - 1, 1);
@@ -213,6 +216,7 @@ pub fn free_run_rms_linear(
         n: count,
         diverged: false,
         norm: f64::NAN,
+        mean: f64::NAN,
     }
 }
 
@@ -473,10 +477,10 @@ impl LaneState {
         (0..k)
             .map(|l| {
                 if self.diverged[l] {
-                    SimScore { rms: f64::NAN, n: self.n[l], diverged: true, norm: f64::NAN }
+                    SimScore { rms: f64::NAN, n: self.n[l], diverged: true, norm: f64::NAN, mean: f64::NAN }
                 } else {
                     let rms = if self.n[l] > 0 { (self.sse[l] / self.n[l] as f64).sqrt() } else { f64::NAN };
-                    SimScore { rms, n: self.n[l], diverged: false, norm: f64::NAN }
+                    SimScore { rms, n: self.n[l], diverged: false, norm: f64::NAN, mean: f64::NAN }
                 }
             })
             .collect()
@@ -703,7 +707,7 @@ pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
     let mut n = 0;
     for (yt, pt) in d.y.iter().zip(pred) {
         if pt.is_infinite() || pt.abs() > limit {
-            return SimScore { rms: f64::NAN, n, diverged: true, norm: f64::NAN };
+            return SimScore { rms: f64::NAN, n, diverged: true, norm: f64::NAN, mean: f64::NAN };
         }
         let e = yt - pt;
         if e.is_finite() {
@@ -713,12 +717,12 @@ pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
         }
     }
     if n == 0 {
-        return SimScore { rms: f64::NAN, n, diverged: false, norm: f64::NAN };
+        return SimScore { rms: f64::NAN, n, diverged: false, norm: f64::NAN, mean: f64::NAN };
     }
     let mean = sum_y / n as f64;
     let centred: f64 =
         d.y.iter().zip(pred).filter(|(y, p)| (*y - *p).is_finite()).map(|(y, _)| (y - mean) * (y - mean)).sum();
-    SimScore { rms: (sse / n as f64).sqrt(), n, diverged: false, norm: centred.sqrt() }
+    SimScore { rms: (sse / n as f64).sqrt(), n, diverged: false, norm: centred.sqrt(), mean }
 }
 
 #[cfg(test)]

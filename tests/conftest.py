@@ -88,3 +88,29 @@ def worker_killing_reader(marker: str):
 
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     return functools.partial(_read_or_die, marker=marker)
+
+
+def _read_and_record(path, record):
+    """Reads a log, and notes in the file ``record`` each read that happens on the client."""
+    import distributed
+
+    from arxid import fleet
+
+    try:
+        distributed.get_worker()
+    except ValueError:  # on the client
+        with open(record, "a") as f:
+            f.write(os.path.basename(path) + "\n")
+    return fleet.load_experiment(path)
+
+
+def client_read_recorder(record: str):
+    """A ``read=`` for fleet tests that notes every log read on the client (not on a worker) in the
+    file ``record``; pickled by value (the workers do not import this file)."""
+    import functools
+    import sys
+
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    return functools.partial(_read_and_record, record=record)

@@ -11,7 +11,7 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid import fleet
-from conftest import worker_killing_reader
+from conftest import client_read_recorder, worker_killing_reader
 
 distributed = pytest.importorskip("distributed", reason="needs the dask extra: pip install 'arxid[dask]'")
 
@@ -67,6 +67,10 @@ def test_merged_fleet_on_dask_equals_the_in_process_sweep(logs, client):
     got = arxid.sweep(logs, **GRID, validation=0.3, client=client, progress=False)
     _assert_equal(got, ref)
     assert got.n_est == ref.n_est and got.n_val == ref.n_val
+    # The unit-root test reads the structures from the fleet's factor, as in process.
+    assert got.integrating == ref.integrating and got.integrating_reason == ref.integrating_reason
+    r_got, r_ref = got.estimation_factor, ref.estimation_factor  # equal up to the sign of each row
+    np.testing.assert_allclose(r_got.T @ r_got, r_ref.T @ r_ref, rtol=1e-10, atol=1e-8)
     # Two stages over the fleet: the same as two stages in process.
     ref2 = _in_process(logs, top=5)
     got2 = arxid.sweep(logs, **GRID, validation=0.3, client=client, progress=False, top=5)
@@ -93,3 +97,61 @@ def test_a_worker_killed_mid_sweep_is_retried_and_the_result_is_complete(logs, c
     got = arxid.sweep(logs, **GRID, validation=0.3, client=client, read=read, progress=False)
     assert os.path.exists(tmp_path / "killed"), "no worker was killed"
     _assert_equal(got, _in_process(logs))
+
+
+def test_the_client_reads_no_log_until_the_result_needs_the_samples(logs, client, tmp_path):
+    record = tmp_path / "client_reads"
+    got = arxid.sweep(logs, **GRID, validation=0.3, client=client, read=client_read_recorder(str(record)))
+    assert not record.exists(), "the client read logs during the sweep"
+    ref = _in_process(logs)
+    # Shapes and names are known without the samples.
+    assert got.estimation.n_samples == ref.estimation.n_samples
+    assert got.estimation.experiment_starts == ref.estimation.experiment_starts
+    assert got.validation.segments == ref.validation.segments
+    assert got.estimation.input_names == ref.estimation.input_names
+    assert not record.exists()
+    # A model of the result reads the logs on the client, once, and equals the in-process one.
+    model = got.model(0)
+    assert sorted(record.read_text().split()) == sorted(os.path.basename(p) for p in logs)
+    np.testing.assert_allclose(model.parameters_, ref.model(0).parameters_, rtol=1e-12)
+    np.testing.assert_array_equal(got.estimation.y, ref.estimation.y)
+    np.testing.assert_array_equal(got.validation.u, ref.validation.u)
+    assert len(record.read_text().split()) == 2 * N_LOGS  # estimation once, validation once
+
+
+def test_missing_validation_samples_give_the_in_process_fit_percent(client, tmp_path):
+    paths = []
+    for i in range(3):
+        d = _log(10 + i)
+        y, u = d.y.copy(), d.u.copy()
+        if i == 1:  # dropouts in the validation part of one log only: output, then an input
+            y[2000:2040] = np.nan
+            u[2200:2210, 1] = np.nan  # the output is measured there, but no structure predicts it
+        path = tmp_path / f"gap{i}.npz"
+        np.savez(path, y=y, u=u, ts=d.ts)
+        paths.append(str(path))
+    got = arxid.sweep(paths, **GRID, validation=0.3, client=client, progress=False, expect="stable")
+    ref = _in_process(paths, expect="stable")
+    _assert_equal(got, ref)
+    assert np.isfinite(got.fit_val).all()
+
+
+def test_a_fleet_on_a_cluster_with_effects_is_refused(logs, client):
+    with pytest.raises(arxid.DataError, match="takes no effects"):
+        arxid.sweep(logs, **GRID, validation=0.3, client=client, effects=["sign(u1)"])
+
+
+def test_logs_on_demand_refuse_logs_that_changed_since_the_sweep(client, tmp_path):
+    paths = []
+    for i in range(2):
+        d = _log(20 + i)
+        path = tmp_path / f"log{i}.npz"
+        np.savez(path, y=d.y, u=d.u, ts=d.ts)
+        paths.append(str(path))
+    got = arxid.sweep(paths, **GRID, validation=0.3, client=client, progress=False, expect="stable")
+    head = got.estimation[:5]  # the first samples came with the shapes
+    np.testing.assert_array_equal(head.y, _log(20).y[:5])
+    d = _log(20, n=2000)
+    np.savez(paths[0], y=d.y, u=d.u, ts=d.ts)
+    with pytest.raises(arxid.DataError, match="changed since the workers read them"):
+        got.model(0)

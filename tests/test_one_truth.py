@@ -182,3 +182,26 @@ def test_an_oe_model_shows_the_same_numbers_in_the_api_the_cli_and_the_report(oe
     assert "which an output-error model allows" in shown
     for step in api.ladder.steps:
         assert f"{step.rms_sim_val:.4g}" in shown
+
+
+def test_pooled_moments_of_parts_equal_the_moments_of_the_whole():
+    rng = np.random.default_rng(5)
+    y = 1e4 + rng.standard_normal(10_000)  # a large mean: Σy² − nȳ² would lose digits here
+    y[300:320] = np.nan
+    cuts = [0, 17, 4000, 4001, 9000, 10_000]
+    parts = [metrics.centred_moments([y[a:b]]) for a, b in zip(cuts, cuts[1:])]
+    n, mean, m2 = metrics.pooled_moments(parts + [(0, np.nan, np.nan)])
+    finite = y[np.isfinite(y)]
+    assert n == finite.size
+    np.testing.assert_allclose(mean, finite.mean(), rtol=1e-14)
+    np.testing.assert_allclose(m2, np.sum((finite - finite.mean()) ** 2), rtol=1e-10)
+    # Side by side: one pooling per column; a column without samples has no moments.
+    many = metrics.pooled_moments(np.stack([np.array(parts), np.array([(0, np.nan, np.nan)] * len(parts))], axis=1))
+    np.testing.assert_allclose(many[0], (n, mean, m2), rtol=1e-14)
+    assert many[1][0] == 0 and np.isnan(many[1][1:]).all()
+    # The samples a sweep scores start at the first lag in each experiment.
+    segments = [(0, 4000), (4000, 10_000)]
+    got = metrics.scored_moments(y, segments, 3)
+    ref = np.concatenate([y[3:4000], y[4003:]])
+    ref = ref[np.isfinite(ref)]
+    np.testing.assert_allclose(got, (ref.size, ref.mean(), np.sum((ref - ref.mean()) ** 2)), rtol=1e-10)

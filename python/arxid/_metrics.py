@@ -177,11 +177,87 @@ def fit_percent_of_parts(parts: Sequence[np.ndarray]) -> float:
     # Each part was scaled by its own largest |y|; bring them to the largest of all.
     ratio = np.array([_unit_scale(big.max()) / _unit_scale(b) for b in big]) ** 2
     with np.errstate(over="ignore", invalid="ignore"):
-        total_sse, total_m2 = float(np.dot(sse, ratio)), float(np.dot(m2, ratio))
-        if len(a) > 1:  # Chan's pooled squared deviation: each part's mean differs from the whole's.
-            whole = float(np.dot(n, mean) / n.sum())
-            total_m2 += float(np.dot(n, ((mean - whole) * _unit_scale(big.max())) ** 2))
+        total_sse = float(np.dot(sse, ratio))
+        total_m2 = float(pooled_moments(np.column_stack([n, mean * _unit_scale(big.max()), m2 * ratio]))[2])
     return float(fit_percent_from_norms(math.sqrt(total_sse), math.sqrt(total_m2)))
+
+
+def pooled_moments(parts: _ArrayLike) -> np.ndarray:
+    """Count, mean and squared deviation from the mean of several parts' samples taken together.
+
+    Parameters
+    ----------
+    parts : array_like of shape (k, ..., 3)
+        ``(n, mean, m2)`` of each of ``k`` parts (:func:`centred_moments`), for one quantity or for
+        many side by side.
+
+    Returns
+    -------
+    ndarray of shape (..., 3)
+        ``(n, mean, m2)`` of all the samples, by Chan's pooling (each part's mean differs from the
+        whole's, which adds ``n_i (mean_i - mean)²``); parts without samples are ignored, and a
+        quantity without any sample is ``(0, nan, nan)``.
+    """
+    a = np.asarray(parts, dtype=float)
+    n_i = a[..., 0]
+    used = n_i > 0
+    n = n_i.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(used, n_i * a[..., 1], 0.0).sum(axis=0) / n
+        spread = np.where(used, a[..., 2] + n_i * (a[..., 1] - mean) ** 2, 0.0).sum(axis=0)
+    return np.stack([n, mean, np.where(n > 0, spread, np.nan)], axis=-1)
+
+
+def scored_moments(y: np.ndarray, segments: Sequence[tuple[int, int]], lag: int) -> tuple[int, float, float]:
+    """:func:`centred_moments` of the output samples a sweep scores: from ``lag`` into each experiment.
+
+    Parameters
+    ----------
+    y : ndarray
+        The measured output.
+    segments : sequence of (start, stop)
+        The experiments (:attr:`arxid.IOData.segments`).
+    lag : int
+        The sweep's first lag.
+
+    Returns
+    -------
+    tuple
+        ``(n, mean, m2)``; parts of a fleet combine with :func:`pooled_moments`.
+    """
+    return centred_moments([y[a + lag : b] for a, b in segments if b > a + lag])
+
+
+def centred_moments(parts: Sequence[np.ndarray]) -> tuple[int, float, float]:
+    """Count, mean and squared deviation from the mean (``‖y − ȳ‖²``) of the finite samples of
+    ``parts`` taken together.
+
+    Parameters
+    ----------
+    parts : sequence of ndarray
+        Pieces of a signal (views; they are not copied when every sample is finite).
+
+    Returns
+    -------
+    tuple
+        ``(n, mean, m2)``; ``(0, nan, nan)`` without a finite sample.
+    """
+    if parts and all(np.isfinite(p).all() for p in parts):
+        # Σy² − nȳ² on views (no copy of the data), unless cancellation would cost accuracy.
+        n = sum(len(p) for p in parts)
+        total = sum(float(p.sum()) for p in parts)
+        # einsum, not dot: a multithreaded BLAS call here leaves its threads spinning on the cores
+        # the next sweep's Rust threads need.
+        sq = sum(float(np.einsum("i,i->", p, p)) for p in parts)
+        centred = sq - total * total / n if n else 0.0
+        if n and centred > 1e-6 * sq:
+            return n, total / n, centred
+    y = np.concatenate(parts) if parts else np.zeros(0)
+    y = y[np.isfinite(y)]
+    if not y.size:
+        return 0, math.nan, math.nan
+    mean = float(y.mean())
+    return int(y.size), mean, float(np.dot(y - mean, y - mean))
 
 
 def rolling_rms(e: _ArrayLike, window: int) -> np.ndarray:

@@ -356,6 +356,11 @@ class IOData:
         return int((np.isnan(self.y) | np.isnan(self.u).any(axis=1)).sum())
 
     @property
+    def output_measured(self) -> bool:
+        """Whether any output sample is measured (not NaN)."""
+        return bool(np.isfinite(self.y).any())
+
+    @property
     def signal_names(self) -> tuple[str, ...]:
         """Output, input and extra signal names, in that order."""
         return (self.output_name,) + self.input_names + tuple(self.extra)

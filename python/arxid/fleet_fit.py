@@ -29,14 +29,13 @@ and more than 3 standard errors from the fleet's median).
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from . import _core, fleet
+from . import _core, cluster, fleet
 from . import _metrics as metrics
 from ._format import require_pandas, text_table
 from .data import IOData
@@ -53,35 +52,13 @@ OUTLIER_SE = 3.0
 
 
 # ----------------------------------------------------------------------------- merged, on a cluster
-def load_share(sources: Sequence[Any], names: Sequence[str], read: Any) -> tuple[IOData, list]:
-    """A task's logs read on its worker, checked alike and merged (kept there), and their signals.
-
-    Parameters
-    ----------
-    sources : sequence of IOData or paths
-    names : sequence of str
-        The logs' names in messages.
-    read : dict or callable or None
-        As in :func:`arxid.fleet.load_experiment`.
-
-    Returns
-    -------
-    tuple
-        ``(merged logs, [LogSignals of each log])``.
-    """
-    logs = [fleet.read_log(s, read, n) for s, n in zip(sources, names, strict=True)]
-    signals = [fleet.LogSignals.of(d) for d in logs]
-    fleet.check_alike(signals, names)
-    return IOData.merge(logs), signals
-
-
 def share_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: Sequence[str]) -> tuple:
     """The factor of a share's regressors: R of ``[Φ | y]`` on its logs, with its row counts.
 
     Parameters
     ----------
     share : tuple
-        From :func:`load_share`.
+        From :func:`arxid.cluster.load_share`.
     na : int
     nb, nk : tuple of int
         One per input.
@@ -114,7 +91,7 @@ def combine_share_factors(a: tuple, b: tuple) -> tuple:
     tuple
         The same for the rows of both.
     """
-    return fleet.stack_factors(a[0], b[0]), a[1] + b[1], a[2] + b[2], a[3], a[4] + b[4]
+    return cluster.stack_factors(a[0], b[0]), a[1] + b[1], a[2] + b[2], a[3], a[4] + b[4]
 
 
 def share_fit_part(share: tuple, model: Any) -> np.ndarray:
@@ -123,7 +100,7 @@ def share_fit_part(share: tuple, model: Any) -> np.ndarray:
     Parameters
     ----------
     share : tuple
-        From :func:`load_share`.
+        From :func:`arxid.cluster.load_share`.
     model : ArxModel
         The fitted model.
 
@@ -136,43 +113,9 @@ def share_fit_part(share: tuple, model: Any) -> np.ndarray:
     return metrics.fit_percent_part(data.y, model.predict(data, horizon=1))
 
 
-class ClusterLogs:
-    """A fleet's logs read by the workers of a Dask cluster and kept there, in shares.
-
-    Parameters
-    ----------
-    client : dask.distributed.Client
-    sources : sequence of IOData or paths
-    read : dict or callable or None
-        As in :func:`arxid.fleet.load_experiment`.
-
-    Attributes
-    ----------
-    signals : LogSignals
-        What every log shares (checked on creation, naming any log that differs).
-    names : list of str
-    """
-
-    def __init__(self, client: Any, sources: Sequence[Any], read: Any = None):
-        sources = list(sources)
-        if not sources:
-            raise DataError("the list of logs is empty; give at least one IOData or file path")
-        self.client = client
-        self.names = [fleet.log_name(s, i) for i, s in enumerate(sources)]
-        workers = max(1, len(client.scheduler_info()["workers"]))
-        n_tasks = min(len(sources), 2 * workers)
-        groups = [list(range(i, len(sources), n_tasks)) for i in range(n_tasks)]
-        self.shares = [
-            client.submit(load_share, [sources[j] for j in g], [self.names[j] for j in g], read, pure=False)
-            for g in groups
-        ]
-        per_share = client.gather([client.submit(operator.itemgetter(1), s) for s in self.shares])
-        signals: list = [None] * len(sources)
-        for g, sig in zip(groups, per_share, strict=True):
-            for j, s in zip(g, sig, strict=True):
-                signals[j] = s
-        fleet.check_alike(signals, self.names)
-        self.signals = signals[0]
+class ClusterLogs(cluster.WorkerLogs):
+    """A fleet's logs kept on the workers of a Dask cluster (:class:`arxid.cluster.WorkerLogs`), with the
+    steps of a merged fit done where the logs are."""
 
     def factor(self, na: int, nb: tuple, nk: tuple, effects: Sequence[str]) -> tuple:
         """The factor of the model's regressors over every log: a partial per share, then a QR tree.
@@ -188,8 +131,8 @@ class ClusterLogs:
         tuple
             As :func:`share_factor`, for all logs.
         """
-        futures = [self.client.submit(share_factor, s, na, nb, nk, tuple(effects)) for s in self.shares]
-        return fleet.reduce_tree(self.client, futures, combine_share_factors)
+        futures = self.each(share_factor, na, nb, nk, tuple(effects))
+        return cluster.reduce_tree(self.client, futures, combine_share_factors)
 
     def fit_percent(self, model: Any) -> float:
         """The model's one-step fit percent over every log, computed where the logs are.
@@ -202,7 +145,7 @@ class ClusterLogs:
         -------
         float
         """
-        parts = self.client.gather([self.client.submit(share_fit_part, s, model) for s in self.shares])
+        parts = self.client.gather(self.each(share_fit_part, model))
         return metrics.fit_percent_of_parts(parts)
 
 

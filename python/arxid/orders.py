@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
-from . import _core, fleet, stages
+from . import _core, cluster, fleet, fleet_sweep, stages
 from . import _metrics as metrics
 from ._checks import check_same_signals
 from ._format import json_safe
@@ -1122,7 +1122,7 @@ def sweep(
         fraction = fleet.check_validation(validation)
         if per_experiment:
             return fleet.sweep_each(data, client, read, fraction, sweep, options)
-        engine, (data, validation) = _fleet_engine(client, data, read, fraction)
+        engine, (data, validation) = _fleet_engine(client, data, read, fraction, tuple(effects))
     if not isinstance(data, IOData):
         raise DataError(
             f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
@@ -1150,8 +1150,10 @@ def sweep(
     seconds = stages.estimated_seconds(n_structures, top, p_max, q, est.n_samples + n_val, n_sim, int(n_threads))
     stages.check_time_budget(n_structures, top, seconds, max_seconds)
     g = _Grid.build(est, nas, nbs, nks, effects)
-    inputs = _core_inputs(est, val, g, effects)
-    first_lag, _ = _core.grid_envelope(g.layout, inputs.terms)
+    # A fleet on a cluster: the workers hold the samples (and refuse effects), the client none.
+    inputs = _core_inputs(est, val, g, effects) if engine is None else None
+    terms = inputs.terms if inputs is not None else []
+    first_lag, _ = _core.grid_envelope(g.layout, terms)
     _check_validation_length(val, first_lag)
     run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
@@ -1175,9 +1177,7 @@ def sweep(
         top=top,
         max_seconds=max_seconds,
     )
-    build = _ResultBuilder(
-        g, inputs.terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings
-    )
+    build = _ResultBuilder(g, terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings)
     result = build(run(k_step), k_step, integrating, reason)
     if expect is None:
         verdict = _integrator_verdict(result)
@@ -1198,10 +1198,22 @@ def _refined(result: SweepResult, structure: str, top: int) -> RefinedSweep:
     return refine(result, structure, top=top)
 
 
-def _fleet_engine(client: Any, logs: Sequence, read: Any, fraction: float | None) -> tuple[Any, tuple]:
-    """The merged logs of a fleet, and the Dask engine that sweeps them (None in process)."""
-    engine = fleet.DaskEngine(client, logs, read, fraction)
-    return (engine if client is not None else None), engine.merged()
+def _fleet_engine(
+    client: Any, logs: Sequence, read: Any, fraction: float | None, effects: Sequence[str]
+) -> tuple[Any, tuple]:
+    """The merged parts of a fleet's logs, and the Dask engine that sweeps them (None in process).
+
+    With a client the workers read the logs; the parts are :class:`arxid.cluster.LogsOnDemand`
+    (shapes now, samples read on the client only when a result needs them)."""
+    if client is None:
+        return None, fleet.merged_parts(logs, read, fraction)
+    if effects:
+        raise DataError(
+            "a sweep over a fleet on a Dask cluster takes no effects yet; sweep the logs without client= "
+            "(in process), or without effects"
+        )
+    on_workers = cluster.WorkerLogs(client, logs, read, fraction)
+    return fleet_sweep.DaskEngine(on_workers), on_workers.on_demand()
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
@@ -1332,7 +1344,7 @@ def _check_validation_length(val: IOData | None, first_lag: int) -> None:
             f"{first_lag} into each experiment, which leaves none to validate on; use longer validation data or "
             f"smaller orders"
         )
-    if not np.isfinite(val.y).any():
+    if not val.output_measured:
         raise DataError(
             "the validation data hold no finite output sample (all NaN); pass validation data with a measured output"
         )
@@ -1346,7 +1358,7 @@ class _Runner:
         est: IOData,
         val: IOData | None,
         g: _Grid,
-        inputs: _CoreInputs,
+        inputs: _CoreInputs | None,
         n_threads: int,
         progress: bool,
         simulate_estimation: bool,
@@ -1355,9 +1367,12 @@ class _Runner:
     ):
         self.est, self.val, self.g, self.inputs = est, val, g, inputs
         self.n_threads, self.progress, self.simulate_estimation = n_threads, progress, simulate_estimation
-        self.top, self.core = top, engine if engine is not None else _core.sweep
+        self.top, self.engine = top, engine
 
     def __call__(self, k: int | None) -> Any:
+        if self.engine is not None or self.inputs is None:
+            return self.engine(self.g.layout, self.top, k, bool(self.simulate_estimation))
+        inputs = self.inputs
         n = len(self.g.layout)
         bar = _progress_bar(n, k) if self.progress else None
         report = None
@@ -1370,14 +1385,14 @@ class _Runner:
 
         val = self.val
         try:
-            return self.core(
+            return _core.sweep(
                 np.ascontiguousarray(self.est.y),
-                self.inputs.u_est,
+                inputs.u_est,
                 list(self.est.experiment_starts),
                 self.g.layout,
-                self.inputs.terms,
+                inputs.terms,
                 yv=np.ascontiguousarray(val.y) if val is not None else None,
-                uv=self.inputs.u_val,
+                uv=inputs.u_val,
                 starts_v=list(val.experiment_starts) if val is not None else None,
                 simulate_estimation=bool(self.simulate_estimation),
                 horizon=k,
@@ -1404,22 +1419,8 @@ def _progress_bar(n: int, k: int | None) -> Any:
 
 def _scored_norm(d: IOData, lag: int) -> float:
     """‖y − ȳ‖ over the samples a sweep scores (from ``lag`` into each experiment, finite)."""
-    parts = [d.y[a + lag : b] for a, b in d.segments if b > a + lag]
-    if not parts:
-        return math.nan
-    if all(np.isfinite(p).all() for p in parts):
-        # Σy² − nȳ² on views (no copy of the data), unless cancellation would cost accuracy.
-        n = sum(len(p) for p in parts)
-        total = sum(float(p.sum()) for p in parts)
-        # einsum, not dot: a multithreaded BLAS call here leaves its threads spinning on the cores
-        # the next sweep's Rust threads need.
-        sq = sum(float(np.einsum("i,i->", p, p)) for p in parts)
-        centred = sq - total * total / n
-        if centred > 1e-6 * sq:
-            return math.sqrt(centred)
-    y = np.concatenate(parts)
-    y = y[np.isfinite(y)]
-    return float(np.linalg.norm(y - y.mean())) if y.size else math.nan
+    n, _, m2 = metrics.scored_moments(d.y, d.segments, lag)
+    return math.sqrt(m2) if n else math.nan
 
 
 def _max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -1446,7 +1447,10 @@ def _validation_fit(res: _core.SweepOutput, rms_val: np.ndarray, val: IOData | N
         return np.full(len(rms_val), np.nan)
     # With missing validation samples the core scores a subset per structure and gives its norm.
     per_structure = res.norm_sim_val
-    norm = np.where(np.isfinite(per_structure), per_structure, _scored_norm(val, first_lag))
+    # Structures that scored every finite sample share one norm; computed only when one needs it
+    # (a fleet on a cluster gives every norm, and its client holds no samples).
+    shared = ~np.isfinite(per_structure) & np.isfinite(rms_val)
+    norm = np.where(shared, _scored_norm(val, first_lag) if shared.any() else np.nan, per_structure)
     with np.errstate(all="ignore"):
         return np.asarray(metrics.fit_percent_from_norms(rms_val * np.sqrt(res.n_sim_val), norm))
 
