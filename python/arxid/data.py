@@ -38,7 +38,8 @@ def _as_float(name: str, values, ndim: int) -> np.ndarray:
         raise DataError(f"{name} is complex; arxid identifies real-valued signals")
     if arr.dtype.kind == "b":
         arr = arr.astype(np.float64)
-    arr = np.array(arr, dtype=np.float64, copy=True, order="C")
+    if not _frozen_float(arr):
+        arr = np.array(arr, dtype=np.float64, copy=True, order="C")
     if ndim == 1 and arr.ndim == 2 and 1 in arr.shape:
         arr = arr.reshape(-1)
     if ndim == 2 and arr.ndim == 1:
@@ -49,6 +50,39 @@ def _as_float(name: str, values, ndim: int) -> np.ndarray:
     if np.isinf(arr).any():
         idx = int(np.argwhere(np.isinf(arr))[0][0])
         raise DataError(f"{name} holds an infinite value at sample {idx}; mark missing samples with NaN instead")
+    return arr
+
+
+def _frozen_float(arr: np.ndarray) -> bool:
+    """Whether ``arr`` can be shared rather than copied: C-ordered float64 that neither it nor any
+    array it views can write (an IOData's own samples, a slice of them, a read-only memory map)."""
+    if arr.dtype != np.float64 or not arr.flags.c_contiguous:
+        return False
+    a: Any = arr
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return True
+
+
+def freeze_owned(arr: np.ndarray) -> np.ndarray:
+    """An array nobody else holds (made or read just now) made read-only, with the buffers it views,
+    so that IOData takes it without a copy.
+
+    Parameters
+    ----------
+    arr : ndarray
+
+    Returns
+    -------
+    ndarray
+        ``arr`` itself.
+    """
+    a: Any = arr
+    while isinstance(a, np.ndarray):
+        a.setflags(write=False)
+        a = a.base
     return arr
 
 
@@ -409,7 +443,7 @@ class IOData:
         return self.extra_units.get(name, "")
 
     # ------------------------------------------------------------------ transformations
-    def _take(self, idx: np.ndarray, starts: Iterable[int]) -> IOData:
+    def _take(self, idx: np.ndarray | slice, starts: Iterable[int]) -> IOData:
         return replace(
             self,
             y=self.y[idx],
@@ -426,7 +460,7 @@ class IOData:
         if b <= a:
             raise DataError(f"the slice [{key.start}:{key.stop}] selects no samples")
         starts = [0] + [s - a for s in self.experiment_starts if a < s < b]
-        return self._take(np.arange(a, b), starts)
+        return self._take(slice(a, b), starts)  # views of the frozen samples, not copies
 
     def time_slice(self, start: float | None = None, stop: float | None = None) -> IOData:
         """Samples with ``start <= time < stop`` of single-experiment data.
@@ -562,9 +596,9 @@ class IOData:
             off += d.n_samples
         return replace(
             first,
-            y=np.concatenate([d.y for d in datasets]),
-            u=np.concatenate([d.u for d in datasets]),
-            extra={k: np.concatenate([d.extra[k] for d in datasets]) for k in first.extra},
+            y=freeze_owned(np.concatenate([d.y for d in datasets])),
+            u=freeze_owned(np.concatenate([d.u for d in datasets])),
+            extra={k: freeze_owned(np.concatenate([d.extra[k] for d in datasets])) for k in first.extra},
             experiment_starts=tuple(starts),
         )
 

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from .data import IOData
+from .data import IOData, freeze_owned
 from .exceptions import ArxidError, DataError
 
 __all__ = ["FleetSweep", "LogSignals", "load_experiment", "read_log", "merge_logs", "merged_parts", "split_experiment"]
@@ -66,7 +66,8 @@ def load_experiment(source: Any, read: Any = None) -> IOData:
     path = os.fspath(source)
     if path.endswith(".npz"):
         with np.load(path) as z:
-            return IOData(z["y"], z["u"], ts=float(z["ts"]))
+            # Arrays read just now, held by nobody else: IOData takes them without a copy.
+            return IOData(freeze_owned(z["y"]), freeze_owned(z["u"]), ts=float(z["ts"]))
     if path.endswith(".csv") and isinstance(read, dict):
         return IOData.from_csv(path, **read)
     raise DataError(

@@ -100,7 +100,7 @@ def simulate_share(share: tuple, which: str, layout: np.ndarray, theta: np.ndarr
     theta : ndarray of shape (S, p_max)
         Their parameters.
     args : dict
-        ``first_lag``, ``horizon`` and ``limit``.
+        ``first_lag``, ``horizon`` and ``limit`` (the limit of ``which``).
 
     Returns
     -------
@@ -120,6 +120,24 @@ def simulate_share(share: tuple, which: str, layout: np.ndarray, theta: np.ndarr
     subset = np.isfinite(norm)
     moments = np.column_stack([n, np.where(subset, mean, whole_mean), np.where(subset, norm * norm, whole_m2)])
     return rms * rms * n, n, moments, diverged
+
+
+def simulate_share_parts(share: tuple, parts: dict, layout: np.ndarray, theta: np.ndarray) -> dict:
+    """:func:`simulate_share` on each of the share's ``parts`` in one task (one round trip).
+
+    Parameters
+    ----------
+    share : tuple
+    parts : dict
+        ``{"est" or "val": args}`` (see :func:`simulate_share`).
+    layout, theta : ndarray
+
+    Returns
+    -------
+    dict
+        The scores of each part.
+    """
+    return {which: simulate_share(share, which, layout, theta, args) for which, args in parts.items()}
 
 
 class DaskEngine:
@@ -155,31 +173,24 @@ class DaskEngine:
         # scattered data die with their worker).
         return cluster.reduce_tree(self.logs.client, self.logs.each(share_factors, layout), combine_factors)
 
-    def simulate(self, which: str, layout: np.ndarray, theta: np.ndarray, args: dict) -> tuple:
+    def simulate(self, parts: dict, layout: np.ndarray, theta: np.ndarray) -> dict:
         """Scores of every given structure over all logs: each share simulates its own logs.
 
         Parameters
         ----------
-        which : {"est", "val"}
+        parts : dict
+            ``{"est" or "val": {"first_lag", "horizon", "limit"}}``: the parts to simulate on.
         layout : ndarray of shape (S, 1 + 2m)
         theta : ndarray of shape (S, p_max)
-        args : dict
-            ``first_lag``, ``horizon`` and ``limit``.
 
         Returns
         -------
-        tuple of ndarray
-            ``(rms, n, norm, diverged)``: ``norm`` is ‖y − ȳ‖ over the samples each structure scored.
+        dict
+            For each part ``(rms, n, norm, diverged)``: ``norm`` is ‖y − ȳ‖ over the samples each
+            structure scored.
         """
-        outs = self.logs.client.gather(self.logs.each(simulate_share, which, layout, theta, args))
-        sse = np.sum([o[0] for o in outs], axis=0)
-        n = np.sum([o[1] for o in outs], axis=0)
-        diverged = np.any([o[3] for o in outs], axis=0)
-        pooled = metrics.pooled_moments([o[2] for o in outs])[:, 2]
-        with np.errstate(all="ignore"):
-            rms = np.where(diverged | (n == 0), np.nan, np.sqrt(sse / n))
-            norm = np.where(diverged, np.nan, np.sqrt(pooled))
-        return rms, n, norm, diverged
+        outs = self.logs.client.gather(self.logs.each(simulate_share_parts, parts, layout, theta))
+        return {which: _pooled_scores([o[which] for o in outs]) for which in parts}
 
     def __call__(self, layout: np.ndarray, top: int | None, horizon: int | None, simulate_estimation: bool) -> Any:
         """The fleet's ``_core.sweep`` of the grid ``layout`` (options as ``_core.sweep`` takes them).
@@ -202,13 +213,27 @@ class DaskEngine:
         out, simulate = _core.sweep_factors(r_est, n_est, layout, [], r_val=r_val, n_val=n_val, top=top)
         result = FleetOutput.from_core(out)
         fitted = np.array([i for i in simulate if out.errors[i] is None], dtype=int)
-        sets = (["est"] if simulate_estimation else []) + (["val"] if r_val is not None else [])
-        for which in sets:
-            peak = peak_est if which == "est" else peak_val
-            limit = _core.divergence_limit(np.array([peak]))
-            args = {"first_lag": out.first_lag, "horizon": horizon, "limit": limit}
-            result.fill(which, fitted, self.simulate(which, layout[fitted], out.theta[fitted], args))
+        peaks = {"est": peak_est} if simulate_estimation else {}
+        peaks.update({"val": peak_val} if r_val is not None else {})
+        parts = {
+            which: {"first_lag": out.first_lag, "horizon": horizon, "limit": _core.divergence_limit(np.array([peak]))}
+            for which, peak in peaks.items()
+        }
+        for which, scores in self.simulate(parts, layout[fitted], out.theta[fitted]).items():
+            result.fill(which, fitted, scores)
         return result
+
+
+def _pooled_scores(outs: list) -> tuple:
+    """The scores of every share (:func:`simulate_share`) as those of all the logs together."""
+    sse = np.sum([o[0] for o in outs], axis=0)
+    n = np.sum([o[1] for o in outs], axis=0)
+    diverged = np.any([o[3] for o in outs], axis=0)
+    pooled = metrics.pooled_moments([o[2] for o in outs])[:, 2]
+    with np.errstate(all="ignore"):
+        rms = np.where(diverged | (n == 0), np.nan, np.sqrt(sse / n))
+        norm = np.where(diverged, np.nan, np.sqrt(pooled))
+    return rms, n, norm, diverged
 
 
 @dataclass
