@@ -134,3 +134,25 @@ def test_from_csv_reads_a_byte_order_mark(tmp_path):
     p.write_bytes("\ufeffy,u\n1,2\n2,3\n".encode("utf-8"))
     d = arxid.IOData.from_csv(p, output="y", inputs=["u"], ts=1)
     assert d.output_name == "y" and d.y.tolist() == [1.0, 2.0]
+
+
+def test_samples_are_shared_only_when_nobody_can_write_them():
+    y, u = np.arange(100.0), np.ones((100, 1))
+    d = arxid.IOData(y, u, ts=0.1)
+    y[0] = 99.0  # the caller's arrays stay theirs: IOData copied them
+    assert d.y[0] == 0.0 and not np.shares_memory(d.y, y)
+    with pytest.raises(ValueError):
+        d.y[1] = 5.0
+    # A slice, a split and a merge read the frozen samples without copying them again.
+    est, val = d.split(0.7)
+    assert np.shares_memory(est.y, d.y) and np.shares_memory(val.u, d.u)
+    merged = arxid.IOData.merge([est, val])
+    np.testing.assert_array_equal(merged.y, d.y)
+    assert arxid.IOData(merged.y, merged.u, ts=0.1).y is merged.y
+    # A read-only view of an array someone can still write is copied.
+    base = np.arange(100.0)
+    view = base[:]
+    view.setflags(write=False)
+    e = arxid.IOData(view, u, ts=0.1)
+    base[3] = -1.0
+    assert e.y[3] == 3.0
