@@ -167,6 +167,8 @@ class WorkerLogs:
         One per log, in the order of ``sources``.
     signals : LogSignals
         What every log shares (checked on creation, naming any log that differs).
+    head : IOData
+        The first samples of the first log's estimation part.
 
     Raises
     ------
@@ -196,7 +198,7 @@ class WorkerLogs:
                 self.shapes[j] = shape
         fleet.check_alike([s.signals for s in self.shapes], self.names)
         self.signals = self.shapes[0].signals
-        self._head = described[0][1]
+        self.head = described[0][1]
 
     def each(self, fn: Callable, *args: Any) -> list:
         """``fn(share, *args)`` submitted for every share, where the share is.
@@ -261,7 +263,7 @@ class LogsOnDemand(IOData):
     _n: int
     _m: int
     _measured: bool
-    _head: IOData
+    _head: IOData | None
 
     @classmethod
     def of(cls, logs: WorkerLogs, which: str) -> LogsOnDemand:
@@ -282,7 +284,7 @@ class LogsOnDemand(IOData):
             part = (shape.est_starts, shape.n_est) if which == "est" else (shape.val_starts, shape.n_val)
             starts += [n + s for s in part[0]]
             n += part[1]
-        head = logs._head if which == "est" else None
+        head = logs.head if which == "est" else None
         sig = logs.signals
         self = object.__new__(cls)
         for name, value in (

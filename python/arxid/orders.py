@@ -1079,7 +1079,10 @@ def sweep(
         Refuse grids whose estimated run time exceeds this many seconds, before anything is
         allocated (None: no limit).
     client : dask.distributed.Client, optional
-        With a list of logs as ``data``: run on this Dask cluster (see :mod:`arxid.fleet`).
+        With a list of logs as ``data``: run on this Dask cluster, where the workers read the logs
+        (see :mod:`arxid.fleet_sweep`). The client reads none during the sweep; the result's
+        ``estimation`` and ``validation`` are read on the client when first needed
+        (:class:`arxid.cluster.LogsOnDemand`). Effects are not available on a cluster yet.
     per_experiment : bool
         With a list of logs: sweep each log separately and return a :class:`arxid.fleet.FleetSweep`.
     read : dict or callable, optional
