@@ -140,10 +140,14 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
     big = peak_y if n == len(y) else _peak(yo, np.ones(n, dtype=bool))
     scale = _unit_scale(big)
     with np.errstate(over="ignore", invalid="ignore"):
-        e = (yo - po) * scale
+        # One scratch array, reused in place (the same values as (yo - po) * scale and so on).
+        e = np.subtract(yo, po)
+        e *= scale
+        sse = np.dot(e, e)
         mean = yo.mean()
-        c = (yo - mean) * scale
-        return np.array(head + [big, np.dot(e, e), mean, np.dot(c, c)], dtype=float)
+        np.subtract(yo, mean, out=e)
+        e *= scale
+        return np.array(head + [big, sse, mean, np.dot(e, e)], dtype=float)
 
 
 def _peak(x: np.ndarray, finite: np.ndarray) -> float:
