@@ -145,7 +145,8 @@ def stack_factors(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | No
 
 
 class WorkerLogs:
-    """A fleet's logs read by the workers of a Dask cluster and kept there, in shares (two per worker).
+    """A fleet's logs read by the workers of a Dask cluster and kept there, in shares (two per worker
+    thread).
 
     Creating it starts the reading and waits for the logs' shapes; the samples stay on the workers.
 
@@ -182,8 +183,10 @@ class WorkerLogs:
             raise DataError("the list of logs is empty; give at least one IOData or file path")
         self.client, self.read, self.validation = client, read, validation
         self.names = [fleet.log_name(s, i) for i, s in enumerate(self.sources)]
-        workers = max(1, len(client.scheduler_info()["workers"]))
-        n_tasks = min(len(self.sources), 2 * workers)
+        # Two shares per worker thread: every thread loads, factors and simulates, and a lost worker
+        # costs only its shares. (client.nthreads() lists every worker; scheduler_info() may not.)
+        threads = max(1, sum(client.nthreads().values()))
+        n_tasks = min(len(self.sources), 2 * threads)
         groups = [list(range(i, len(self.sources), n_tasks)) for i in range(n_tasks)]
         self.shares = [
             client.submit(
