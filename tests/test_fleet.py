@@ -136,9 +136,13 @@ def test_missing_validation_samples_give_the_in_process_fit_percent(client, tmp_
     assert np.isfinite(got.fit_val).all()
 
 
-def test_a_fleet_on_a_cluster_with_effects_is_refused(logs, client):
-    with pytest.raises(arxid.DataError, match="takes no effects"):
-        arxid.sweep(logs, **GRID, validation=0.3, client=client, effects=["sign(u1)"])
+def test_effects_on_a_cluster_equal_the_in_process_sweep(logs, client):
+    # An input effect (a column each worker computes within each log) and an output term (simulated).
+    effects = ["sign(u1)", "y^3"]
+    got = arxid.sweep(logs, **GRID, validation=0.3, client=client, effects=effects, progress=False)
+    ref = _in_process(logs, effects=effects)
+    _assert_equal(got, ref)
+    assert got.effects == tuple(effects) and got.structure_name(0).endswith("+ sign(u1) + y^3")
 
 
 def test_logs_on_demand_refuse_logs_that_changed_since_the_sweep(client, tmp_path):

@@ -1,8 +1,9 @@
 """One sweep over a fleet of logs on a Dask cluster: the core of :func:`arxid.sweep` run where the logs are.
 
 The logs are read by the workers and kept there (:class:`arxid.cluster.WorkerLogs`). Each share
-reduces its logs to the triangular factor R of the grid's largest regressor (regressors never
-straddle two logs); the factors are combined by QR in a tree, and every structure is solved from the
+adds the columns of the sweep's effects to its inputs (:class:`EffectColumns`, computed within each
+experiment as in process) and reduces its logs to the triangular factor R of the grid's largest
+regressor (regressors never straddle two logs); the factors are combined by QR in a tree, and every structure is solved from the
 final R on the client. The free-run simulation is spread over the workers too: each share simulates
 the structures on its own logs (judged by the divergence limit of the whole fleet) and sends back
 their squared-error sums and the moments of its validation output, so no log moves between
@@ -23,8 +24,9 @@ import numpy as np
 from . import _core, cluster
 from . import _metrics as metrics
 from .data import IOData
+from .effects import compile_effects
 
-__all__ = ["DaskEngine", "FleetOutput"]
+__all__ = ["DaskEngine", "EffectColumns", "FleetOutput"]
 
 
 def _aligned(a: np.ndarray, dtype: Any) -> np.ndarray:
@@ -41,7 +43,31 @@ def _peak(d: IOData | None) -> float:
     return float(y.max()) if y.size else 0.0
 
 
-def share_factors(share: tuple, layout: np.ndarray) -> tuple:
+@dataclass(frozen=True)
+class EffectColumns:
+    """How a worker builds the inputs of its parts: the measured inputs followed by the columns of
+    the sweep's effects, computed within each experiment (as the in-process sweep does).
+
+    Attributes
+    ----------
+    effects : tuple of str
+    nb, nk : tuple of int
+        Orders of one structure of the grid (the columns do not depend on them).
+    """
+
+    effects: tuple = ()
+    nb: tuple = ()
+    nk: tuple = ()
+
+    def arrays(self, d: IOData) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """``(y, inputs with the effect columns, experiment starts)`` of ``d`` for the core."""
+        y, u, starts = _arrays(d)
+        if self.effects:
+            u = compile_effects(self.effects, d, self.nb, self.nk).u
+        return y, u, starts
+
+
+def share_factors(share: tuple, layout: np.ndarray, terms: list, columns: EffectColumns) -> tuple:
     """The factors of a share's estimation and validation parts, and their largest |y|.
 
     Parameters
@@ -50,6 +76,9 @@ def share_factors(share: tuple, layout: np.ndarray) -> tuple:
         From :func:`arxid.cluster.load_share`.
     layout : ndarray of shape (S, 1 + 2m)
         The grid.
+    terms : list
+        Output terms of the effects.
+    columns : EffectColumns
 
     Returns
     -------
@@ -58,8 +87,8 @@ def share_factors(share: tuple, layout: np.ndarray) -> tuple:
     """
     est, val = share[0], share[1]
     layout = _aligned(layout, np.int64)
-    r_est, n_est = _core.grid_factor(*_arrays(est), layout, [])
-    r_val, n_val = _core.grid_factor(*_arrays(val), layout, []) if val is not None else (None, 0)
+    r_est, n_est = _core.grid_factor(*columns.arrays(est), layout, terms)
+    r_val, n_val = _core.grid_factor(*columns.arrays(val), layout, terms) if val is not None else (None, 0)
     return r_est, n_est, r_val, n_val, _peak(est), _peak(val)
 
 
@@ -100,7 +129,8 @@ def simulate_share(share: tuple, which: str, layout: np.ndarray, theta: np.ndarr
     theta : ndarray of shape (S, p_max)
         Their parameters.
     args : dict
-        ``first_lag``, ``horizon`` and ``limit`` (the limit of ``which``).
+        ``first_lag``, ``horizon``, ``limit`` (the limit of ``which``), ``terms`` (output terms) and
+        ``columns`` (:class:`EffectColumns`).
 
     Returns
     -------
@@ -111,8 +141,9 @@ def simulate_share(share: tuple, which: str, layout: np.ndarray, theta: np.ndarr
     """
     d = share[0] if which == "est" else share[1]
     layout, theta = _aligned(layout, np.int64), _aligned(theta, np.float64)
+    y, u, starts = args["columns"].arrays(d)
     rms, n, norm, mean, diverged = _core.simulate_structures(
-        *_arrays(d), layout, [], theta, args["first_lag"], args["horizon"], n_threads=1, limit=args["limit"]
+        y, u, starts, layout, args["terms"], theta, args["first_lag"], args["horizon"], n_threads=1, limit=args["limit"]
     )
     # The core gives the output's norm only where it scored a subset (missing samples); elsewhere a
     # structure scores every finite sample from the first lag on, whose moments are the share's.
@@ -151,10 +182,14 @@ class DaskEngine:
     ----------
     logs : WorkerLogs
         The fleet, read by the workers.
+    terms : list
+        Output terms of the sweep's effects.
+    columns : EffectColumns
+        How the workers add the effect columns to the inputs.
     """
 
-    def __init__(self, logs: cluster.WorkerLogs):
-        self.logs = logs
+    def __init__(self, logs: cluster.WorkerLogs, terms: list, columns: EffectColumns):
+        self.logs, self.terms, self.columns = logs, terms, columns
 
     def factors(self, layout: np.ndarray) -> tuple:
         """The combined factors of every log: partials where the logs are, then a QR tree.
@@ -171,7 +206,8 @@ class DaskEngine:
         """
         # Only the factors leave the workers (the grid travels inside the tasks, not scattered:
         # scattered data die with their worker).
-        return cluster.reduce_tree(self.logs.client, self.logs.each(share_factors, layout), combine_factors)
+        futures = self.logs.each(share_factors, layout, self.terms, self.columns)
+        return cluster.reduce_tree(self.logs.client, futures, combine_factors)
 
     def simulate(self, parts: dict, layout: np.ndarray, theta: np.ndarray) -> dict:
         """Scores of every given structure over all logs: each share simulates its own logs.
@@ -210,15 +246,13 @@ class DaskEngine:
         FleetOutput
         """
         r_est, n_est, r_val, n_val, peak_est, peak_val = self.factors(layout)
-        out, simulate = _core.sweep_factors(r_est, n_est, layout, [], r_val=r_val, n_val=n_val, top=top)
+        out, simulate = _core.sweep_factors(r_est, n_est, layout, self.terms, r_val=r_val, n_val=n_val, top=top)
         result = FleetOutput.from_core(out)
         fitted = np.array([i for i in simulate if out.errors[i] is None], dtype=int)
         peaks = {"est": peak_est} if simulate_estimation else {}
         peaks.update({"val": peak_val} if r_val is not None else {})
-        parts = {
-            which: {"first_lag": out.first_lag, "horizon": horizon, "limit": _core.divergence_limit(np.array([peak]))}
-            for which, peak in peaks.items()
-        }
+        common = {"first_lag": out.first_lag, "horizon": horizon, "terms": self.terms, "columns": self.columns}
+        parts = {which: {**common, "limit": _core.divergence_limit(np.array([peak]))} for which, peak in peaks.items()}
         for which, scores in self.simulate(parts, layout[fitted], out.theta[fitted]).items():
             result.fill(which, fitted, scores)
         return result

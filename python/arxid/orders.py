@@ -1082,7 +1082,7 @@ def sweep(
         With a list of logs as ``data``: run on this Dask cluster, where the workers read the logs
         (see :mod:`arxid.fleet_sweep`). The client reads none during the sweep; the result's
         ``estimation`` and ``validation`` are read on the client when first needed
-        (:class:`arxid.cluster.LogsOnDemand`). Effects are not available on a cluster yet.
+        (:class:`arxid.cluster.LogsOnDemand`). Effects are computed by the workers, within each log.
     per_experiment : bool
         With a list of logs: sweep each log separately and return a :class:`arxid.fleet.FleetSweep`.
     read : dict or callable, optional
@@ -1117,7 +1117,7 @@ def sweep(
     >>> res.structure_name(0)
     'ARX(2,1,3)'
     """
-    engine = None
+    workers = None  # a fleet's logs on a Dask cluster
     if isinstance(data, (list, tuple)):
         options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
         options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
@@ -1125,7 +1125,7 @@ def sweep(
         fraction = fleet.check_validation(validation)
         if per_experiment:
             return fleet.sweep_each(data, client, read, fraction, sweep, options)
-        engine, (data, validation) = _fleet_engine(client, data, read, fraction, tuple(effects))
+        workers, (data, validation) = _fleet_parts(client, data, read, fraction)
     if not isinstance(data, IOData):
         raise DataError(
             f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
@@ -1153,9 +1153,10 @@ def sweep(
     seconds = stages.estimated_seconds(n_structures, top, p_max, q, est.n_samples + n_val, n_sim, int(n_threads))
     stages.check_time_budget(n_structures, top, seconds, max_seconds)
     g = _Grid.build(est, nas, nbs, nks, effects)
-    # A fleet on a cluster: the workers hold the samples (and refuse effects), the client none.
-    inputs = _core_inputs(est, val, g, effects) if engine is None else None
-    terms = inputs.terms if inputs is not None else []
+    # A fleet on a cluster: the workers hold the samples and compute the effect columns, the client none.
+    inputs = _core_inputs(est, val, g, effects) if workers is None else None
+    engine = _fleet_engine(workers, est, g, effects) if workers is not None else None
+    terms = inputs.terms if inputs is not None else engine.terms
     first_lag, _ = _core.grid_envelope(g.layout, terms)
     _check_validation_length(val, first_lag)
     run = _Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
@@ -1201,22 +1202,24 @@ def _refined(result: SweepResult, structure: str, top: int) -> RefinedSweep:
     return refine(result, structure, top=top)
 
 
-def _fleet_engine(
-    client: Any, logs: Sequence, read: Any, fraction: float | None, effects: Sequence[str]
-) -> tuple[Any, tuple]:
-    """The merged parts of a fleet's logs, and the Dask engine that sweeps them (None in process).
+def _fleet_parts(client: Any, logs: Sequence, read: Any, fraction: float | None) -> tuple[Any, tuple]:
+    """The merged parts of a fleet's logs, and the logs on the workers of ``client`` (None in process).
 
     With a client the workers read the logs; the parts are :class:`arxid.cluster.LogsOnDemand`
     (shapes now, samples read on the client only when a result needs them)."""
     if client is None:
         return None, fleet.merged_parts(logs, read, fraction)
-    if effects:
-        raise DataError(
-            "a sweep over a fleet on a Dask cluster takes no effects yet; sweep the logs without client= "
-            "(in process), or without effects"
-        )
     on_workers = cluster.WorkerLogs(client, logs, read, fraction)
-    return fleet_sweep.DaskEngine(on_workers), on_workers.on_demand()
+    return on_workers, on_workers.on_demand()
+
+
+def _fleet_engine(workers: Any, est: IOData, g: _Grid, effects: tuple[str, ...]) -> fleet_sweep.DaskEngine:
+    """The engine that sweeps a fleet where its logs are, with the effect columns and output terms
+    the in-process sweep would use (the terms follow from the first samples alone)."""
+    columns = fleet_sweep.EffectColumns(effects, tuple(g.user_nb[0]), tuple(g.user_nk[0]))
+    head = est[: min(est.n_samples, 8)]
+    terms = list(compile_effects(effects, head, columns.nb, columns.nk).output_terms) if effects else []
+    return fleet_sweep.DaskEngine(workers, terms, columns)
 
 
 def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
