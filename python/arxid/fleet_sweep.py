@@ -7,9 +7,11 @@ regressor (regressors never straddle two logs); the factors are combined by QR i
 structure is solved from the final R on the client. The free-run simulation is spread over the
 workers too: each share simulates the structures on its own logs (judged by the divergence limit of
 the whole fleet) and sends back their squared-error sums and the moments of its validation output,
-so no log moves between workers. What travels over the network: the grid, the logs' shapes, R factors of ``q × q`` numbers
-(``q`` = columns of the largest regressor), the parameters and the scores of each structure; never
-the samples, when the workers read their own files. The client does not read the logs: the
+so no log moves between workers.
+
+What travels over the network: the grid, the logs' shapes, R factors of ``q × q`` numbers (``q`` =
+columns of the largest regressor), the parameters and the scores of each structure; never the
+samples, when the workers read their own files. The client does not read the logs: the
 :class:`~arxid.SweepResult` holds them as :class:`arxid.cluster.LogsOnDemand`, read when first used
 (by ``model``, ``summary``'s step checks or ``extend``).
 """
