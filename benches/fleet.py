@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import tempfile
-import time
 
 import numpy as np
 from scipy.signal import lfilter
 
 import arxid
+from _timing import median_time
 
 
 def write_logs(folder: str, n_logs: int, n: int) -> list[str]:
@@ -38,15 +37,6 @@ def write_logs(folder: str, n_logs: int, n: int) -> list[str]:
         np.savez(path, y=y, u=u.reshape(-1, 1), ts=0.01)
         paths.append(path)
     return paths
-
-
-def median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def main():

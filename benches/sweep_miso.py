@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.signal import lfilter
 
 import arxid
+from _timing import median_time
 
 NA, NB = range(1, 7), range(1, 5)
 
@@ -35,15 +34,6 @@ def make_data(n: int, seed: int) -> arxid.IOData:
     y = lfilter([0, 0, 0.5, 0.25], a, u[:, 0]) + lfilter([0, 0.3], a, u[:, 1])
     y += lfilter([0, 0, 0, 0, -0.2], a, u[:, 2]) + lfilter([1], a, 0.05 * rng.standard_normal(n))
     return arxid.IOData(y, u, ts=0.01)
-
-
-def median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def envelope(d: arxid.IOData, nk_max: int, lag: int) -> np.ndarray:

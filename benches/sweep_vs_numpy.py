@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.signal import lfilter, lfiltic
 
 import arxid
+from _timing import median_time
 from arxid import _core
 
 NA, NB, NK = range(1, 11), range(1, 11), range(0, 11)
@@ -45,15 +44,6 @@ def make_data(n: int, seed: int):
 
 def grid():
     return [(a, b, k) for a in NA for b in NB for k in NK]
-
-
-def median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def regressor(y, u, na, nb, nk, lag):

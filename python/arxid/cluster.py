@@ -95,11 +95,9 @@ def load_share(sources: Sequence[Any], names: Sequence[str], read: Any, validati
         ``(estimation parts merged, validation parts merged or None, [LogShape of each log], the first
         samples of the first log's estimation part)``.
     """
-    logs = [fleet.read_log(s, read, n) for s, n in zip(sources, names, strict=True)]
-    fleet.check_alike([fleet.LogSignals.of(d) for d in logs], names)
+    logs = fleet.load_logs(sources, read, names)
     split = [fleet.split_experiment(d, validation) for d in logs]
-    est = IOData.merge([e for e, _ in split])
-    val = None if validation is None else IOData.merge([v for _, v in split if v is not None])
+    est, val = fleet.merge_split(split)
     shapes = [LogShape.of(d, e, v) for d, (e, v) in zip(logs, split, strict=True)]
     return est, val, shapes, split[0][0][: min(HEAD, split[0][0].n_samples)]
 

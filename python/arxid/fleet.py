@@ -34,7 +34,16 @@ import numpy as np
 from .data import IOData, freeze_owned
 from .exceptions import ArxidError, DataError
 
-__all__ = ["FleetSweep", "LogSignals", "load_experiment", "read_log", "merge_logs", "merged_parts", "split_experiment"]
+__all__ = [
+    "FleetSweep",
+    "LogSignals",
+    "load_experiment",
+    "read_log",
+    "merge_logs",
+    "merge_split",
+    "merged_parts",
+    "split_experiment",
+]
 
 
 def load_experiment(source: Any, read: Any = None) -> IOData:
@@ -168,7 +177,7 @@ def check_alike(signals: Sequence[LogSignals], names: Sequence[str]) -> None:
                 )
 
 
-def load_logs(sources: Sequence[Any], read: Any = None) -> list[IOData]:
+def load_logs(sources: Sequence[Any], read: Any = None, names: Sequence[str] | None = None) -> list[IOData]:
     """Every log read and checked to share its sampling time and signals with the first.
 
     Parameters
@@ -176,6 +185,8 @@ def load_logs(sources: Sequence[Any], read: Any = None) -> list[IOData]:
     sources : sequence of IOData or paths
     read : dict or callable, optional
         As in :func:`load_experiment`.
+    names : sequence of str, optional
+        The logs' names in messages (default :func:`log_name` of each, by its position).
 
     Returns
     -------
@@ -188,7 +199,7 @@ def load_logs(sources: Sequence[Any], read: Any = None) -> list[IOData]:
     """
     if not len(sources):
         raise DataError("the list of logs is empty; give at least one IOData or file path")
-    names = [log_name(s, i) for i, s in enumerate(sources)]
+    names = list(names) if names is not None else [log_name(s, i) for i, s in enumerate(sources)]
     logs = [read_log(s, read, n) for s, n in zip(sources, names, strict=True)]
     check_alike([LogSignals.of(d) for d in logs], names)
     return logs
@@ -248,9 +259,23 @@ def merged_parts(sources: Sequence[Any], read: Any, validation: float | None) ->
     DataError
         Naming the log that cannot be read or does not match the first.
     """
-    split = [split_experiment(d, validation) for d in load_logs(sources, read)]
-    est = IOData.merge([e for e, _ in split])
-    return est, (None if validation is None else IOData.merge([v for _, v in split if v is not None]))
+    return merge_split([split_experiment(d, validation) for d in load_logs(sources, read)])
+
+
+def merge_split(split: Sequence[tuple[IOData, IOData | None]]) -> tuple[IOData, IOData | None]:
+    """Logs split by :func:`split_experiment`, merged part by part (one experiment per log).
+
+    Parameters
+    ----------
+    split : sequence of (IOData, IOData or None)
+
+    Returns
+    -------
+    tuple of (IOData, IOData or None)
+        The estimation parts merged, and the validation parts merged (None without validation).
+    """
+    vals = [v for _, v in split if v is not None]
+    return IOData.merge([e for e, _ in split]), (IOData.merge(vals) if vals else None)
 
 
 @dataclass(frozen=True)

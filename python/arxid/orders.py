@@ -1376,7 +1376,7 @@ class _Runner:
         self.top, self.engine = top, engine
 
     def __call__(self, k: int | None) -> Any:
-        if self.engine is not None or self.inputs is None:
+        if self.inputs is None:  # a fleet on a cluster: the engine runs where the logs are
             return self.engine(self.g.layout, self.top, k, bool(self.simulate_estimation))
         inputs = self.inputs
         n = len(self.g.layout)
