@@ -130,14 +130,14 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
     finite_y, finite_pred = np.isfinite(y), np.isfinite(pred)
     ok = finite_y & finite_pred
     n = int(np.count_nonzero(ok))
-    peak_y, peak_pred = _peak(y, finite_y), _peak(pred, finite_pred)
+    peak_y, peak_pred = finite_peak(y, finite_y), finite_peak(pred, finite_pred)
     head = [n, peak_y, peak_pred, np.isinf(pred).any()]
     if n == 0:
         return np.array(head + [0.0, 0.0, 0.0, 0.0], dtype=float)
     yo, po = (y, pred) if n == len(y) else (y[ok], pred[ok])
     # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
     # or 1e-200 neither overflow nor underflow the sums of squares.
-    big = peak_y if n == len(y) else _peak(yo, np.ones(n, dtype=bool))
+    big = peak_y if n == len(y) else finite_peak(yo, np.ones(n, dtype=bool))
     scale = _unit_scale(big)
     with np.errstate(over="ignore", invalid="ignore"):
         # One scratch array, reused in place (the same values as (yo - po) * scale and so on).
@@ -150,8 +150,9 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
         return np.array(head + [big, sse, mean, np.dot(e, e)], dtype=float)
 
 
-def _peak(x: np.ndarray, finite: np.ndarray) -> float:
-    """Largest |x| over the finite samples (0 when there are none)."""
+def finite_peak(x: np.ndarray, finite: np.ndarray) -> float:
+    """Largest |x| over the samples where ``finite`` holds (0 when there are none); no copy of ``x``
+    when every sample is finite."""
     x = x if finite.all() else x[finite]
     return float(max(np.max(x), -np.min(x))) if x.size else 0.0  # max |x| without a copy
 

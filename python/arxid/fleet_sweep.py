@@ -41,8 +41,8 @@ def _arrays(d: IOData) -> tuple[np.ndarray, np.ndarray, list[int]]:
 
 
 def _peak(d: IOData | None) -> float:
-    y = np.abs(d.y[np.isfinite(d.y)]) if d is not None else np.zeros(0)
-    return float(y.max()) if y.size else 0.0
+    """Largest measured |y| of a part (0 without one): its share of the fleet's divergence limit."""
+    return metrics.finite_peak(d.y, np.isfinite(d.y)) if d is not None else 0.0
 
 
 @dataclass(frozen=True)
