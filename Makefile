@@ -40,14 +40,14 @@ setup: $(VENV)/.installed
 # venv changed (the .so is the stamp, so an unchanged tree builds nothing). cargo test (below) and
 # maturin share target/release without invalidating each other: same profile and dependency
 # features, and cargo test builds only the lib's test harness, never the cdylib maturin owns.
-CORE := python/arxid/_core.abi3.so
+CORE := python/arxid/_base/_core.abi3.so
 RUST_SOURCES := Cargo.toml Cargo.lock $(wildcard rust/*.rs rust/*/*.rs)
 
 develop: $(CORE)
 
 $(CORE): $(VENV)/.installed $(RUST_SOURCES) pyproject.toml
 	@echo "building the Rust core for Python (maturin, release: a few minutes from scratch on 2 cores, seconds to a minute after an edit) -> $(VENV)/develop.log"
-	@rm -f python/arxid/_core*.so
+	@rm -f python/arxid/_core*.so python/arxid/_base/_core*.so
 	@$(VENV)/bin/maturin develop --release > $(VENV)/develop.log 2>&1 || { cat $(VENV)/develop.log; exit 1; }
 	@touch $@
 
@@ -117,7 +117,7 @@ LINT_STEPS = \
 	"$(PY) -m ruff check python tests benches examples docs/gallery" \
 	"$(PY) -m ruff format --check python tests benches examples docs/gallery" \
 	"$(PY) -m mypy" \
-	"$(PY) -m mypy.stubtest arxid._core" \
+	"$(PY) -m mypy.stubtest arxid._base._core" \
 	"cargo fmt --check" \
 	"env $(MATURIN_PYO3_ENV) cargo clippy --release --all-targets --features python -- -D warnings"
 
@@ -138,4 +138,4 @@ typecheck: develop
 	$(PY) -m mypy
 
 clean:
-	rm -rf $(VENV) target python/arxid/_core*.so dist site docs/gallery/generated
+	rm -rf $(VENV) target python/arxid/_core*.so python/arxid/_base/_core*.so dist site docs/gallery/generated

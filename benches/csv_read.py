@@ -32,7 +32,7 @@ if mode == "numpy":
     sys.modules["pandas"] = None
 import numpy as np
 import arxid
-import arxid.csvio
+import arxid.data.csvio
 def read():
     if mode == "pandas.read_csv alone":
         import pandas as pd

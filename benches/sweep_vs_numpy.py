@@ -28,7 +28,7 @@ from scipy.signal import lfilter, lfiltic
 
 import arxid
 from _timing import median_time
-from arxid import _core
+from arxid._base import _core
 
 NA, NB, NK = range(1, 11), range(1, 11), range(0, 11)
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from PIL import Image
 
-from arxid.demo import run_demo
+from arxid.analysis.demo import run_demo
 
 WIDTH = 1280
 OUT = Path(__file__).resolve().parent / "images"

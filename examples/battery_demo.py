@@ -11,7 +11,7 @@ import io
 import sys
 from pathlib import Path
 
-from arxid.demo import run_demo
+from arxid.analysis.demo import run_demo
 
 
 def main(out: Path) -> None:

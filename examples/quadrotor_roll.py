@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import arxid
-from arxid.datasets import quadrotor_axis, quadrotor_flight
+from arxid.quadrotor.datasets import quadrotor_axis, quadrotor_flight
 
 
 def main(out: Path) -> None:

@@ -66,7 +66,7 @@ def _read_or_die(path, marker):
     of the run, once (``marker`` records that it happened)."""
     import distributed
 
-    from arxid import fleet
+    from arxid.fleet import logs as fleet
 
     try:
         distributed.get_worker()
@@ -94,7 +94,7 @@ def _read_and_record(path, record):
     """Reads a log, and notes in the file ``record`` each read that happens on the client."""
     import distributed
 
-    from arxid import fleet
+    from arxid.fleet import logs as fleet
 
     try:
         distributed.get_worker()

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.effects import compile_effects
-from arxid.regressors import regressor_matrix
+from arxid.models.effects import compile_effects
+from arxid.models.regressors import regressor_matrix
 from conftest import simulate_arx
 
 

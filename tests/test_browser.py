@@ -43,7 +43,7 @@ def browser():
 def report_file(tmp_path_factory):
     """A full report of a small system whose gain follows a draining battery."""
     import arxid
-    from arxid.report import build_report
+    from arxid.analysis.report import build_report
 
     rng = np.random.default_rng(3)
     n = 2500
@@ -188,7 +188,7 @@ def test_demo_report_in_the_browser(browser, tmp_path):
     """The report ``make demo`` writes (on a shorter flight): loads offline, every plot drawn."""
     import io
 
-    from arxid.demo import run_demo
+    from arxid.analysis.demo import run_demo
 
     path = tmp_path / "demo.html"
     run_demo(path, duration=10.0, stream=io.StringIO())
@@ -207,7 +207,7 @@ def test_silverbox_report_in_the_browser(browser, shared_data, tmp_path):
     """Silverbox (cubic spring, 14,350 samples of the multisine part, ARX(4,3,0)): the ladder adds
     y^3+const, then nb+1, and the report says which step was which."""
     import arxid
-    from arxid.report import build_report
+    from arxid.analysis.report import build_report
 
     data = arxid.IOData.from_csv(
         shared_data / "silverbox" / "SNLS80mV.csv",

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from arxid.cli import main, parse_range
+from arxid.analysis.cli import main, parse_range
 
 TRUE_A, TRUE_B, TRUE_NK = -0.8, 0.5, 2
 
@@ -328,7 +328,7 @@ def test_default_demo_tells_the_battery_story(capsys, tmp_path):
     import re
 
     import arxid
-    from arxid.demo import demo_data
+    from arxid.analysis.demo import demo_data
 
     path = tmp_path / "arxid-demo-report.html"
     code, out, err = run(capsys, "demo", "-o", path, "--no-progress")

@@ -94,7 +94,7 @@ def test_zoh_round_trip_over_the_grid_or_a_typed_refusal():
     sampled again equals the discrete one to 1e-9, or the conversion refuses with a ConversionError.
     A numerator one longer than the poles (nb = na + 1 with a delay) comes from a fractional delay:
     sampled from a known continuous system, it is recovered, not refused."""
-    from arxid.continuous import d2c
+    from arxid.models.continuous import d2c
 
     ts = 0.01
     rng = np.random.default_rng(0)
@@ -127,7 +127,7 @@ def test_zoh_recovers_a_fractional_input_delay(na, delay, relative_degree):
     >= 2 the delay is determined only to second order (a small delay change is, to first order, a
     change of the numerator), so it is checked to 1e-4 there; the round trip stays exact."""
     control = pytest.importorskip("control")
-    from arxid.continuous import d2c
+    from arxid.models.continuous import d2c
 
     ts = 0.01
     den = np.real(np.poly({1: [-20.0], 2: [-35.0 + 30j, -35.0 - 30j], 3: [-20.0, -35.0 + 30j, -35.0 - 30j]}[na]))
@@ -175,7 +175,7 @@ def test_nb_greater_than_na_keeps_every_numerator_term():
 
 
 def test_longer_numerator_is_refused_with_a_reason():
-    from arxid.continuous import d2c
+    from arxid.models.continuous import d2c
 
     with pytest.raises(arxid.exceptions.ConversionError, match="poles at z = 0.*nb <= na \\+ 1.*tustin"):
         d2c([1, -0.5], [0, 1, 0.8, 0.3], 0.01)
@@ -191,7 +191,7 @@ def _negative_pole_model():
 
 
 def test_negative_real_pole_refuses_zoh_and_names_the_alternatives():
-    from arxid.continuous import d2c
+    from arxid.models.continuous import d2c
 
     a, b = _negative_pole_model()
     with pytest.raises(arxid.exceptions.ConversionError, match="negative real axis.*tustin.*matched"):
@@ -202,7 +202,7 @@ def test_negative_real_pole_refuses_zoh_and_names_the_alternatives():
 def test_tustin_and_matched_invert_python_control_sample_system(method):
     """``sample_system(G, ts, method)`` of the result, times its dead time, is the discrete model."""
     control = pytest.importorskip("control")
-    from arxid.continuous import d2c
+    from arxid.models.continuous import d2c
 
     ts = 0.01
     cases = [(np.real(np.poly([0.95, 0.8 + 0.1j, 0.8 - 0.1j])), np.concatenate([np.zeros(4), [0.5, -0.3]]))]
@@ -221,7 +221,7 @@ def test_tustin_and_matched_invert_python_control_sample_system(method):
 
 
 def test_matched_refuses_zeros_at_the_origin_and_negative_poles():
-    from arxid.continuous import d2c
+    from arxid.models.continuous import d2c
 
     with pytest.raises(arxid.exceptions.ConversionError, match="zero\\(s\\) at z = 0"):
         d2c([1, -1.5, 0.7], [0, 0.5], 0.01, "matched")  # ARX(2,1,1): b z / (z^2 + ...)

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import arxid
-import arxid.csvio
+import arxid.data.csvio
 from arxid import DataError
-from arxid.csvio import CsvFile
+from arxid.data.csvio import CsvFile
 
 
 @pytest.fixture(params=["pandas", "numpy"])
@@ -88,7 +88,7 @@ def test_row_check_holds_across_read_chunks(tmp_path, monkeypatch):
         eol = "\r\n" if trial % 2 else "\n"
         text = eol.join(lines) + (eol if trial % 3 else "")
         bad = [i + 1 for i, line in enumerate(lines) if i and line and line.count(",") != 2]
-        monkeypatch.setattr(arxid.csvio, "_CHUNK", int(rng.integers(1, 12)))
+        monkeypatch.setattr(arxid.data.csvio, "_CHUNK", int(rng.integers(1, 12)))
         p = _write(tmp_path, text)
         if bad:
             with pytest.raises(DataError, match=f"line {bad[0]} has"):

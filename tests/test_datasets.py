@@ -5,8 +5,9 @@ import time
 import numpy as np
 import pytest
 
-from arxid.data import IOData
-from arxid.datasets import (
+from arxid.data.iodata import IOData
+from arxid.exceptions import DataError
+from arxid.quadrotor.datasets import (
     DEFAULT_EFFECTS,
     QuadrotorParameters,
     quadrotor_axis,
@@ -14,7 +15,6 @@ from arxid.datasets import (
     thrust_stand,
     thrust_stand_static,
 )
-from arxid.exceptions import DataError
 
 TRUTH = QuadrotorParameters()
 

@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 
-import arxid.data
-import arxid.model
+import arxid.data.iodata
+import arxid.models.arx_model
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("module", [arxid.data, arxid.model])
+@pytest.mark.parametrize("module", [arxid.data.iodata, arxid.models.arx_model])
 def test_docstring_examples(module):
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert result.attempted > 0 and result.failed == 0

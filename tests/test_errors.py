@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid import _core
+from arxid._base import _core
 from arxid.exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
 
 

@@ -10,7 +10,7 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
-from arxid import fleet
+from arxid.fleet import logs as fleet
 from conftest import client_read_recorder, worker_killing_reader
 
 distributed = pytest.importorskip("distributed", reason="needs the dask extra: pip install 'arxid[dask]'")

@@ -1,4 +1,4 @@
-"""One ARX model over a fleet of logs (arxid.fleet_fit): a list of logs is fitted as the logs
+"""One ARX model over a fleet of logs (arxid.fleet.fit): a list of logs is fitted as the logs
 concatenated with gaps (so no regressor straddles two logs); on a Dask LocalCluster (shared with the
 fleet sweep tests) the model equals the in-process fit to 1e-10, from IOData objects and from CSV
 files; one model per log equals each log's own fit, and the fleet summary is numpy's statistics of
@@ -13,11 +13,11 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
-from arxid import _metrics as metrics
-from arxid import fleet_fit
-from arxid.effects import compile_effects
+from arxid._base import metrics
 from arxid.exceptions import DataError, IdentifiabilityError
-from arxid.regressors import regressor_matrix
+from arxid.fleet import fit as fleet_fit
+from arxid.models.effects import compile_effects
+from arxid.models.regressors import regressor_matrix
 from conftest import worker_killing_reader
 
 EFFECTS = ("u1*vbat", "const", "y^3")

@@ -14,9 +14,9 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
+from arxid.checks.bands import free_run_band, frequency_response, normal_quantile, step_band
+from arxid.checks.frequency import frequency_check
 from arxid.exceptions import ArxidError, DataError
-from arxid.frequency import frequency_check
-from arxid.uncertainty import free_run_band, frequency_response, normal_quantile, step_band
 
 TS = 0.002
 F_RES = 25.0

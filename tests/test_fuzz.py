@@ -192,7 +192,7 @@ def test_model_json_round_trips_and_mutations_load_or_raise_data_error(model_dic
 _CLI_DRIVER = textwrap.dedent(
     """
     import contextlib, io, json, sys, time
-    from arxid.cli import main
+    from arxid.analysis.cli import main
     results = []
     for argv in json.loads(sys.argv[1]):
         err = io.StringIO()

@@ -19,7 +19,8 @@ Nothing here imports arxid, so the rules hold whatever state the modules are in.
 (d) No import cycles between arxid modules. The graph has one node per module (a package is the
     node of its ``__init__``) and one edge per import statement, module-level and function-level
     alike (a function-level import is a deferred module-level one: it still needs the other module
-    importable while this one is), except the imports under ``if TYPE_CHECKING:``, which never run.
+    importable while this one is), and the imports under ``if TYPE_CHECKING:`` too: a name in a type
+    hint is still a dependency of meaning.
     How an import statement becomes edges:
 
     * ``import a.b.c`` and ``from a.b.c import name`` are an edge to module ``a.b.c``; when
@@ -37,6 +38,9 @@ Nothing here imports arxid, so the rules hold whatever state the modules are in.
 
     Every cycle is reported as its strongly connected component with each import statement
     (file:line) that forms one of its edges.
+
+(f) At most :data:`MAX_TOP_ENTRIES` entries directly in ``python/arxid/``: the layers live in
+    subpackages (docs/architecture.md; the import-linter contracts in pyproject.toml enforce them).
 """
 
 from __future__ import annotations
@@ -50,6 +54,8 @@ import pytest
 PKG_DIR = Path(__file__).resolve().parents[1] / "python" / "arxid"
 PKG = "arxid"
 MAX_FUNCTION_LINES = 80
+#: Entries directly in ``python/arxid/`` (files and folders, the compiled core and caches excluded).
+MAX_TOP_ENTRIES = 14
 
 
 # ----------------------------------------------------------------------------------------------- discovery
@@ -357,6 +363,13 @@ def import_cycles() -> list[str]:
                     lines += [f"    {w}: {src} imports {dst}" for w in where]
         msgs.append("\n".join(lines))
     return msgs
+
+
+def test_the_package_root_shows_the_architecture():
+    """(f) At most :data:`MAX_TOP_ENTRIES` entries in ``python/arxid/``: the subpackages and the few files
+    every layer shares (the compiled core, built there by maturin, and ``__pycache__`` not counted)."""
+    entries = sorted(p.name for p in PKG_DIR.iterdir() if p.name != "__pycache__" and not p.name.startswith("_core."))
+    assert len(entries) <= MAX_TOP_ENTRIES, f"{len(entries)} entries in python/arxid: {entries}"
 
 
 def test_no_import_cycles():

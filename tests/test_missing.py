@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.analysis import analyse
-from arxid.ladder import Ladder
-from arxid.missing import INTEGRATING_HORIZON, Diagnosis, auto_candidates, diagnose
-from arxid.validation import error_rms
+from arxid.analysis.pipeline import analyse
+from arxid.checks.validation import error_rms
+from arxid.diagnosis.ladder import Ladder
+from arxid.diagnosis.suspects import INTEGRATING_HORIZON, Diagnosis, auto_candidates, diagnose
 
 
 def _held(rng, n, lo, hi, hold):
@@ -368,7 +368,7 @@ def test_analyse_with_orders_and_with_a_grid():
     assert rep["suspects"][0]["effect"] == "u1*vbat"
     assert rep["ladder"][1]["effects"] == ["u1*vbat"]
     assert rep["ladder"][1]["rms_sim_val"] < 0.2 * rep["ladder"][0]["rms_sim_val"]
-    json.dumps(arxid.analysis.json_safe(rep), allow_nan=False)
+    json.dumps(arxid._base.formatting.json_safe(rep), allow_nan=False)
     rep2 = analyse(data, grid={"na": [1, 2], "nb": [1], "nk": [0, 1, 2]}, max_steps=1).to_dict()
     assert rep2["model"]["nk"] == [1]
     assert "vbat" in rep2["suspects"][0]["effect"]
@@ -376,21 +376,12 @@ def test_analyse_with_orders_and_with_a_grid():
         analyse(est, val, orders=(1, 1))
 
 
-def test_diagnose_report_is_a_deprecated_alias_of_analyse():
-    from arxid.analysis import diagnose_report
-
-    est, val = battery_gain(seed=2).split(0.6)
-    with pytest.warns(DeprecationWarning, match="analyse"):
-        rep = diagnose_report(est, val, orders=(1, 1, 1), max_steps=1)
-    assert rep["suspects"][0]["effect"] == analyse(est, val, orders=(1, 1, 1), max_steps=1).missing_effect
-
-
 def test_analyse_chooses_the_best_sane_structure_like_sweep():
     """Without orders, the diagnosed model is the best structure that passes the step sanity check,
     the one ``arxid sweep`` chooses on the same grid (on this roll axis the best by validation error,
     ARX(3,2,7), has an implausible step)."""
-    from arxid.analysis import choose
-    from arxid.datasets import quadrotor_axis, quadrotor_flight
+    from arxid.analysis.pipeline import choose
+    from arxid.quadrotor.datasets import quadrotor_axis, quadrotor_flight
 
     roll = quadrotor_axis(quadrotor_flight(seed=1, duration=20.0), "roll")
     est, val = roll.split(0.5)
@@ -470,7 +461,7 @@ def test_daisy_heating_two_step_ladder(shared_data):
 
 def test_simulated_quadrotor_flight_battery_sag():
     """The project's own flight simulator with battery sag: the battery times the thrust command."""
-    from arxid.demo import demo_data
+    from arxid.analysis.demo import demo_data
 
     data, facts = demo_data(seed=0)
     assert facts["vbat_end"] < facts["vbat_start"] - 0.2  # the battery does sag
@@ -488,26 +479,16 @@ def test_simulated_quadrotor_flight_battery_sag():
 
 
 def test_functions_and_modules_have_distinct_names():
-    """``arxid.sweep`` and ``arxid.diagnose`` are the functions; their modules are arxid.orders and
-    arxid.missing, so importing a submodule never rebinds a function."""
+    """``arxid.sweep`` and ``arxid.diagnose`` are the functions; their modules are arxid.selection.search and
+    arxid.diagnosis.suspects, so importing a submodule never rebinds a function."""
     import importlib
 
-    orders = importlib.import_module("arxid.orders")
-    missing = importlib.import_module("arxid.missing")
+    orders = importlib.import_module("arxid.selection.search")
+    missing = importlib.import_module("arxid.diagnosis.suspects")
     est, val = quadratic_thrust().split(0.6)
     d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
     assert isinstance(d, Diagnosis) and d.top.effect == "speed^2"
     assert arxid.diagnose is missing.diagnose and arxid.sweep is orders.sweep and arxid.Ladder is Ladder
-
-
-def test_old_diagnostics_module_is_a_deprecated_alias():
-    import importlib
-    import sys
-
-    sys.modules.pop("arxid.diagnostics", None)
-    with pytest.warns(DeprecationWarning, match="arxid.validation"):
-        old = importlib.import_module("arxid.diagnostics")
-    assert old.compare is arxid.compare
 
 
 def test_docs_examples_run():

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.analysis import analyse
-from arxid.candidates import CATALOGUE, auto_candidates, physics, threshold_grid
-from arxid.ladder import Ladder
-from arxid.missing import diagnose
-from arxid.validation import error_rms
+from arxid.analysis.pipeline import analyse
+from arxid.checks.validation import error_rms
+from arxid.diagnosis.candidates import CATALOGUE, auto_candidates, physics, threshold_grid
+from arxid.diagnosis.ladder import Ladder
+from arxid.diagnosis.suspects import diagnose
 
 
 def _held(rng, n, lo, hi, hold):

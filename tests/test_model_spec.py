@@ -7,8 +7,8 @@ import pytest
 from scipy import signal
 
 import arxid
-from arxid.cli import main
-from arxid.model_spec import MODEL_FORMS, parse_model_spec
+from arxid.analysis.cli import main
+from arxid.models.spec import MODEL_FORMS, parse_model_spec
 
 
 def _data(seed: int = 3, n: int = 3000, coloured: bool = False) -> arxid.IOData:

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid import _metrics as metrics
-from arxid.analysis import choose
-from arxid.cli import main
-from arxid.report import json_safe
+from arxid._base import metrics
+from arxid.analysis.cli import main
+from arxid.analysis.pipeline import choose
+from arxid.analysis.report import json_safe
 
 
 def _write_csv(path, n=3000, seed=11):
@@ -112,7 +112,7 @@ def test_every_number_has_one_definition(runs):
 
 def test_divergence_rule_is_the_cores():
     y = np.array([1.0, -2.0, np.nan])
-    assert metrics.DIVERGENCE_FACTOR == arxid._core.DIVERGENCE_FACTOR
+    assert metrics.DIVERGENCE_FACTOR == arxid._base._core.DIVERGENCE_FACTOR
     assert metrics.divergence_limit(y) == 2.0 * metrics.DIVERGENCE_FACTOR
     assert not metrics.diverged(y, [1999.0, np.nan, 0.0]) and metrics.diverged(y, [2001.0, 0.0, 0.0])
     assert metrics.diverged(y, [np.inf, 0.0, 0.0]) and metrics.fit_percent(y, [np.inf, 0, 0]) == -np.inf

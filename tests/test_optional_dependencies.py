@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import arxid
-import arxid._optional
+import arxid._base.optional
 from arxid import ArxidWarning, MissingDependencyError
 from conftest import simulate_arx
 
@@ -48,7 +48,7 @@ def _sweep(data, **kwargs):
 
 def test_sweep_without_tqdm_has_no_bar_and_warns_once(data, monkeypatch):
     _uninstall(monkeypatch, "tqdm")
-    monkeypatch.setattr(arxid._optional, "_warned", set())
+    monkeypatch.setattr(arxid._base.optional, "_warned", set())
     terminal = _Terminal()
     monkeypatch.setattr(sys, "stderr", terminal)
     quiet = _sweep(data, progress=False)
@@ -95,6 +95,6 @@ def test_every_extra_named_in_a_message_exists_in_pyproject():
     from conftest import REPO
 
     extras = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]
-    for module, extra in arxid._optional.EXTRAS.items():
+    for module, extra in arxid._base.optional.EXTRAS.items():
         assert any(req.startswith((module, "python-" + module)) for req in extras[extra]), (module, extra)
         assert extra in extras and all(e in extras["all"] for e in extras[extra])

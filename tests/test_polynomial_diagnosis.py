@@ -7,8 +7,8 @@ import pytest
 from scipy import signal
 
 import arxid
-from arxid.derived_inputs import complete_inputs
-from arxid.polynomial_diagnosis import OUTPUT_TERM_NOTE, effect_columns, score_effects, with_effects
+from arxid.diagnosis.polynomial import OUTPUT_TERM_NOTE, effect_columns, score_effects, with_effects
+from arxid.models.derived_inputs import complete_inputs
 
 
 def _plant(battery: bool, seed: int = 1, n: int = 4000) -> tuple[arxid.IOData, arxid.IOData]:
@@ -29,13 +29,13 @@ def test_gradient_binding_matches_finite_differences():
     orders = (0, [2], 0, 0, [2], [1])
     segs = [(0, est.n_samples)]
     u = np.ascontiguousarray(est.u)
-    eps, jac = arxid._core.pem_gradient(est.y, u, segs, orders, model.parameters_)
+    eps, jac = arxid._base._core.pem_gradient(est.y, u, segs, orders, model.parameters_)
     rows = np.isfinite(eps)
     assert rows.sum() == model.n_rows_ and np.mean(eps[rows] ** 2) == pytest.approx(model.loss_, rel=1e-9)
     for j in range(model.n_params):
         th = model.parameters_.copy()
         th[j] += 1e-7
-        e2, _ = arxid._core.pem_gradient(est.y, u, segs, orders, th)
+        e2, _ = arxid._base._core.pem_gradient(est.y, u, segs, orders, th)
         assert np.allclose((e2[rows] - eps[rows]) / 1e-7, jac[rows, j], atol=1e-4 * np.abs(jac[rows, j]).max())
 
 

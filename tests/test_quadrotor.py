@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from arxid.data import IOData
-from arxid.datasets import QuadrotorParameters, quadrotor_axis, quadrotor_flight, thrust_stand, thrust_stand_static
+from arxid.data.iodata import IOData
 from arxid.exceptions import DataError
 from arxid.quadrotor import (
     EmptyFeasibleSetError,
@@ -25,6 +24,13 @@ from arxid.quadrotor import (
     speeds_from_pwm,
     thrust_model_class,
     thrust_torque_coefficients,
+)
+from arxid.quadrotor.datasets import (
+    QuadrotorParameters,
+    quadrotor_axis,
+    quadrotor_flight,
+    thrust_stand,
+    thrust_stand_static,
 )
 
 TRUTH = QuadrotorParameters()

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.cli import main
-from arxid.verdicts import ladder_headline, lag_ranges, negative_fit_note, residual_sentences
+from arxid.analysis.cli import main
+from arxid.analysis.verdicts import ladder_headline, lag_ranges, negative_fit_note, residual_sentences
 
 
 def _battery_data(n=2500, seed=5):

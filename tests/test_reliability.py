@@ -19,8 +19,8 @@ import pytest
 from scipy import signal as sps
 
 import arxid
-from arxid import _core
-from arxid._limits import _cgroup_left, available_memory
+from arxid._base import _core
+from arxid._base.limits import _cgroup_left, available_memory
 from arxid.exceptions import ArxidError, DataError, NotFittedError, OrderError
 
 
@@ -191,8 +191,8 @@ def test_ctrl_c_stops_the_cli_with_exit_130(tmp_path):
 _LIMITED = textwrap.dedent(
     """
     import resource, numpy as np, arxid
-    from arxid import _core
-    from arxid._limits import available_memory
+    from arxid._base import _core
+    from arxid._base.limits import available_memory
     with open("/proc/self/status") as fh:
         vm = next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmSize:"))
     # Room for the interpreter, numpy, threads and the 16 MB of data, not for the work.

@@ -10,8 +10,8 @@ import pytest
 
 import arxid
 from arxid import plots
-from arxid.analysis import Analysis, analyse
-from arxid.report import build_report, json_safe, render_html
+from arxid.analysis.pipeline import Analysis, analyse
+from arxid.analysis.report import build_report, json_safe, render_html
 
 
 def _battery_data(n=2500, seed=5):
@@ -82,10 +82,11 @@ def test_html_is_self_contained_and_complete(analysis):
     assert "<" not in embedded and "&quot;" not in embedded
 
 
-def test_a_number_as_validation_is_a_deprecated_split():
+def test_a_number_as_validation_is_refused_with_the_split_to_use():
     data = _battery_data(1200)
-    with pytest.warns(DeprecationWarning, match="split"):
-        a = analyse(data, 0.6, orders=(1, 1, 1), max_steps=1)
+    with pytest.raises(arxid.ArxidError, match=r"split=0\.6"):
+        analyse(data, 0.6, orders=(1, 1, 1), max_steps=1)
+    a = analyse(data, split=0.6, orders=(1, 1, 1), max_steps=1)
     assert a.estimation.n_samples == data.split(0.6)[0].n_samples
 
 
@@ -141,7 +142,7 @@ def test_demo_tells_the_battery_story(tmp_path):
     """The demo on a short flight: the battery voltage is the missing effect and the error falls."""
     import io
 
-    from arxid.demo import run_demo
+    from arxid.analysis.demo import run_demo
 
     out = io.StringIO()
     res = run_demo(tmp_path / "demo.html", duration=10.0, stream=out)

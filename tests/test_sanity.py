@@ -9,7 +9,7 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
-from arxid.sanity import SanityLimits, check_responses, step_sanity
+from arxid.selection.sanity import SanityLimits, check_responses, step_sanity
 
 
 def _data(a, b, nk, n=4000, seed=0, offset=0.0):

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import arxid
-from arxid.data import IOData
-from arxid.datasets import QuadrotorParameters, quadrotor_axis, quadrotor_flight
+from arxid.data.iodata import IOData
 from arxid.quadrotor import thrust_model_class, thrust_torque_coefficients
-from arxid.sanity import SanityLimits, check_responses, growth_horizon
+from arxid.quadrotor.datasets import QuadrotorParameters, quadrotor_axis, quadrotor_flight
+from arxid.selection.sanity import SanityLimits, check_responses, growth_horizon
 
 TRUTH = QuadrotorParameters()
 TRUTH_TS = 0.002  # the simulator's default sampling time

@@ -13,7 +13,7 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
-from arxid.datasets import quadrotor_axis, quadrotor_flight
+from arxid.quadrotor.datasets import quadrotor_axis, quadrotor_flight
 
 SILVERBOX_TS = 1 / 610.35
 
@@ -153,7 +153,7 @@ def test_expect_overrides_the_detection():
 def test_unit_root_t_matches_a_direct_dickey_fuller_regression():
     """t of A(1) from the ARX covariance equals the t of y(t-1) in the regression rewritten in
     differences, Δy(t) = ρ y(t-1) + γ Δy(t-1) + b u(t-1) (ρ = −A(1))."""
-    from arxid.integrator import unit_root_t
+    from arxid.selection.integrator import unit_root_t
 
     data = stable_slow_plant(n=3000, seed=3)
     model = arxid.arx(data, 2, 1, 1)
@@ -173,7 +173,7 @@ def test_unit_root_t_matches_a_direct_dickey_fuller_regression():
 def demo_flight():
     """The demo's own flight (``make demo``): vertical acceleration against the collective thrust,
     battery sag unmodelled, the CLI's split (70% estimation)."""
-    from arxid.demo import demo_data
+    from arxid.analysis.demo import demo_data
 
     data, _ = demo_data(seed=0)
     return data
@@ -201,7 +201,7 @@ def test_sane_never_returns_an_unstable_model_of_a_plant_that_is_not_integrating
 def test_cli_diagnose_on_the_demo_flight_finds_the_battery(demo_flight, tmp_path, capsys):
     """README's ``arxid diagnose flight.csv --output az --inputs collective --extra vbat``, on the
     demo's flight saved as CSV, with the CLI's default grid and with nk 0:10."""
-    from arxid.cli import main
+    from arxid.analysis.cli import main
 
     path = tmp_path / "flight.csv"
     d = demo_flight
@@ -328,7 +328,7 @@ def test_diebold_mariano_on_white_errors_is_the_paired_z_statistic():
     """Without serial correlation the long-run variance is the plain variance (up to the Bartlett
     terms, which vanish on average): DM is then close to the paired z statistic, and equal errors
     are never worse."""
-    from arxid.parsimony import diebold_mariano
+    from arxid.selection.parsimony import diebold_mariano
 
     rng = np.random.default_rng(2)
     e1, e2 = rng.standard_normal(20000), 1.05 * rng.standard_normal(20000)
@@ -371,7 +371,7 @@ def test_a_choice_on_the_grid_edge_says_so_and_extend_finds_the_inside():
 
 
 def test_smallest_delay_is_an_edge_only_when_the_grid_does_not_start_at_zero():
-    from arxid.grid_edges import grid_edges
+    from arxid.selection.grid_edges import grid_edges
 
     grid = {"na": (1, 2, 3), "nb": [(1, 2)], "nk": [(3, 4, 5)]}
     (edge,) = grid_edges(grid, 2, [1], [3])
@@ -381,7 +381,7 @@ def test_smallest_delay_is_an_edge_only_when_the_grid_does_not_start_at_zero():
 
 
 def test_cli_sweep_prints_the_grid_edge(tmp_path, capsys):
-    from arxid.cli import main
+    from arxid.analysis.cli import main
 
     data = _delayed_plant()
     path = tmp_path / "plant.csv"

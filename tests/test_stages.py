@@ -1,4 +1,4 @@
-"""Two-stage sweeps (arxid.stages): stage 1 ranks every structure by its one-step validation error
+"""Two-stage sweeps (arxid.selection.stages): stage 1 ranks every structure by its one-step validation error
 from the R factors (as MATLAB's arxstruc), stage 2 fits and simulates the best ``top`` exactly as an
 exhaustive sweep does; grids over the memory or time budget are refused before anything is built."""
 
@@ -13,8 +13,8 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
-from arxid import stages
 from arxid.exceptions import OrderError
+from arxid.selection import stages
 
 GRID = dict(na=range(1, 4), nb=[range(1, 3), range(0, 3)], nk=[range(0, 4), range(1, 3)])
 
@@ -139,7 +139,7 @@ _REFUSAL = """
 import tracemalloc
 import numpy as np
 import arxid
-from arxid import _core
+from arxid._base import _core
 from test_stages import _miso
 
 def no_core(*args, **kwargs):

@@ -12,10 +12,10 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
-from arxid.effects import compile_effects
 from arxid.exceptions import DataError, OrderError
-from arxid.regressors import regressor_matrix
-from arxid.sanity import SanityLimits
+from arxid.models.effects import compile_effects
+from arxid.models.regressors import regressor_matrix
+from arxid.selection.sanity import SanityLimits
 
 
 def _arx_data(n, seed, noise=0.02):
@@ -295,7 +295,7 @@ def test_divergence_is_reported_not_a_number():
         d, na=range(1, 3), nb=range(1, 3), nk=range(0, 3), validation=val, progress=False, expect="stable"
     )
     # force one diverging structure through the core to check reporting end to end
-    from arxid import _core
+    from arxid._base import _core
 
     grid = np.array([[1, 1, 1]], dtype=np.int64)
     # validation output scaled down: the same simulation now leaves DIVERGENCE_FACTOR x its peak
@@ -320,7 +320,7 @@ def test_bad_arguments_say_what_to_do():
 
 
 def test_progress_is_reported_from_the_core_and_drives_a_bar(monkeypatch, capsys):
-    from arxid import _core
+    from arxid._base import _core
 
     est, val = _arx_data(5000, 1), _arx_data(5000, 2)
     grid = np.array([(a, b, k) for a in range(1, 5) for b in range(1, 5) for k in range(0, 5)], dtype=np.int64)
@@ -360,7 +360,7 @@ def test_when_no_structure_can_be_fitted_best_says_why():
 def test_fit_percent_with_missing_validation_inputs_is_that_of_the_scored_samples():
     # The fit percent must normalise by the output samples the simulation scored, not by every
     # validation sample from the first lag on (they differ when inputs are missing).
-    from arxid import _core
+    from arxid._base import _core
 
     est, val = _arx_data(2000, 5), _arx_data(1500, 6)
     uv = val.u.copy()
@@ -379,7 +379,7 @@ def test_fit_percent_with_missing_validation_inputs_is_that_of_the_scored_sample
 
 def test_any_structure_follows_from_the_estimation_factor_as_a_refit_gives_it(small):
     """The integrator test reads parameters and covariances from the sweep's factor, not the data."""
-    from arxid import _core
+    from arxid._base import _core
 
     est, _, res = small
     env = (res.row_orders[0], list(res.row_orders[1]), list(res.row_orders[2]))
@@ -388,7 +388,7 @@ def test_any_structure_follows_from_the_estimation_factor_as_a_refit_gives_it(sm
         fit = _core.fit_from_factor(res.estimation_factor, res.n_est, env, orders, [])
         m = res.model(i)
         np.testing.assert_allclose(fit.theta, m.parameters_, rtol=1e-10, atol=1e-13)
-        cov = arxid._metrics.parameter_covariance(fit.inv_gram, fit.rss, fit.n_rows)
+        cov = arxid._base.metrics.parameter_covariance(fit.inv_gram, fit.rss, fit.n_rows)
         np.testing.assert_allclose(cov, m.covariance_, rtol=1e-9, atol=1e-18)
     outside = (4, [1], [0])  # na 4 is beyond the grid's largest na 3
     with pytest.raises(OrderError, match="outside the envelope"):

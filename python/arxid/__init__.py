@@ -24,8 +24,12 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .analysis import Analysis, analyse
-from .data import IOData
+from .analysis.pipeline import Analysis, analyse
+from .checks.frequency import FrequencyCheck, frequency_check
+from .checks.validation import compare, residuals, where_it_fails
+from .data.iodata import IOData
+from .diagnosis.ladder import Ladder
+from .diagnosis.suspects import Diagnosis, diagnose
 from .exceptions import (
     ArxidError,
     ArxidWarning,
@@ -37,14 +41,10 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
-from .frequency import FrequencyCheck, frequency_check
-from .ladder import Ladder
-from .missing import Diagnosis, diagnose
-from .model import ArxModel, arx
-from .orders import DEFAULT_GRID, SweepResult, sweep
-from .pem import RefinedSweep, armax, bj, delayest, oe, polyest, refine
-from .polynomial import PolynomialModel
-from .validation import compare, residuals, where_it_fails
+from .models.arx_model import ArxModel, arx
+from .models.pem import RefinedSweep, armax, bj, delayest, oe, polyest, refine
+from .models.polynomial import PolynomialModel
+from .selection.search import DEFAULT_GRID, SweepResult, sweep
 
 __all__ = [
     "IOData",
@@ -85,15 +85,19 @@ __all__ = [
     "effects",
 ]
 
-from ._version import __version__ as __version__  # noqa: E402
+from ._base import moved as _moved  # noqa: E402
+from ._base.version import __version__ as __version__  # noqa: E402
+
+_moved.install()
 
 # Subpackages with heavier or optional dependencies load on first use.
-_LAZY_MODULES = ("quadrotor", "datasets", "effects", "report", "cli", "plots", "demo", "convert")
+_LAZY_MODULES = {"quadrotor": "arxid.quadrotor", "plots": "arxid.plots"}
+_LAZY_MODULES.update((path.rpartition(".")[2], module) for path, module in _moved.PUBLIC.items())
 
 
 def __getattr__(name: str) -> Any:
     if name in _LAZY_MODULES:
-        module = importlib.import_module(f".{name}", __name__)
+        module = importlib.import_module(_LAZY_MODULES[name])
         globals()[name] = module
         return module
     raise AttributeError(f"module 'arxid' has no attribute {name!r}")

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .._optional import require
+from .._base.optional import require
 
 __all__ = ["figure_to_data_uri", "data_overview", "step_checks", "thin", "new_figure"]
 

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import _metrics as metrics
-from .._format import horizon_text
+from .._base import metrics
+from .._base.formatting import horizon_text
 from .data import new_figure, thin
 
 __all__ = [

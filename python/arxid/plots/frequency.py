@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from .._base.metrics import normal_quantile
 from .data import new_figure
 
 __all__ = ["plot_frequency_check"]
@@ -87,7 +88,6 @@ def plot_frequency_check(fc: Any, input: int = 0) -> Any:
         model's error and of the part no linear model can explain. Red shading: where the model
         misses the data beyond both uncertainties.
     """
-    from ..uncertainty import normal_quantile
 
     name = fc.input_names[input]
     fig, axes = new_figure(4, 1, height=1.7, sharex=True)

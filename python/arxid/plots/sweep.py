@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from .._optional import require
+from .._base.optional import require
 
 __all__ = ["plot_sweep"]
 

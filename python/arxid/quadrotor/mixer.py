@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data import IOData
+from ..data.iodata import IOData
 from ..exceptions import DataError
 
 __all__ = ["Mixer", "mix", "CHANNELS"]

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _metrics as metrics
+from .._base import metrics
 from ..exceptions import DataError, IdentifiabilityError
 
 __all__ = ["LeastSquaresEstimate", "structured_lstsq", "thrust_torque_coefficients", "inertia_from_rotation"]

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _metrics as metrics
-from ..data import IOData
+from .._base import metrics
+from ..data.iodata import IOData
 from ..exceptions import DataError, IdentifiabilityError
 
 __all__ = ["RotationalModel", "RotationalFit", "identify_rotational"]

@@ -1,0 +1,566 @@
+"""The one analysis pipeline: sweep, choose, compare, test, locate, diagnose, climb the ladder.
+
+:func:`analyse` runs every stage once and returns a frozen :class:`Analysis` that holds the result
+objects themselves (the :class:`~arxid.SweepResult`, the chosen :class:`~arxid.ArxModel`, the
+:class:`~arxid.validation.Comparison`, :class:`~arxid.validation.ResidualAnalysis`,
+:class:`~arxid.validation.FailureAnalysis`, :class:`~arxid.Diagnosis` and :class:`~arxid.Ladder`).
+``arxid diagnose``, ``arxid report``, ``arxid demo`` and :func:`arxid.report.render_html` all render
+this object and compute nothing of their own, so every number they show is the API's.
+
+Examples
+--------
+>>> import numpy as np, arxid
+>>> rng = np.random.default_rng(0)
+>>> u = rng.uniform(0.5, 1.5, 3000)
+>>> y = np.zeros(3000)
+>>> for t in range(1, 3000):
+...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
+>>> a = arxid.analyse(arxid.IOData(y, u, ts=0.01), grid={"na": [1, 2], "nb": [1], "nk": [0, 1]}, max_steps=1)
+>>> a.model.structure_name(), a.ladder.steps[-1].added
+('ARX(2,1,1)', 'u1^2')
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, TypedDict, cast
+
+from .._base.formatting import format_value, horizon_label, json_safe, text_table
+from ..checks.bands import ResponseBand, free_run_band
+from ..checks.frequency import FrequencyCheck, frequency_check
+from ..checks.validation import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
+from ..data.iodata import IOData
+from ..diagnosis.ladder import Ladder
+from ..diagnosis.suspects import Diagnosis
+from ..exceptions import ArxidError, DataError, OrderError
+from ..models.arguments import check_data, check_horizon, check_model
+from ..models.arx_model import ArxModel, arx
+from ..models.polynomial import PolynomialModel
+from ..models.spec import parse_model_spec
+from ..selection.search import DEFAULT_GRID, SweepResult, sweep
+from .verdicts import ladder_headline, negative_fit_note, residual_sentences
+
+__all__ = ["Analysis", "Choice", "analyse", "choose", "grid_of", "DEFAULT_SPLIT"]
+
+#: Share of the data used for estimation when no separate validation data are given (the rest validates).
+DEFAULT_SPLIT = 0.7
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Which structure was chosen and why.
+
+    Attributes
+    ----------
+    structure : str
+        The chosen structure, e.g. ``ARX(2,1,3)``.
+    rank : int or None
+        Its 0-based rank in the sweep (None when the orders or the model were given).
+    reason : str
+        One sentence: how it was chosen.
+    skipped : tuple of (str, str)
+        Better-ranked structures the step sanity check rejected, with the reason.
+    grid_edge : str
+        When the structure sits on an edge of the swept grid: which, and the ranges to try.
+    """
+
+    structure: str
+    rank: int | None
+    reason: str
+    skipped: tuple[tuple[str, str], ...] = ()
+    grid_edge: str = ""
+
+    def to_dict(self) -> dict:
+        """JSON-ready: structure, rank (1-based, or None), reason, skipped (structure, why).
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "structure": self.structure,
+            "rank": None if self.rank is None else self.rank + 1,
+            "reason": self.reason,
+            "skipped": [{"structure": s, "why": w} for s, w in self.skipped],
+            "grid_edge": self.grid_edge or None,
+        }
+
+
+class OrderGrid(TypedDict):
+    """The order ranges of a sweep, every key present."""
+
+    na: tuple[int, ...]
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+
+
+def grid_of(grid: Mapping[str, Any] | None = None) -> OrderGrid:
+    """The order grid with every key present: ``grid`` completed from :data:`arxid.DEFAULT_GRID`.
+
+    Parameters
+    ----------
+    grid : mapping with keys among na, nb, nk, optional
+        Order ranges; missing keys take the default.
+
+    Returns
+    -------
+    dict of str to tuple of int
+    """
+    g = dict(grid or {})
+    unknown = set(g) - {"na", "nb", "nk"}
+    if unknown:
+        raise OrderError(f"grid keys must be na, nb, nk; got {sorted(unknown)}")
+    na, nb, nk = (tuple(int(v) for v in _as_range(g.get(k, DEFAULT_GRID[k]))) for k in ("na", "nb", "nk"))
+    return OrderGrid(na=na, nb=nb, nk=nk)
+
+
+def _grid_lists(g: OrderGrid) -> dict[str, list[int]]:
+    return {"na": list(g["na"]), "nb": list(g["nb"]), "nk": list(g["nk"])}
+
+
+def _as_range(v: Any) -> Sequence[int]:
+    return [v] if isinstance(v, int) else list(v)
+
+
+def choose(result: SweepResult, rule: str = "lowest") -> tuple[ArxModel, Choice]:
+    """The best-ranked structure of a sweep that passes the step sanity check, and why.
+
+    The step sanity check includes stability for a plant the sweep does not call integrating, so
+    the choice never has a pole outside the unit circle there; every better-ranked structure it
+    passed over is listed with its reasons, and a choice on an edge of the grid says so.
+
+    Parameters
+    ----------
+    result : SweepResult
+    rule : {"lowest", "smallest-within-noise"}
+        See :meth:`SweepResult.select`. ``"lowest"`` (MATLAB's pick) is the default.
+
+    Returns
+    -------
+    model : ArxModel
+        The structure refitted on the sweep's rows (its parameters equal the sweep's).
+    choice : Choice
+    """
+    sel = result.select(sane=True, rule=rule)
+    model = result.model(sel.rank)
+    reason = (
+        f"the lowest {result.ranking_text} of {len(result)} structures among those whose step response "
+        f"passes the sanity check"
+    )
+    if sel.note:
+        reason = f"{sel.note}, among the structures whose step response passes the sanity check"
+    skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
+    return model, Choice(sel.structure, sel.rank, reason, skipped, sel.grid_edge)
+
+
+@dataclass(frozen=True, eq=False)
+class Analysis:
+    """Everything arxid concludes about one data set, as result objects.
+
+    Attributes
+    ----------
+    estimation, validation : IOData
+        The data the models were fitted on and judged on.
+    grid : dict of str to tuple of int, or None
+        The order grid swept (None when the orders or the model were given).
+    sweep : SweepResult or None
+        Every structure of the grid, ranked (None when the orders or the model were given).
+    choice : Choice
+        Which structure was chosen and why.
+    model : ArxModel or PolynomialModel
+        The chosen structure (or the given model), without added effects.
+    horizon : int or None
+        The validation error measure of every number below: None = free-run simulation, k =
+        k-step-ahead prediction (integrating plants, or a chosen model whose free run diverges).
+    diagnosis : Diagnosis
+        Suspects for the chosen model's error; holds the residual tests.
+    ladder : Ladder
+        The models as the significant suspects are added, with their validation errors.
+    comparison : Comparison
+        Measured output against the chosen model and (when effects were added) the final model.
+    failures : tuple of FailureAnalysis
+        Where each model of ``comparison`` fails, in the same order.
+    timings : dict of str to float
+        Seconds spent in each stage.
+    notes : tuple of str
+        What the reader should know (the measure switched to k-step, ...).
+    frequency : tuple of FrequencyCheck
+        Where each model of ``comparison`` misses the data in frequency (empty when the validation
+        data are too short for a spectrum).
+    bands : tuple of ResponseBand
+        Free-run simulation of each model of ``comparison`` on the validation data with its 99 %
+        band from the parameter covariance (empty for a k-step measure).
+    """
+
+    estimation: IOData
+    validation: IOData
+    grid: OrderGrid | None
+    sweep: SweepResult | None
+    choice: Choice
+    model: ArxModel
+    horizon: int | None
+    diagnosis: Diagnosis
+    ladder: Ladder
+    comparison: Comparison
+    failures: tuple[FailureAnalysis, ...]
+    timings: dict
+    notes: tuple[str, ...] = ()
+    frequency: tuple[FrequencyCheck, ...] = ()
+    bands: tuple[ResponseBand, ...] = ()
+
+    @property
+    def final_model(self) -> ArxModel:
+        """The model of the ladder's last step (the chosen model when nothing was added)."""
+        return self.ladder.final_model
+
+    @property
+    def grid_text(self) -> str:
+        """The swept order ranges as text, e.g. ``na 1..4, nb 1..3, nk 0..5`` (empty when orders were given)."""
+        if self.grid is None:
+            return ""
+        return ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in _grid_lists(self.grid).items())
+
+    @property
+    def residual_tests(self) -> ResidualAnalysis | None:
+        """Residual tests of the chosen model on the validation data (those of the diagnosis)."""
+        return self.diagnosis.residual_tests
+
+    @property
+    def missing_effect(self) -> str | None:
+        """The best significant suspect, or None when nothing significant is missing."""
+        top = self.diagnosis.top
+        return None if top is None else top.effect
+
+    @property
+    def error_fall(self) -> float | None:
+        """Relative fall of the validation error from the first to the last ladder step (0..1)."""
+        errors = self.ladder.errors
+        if len(errors) < 2 or not (math.isfinite(errors[0]) and errors[0] > 0 and math.isfinite(errors[-1])):
+            return None
+        return float(1.0 - errors[-1] / errors[0])
+
+    def to_dict(self) -> dict:
+        """The machine-readable result (the ``arxid diagnose --json`` and ``report --json`` contract).
+
+        Keys ``model``, ``baseline``, ``residual_tests``, ``suspects`` and ``ladder`` as
+        :meth:`Diagnosis.to_dict`; ``choice``, ``grid``, ``sweep`` (summary and best rows),
+        ``comparison``, ``where_it_fails`` (one per compared model), ``notes``,
+        ``frequency_check`` (one per compared model, see :meth:`FrequencyCheck.to_dict`) and
+        ``error_fall`` (see :meth:`Ladder.error_fall`).
+
+        Returns
+        -------
+        dict
+        """
+        out = self.diagnosis.to_dict(self.ladder)
+        out.update(
+            {
+                "choice": self.choice.to_dict(),
+                "grid": None if self.grid is None else _grid_lists(self.grid),
+                "sweep": None if self.sweep is None else self.sweep.summary(),
+                "comparison": self.comparison.to_dict(),
+                "where_it_fails": [f.to_dict() for f in self.failures],
+                "notes": list(self.notes),
+                "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
+                "error_fall": self.ladder.error_fall(),
+            }
+        )
+        return out
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict` (NaN and inf become null).
+
+        Parameters
+        ----------
+        indent : int or None
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
+
+    def __str__(self) -> str:
+        return "\n".join(self.summary_lines())
+
+    def summary_lines(self, n_suspects: int = 12) -> list[str]:
+        """The text report of ``arxid diagnose``: model, choice, validation, residual tests,
+        suspects, verdict and ladder.
+
+        Parameters
+        ----------
+        n_suspects : int
+            Rows of the suspect table.
+
+        Returns
+        -------
+        list of str
+        """
+        d = self.diagnosis
+        what = horizon_label(self.horizon)
+        lines = [f"model: {self.model.structure_name()} ({self.choice.reason})"]
+        lines += [f"  skipped {s}: {w}" for s, w in self.choice.skipped[:3]]
+        if self.choice.grid_edge:
+            lines.append(f"  {self.choice.grid_edge}")
+        lines.append(
+            f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
+            f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"
+        )
+        if negative_fit_note(d.fit_val):
+            lines.append(f"  ({negative_fit_note(d.fit_val)})")
+        lines += self.notes
+        if self.residual_tests is not None:
+            lines += ["", "residual tests:"] + [f"  {t}" for t in residual_sentences(self.residual_tests)]
+            lines += ["", "details:", str(self.residual_tests)]
+        lines += ["", *[f"frequency check of {f.model_name}: {f.summary}" for f in self.frequency]]
+        lines += self._suspect_lines(n_suspects)
+        lines += [
+            "",
+            f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect",
+        ]
+        if len(self.ladder):
+            lines += ["", str(self.ladder)]
+            headline = ladder_headline(self.ladder)
+            lines += [headline] if headline else []
+        return lines
+
+    def short_summary(self) -> list[str]:
+        """Three lines for ``arxid report``: the model and its fit, what the ladder removed, and
+        where the final model still misses the data in frequency.
+
+        Returns
+        -------
+        list of str
+        """
+        d = self.diagnosis
+        fit = f"validation fit {format_value(d.fit_val, 3)} % ({horizon_label(self.horizon)})"
+        if negative_fit_note(d.fit_val):
+            fit += ", worse than the output's mean"
+        missing = f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect"
+        ladder = ladder_headline(self.ladder) or "Nothing was added: the first model is the final one."
+        freq = (
+            f"Final model {self.frequency[-1].model_name}: {self.frequency[-1].summary}."
+            if self.frequency
+            else "No frequency check (the validation data are too short)."
+        )
+        return [f"Model {self.model.structure_name()}: {fit}; {missing}.", ladder, freq]
+
+    def _suspect_lines(self, n: int) -> list[str]:
+        d = self.diagnosis
+        rows = [
+            [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after, s.explained_by or "-", d.why(s)]
+            for i, s in enumerate(d.suspects[:n], start=1)
+        ]
+        if not rows:
+            return []
+        head = ["rank", "effect", "score", "p-value", "significant", "val. RMS after", "explained by", "why"]
+        return ["", text_table(head, rows, title="suspects (missing effects, ranked):")]
+
+
+# ----------------------------------------------------------------------------------------- stages
+def _split(data: IOData, validation: IOData | float | None, split: float) -> tuple[IOData, IOData]:
+    data = check_data(data)
+    if isinstance(validation, (int, float)) and not isinstance(validation, bool):
+        raise ArxidError(
+            f"validation must be an IOData record, got the number {validation!r}; to split one record into "
+            f"estimation and validation parts, pass split={validation!r} (the estimation fraction) instead"
+        )
+    if validation is not None:
+        return data, check_data(validation, "validation")
+    if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
+        raise ArxidError(f"split must be the estimation fraction between 0 and 1, e.g. {DEFAULT_SPLIT}, got {split!r}")
+    return data.split(float(split))
+
+
+def _given_model(
+    est: IOData, model: ArxModel | PolynomialModel | str, orders: Sequence | None, grid: Mapping | None
+) -> tuple[ArxModel, Choice]:
+    """The model the user gave (fitted, or a structure such as ``"oe:2,2,3"`` fitted here), and why."""
+    if orders is not None or grid is not None:
+        raise OrderError("give either model=... or orders/grid, not both: the model fixes the structure")
+    if isinstance(model, str):
+        spec = parse_model_spec(model)
+        fitted = spec.fit(est)
+        how = "least squares" if spec.kind == "arx" else "prediction-error minimisation"
+        return cast(ArxModel, fitted), Choice(
+            fitted.structure_name(), None, f"the structure was given and fitted by {how} on the estimation data"
+        )
+    fitted = check_model(model)
+    if fitted.measured_input_names != est.input_names:
+        raise DataError(f"the model's inputs {list(fitted.input_names)} differ from the data's {list(est.input_names)}")
+    return fitted, Choice(fitted.structure_name(), None, "the model was given and is used as fitted, not refitted")
+
+
+def _structure(
+    est: IOData,
+    val: IOData,
+    orders: Sequence | None,
+    grid: Mapping | None,
+    horizon: int | None,
+    expect: str | None,
+    progress: bool,
+    given: ArxModel | PolynomialModel | str | None = None,
+) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
+    if given is not None:
+        model, choice = _given_model(est, given, orders, grid)
+        return None, model, choice, None
+    if orders is not None:
+        try:
+            na, nb, nk = orders
+        except (TypeError, ValueError):
+            raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
+        model = arx(est, na, nb, nk)
+        return None, model, Choice(model.structure_name(), None, "the orders were given"), None
+    g = grid_of(grid)
+    res = sweep(est, validation=val, horizon=horizon, expect=expect, progress=progress, **g)
+    model, choice = choose(res)
+    return res, model, choice, g
+
+
+def _checks(
+    model: ArxModel, final: ArxModel, val: IOData, horizon: int | None
+) -> tuple[Comparison, tuple[FailureAnalysis, ...]]:
+    models = {model.structure_name(): model}
+    if final is not model:
+        models["+ " + ", ".join(final.effects)] = final
+    cmp = compare(models, val, horizon)
+    return cmp, tuple(where_it_fails(m, val, horizon) for m in models.values())
+
+
+def _frequency(
+    models: Sequence[ArxModel], val: IOData, horizon: int | None
+) -> tuple[tuple[FrequencyCheck, ...], tuple[ResponseBand, ...], tuple[str, ...]]:
+    """Frequency checks and free-run bands of the compared models; a note when they cannot be made."""
+    try:
+        checks = tuple(frequency_check(m, val) for m in models)
+    except ArxidError as exc:
+        return (), (), (f"No frequency check: {exc}",)
+    if horizon is not None:  # a k-step prediction has no free-run band
+        return checks, (), ()
+    try:
+        bands = tuple(free_run_band(m, val) for m in models)
+    except ArxidError:
+        bands = ()
+    return checks, bands, ()
+
+
+def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
+    notes = []
+    if res is not None and res.integrating:
+        notes.append(
+            f"The sweep found an integrating plant ({res.integrating_reason}); free-run error drifts, so "
+            f"validation errors are {res.horizon}-step-ahead prediction errors."
+        )
+    elif horizon != requested and horizon is not None:
+        notes.append(
+            f"The chosen model's free run diverges or it has a pole at 1, so validation errors are "
+            f"{horizon}-step-ahead prediction errors."
+        )
+    return tuple(notes)
+
+
+def analyse(
+    data: IOData,
+    validation: IOData | None = None,
+    *,
+    split: float = DEFAULT_SPLIT,
+    orders: Sequence | None = None,
+    grid: Mapping[str, Any] | None = None,
+    horizon: int | None = None,
+    expect: str | None = None,
+    max_steps: int = 3,
+    progress: bool = False,
+    model: ArxModel | PolynomialModel | str | None = None,
+    **diagnose_kwargs: Any,
+) -> Analysis:
+    """Sweep (unless ``orders`` or a ``model`` are given), choose, compare, test, diagnose and climb the ladder.
+
+    Parameters
+    ----------
+    data : IOData
+        Estimation data, or all data when ``validation`` is None (then split at ``split``).
+    validation : IOData, optional
+        Separate validation data.
+    split : float
+        Estimation share of ``data`` when no validation data are given (default 0.7).
+    orders : (na, nb, nk), optional
+        A fixed structure; skips the sweep.
+    grid : mapping with keys na, nb, nk, optional
+        Sweep grid; missing keys take :data:`arxid.DEFAULT_GRID`.
+    horizon : int, optional
+        Validation error measure: None = free run (k-step for an integrating plant, as the sweep
+        and the diagnosis detect it); k = k-step-ahead prediction.
+    expect : {None, "stable", "integrating", "double-integrating"}
+        What the physics says; passed to the sweep's step sanity check.
+    max_steps : int
+        Largest number of effects the ladder adds.
+    progress : bool
+        Progress bar of the sweep on stderr.
+    model : ArxModel, PolynomialModel or str, optional
+        A model to analyse instead of sweeping: a fitted one (``arxid.oe(est, 2, 2, 3)``, used as it
+        is), or a structure written as in :mod:`arxid.model_spec` (``"oe:2,2,3"``,
+        ``"bj:2,1,1,2,3"``, ``"armax:2,2,1,3"``, ``"arx:2,2,1"``), fitted on the estimation data.
+        The diagnosis refits it with each candidate in its own class (an effect of an OE model
+        becomes one more input with its own B/F).
+    **diagnose_kwargs
+        Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
+
+    Returns
+    -------
+    Analysis
+
+    Notes
+    -----
+    For an output-error model the residual tests report whiteness without expecting it (the model
+    has no noise model); the independence of the inputs is its test (see :func:`arxid.residuals`).
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> from scipy.signal import lfilter
+    >>> rng = np.random.default_rng(0)
+    >>> u = np.sign(rng.standard_normal(3000))
+    >>> y = lfilter([0, 0, 0, 0.5, 0.3], [1, -1.5, 0.7], u)
+    >>> data = arxid.IOData(y + 0.2 * np.std(y) * rng.standard_normal(3000), u, ts=0.01)
+    >>> a = arxid.analyse(data, model="oe:2,2,3", max_steps=1)
+    >>> a.model.structure_name(), a.choice.rank, a.residual_tests.whiteness_expected
+    ('OE(2,2,3)', None, False)
+    """
+    est, val = _split(data, validation, split)
+    requested = check_horizon(horizon)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    res, chosen, choice, g = _structure(est, val, orders, grid, requested, expect, progress, model)
+    measure = res.horizon if res is not None else requested
+    timings["sweep"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ladder = Ladder.run(chosen, est, val, max_steps=max_steps, horizon=measure, **diagnose_kwargs)
+    timings["diagnose"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cmp, failures = _checks(chosen, ladder.final_model, val, ladder.horizon)
+    timings["checks"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    compared = [chosen] if ladder.final_model is chosen else [chosen, ladder.final_model]
+    freq, bands, freq_notes = _frequency(compared, val, ladder.horizon)
+    timings["frequency"] = time.perf_counter() - t0
+    return Analysis(
+        est,
+        val,
+        g,
+        res,
+        choice,
+        chosen,
+        ladder.horizon,
+        ladder.diagnoses[0],
+        ladder,
+        cmp,
+        failures,
+        timings,
+        _notes(res, ladder.horizon, requested) + freq_notes,
+        freq,
+        bands,
+    )

@@ -1,0 +1,8 @@
+"""Finding the missing physical effect: candidate terms, their added-variable scores and validated
+refits (:func:`diagnose`, :class:`Diagnosis`), and the ladder that adds them one at a time
+(:class:`Ladder`)."""
+
+from .ladder import Ladder
+from .suspects import Diagnosis, diagnose
+
+__all__ = ["diagnose", "Diagnosis", "Ladder"]

@@ -1,0 +1,459 @@
+"""The error ladder: models as effects are added, with the validation error at each step.
+
+:meth:`Ladder.run` adds the best significant suspect of :func:`arxid.diagnose`, re-diagnoses, and
+repeats until nothing significant is left, so the user watches the error fall step by step.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .._base import metrics
+from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from ..checks.validation import error_rms, prediction_error
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arguments import check_horizon, check_model
+from ..models.arx_model import ArxModel
+from .candidates import physics
+from .suspects import Diagnosis, diagnose
+
+__all__ = ["Ladder", "LadderStep"]
+
+
+@dataclass(frozen=True, eq=False)
+class LadderStep:
+    """One rung: the model after adding ``added`` and its validation error.
+
+    Attributes
+    ----------
+    added : str
+        What this step added (``""`` for the starting model).
+    model : ArxModel
+    effects : tuple of str
+        All effects of the model at this step.
+    structure : str
+        e.g. ``ARX(2,2,1) + y^3``.
+    rms_sim_val : float
+        Validation error at ``horizon`` (None = free run).
+    fit_val : float
+        Validation fit percent at ``horizon``.
+    horizon : int or None
+    physics : str
+        What the added candidate stands for (``"Coulomb friction on a speed output"``).
+    approximation_of : str
+        Set when a later step found the better explanation: this step's effect only approximated
+        it and was taken out of the model then (``"y^3"`` approximating ``"sign(y)"``).
+    replaces : tuple of str
+        Effects of earlier steps this step's effect made unnecessary (they approximated it).
+    """
+
+    added: str
+    model: ArxModel = field(repr=False)
+    effects: tuple[str, ...]
+    structure: str
+    rms_sim_val: float
+    fit_val: float
+    horizon: int | None
+    physics: str = ""
+    approximation_of: str = ""
+    replaces: tuple[str, ...] = ()
+
+    def label(self) -> str:
+        """What the step added, with the approximation or replacement said in words.
+
+        Returns
+        -------
+        str
+            e.g. ``"y^3 (approximated sign(y))"``, ``"sign(y) (replaces y^3)"``, ``"(start)"``.
+        """
+        text = self.added or "(start)"
+        if self.approximation_of:
+            text += f" (approximated {self.approximation_of})"
+        if self.replaces:
+            text += f" (replaces {', '.join(self.replaces)})"
+        return text
+
+    def to_dict(self) -> dict:
+        """One step of :meth:`Ladder.to_list`.
+
+        Returns
+        -------
+        dict
+            ``added``, ``structure``, ``effects``, ``rms_sim_val``, ``fit_val``, ``physics``,
+            ``approximation_of``, ``replaces``.
+        """
+        return {
+            "added": self.added,
+            "structure": self.structure,
+            "effects": list(self.effects),
+            "rms_sim_val": finite_or_none(float(self.rms_sim_val)),
+            "fit_val": finite_or_none(float(self.fit_val)),
+            "physics": self.physics,
+            "approximation_of": self.approximation_of,
+            "replaces": list(self.replaces),
+        }
+
+
+class Ladder:
+    """The sequence of models as effects are added, with the validation error at each step.
+
+    Build it by hand with :meth:`add`, or greedily with :meth:`run`, which adds the best significant
+    suspect of :func:`diagnose` until nothing significant is left.
+
+    Parameters
+    ----------
+    validation : IOData, optional
+        Data every step is measured on; default: that of the first :meth:`add`, else the first
+        model's estimation data.
+    horizon : int, optional
+        Validation error measure: None = free-run simulation; k = k-step-ahead prediction.
+
+    Attributes
+    ----------
+    steps : list of LadderStep
+        The models in the order they were added.
+    diagnoses : list of Diagnosis
+        The diagnoses :meth:`run` made (empty for a ladder built by hand).
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.uniform(0.5, 1.5, 3000)
+    >>> y = np.zeros(3000)
+    >>> for t in range(1, 3000):
+    ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
+    >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
+    >>> ladder = arxid.Ladder.run(arxid.arx(est, 1, 1, 1), est, val)
+    >>> [s.added for s in ladder.steps][:2]
+    ['', 'u1^2']
+    """
+
+    def __init__(self, validation: IOData | None = None, horizon: int | None = None):
+        self.validation = validation
+        self.horizon = check_horizon(horizon)
+        self.steps: list[LadderStep] = []
+        self.diagnoses: list[Diagnosis] = []
+
+    def add(
+        self,
+        model: ArxModel,
+        added: str = "",
+        validation: IOData | None = None,
+        *,
+        settle: bool = False,
+        min_improvement: float = 0.05,
+    ) -> LadderStep:
+        """Record ``model`` as the next step, measured on ``validation`` (default: the ladder's).
+
+        Parameters
+        ----------
+        model : ArxModel
+            A fitted model.
+        added : str
+            What this step added (an effect or a structure change; ``""`` for the starting model).
+        validation : IOData, optional
+            Data to measure this step on; default the ladder's, else the model's estimation data
+            (the first data given become the ladder's).
+        settle : bool
+            Check whether the effects earlier steps added are still needed beside ``added``: one
+            whose removal raises the error by less than ``min_improvement`` only approximated the
+            new effect; it is taken out of the model and its step labelled an approximation.
+        min_improvement : float
+            Relative fall of the validation error an earlier effect must still bring (0.05 = 5%).
+
+        Returns
+        -------
+        LadderStep
+            The new step, with its validation RMS and fit percent at the ladder's ``horizon``.
+
+        Raises
+        ------
+        ArxidError
+            When there are no data to measure on.
+        """
+        model = check_model(model)
+        val = validation if validation is not None else self.validation
+        if val is None:
+            val = model.data_
+        if val is None:
+            raise ArxidError("give validation data: Ladder(validation) or add(model, validation=...)")
+        self.validation = self.validation if self.validation is not None else val
+        replaces: tuple[str, ...] = ()
+        if settle and added and self.steps:
+            model, replaces = self._settle(model, added, val, min_improvement)
+        step = self._step(model, added, val, replaces)
+        self.steps.append(step)
+        return step
+
+    def _step(self, model: ArxModel, added: str, val: IOData, replaces: tuple[str, ...]) -> LadderStep:
+        pred, _, _ = prediction_error(model, val, self.horizon)
+        data = model.data_ if model.data_ is not None else val
+        return LadderStep(
+            added,
+            model,
+            tuple(model.effects),
+            model.structure_name(),
+            metrics.prediction_rms(val.y, pred),
+            metrics.fit_percent(val.y, pred),
+            self.horizon,
+            physics(added, data) if added else "",
+            replaces=replaces,
+        )
+
+    def _settle(
+        self, model: ArxModel, added: str, val: IOData, min_improvement: float
+    ) -> tuple[ArxModel, tuple[str, ...]]:
+        """Take out the earlier effects that ``added`` makes unnecessary; label their steps (ARX
+        models; a polynomial model's effects are inputs with their own dynamics and stay)."""
+        if not isinstance(model, ArxModel):
+            return model, ()
+        new = set(added.split("+"))
+        replaced = []
+        for i, step in enumerate(self.steps):
+            earlier = tuple(e for e in step.added.split("+") if e in model.effects and e not in new)
+            if not step.added or step.approximation_of or not earlier:
+                continue
+            without = [e for e in model.effects if e not in earlier]
+            if model.data_ is None:
+                break
+            try:
+                reduced = ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=without).fit(
+                    model.data_, first_lag=model.first_lag_
+                )
+                before, after = error_rms(reduced, val, self.horizon), error_rms(model, val, self.horizon)
+            except ArxidError:
+                continue
+            if math.isfinite(before) and after > (1.0 - min_improvement) * before:
+                self.steps[i] = replace(step, approximation_of=added)
+                replaced += list(earlier)
+                model = reduced
+        return model, tuple(replaced)
+
+    @classmethod
+    def run(
+        cls,
+        model: ArxModel,
+        data: IOData | None = None,
+        validation: IOData | None = None,
+        *,
+        max_steps: int = 3,
+        horizon: int | None = None,
+        **diagnose_kwargs,
+    ) -> Ladder:
+        """Greedy ladder: diagnose, add the best significant suspect, repeat.
+
+        Parameters
+        ----------
+        model : ArxModel
+            Starting model.
+        data, validation : IOData
+            Estimation and validation data (see :func:`diagnose`).
+        max_steps : int
+            Largest number of suspects added.
+        horizon : int or None
+            Validation error measure (the first diagnosis may switch a free run to k-step for an
+            integrating plant; the whole ladder then uses that horizon).
+        **diagnose_kwargs
+            Passed to :func:`diagnose` (``candidates``, ``alpha``, ``min_improvement`` ...).
+
+        Returns
+        -------
+        Ladder
+            ``steps`` (the starting model first) and the ``diagnoses`` made along the way.
+        """
+        model = check_model(model)
+        data = data if data is not None else model.data_
+        d = diagnose(model, data, validation, horizon=horizon, **diagnose_kwargs)
+        ladder = cls(d.validation, d.horizon)
+        ladder.add(model)
+        ladder.diagnoses.append(d)
+        for _ in range(int(max_steps)):
+            top = d.top
+            if top is None:
+                break
+            model = d.apply(top.effect)
+            step = ladder.add(model, top.effect, settle=True, min_improvement=d.min_improvement)
+            model = step.model
+            d = diagnose(model, data, validation, horizon=d.horizon, **diagnose_kwargs)
+            ladder.diagnoses.append(d)
+        return ladder
+
+    @property
+    def final_model(self) -> ArxModel:
+        """The model of the last step (raises :class:`~arxid.ArxidError` when the ladder is empty)."""
+        if not self.steps:
+            raise ArxidError("the ladder is empty")
+        return self.steps[-1].model
+
+    @property
+    def errors(self) -> np.ndarray:
+        """Validation RMS of every step, shape (n_steps,)."""
+        return np.array([s.rms_sim_val for s in self.steps])
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def __str__(self) -> str:
+        rows = []
+        first = self.steps[0].rms_sim_val if self.steps else math.nan
+        for i, s in enumerate(self.steps):
+            change = f"{100 * (s.rms_sim_val / first - 1):+.1f}%" if i and math.isfinite(first) and first > 0 else ""
+            rows.append((i, s.label(), s.physics, s.structure, s.rms_sim_val, s.fit_val, change))
+        text = f"error ladder (validation error, {horizon_label(self.horizon)})\n" + text_table(
+            ["step", "added", "physics", "model", "rms", "fit %", "vs start"], rows
+        )
+        return text + (f"\n{self.unexplained}" if self.unexplained else "")
+
+    @property
+    def unexplained(self) -> str:
+        """The last diagnosis's sentence for a nonlinear dependence no candidate removes (``""`` if none)."""
+        return self.diagnoses[-1].unexplained if self.diagnoses else ""
+
+    def __repr__(self) -> str:
+        return f"<Ladder {len(self.steps)} steps: " + " -> ".join(s.added or "start" for s in self.steps) + ">"
+
+    def to_list(self) -> list[dict]:
+        """The CLI contract: one ``{"added", "structure", "effects", "rms_sim_val", "fit_val"}`` per step,
+        plus the keys of :meth:`step_details`.
+
+        Returns
+        -------
+        list of dict
+            With ``physics``, ``approximation_of`` and ``replaces`` too (:meth:`LadderStep.to_dict`).
+        """
+        return [{**s.to_dict(), **self.step_details(i)} for i, s in enumerate(self.steps)]
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: the horizon and the steps.
+
+        Returns
+        -------
+        dict
+            ``{"horizon": int or None, "steps": [...]}``, the steps as in :meth:`to_list`, and for a
+            ladder built by :meth:`run` ``nonlinear_dependence`` of its last diagnosis.
+        """
+        out: dict = {"horizon": self.horizon, "steps": self.to_list(), "error_fall": self.error_fall()}
+        if self.diagnoses:
+            out["nonlinear_dependence"] = self.diagnoses[-1].dependence_dict()
+        return out
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation of the JSON; None writes one line.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def to_pandas(self):
+        """One row per step: what was added, the structure, validation RMS and fit.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``added``, ``structure``, ``rms_sim_val``, ``fit_val``.
+        """
+        pd = require_pandas()
+        return pd.DataFrame(
+            [
+                {"added": s.added, "structure": s.structure, "rms_sim_val": s.rms_sim_val, "fit_val": s.fit_val}
+                for s in self.steps
+            ]
+        )
+
+    def step_kind(self, i: int) -> str:
+        """What step ``i`` changed: ``"start"``, ``"effect"`` (its effects differ from the step
+        before) or ``"structure"`` (only na, nb or nk changed).
+
+        Parameters
+        ----------
+        i : int
+            Step index.
+
+        Returns
+        -------
+        str
+        """
+        if i == 0:
+            return "start"
+        return "effect" if self.steps[i].effects != self.steps[i - 1].effects else "structure"
+
+    def step_details(self, i: int) -> dict:
+        """The JSON keys a step adds to ``added``/``structure``/``effects``: ``kind`` (see
+        :meth:`step_kind`), ``orders`` (``na``, ``nb``, ``nk``, ``effects``) and ``fall`` (share of the
+        starting error this step removed, None for the start).
+
+        Parameters
+        ----------
+        i : int
+            Step index.
+
+        Returns
+        -------
+        dict
+        """
+        s = self.steps[i]
+        m = s.model
+        first = self.steps[0].rms_sim_val
+        fall = None
+        if i and math.isfinite(first) and first > 0 and math.isfinite(s.rms_sim_val):
+            fall = float((self.steps[i - 1].rms_sim_val - s.rms_sim_val) / first)
+        return {
+            "kind": self.step_kind(i),
+            "orders": {"na": int(m.na_), "nb": list(m.nb_), "nk": list(m.nk_), "effects": list(s.effects)},
+            "fall": finite_or_none(fall) if fall is not None else None,
+        }
+
+    def error_fall(self) -> dict:
+        """How much of the starting validation error the ladder removed, split by what the steps added.
+
+        Returns
+        -------
+        dict
+            ``total``, ``effects`` (steps that added an effect), ``structure`` (steps that changed
+            na, nb or nk): shares of the first step's error (0.9 = 90 %), None when undefined;
+            ``added_effects`` and ``structure_changes``: the names added by each kind of step.
+        """
+        parts = {"effect": 0.0, "structure": 0.0}
+        names: dict[str, list[str]] = {"effect": [], "structure": []}
+        for i in range(1, len(self.steps)):
+            d = self.step_details(i)
+            kind = d["kind"]
+            parts[kind] += d["fall"] if d["fall"] is not None else math.nan
+            names[kind].append(self.steps[i].added)
+        ok = len(self.steps) > 1 and all(math.isfinite(v) for v in parts.values())
+        return {
+            "total": finite_or_none(parts["effect"] + parts["structure"]) if ok else None,
+            "effects": finite_or_none(parts["effect"]) if ok else None,
+            "structure": finite_or_none(parts["structure"]) if ok else None,
+            "added_effects": names["effect"],
+            "structure_changes": names["structure"],
+        }
+
+    def plot(self, ax: Any = None) -> Any:
+        """Validation error per step (the error falling).
+
+        Parameters
+        ----------
+        ax : Axes, optional
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plots.diagnostics import plot_ladder
+
+        return plot_ladder(self, ax=ax)

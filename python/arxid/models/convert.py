@@ -1,0 +1,155 @@
+"""Export a fitted ARX model to control design: python-control, scipy, and continuous time (d2c)."""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .._base.optional import require
+from ..exceptions import ArxidError, DataError
+from .continuous import d2c
+
+if TYPE_CHECKING:
+    from .arx_model import ArxModel
+
+__all__ = ["to_control", "to_scipy", "tf_coefficients"]
+
+
+def _control() -> Any:
+    return require("control", "to_control")
+
+
+def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
+    """Numerators (one per layout column) and the denominator, in descending powers of z, all of
+    one length.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted linear model (no output-derived effects).
+
+    Returns
+    -------
+    numerators : list of ndarray
+    denominator : ndarray
+    """
+    if not model.is_linear:
+        raise ArxidError(
+            f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no transfer function"
+        )
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    num_z1, den_z1 = model.common_denominator() if hasattr(model, "common_denominator") else (None, model.a)
+    num_z1 = model.layout_numerators() if num_z1 is None else num_z1
+    n = max([len(den_z1) - 1] + [len(x) - 1 for x in num_z1])
+    den = np.zeros(n + 1)
+    den[: len(den_z1)] = den_z1
+    nums = []
+    for x in num_z1:
+        v = np.zeros(n + 1)
+        v[: len(x)] = x
+        nums.append(v)
+    return nums, den
+
+
+def to_control(model: ArxModel, continuous: bool = False, input: int | None = None, method: str = "zoh") -> Any:
+    """python-control transfer function with ``dt = ts`` (descending powers of z).
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted linear model.
+    continuous : bool
+        Convert to continuous time (d2c, see :mod:`arxid.continuous`). The input delay is returned
+        in the attribute ``dead_time`` of each result (seconds; with ``method="zoh"`` and
+        nb = na + 1 it includes a fraction of a sample).
+    input : int, optional
+        Only this column's transfer function.
+    method : {"zoh", "tustin", "matched"}
+        d2c method (only with ``continuous``): ``"zoh"`` is the exact inverse of zero-order-hold
+        sampling, ``"tustin"`` and ``"matched"`` the inverses of python-control's
+        ``sample_system`` methods of those names.
+
+    Returns
+    -------
+    control.TransferFunction or list of control.TransferFunction
+        One input gives a ``TransferFunction``; several inputs (including input-derived effect
+        columns) a list with one SISO ``TransferFunction`` per input (MIMO conversions in
+        python-control need slycot), or the one picked with ``input``.
+
+    Raises
+    ------
+    ConversionError
+        When ``continuous`` and the model has no exact continuous counterpart by ``method`` (a pole
+        on the negative real axis for ``"zoh"``, more numerator coefficients than ZOH sampling
+        produces, ...); the message names the methods that work.
+    """
+    model.check_fitted()
+    control = _control()
+    nums, den = tf_coefficients(model)
+    labels = model.input_labels()
+    if input is not None and (
+        isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= input < len(nums)
+    ):
+        raise DataError(
+            f"input {input!r} does not exist: the model has {len(nums)} input column(s) {labels}, "
+            f"numbered 0 to {len(nums) - 1}"
+        )
+    idx = range(len(nums)) if input is None else [input]
+    if continuous:
+        return _d2c(model, list(idx), [labels[i] for i in idx], method)
+    tfs = [
+        control.TransferFunction(nums[i], den, model.ts, inputs=[labels[i]], outputs=[model.output_name]) for i in idx
+    ]
+    return tfs[0] if len(tfs) == 1 else tfs
+
+
+def to_scipy(model: ArxModel) -> Any:
+    """``scipy.signal.dlti``: a transfer function for one input, a state-space model for several.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted linear model.
+
+    Returns
+    -------
+    scipy.signal.dlti
+    """
+    from scipy import signal
+
+    nums, den = tf_coefficients(model)
+    if len(nums) == 1:
+        # Leading zeros of the numerator are the delay; scipy warns about them, so drop them.
+        num = np.trim_zeros(nums[0], "f")
+        return signal.dlti(num if len(num) else [0.0], den, dt=model.ts)
+    # Observable canonical form shares A and C across inputs.
+    n = len(den) - 1
+    a = np.zeros((n, n))
+    a[:, 0] = -den[1:]
+    a[: n - 1, 1:] = np.eye(n - 1)
+    b = np.column_stack([num[1:] - num[0] * den[1:] for num in nums])
+    c = np.zeros((1, n))
+    c[0, 0] = 1.0
+    dmat = np.array([[num[0] for num in nums]])
+    return signal.dlti(a, b, c, dmat, dt=model.ts)
+
+
+def _d2c(model: ArxModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
+    """Continuous transfer functions (one per layout column) whose sampling is the discrete model."""
+    control = _control()
+    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
+    if hasattr(model, "common_denominator"):
+        nums, den = model.common_denominator()
+    else:
+        nums, den = model.layout_numerators(), model.a
+    results = []
+    for i, label in zip(columns, labels):
+        cont = d2c(den, nums[i], model.ts, method)
+        tf_c = control.TransferFunction(cont.num, cont.den, inputs=[label], outputs=[model.output_name])
+        tf_c.dead_time = cont.dead_time
+        tf_c.d2c_method = cont.method
+        results.append(tf_c)
+    return results[0] if len(results) == 1 else results

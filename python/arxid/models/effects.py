@@ -1,0 +1,398 @@
+"""Effects: physical terms a user adds to an ARX model, written as short strings.
+
+================  ===================================  ==========================================
+effect            meaning                              typical physics
+================  ===================================  ==========================================
+``vbat``          a logged signal used as an input     battery voltage, temperature
+``u1*vbat``       product of two signals               command scaled by battery
+``u1^2``          power of a signal                    propeller thrust ∝ ω²
+``y^3``           power of the output                  cubic spring
+``abs(u1)``       absolute value                       direction-independent losses
+``sign(y)``       sign of the output                   Coulomb friction when y is a speed
+``sign(dy)``      sign of a signal's first difference  Coulomb friction when y is a position
+``dz(u1,0.2)``    dead zone of width c                 no response while |u1| < 0.2
+``sat(u1,0.8)``   saturation at c                      response flattens above |u1| > 0.8
+``pos(u1)``       positive part max(u1, 0)             different gains for u1 > 0 and u1 < 0
+``neg(u1)``       negative part min(u1, 0)             (the same, written for the negative side)
+``const``         offset                               bias
+``time``          drift                                slow drift
+================  ===================================  ==========================================
+
+``dz(x,c) = sign(x)·max(|x| − c, 0)`` and ``sat(x,c) = sign(x)·min(|x|, c)``; the threshold c > 0
+is in the signal's units (:func:`arxid.diagnose` finds it by a grid scan, see
+:mod:`arxid.candidates`). With x itself in the model, ``dz``, ``sat`` and ``x`` span the same
+space as any two of them, and so do ``pos``, ``neg`` and ``x``.
+
+Lags: an input-derived term uses the lags (nb, nk) of the input it is built from (for a product,
+of its first input factor); a signal that is not an input enters as a new input with nb = 1 and the
+smallest nk of the model's inputs; ``const`` and ``time`` enter with nb = 1, nk = 0. Terms that
+involve the output use lag 1 (``y^3`` means y(t-1)³, ``sign(y)`` means sign(y(t-1)), ``sign(dy)``
+means sign(y(t-1) − y(t-2))) and are re-evaluated on the simulated output in free run. Thresholds
+and positive/negative parts apply to inputs and logged signals only.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..data.iodata import IOData
+from ..exceptions import DataError, OrderError
+
+__all__ = [
+    "Effect",
+    "parse_effect",
+    "EffectLayout",
+    "compile_effects",
+    "format_threshold",
+    "effect_names",
+    "effect_series",
+]
+
+_NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE]-?\d+)?"
+_FACTOR = re.compile(
+    r"^(?:(?P<abs>abs)\((?P<absarg>[A-Za-z_]\w*)\)"
+    rf"|(?P<thr>dz|sat)\((?P<targ>[A-Za-z_]\w*),(?P<c>{_NUMBER})\)"
+    r"|(?P<part>pos|neg)\((?P<parg>[A-Za-z_]\w*)\)"
+    r"|sign\(d(?P<sdarg>[A-Za-z_]\w*)\)"
+    r"|sign\((?P<sarg>[A-Za-z_]\w*)\)"
+    r"|(?P<name>[A-Za-z_]\w*)(?:\^(?P<pow>\d+))?)$"
+)
+
+
+@dataclass(frozen=True)
+class Factor:
+    """One factor of an effect: ``op`` in {"pow", "abs", "sign", "signdiff", "diff", "dz", "sat", "pos",
+    "neg"} applied to a signal (``threshold`` is the c of ``dz`` and ``sat``)."""
+
+    signal: str
+    op: str = "pow"
+    power: int = 1
+    threshold: float = 0.0
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A parsed effect string: a product of factors, or ``const`` / ``time``."""
+
+    text: str
+    factors: tuple[Factor, ...]
+
+    @property
+    def special(self) -> str | None:
+        """``"const"`` or ``"time"`` for those two effects, else None."""
+        return self.text if self.text in ("const", "time") else None
+
+
+def effect_names(effects: Any) -> tuple[str, ...]:
+    """``effects`` as a tuple of effect strings, refusing what is not a sequence of strings.
+
+    A single string is refused rather than split into characters: ``effects="const"`` most likely
+    meant ``effects=["const"]``.
+
+    Parameters
+    ----------
+    effects : sequence of str
+
+    Returns
+    -------
+    tuple of str
+    """
+    if isinstance(effects, str):
+        raise OrderError(f"effects must be a list of effect strings, e.g. [{effects!r}], not the string {effects!r}")
+    try:
+        names = tuple(effects)
+    except TypeError:
+        raise OrderError(
+            f"effects must be a list of effect strings such as ['u1^2', 'const'], got {effects!r}"
+        ) from None
+    bad = [e for e in names if not isinstance(e, str)]
+    if bad:
+        raise OrderError(f"effects must be strings such as 'u1^2' or 'const', got {bad[0]!r}")
+    return names
+
+
+def _split_product(text: str) -> list[str]:
+    return [f for f in text.split("*") if f]
+
+
+def parse_effect(text: str, data: IOData) -> Effect:
+    """Parse ``text`` against the signals of ``data``.
+
+    Parameters
+    ----------
+    text : str
+        An effect such as ``"u1^2"``, ``"u1*vbat"``, ``"y^3"`` or ``"sign(dy)"`` (see the grammar in
+        :mod:`arxid.effects`).
+    data : IOData
+        The data whose signals the effect may name.
+
+    Returns
+    -------
+    Effect
+
+    Raises
+    ------
+    OrderError
+        For an effect the grammar does not know or a signal the data do not have.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise OrderError(f"an effect must be a non-empty string such as 'u1^2' or 'y^3', got {text!r}")
+    clean = re.sub(r"\s+", "", text)
+    if clean in ("const", "time"):
+        return Effect(clean, ())
+    names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
+    factors = []
+    for part in _split_product(clean):
+        m = _FACTOR.match(part)
+        if not m:
+            raise OrderError(
+                f"cannot read effect {text!r}: factor {part!r} is not one of NAME, NAME^p, abs(NAME), "
+                f"sign(dNAME), sign(NAME), dNAME, dz(NAME,c), sat(NAME,c), pos(NAME), neg(NAME)"
+            )
+        if m["absarg"]:
+            f = Factor(m["absarg"], "abs")
+        elif m["thr"]:
+            f = Factor(m["targ"], m["thr"], threshold=_threshold(text, m["c"]))
+        elif m["part"]:
+            f = Factor(m["parg"], m["part"])
+        elif m["sdarg"]:
+            f = Factor(m["sdarg"], "signdiff")
+        elif m["sarg"]:
+            f = Factor(m["sarg"], "sign")
+        else:
+            name, p = m["name"], int(m["pow"] or 1)
+            if name not in names and name.startswith("d") and name[1:] in names:
+                f = Factor(name[1:], "diff")
+            else:
+                if p < 1:
+                    raise OrderError(f"effect {text!r}: powers must be >= 1")
+                f = Factor(name, "pow", p)
+        if f.signal not in names:
+            raise OrderError(
+                f"effect {text!r} uses signal {f.signal!r}, which the data do not have; signals: {sorted(names)}"
+            )
+        factors.append(f)
+    if not factors:
+        raise OrderError(f"cannot read effect {text!r}")
+    return Effect(clean, tuple(factors))
+
+
+def _threshold(text: str, c: str) -> float:
+    value = float(c)
+    if not 0 < value < float("inf"):
+        raise OrderError(f"effect {text!r}: the threshold c must be a positive number, got {c}")
+    return value
+
+
+def format_threshold(c: float) -> str:
+    """A threshold as the grammar writes it: four significant digits, no ``+`` in an exponent.
+
+    Parameters
+    ----------
+    c : float
+        A positive threshold.
+
+    Returns
+    -------
+    str
+        e.g. ``"0.3012"`` or ``"1.5e-05"``.
+    """
+    return f"{c:.4g}".replace("e+", "e")
+
+
+def _is_output(name: str, data: IOData) -> bool:
+    return name in ("y", data.output_name)
+
+
+def _input_index(name: str, data: IOData) -> int | None:
+    if name in data.input_names:
+        return data.input_names.index(name)
+    if re.fullmatch(r"u\d+", name) and name not in data.extra:
+        i = int(name[1:]) - 1
+        if 0 <= i < data.n_inputs:
+            return i
+    return None
+
+
+def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
+    if f.op == "pow":
+        return x**f.power
+    if f.op == "abs":
+        return np.abs(x)
+    if f.op == "sign":
+        return np.sign(x)
+    if f.op in ("dz", "sat"):
+        shaped = np.maximum(np.abs(x) - f.threshold, 0.0) if f.op == "dz" else np.minimum(np.abs(x), f.threshold)
+        return np.sign(x) * shaped
+    if f.op in ("pos", "neg"):
+        return np.maximum(x, 0.0) if f.op == "pos" else np.minimum(x, 0.0)
+    d = np.zeros_like(x)
+    for a, b in data.segments:
+        d[a + 1 : b] = np.diff(x[a:b])
+    return np.sign(d) if f.op == "signdiff" else d
+
+
+@dataclass(frozen=True)
+class EffectLayout:
+    """What the Rust core sees for a model with effects.
+
+    ``u`` holds the model's inputs followed by one column per input-derived effect and one carrier
+    column per output term with a multiplier. ``tie[j]`` says where column j takes its lags from: an
+    input index, or None for fixed lags ``nb[j], nk[j]``.
+    """
+
+    u: np.ndarray
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+    tie: tuple[int | None, ...]
+    output_terms: tuple[tuple[str, int, int], ...]
+    column_labels: tuple[str, ...]
+    effect_of_column: tuple[str | None, ...]
+    effect_of_term: tuple[str, ...]
+
+
+def _output_term(f: Factor, text: str) -> tuple[str, int]:
+    if f.op == "pow":
+        return "pow", f.power
+    if f.op in ("abs", "sign", "signdiff"):
+        return f.op, 1
+    raise OrderError(
+        f"effect {text!r}: {f.op}(y) is not supported for the output (thresholds and positive/negative parts "
+        f"apply to inputs); use y^p, abs(y), sign(y) or sign(dy)"
+    )
+
+
+def _check_range(text: str, value: np.ndarray) -> None:
+    """Refuse an effect that leaves the float range (IOData holds no inf, so any inf is an overflow):
+    the core would drop those rows as if they were missing samples."""
+    bad = np.isinf(value)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DataError(
+            f"effect {text!r} overflows the float range at sample {i} (its signals are finite there but too large for "
+            f"the term); scale the signals (other units, or divide by a typical value) or use a lower power"
+        )
+
+
+def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
+    """Turn effect strings into extra regressor columns and output terms for ``data``.
+
+    Parameters
+    ----------
+    effects : sequence of str
+        Effect strings (each at most once).
+    data : IOData
+        The data the model is fitted on.
+    nb, nk : sequence of int
+        Orders and delays of the model's inputs, one per input.
+
+    Returns
+    -------
+    EffectLayout
+        The inputs followed by the effect columns, with their lags and the output terms.
+    """
+    m = data.n_inputs
+    cols = [data.u]
+    out_nb, out_nk = list(nb), list(nk)
+    tie: list[int | None] = list(range(m))
+    labels = list(data.input_names)
+    eff_col: list[str | None] = [None] * m
+    terms: list[tuple[str, int, int]] = []
+    eff_term: list[str] = []
+    used_nk = [k for b, k in zip(nb, nk, strict=False) if b > 0]
+    min_nk = min(used_nk) if used_nk else 0
+
+    def add(col: np.ndarray, b: int, k: int, source: int | None, label: str, effect: str | None) -> None:
+        cols.append(col.reshape(-1, 1))
+        out_nb.append(b)
+        out_nk.append(k)
+        tie.append(source)
+        labels.append(label)
+        eff_col.append(effect)
+
+    seen = set()
+    for text in effects:
+        e = parse_effect(text, data)
+        if e.text in seen:
+            raise OrderError(f"effect {e.text!r} is listed twice")
+        seen.add(e.text)
+        if e.special is not None:
+            add(np.ones(data.n_samples) if e.special == "const" else data.time, 1, 0, None, e.special, e.text)
+            continue
+        y_factors = [f for f in e.factors if _is_output(f.signal, data)]
+        others = [f for f in e.factors if not _is_output(f.signal, data)]
+        if len(y_factors) > 1:
+            raise OrderError(f"effect {text!r}: at most one factor may involve the output")
+        prod = _input_product(text, others, data)
+        if y_factors:
+            kind, power = _output_term(y_factors[0], text)
+            _check_output_term(text, kind, power, prod, data)
+            mult = -1
+            if prod is not None:
+                mult = len(out_nb)
+                add(prod, 0, 0, None, f"carrier:{e.text}", None)
+            terms.append((kind, power, mult))
+            eff_term.append(e.text)
+            continue
+        assert prod is not None  # an effect has at least one factor (parse_effect)
+        src = next((_input_index(f.signal, data) for f in others if _input_index(f.signal, data) is not None), None)
+        if src is not None:
+            add(prod, nb[src], nk[src], src, e.text, e.text)
+        else:
+            add(prod, 1, min_nk, None, e.text, e.text)
+    u = np.ascontiguousarray(np.hstack(cols), dtype=float)
+    return EffectLayout(
+        u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term)
+    )
+
+
+def effect_series(text: str, data: IOData) -> np.ndarray:
+    """The effect's signal at each sample, without lags: ``y^3`` is y(t)³, ``sign(dy)`` is
+    sign(y(t) − y(t−1)), ``u1*vbat`` is u1(t)·vbat(t) (the model applies the lags).
+
+    Parameters
+    ----------
+    text : str
+        An effect string (see the grammar above).
+    data : IOData
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+    """
+    e = parse_effect(text, data)
+    if e.special is not None:
+        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
+    prod = np.ones(data.n_samples)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for f in e.factors:
+            prod = prod * _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
+    _check_range(e.text, prod)
+    return prod
+
+
+def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
+    """Product of the factors that do not involve the output (None when there are none), refusing
+    overflow."""
+    prod = None
+    with np.errstate(over="ignore", invalid="ignore"):
+        for f in factors:
+            x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
+            _check_range(text, x)
+            prod = x if prod is None else prod * x
+            _check_range(text, prod)
+    return prod
+
+
+def _check_output_term(text: str, kind: str, power: int, prod: np.ndarray | None, data: IOData) -> None:
+    """The core evaluates an output term on y(t-1); refuse overflow on the measured output here."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        g = _apply(Factor("y", kind, power), data.y, data)
+        _check_range(text, g)
+        if prod is not None:
+            _check_range(text, g * prod)

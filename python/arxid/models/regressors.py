@@ -1,0 +1,170 @@
+"""The ARX regression written out in numpy: regressor names and, when needed, the matrix itself.
+
+The Rust core never materialises this matrix for a fit; Python uses it to name collinear regressors,
+for diagnostics (projecting a candidate effect on the model's regressors) and in tests as the
+reference the core must match.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._base import _core
+from ..data.iodata import IOData
+from .effects import EffectLayout
+
+__all__ = ["regressor_names", "regressor_matrix", "max_lag", "row_bound"]
+
+
+def _lag(k: int) -> str:
+    return "t" if k == 0 else f"t-{k}"
+
+
+def max_lag(na: int, layout: EffectLayout) -> int:
+    """Largest lag any regressor of the model reaches back.
+
+    Parameters
+    ----------
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects (:func:`arxid.effects.compile_effects`).
+
+    Returns
+    -------
+    int
+        The first row of an experiment that has every regressor.
+    """
+    # The core's own rule (Structure::max_lag), so Python never mirrors it.
+    return int(_core.max_lag(na, list(layout.nb), list(layout.nk), list(layout.output_terms)))
+
+
+def row_bound(data: IOData, lag: int) -> int:
+    """Regression rows at most available when every experiment starts ``lag`` samples in (before
+    leaving out the rows that touch a missing sample).
+
+    Parameters
+    ----------
+    data : IOData
+    lag : int
+
+    Returns
+    -------
+    int
+    """
+    return sum(max(0, b - a - lag) for a, b in data.segments)
+
+
+def regressor_names(output_name: str, na: int, layout: EffectLayout) -> list[str]:
+    """Names of the regressors in parameter order, e.g. ``roll(t-1)``, ``u1(t-8)``, ``y^3(t-1)``.
+
+    Parameters
+    ----------
+    output_name : str
+        Name of the output signal.
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects.
+
+    Returns
+    -------
+    list of str
+    """
+    names = [f"{output_name}({_lag(i)})" for i in range(1, na + 1)]
+    for label, b, k in zip(layout.column_labels, layout.nb, layout.nk, strict=True):
+        if label in ("const", "time"):
+            names += [label] * b
+        else:
+            names += [f"{label}({_lag(k + j)})" for j in range(b)]
+    names += [f"{e}(t-1)" for e in layout.effect_of_term]
+    return names
+
+
+def regressor_matrix(
+    data: IOData, na: int, layout: EffectLayout, first_lag: int = 0, signs: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Regressor matrix Φ (rows × p), output y on those rows, and the row indices.
+
+    Rows start ``max(first_lag, lag)`` into each experiment and skip any row touching a NaN, exactly
+    as the Rust core does.
+
+    Parameters
+    ----------
+    data : IOData
+        The data.
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects (its ``u`` holds the input columns).
+    first_lag : int
+        Start every experiment at least this many samples in (to share rows between structures).
+    signs : bool
+        Enter the output lags as ``-y(t-i)`` (MATLAB convention) rather than ``y(t-i)``.
+
+    Returns
+    -------
+    phi : ndarray of shape (n_rows, n_params)
+    y : ndarray of shape (n_rows,)
+    rows : ndarray of int, shape (n_rows,)
+        Sample index of each row.
+    """
+    y = data.y
+    u = layout.u
+    lag = max(first_lag, max_lag(na, layout))
+    rows = np.concatenate(
+        [np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]
+    ).astype(int)
+    cols = []
+    s = -1.0 if signs else 1.0
+    for i in range(1, na + 1):
+        cols.append(s * y[rows - i])
+    for j, (b, k) in enumerate(zip(layout.nb, layout.nk, strict=True)):
+        for lag_j in range(b):
+            cols.append(u[rows - k - lag_j, j])
+    for kind, power, mult in layout.output_terms:
+        y1 = y[rows - 1]
+        if kind == "pow":
+            g = y1**power
+        elif kind == "abs":
+            g = np.abs(y1)
+        elif kind == "sign":
+            g = np.sign(y1)
+        else:
+            g = np.sign(y1 - y[rows - 2])
+        if mult >= 0:
+            g = g * u[rows - 1, mult]
+        cols.append(g)
+    phi = np.column_stack(cols) if cols else np.zeros((len(rows), 0))
+    ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
+    return phi[ok], y[rows][ok], rows[ok]
+
+
+def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:
+    """Regressors before ``column`` that together reproduce it (largest normalised weights first).
+
+    Parameters
+    ----------
+    phi : ndarray of shape (n_rows, n_params)
+        Regressor matrix.
+    column : int
+        The dependent column.
+    names : sequence of str
+        Regressor names, one per column.
+    top : int
+        At most this many partners.
+
+    Returns
+    -------
+    list of str
+    """
+    if column == 0:
+        return []
+    a = phi[:, :column]
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(a / scale, phi[:, column], rcond=None)
+    order = np.argsort(-np.abs(coef))
+    return [names[i] for i in order[:top] if abs(coef[i]) > 1e-8 * np.abs(coef).max()]

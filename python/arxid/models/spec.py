@@ -1,0 +1,128 @@
+"""A model structure written as text, as the command line takes it: ``oe:2,2,3``, ``arx:2,2,1``.
+
+======================  ====================================  =================================
+written                 model                                  fitted by
+======================  ====================================  =================================
+``arx:NA,NB,NK``        A y = B u + e                          :func:`arxid.arx` (least squares)
+``oe:NB,NF,NK``         y = B/F u + e                          :func:`arxid.oe`
+``armax:NA,NB,NC,NK``   A y = B u + C e                        :func:`arxid.armax`
+``bj:NB,NC,ND,NF,NK``   y = B/F u + C/D e                      :func:`arxid.bj`
+======================  ====================================  =================================
+
+The orders follow MATLAB's argument order for each function; nb, nf and nk apply to every input.
+
+Examples
+--------
+>>> from arxid.models.spec import parse_model_spec
+>>> spec = parse_model_spec("oe:2,2,3")
+>>> spec.kind, spec.orders, spec.name
+('oe', (2, 2, 3), 'OE(2,2,3)')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..data.iodata import IOData
+from ..exceptions import OrderError
+from .arx_model import ArxModel, arx
+from .pem import armax, bj, oe
+from .polynomial import PolynomialModel
+
+__all__ = ["ModelSpec", "parse_model_spec", "MODEL_FORMS"]
+
+#: Each structure's written form and the meaning of its numbers.
+MODEL_FORMS = {
+    "arx": ("arx:NA,NB,NK", ("na", "nb", "nk")),
+    "oe": ("oe:NB,NF,NK", ("nb", "nf", "nk")),
+    "armax": ("armax:NA,NB,NC,NK", ("na", "nb", "nc", "nk")),
+    "bj": ("bj:NB,NC,ND,NF,NK", ("nb", "nc", "nd", "nf", "nk")),
+}
+
+
+def _forms() -> str:
+    return ", ".join(form for form, _ in MODEL_FORMS.values())
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A structure to fit: the model class and its orders in MATLAB's argument order.
+
+    Attributes
+    ----------
+    kind : str
+        ``"arx"``, ``"oe"``, ``"armax"`` or ``"bj"``.
+    orders : tuple of int
+        As :data:`MODEL_FORMS` names them, e.g. (nb, nf, nk) for ``oe``.
+    """
+
+    kind: str
+    orders: tuple[int, ...]
+
+    @property
+    def name(self) -> str:
+        """The structure as arxid names it, e.g. ``OE(2,2,3)``."""
+        return f"{self.kind.upper()}({','.join(map(str, self.orders))})"
+
+    def fit(self, data: IOData) -> ArxModel | PolynomialModel:
+        """The structure fitted to ``data`` (least squares for ARX, prediction-error minimisation else).
+
+        Parameters
+        ----------
+        data : IOData
+            Estimation data.
+
+        Returns
+        -------
+        ArxModel or PolynomialModel
+        """
+        o = self.orders
+        if self.kind == "arx":
+            return arx(data, o[0], o[1], o[2])
+        if self.kind == "oe":
+            return oe(data, o[0], o[1], o[2])
+        if self.kind == "armax":
+            return armax(data, o[0], o[1], o[2], o[3])
+        return bj(data, o[0], o[1], o[2], o[3], o[4])
+
+
+def parse_model_spec(text: str) -> ModelSpec:
+    """Read ``KIND:N,N,...`` (see the table above).
+
+    Parameters
+    ----------
+    text : str
+        e.g. ``"oe:2,2,3"``, ``"bj:2,1,1,2,3"``, ``"armax:2,2,1,3"``, ``"arx:2,2,1"``.
+
+    Returns
+    -------
+    ModelSpec
+
+    Raises
+    ------
+    OrderError
+        For an unknown structure, a wrong count of orders or an order that is not a non-negative
+        integer; the message shows the correct form.
+    """
+    if not isinstance(text, str):
+        raise OrderError(f"a model structure is written as text such as 'oe:2,2,3', got {text!r}")
+    kind, sep, numbers = text.strip().partition(":")
+    kind = kind.strip().lower()
+    if not sep or kind not in MODEL_FORMS:
+        raise OrderError(f"cannot read the model {text!r}: write one of {_forms()}, e.g. oe:2,2,3")
+    form, names = MODEL_FORMS[kind]
+    parts = [p.strip() for p in numbers.split(",")]
+    if len(parts) != len(names) or not all(p.isdigit() for p in parts):
+        raise OrderError(
+            f"cannot read the model {text!r}: {kind} takes {len(names)} non-negative integers "
+            f"{form.split(':')[1]} ({', '.join(names)}), e.g. {kind}:{','.join(_EXAMPLE[kind])}"
+        )
+    return ModelSpec(kind, tuple(int(p) for p in parts))
+
+
+_EXAMPLE = {
+    "arx": ("2", "2", "1"),
+    "oe": ("2", "2", "3"),
+    "armax": ("2", "2", "1", "3"),
+    "bj": ("2", "1", "1", "2", "3"),
+}
