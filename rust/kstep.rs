@@ -126,7 +126,6 @@ fn predict_segment(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::predict;
 
     #[test]
     fn homogeneous_gains_follow_the_recursion() {
@@ -141,30 +140,6 @@ mod tests {
                     hist[n] = -(a[0] * hist[n - 1] + a[1] * hist[n - 2] + a[2] * hist[n - 3]);
                 }
                 assert!((hist[2 + k] - g[i]).abs() < 1e-12, "k={k} i={i}: {} vs {}", hist[2 + k], g[i]);
-            }
-        }
-    }
-
-    #[test]
-    fn filter_equals_step_by_step_prediction_for_any_horizon() {
-        let n = 900;
-        let u: Vec<f64> = (0..n).map(|t| (((t * 7919) % 23) as f64 - 11.0) / 7.0).collect();
-        let mut y = vec![0.0; n];
-        for t in 3..n {
-            y[t] = 1.6 * y[t - 1] - 0.8 * y[t - 2] + 0.3 * u[t - 2] + 0.02 * ((t * 31 % 7) as f64 - 3.0);
-        }
-        let starts = [0, 400];
-        let d = Data::new(&y, &u, 1, &starts).unwrap();
-        let s = Structure::new(2, vec![2], vec![2], vec![]).unwrap();
-        let theta = [-1.55, 0.78, 0.29, 0.01];
-        for k in [1, 2, 3, 7, 64, 399, 500, 10_000] {
-            let slow = predict(&d, &s, &theta, Some(k), 4);
-            let fast = predict_k(&d, &s, &theta, k, 4);
-            for (t, (a, b)) in slow.iter().zip(&fast).enumerate() {
-                assert_eq!(a.is_nan(), b.is_nan(), "t={t} k={k}");
-                if a.is_finite() {
-                    assert!((a - b).abs() <= 1e-9 * a.abs().max(1.0), "t={t} k={k}: {a} vs {b}");
-                }
             }
         }
     }

@@ -14,10 +14,10 @@
 
 use rayon::prelude::*;
 
+use crate::columns::columns_into;
 use crate::error::{ArxError, Result};
 use crate::fit::solve_subset;
 use crate::structure::Structure;
-use crate::sweep::columns_into;
 
 /// Below this squared sine of the angle between a new column and the span of the columns before
 /// it, the normal equations lose too many digits and the structure is solved by QR instead.
@@ -289,9 +289,9 @@ pub fn one_step_all(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::columns::{columns_in, envelope};
     use crate::qr::{reduce, to_col_major};
     use crate::structure::{usable_rows, Data};
-    use crate::sweep::{columns_in, envelope};
 
     fn lcg(seed: &mut u64) -> f64 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);

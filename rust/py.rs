@@ -14,9 +14,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyInt, PyTuple};
 use rayon::ThreadPool;
 
+use crate::columns::envelope;
 use crate::error::ArxError;
 use crate::structure::{Data, OutputKind, OutputTerm, Structure};
-use crate::sweep::{clamp_threads, effective_threads, envelope, SweepOptions};
+use crate::sweep::{clamp_threads, effective_threads, SweepOptions};
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
@@ -628,7 +629,7 @@ fn fit_from_factor<'py>(
     if !inside {
         return Err(OrderError::new_err("the structure reads columns outside the envelope"));
     }
-    let cols = crate::sweep::columns_in(&env, &s);
+    let cols = crate::columns::columns_in(&env, &s);
     let q = env.n_params() + 1;
     let f = run(py, 1, |_| crate::fit::fit_from_factor(&r, q, &cols, n_rows))?;
     let p = f.theta.len();

@@ -728,6 +728,7 @@ pub fn score(d: &Data, pred: &[f64], limit: f64) -> SimScore {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kstep::predict_k;
 
     #[test]
     fn divergence_limit_is_the_factor_times_the_largest_finite_output() {
@@ -838,6 +839,30 @@ mod tests {
         for k in [1, 2, 5, 17] {
             let slow = predict(&d, &s, &theta, Some(k), 9);
             let fast = predict_k_linear(&d, &s, &theta, k, 9);
+            for (t, (a, b)) in slow.iter().zip(&fast).enumerate() {
+                assert_eq!(a.is_nan(), b.is_nan(), "t={t} k={k}");
+                if a.is_finite() {
+                    assert!((a - b).abs() <= 1e-9 * a.abs().max(1.0), "t={t} k={k}: {a} vs {b}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn filter_equals_step_by_step_prediction_for_any_horizon() {
+        let n = 900;
+        let u: Vec<f64> = (0..n).map(|t| (((t * 7919) % 23) as f64 - 11.0) / 7.0).collect();
+        let mut y = vec![0.0; n];
+        for t in 3..n {
+            y[t] = 1.6 * y[t - 1] - 0.8 * y[t - 2] + 0.3 * u[t - 2] + 0.02 * ((t * 31 % 7) as f64 - 3.0);
+        }
+        let starts = [0, 400];
+        let d = Data::new(&y, &u, 1, &starts).unwrap();
+        let s = Structure::new(2, vec![2], vec![2], vec![]).unwrap();
+        let theta = [-1.55, 0.78, 0.29, 0.01];
+        for k in [1, 2, 3, 7, 64, 399, 500, 10_000] {
+            let slow = predict(&d, &s, &theta, Some(k), 4);
+            let fast = predict_k(&d, &s, &theta, k, 4);
             for (t, (a, b)) in slow.iter().zip(&fast).enumerate() {
                 assert_eq!(a.is_nan(), b.is_nan(), "t={t} k={k}");
                 if a.is_finite() {
