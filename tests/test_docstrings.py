@@ -48,6 +48,7 @@ PUBLIC_MODULES = (
     "arxid.selection.search",
     "arxid.checks.validation",
     "arxid.diagnosis.suspects",
+    "arxid.diagnosis.result",
     "arxid.diagnosis.ladder",
     "arxid.analysis.pipeline",
     "arxid.models.effects",

@@ -3,6 +3,7 @@ refits (:func:`diagnose`, :class:`Diagnosis`), and the ladder that adds them one
 (:class:`Ladder`)."""
 
 from .ladder import Ladder
-from .suspects import Diagnosis, diagnose
+from .result import Diagnosis
+from .suspects import diagnose
 
 __all__ = ["diagnose", "Diagnosis", "Ladder"]

@@ -21,7 +21,8 @@ from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model
 from ..models.arx_model import ArxModel
 from .candidates import physics
-from .suspects import Diagnosis, diagnose
+from .result import Diagnosis
+from .suspects import diagnose
 
 __all__ = ["Ladder", "LadderStep"]
 

@@ -1,0 +1,138 @@
+"""A candidate as the extension of a model it stands for: the effects and orders the model has with
+it (:class:`Candidate`), read from its label, and the model refitted with it (:func:`refit`).
+
+Labels are effects (``u1^2``), pairs (``sign(dy)+const``), structure changes (``na+1``, ``nb(u1)-1``;
+``nf+1`` on a polynomial model) and thresholds to scan (``dz(u1)``, ``sat(u1)``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import cast
+
+from ..checks.validation import error_rms
+from ..data.iodata import IOData
+from ..exceptions import ArxidError, OrderError
+from ..models.arx_model import ArxModel
+from ..models.effects import compile_effects, parse_effect
+from ..models.polynomial import PolynomialModel
+from .candidates import auto_candidates, candidate_input_names
+from .polynomial import refit_structure, refit_with_effects
+
+__all__ = ["Candidate", "candidate_list", "layout_for", "refit", "refit_and_validate"]
+
+#: A structure change of a polynomial model (one more pole of A or F, one more zero, another delay).
+_POLY_CHANGE = re.compile(r"(na|nb|nf|nk)(\([^)]+\))?[+-]1")
+#: A threshold candidate whose threshold the diagnosis scans for.
+_SCAN = re.compile(r"(?P<op>dz|sat)\((?P<signal>[A-Za-z_]\w*)\)")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate: its label, the effects it adds and the orders of the model with it."""
+
+    label: str
+    effects: tuple[str, ...]
+    na: int
+    nb: tuple[int, ...]
+    nk: tuple[int, ...]
+    kind: str  # "effect", "pair", "dynamics" or "scan" (a threshold to find: dz(u1), sat(u1))
+
+
+def _dynamics(label: str, model: ArxModel) -> Candidate | None:
+    na, nb, nk = model.na_, list(model.nb_), list(model.nk_)
+    if label == "na+1":
+        return Candidate(label, (), na + 1, tuple(nb), tuple(nk), "dynamics")
+    mt = re.fullmatch(r"(nb|nk)(?:\((?P<name>[^)]+)\))?(?P<sign>[+-])1", label)
+    if not mt:
+        return None
+    name = mt["name"]
+    if name is None:
+        idx = list(range(len(nb)))
+    elif name in model.input_names:
+        idx = [model.input_names.index(name)]
+    else:
+        raise OrderError(f"candidate {label!r}: no input named {name!r}; inputs: {list(model.input_names)}")
+    step = 1 if mt["sign"] == "+" else -1
+    for i in idx:
+        if mt[1] == "nb":
+            nb[i] += step
+        else:
+            nk[i] += step
+    if min(nb) < 0 or min(nk) < 0:
+        raise OrderError(f"candidate {label!r} would make an order negative")
+    return Candidate(label, (), na, tuple(nb), tuple(nk), "dynamics")
+
+
+def _parse_candidate(label: str, model: ArxModel, data: IOData) -> Candidate:
+    if not isinstance(label, str) or not label.strip():
+        raise OrderError(f"a candidate must be a non-empty string such as 'u1^2', 'y^3' or 'na+1', got {label!r}")
+    label = label.replace(" ", "")
+    if isinstance(model, PolynomialModel) and _POLY_CHANGE.fullmatch(label):
+        return Candidate(label, (), model.na_, model.nb_, model.nk_, "dynamics")
+    dyn = _dynamics(label, model)
+    if dyn is not None:
+        return dyn
+    scan = _SCAN.fullmatch(label)
+    if scan:
+        parse_effect(f"{scan['op']}({scan['signal']},1)", data)  # the signal must exist
+        return Candidate(label, (), model.na_, model.nb_, model.nk_, "scan")
+    parts = tuple(p for p in label.split("+") if p)
+    for p in parts:
+        parse_effect(p, data)  # raises OrderError with a readable message
+    # An effect the model already has is not named again: "sign(y)+const" on a model with sign(y) is "const".
+    new = tuple(p for p in parts if p not in model.effects) or parts
+    kind = "pair" if len(new) > 1 else "effect"
+    return Candidate("+".join(new), new, model.na_, model.nb_, model.nk_, kind)
+
+
+def _has_threshold(model: ArxModel, signal: str) -> bool:
+    return any(e.startswith((f"dz({signal},", f"sat({signal},")) for e in model.effects)
+
+
+def layout_for(c: Candidate, model: ArxModel, data: IOData):
+    """The effects of the model with ``c`` (the model's first) and their compiled layout."""
+    effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
+    layout = compile_effects(effects, data, c.nb, c.nk)
+    return effects, layout
+
+
+def candidate_list(candidates, model: ArxModel, data: IOData) -> tuple[list[Candidate], bool]:
+    """The candidates to test, without those the model already has, and whether they were ``"auto"``."""
+    auto = isinstance(candidates, str)
+    if auto:
+        if candidates != "auto":
+            raise ArxidError(f"candidates must be 'auto' or a list of effect strings, got {candidates!r}")
+        labels = auto_candidates(model, data)
+    else:
+        labels = list(candidates)
+        if not labels:
+            raise ArxidError("candidates is empty: give 'auto' or at least one effect such as 'u1^2'")
+    cands: dict[str, Candidate] = {}
+    for lab in labels:
+        c = _parse_candidate(lab, model, data)
+        if c.kind in ("effect", "pair") and all(e in model.effects for e in c.effects):
+            continue
+        if c.kind == "scan" and _has_threshold(model, c.label[c.label.index("(") + 1 : -1]):
+            continue
+        cands.setdefault(c.label, c)
+    return list(cands.values()), auto
+
+
+def refit(model: ArxModel, data: IOData, c) -> ArxModel:
+    """``model`` refitted on ``data`` with candidate ``c`` (a :class:`Candidate`, or a suspect
+    reporting one) added."""
+    if isinstance(model, PolynomialModel):  # a structure change, or effects as extra inputs
+        if c.kind == "dynamics":
+            label = c.label if isinstance(c, Candidate) else c.effect
+            return cast(ArxModel, refit_structure(model, data, label, candidate_input_names(data)))
+        return cast(ArxModel, refit_with_effects(model, data, c.effects))
+    effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
+    return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
+
+
+def refit_and_validate(model, data: IOData, validation: IOData, c, horizon: int | None) -> tuple[ArxModel, float]:
+    """The model refitted with candidate ``c`` and its validation error at ``horizon``."""
+    fitted = refit(model, data, c)
+    return fitted, error_rms(fitted, validation, horizon)

@@ -1,0 +1,241 @@
+"""Scoring the candidates of an ARX model by added-variable tests (step 2 of the procedure in
+:mod:`arxid.diagnosis.suspects`).
+
+Every candidate's new regressor columns are tested against the model's regressors on common rows;
+thresholds (``dz(u)``, ``sat(u)``) are found by a grid scan, ``abs(u)`` and ``pos(u)`` are one
+hypothesis, and strong effects are also tried in pairs: with ``const`` (asymmetric Coulomb friction
+is c·sign(v) plus an offset) and, when nothing else is found, with the partner that they hide.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ..data.iodata import IOData
+from ..exceptions import DataError, OrderError
+from ..models.arx_model import ArxModel
+from ..models.effects import compile_effects, format_threshold
+from ..models.regressors import max_lag, regressor_matrix, regressor_names
+from .added_variable import AddedVariableResult, AddedVariableTest, holm
+from .candidates import scan_threshold
+from .extension import Candidate, layout_for
+
+__all__ = ["Scoring", "scored_entry"]
+
+
+class Scoring:
+    """Added-variable tests of every candidate against the model's regressors on common rows."""
+
+    def __init__(self, model: ArxModel, data: IOData, cands: list[Candidate]):
+        self.model, self.data, self.cands = model, data, cands
+        self.notes: dict[str, str] = {}
+        self.base_layout = compile_effects(model.effects, data, model.nb_, model.nk_)
+        self.base_names = set(regressor_names(data.output_name, model.na_, self.base_layout))
+        lag = max(model.first_lag_, max_lag(model.na_, self.base_layout))
+        self.prepared = []
+        self.scans: dict[str, list[Candidate]] = {}
+        for c in cands:
+            if c.kind == "scan":
+                self.scans.setdefault(c.label[c.label.index("(") + 1 : -1], []).append(c)
+                continue
+            try:
+                _, lay = layout_for(c, model, data)
+            except (OrderError, DataError) as exc:
+                self.notes[c.label] = str(exc)
+                continue
+            lag = max(lag, max_lag(c.na, lay))
+            self.prepared.append((c, lay))
+        self.lag = lag
+        self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
+        if len(self.rows0) <= self.phi0.shape[1] + 2:
+            raise DataError(
+                f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
+            )
+        self.proj0 = AddedVariableTest(self.phi0, self.y0)
+        self.single_z: dict[str, np.ndarray] = {}
+
+    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
+        scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
+        scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
+        scored = self._one_direction_term(scored)
+        if "const" not in self.model.effects and n_pairs > 0:
+            scored += self._pairs_with_offset(scored, alpha, n_pairs)
+        for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
+            s["p_adj"] = float(pa)
+        return scored, self.notes
+
+    def _columns(self, c: Candidate, lay) -> tuple[np.ndarray, np.ndarray]:
+        names = regressor_names(self.data.output_name, c.na, lay)
+        phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
+        new = [i for i, nm in enumerate(names) if nm not in self.base_names]
+        return phi[:, new], rows
+
+    def _score(self, c: Candidate, lay) -> dict | None:
+        z, rows = self._columns(c, lay)
+        if z.shape[1] == 0:
+            self.notes[c.label] = "adds no regressor"
+            return None
+        proj = self.proj0
+        if not (len(rows) == len(self.rows0) and np.array_equal(rows, self.rows0)):
+            # a candidate with missing samples: test on the rows both have
+            common, i0, i1 = np.intersect1d(self.rows0, rows, return_indices=True)
+            if len(common) <= self.phi0.shape[1] + z.shape[1] + 2:
+                self.notes[c.label] = "too few rows where its signal exists"
+                return None
+            proj, z = AddedVariableTest(self.phi0[i0], self.y0[i0]), z[i1]
+        res, why = proj.test(z)
+        if res is None:
+            self.notes[c.label] = why
+            return None
+        if proj is self.proj0:
+            self.single_z[c.label] = z
+        return scored_entry(c, res)
+
+    def _threshold_columns(self, op: str, signal: str, c: float) -> tuple[Candidate, np.ndarray]:
+        """The candidate ``op(signal,c)`` and its columns on the common rows, read straight off the
+        effect's series (the scan tries some forty thresholds, so no regressor matrix is rebuilt)."""
+        label = f"{op}({signal},{format_threshold(c)})"
+        cand = Candidate(label, (label,), self.model.na_, self.model.nb_, self.model.nk_, "effect")
+        lay = compile_effects((label,), self.data, self.model.nb_, self.model.nk_)
+        col, b, k = lay.u[:, -1], lay.nb[-1], lay.nk[-1]
+        z = np.column_stack([col[self.rows0 - k - j] for j in range(b)]) if b else np.zeros((len(self.rows0), 0))
+        return cand, z
+
+    def _scan(self, signal: str, group: list[Candidate]) -> dict | None:
+        """The threshold of ``dz`` / ``sat`` on ``signal`` by a grid scan (:func:`arxid.candidates.scan_threshold`).
+
+        With the input in the model, ``dz(u,c)`` and ``sat(u,c)`` add the same span, so the two are
+        one hypothesis: one scan, then the name of the shape that alone replaces the input better.
+        """
+        ops = [c.label[: c.label.index("(")] for c in group]
+        x = np.asarray(self.data.signal(signal), dtype=float)
+
+        def score(c: float) -> float:
+            z = self._threshold_columns(ops[0], signal, c)[1]
+            return self.proj0.share(z) if z.shape[1] and np.isfinite(z).all() else math.nan
+
+        c, n = scan_threshold(x, score)
+        if not math.isfinite(c):
+            for cand in group:
+                why = "no threshold could be tested" if n else f"|{signal}| takes too few distinct values to scan"
+                self.notes[cand.label] = why
+            return None
+        op = self._threshold_shape(signal, c) if len(ops) > 1 else ops[0]
+        cand, z = self._threshold_columns(op, signal, c)
+        res, why = self.proj0.test(z)
+        if res is None:
+            self.notes[group[0].label] = why
+            return None
+        self.single_z[cand.label] = z
+        self.notes[cand.label] = f"threshold scanned over {n} quantiles of |{signal}| (p-value x {n})"
+        scored = scored_entry(cand, res)
+        scored["p"] = min(1.0, scored["p"] * n)
+        return scored
+
+    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
+        """``abs(u)`` and ``pos(u)`` are one hypothesis when u is in the model (|u| = 2 pos(u) − u):
+        keep ``abs(u)`` when the fitted gains for u > 0 and u < 0 have opposite signs (a response
+        that ignores the direction), else ``pos(u)`` (different gains for the two directions)."""
+        by_label = {s["c"].label: s for s in scored}
+        names = self.data.input_names
+        drop = set()
+        for label in by_label:
+            m = re.fullmatch(r"pos\((\w+)\)", label)
+            if not m or f"abs({m[1]})" not in by_label or label not in self.single_z:
+                continue
+            sig = m[1]
+            idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
+            base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
+            own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
+            z = self.single_z[label]
+            coef = np.linalg.lstsq(np.column_stack([self.phi0, z]), self.y0, rcond=None)[0]
+            negative = float(np.sum(coef[own]))
+            positive = negative + float(np.sum(coef[self.phi0.shape[1] :]))
+            drop.add(f"abs({sig})" if positive * negative >= 0 else label)
+        return [s for s in scored if s["c"].label not in drop]
+
+    def _threshold_shape(self, signal: str, c: float) -> str:
+        """``dz`` or ``sat``: whichever, in place of the input itself, leaves the smaller residual."""
+        names = self.data.input_names
+        idx = names.index(signal) if signal in names else int(signal[1:]) - 1 if signal[1:].isdigit() else -1
+        if not 0 <= idx < len(names):
+            return "dz"
+        rss = {}
+        for op in ("dz", "sat"):
+            cand, _ = self._threshold_columns(op, signal, c)
+            _, lay = layout_for(cand, self.model, self.data)
+            cols = regressor_names(self.data.output_name, cand.na, lay)
+            phi, y, _ = regressor_matrix(self.data, cand.na, lay, self.lag)
+            keep = [j for j, nm in enumerate(cols) if not nm.startswith(f"{names[idx]}(")]
+            coef = np.linalg.lstsq(phi[:, keep], y, rcond=None)[0]
+            rss[op] = float(np.sum((y - phi[:, keep] @ coef) ** 2))
+        return min(rss, key=lambda k: rss[k])
+
+    def masked_pairs(self, scored: list[dict], alpha: float, n_partners: int = 3) -> list[dict]:
+        """Pairs for two effects that hide each other (each alone barely lowers the free-run error).
+
+        The strongest significant effect by score is put beside the model's regressors; every other
+        effect is scored again given it, and the ``n_partners`` strongest that pass ``alpha``
+        (Bonferroni over those re-tests) form pairs with it. A pair's p-value is the joint F-test of
+        both, Bonferroni-corrected by every hypothesis tried; it is then validated like any candidate.
+        """
+        singles = [s for s in scored if s["c"].kind == "effect" and s["c"].label in self.single_z]
+        strong = [s for s in singles if s["p_adj"] < alpha and s["c"].label not in ("const", "time")]
+        if not strong:
+            return []
+        first = max(strong, key=lambda s: s["score"])["c"]
+        z1 = self.single_z[first.label]
+        given = AddedVariableTest(np.column_stack([self.phi0, z1]), self.y0)
+        n_tests = len(singles) - 1
+        partners = []
+        for s in singles:
+            res = given.test(self.single_z[s["c"].label])[0] if s["c"] is not first else None
+            if res is not None and res.p_value * n_tests < alpha:
+                partners.append((res.score, s["c"]))
+        out = []
+        for _, c in sorted(partners, key=lambda t: -t[0])[:n_partners]:
+            res = self.proj0.test(np.column_stack([z1, self.single_z[c.label]]))[0]
+            if res is None:
+                continue
+            pair = Candidate(f"{first.label}+{c.label}", first.effects + c.effects, c.na, c.nb, c.nk, "pair")
+            scored_pair = scored_entry(pair, res)
+            scored_pair["p_adj"] = min(1.0, res.p_value * (len(scored) + n_partners))
+            out.append(scored_pair)
+        return out
+
+    def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
+        """Strong effects tried together with ``const`` (asymmetric Coulomb friction, an output
+        that was not detrended: the effect only helps together with a constant)."""
+        adj = holm(np.array([s["p"] for s in scored]))
+        strong = sorted(
+            (
+                s
+                for s, pa in zip(scored, adj)
+                if pa < alpha
+                and s["c"].kind == "effect"
+                and s["c"].label not in ("const", "time")
+                and s["c"].label in self.single_z
+            ),
+            key=lambda s: s["p"],
+        )
+        have = {s["c"].label for s in scored}
+        out = []
+        for s in strong[:n_pairs]:
+            c = s["c"]
+            if f"{c.label}+const" in have:
+                continue
+            z = np.column_stack([self.single_z[c.label], np.ones(len(self.rows0))])
+            res, _ = self.proj0.test(z)
+            if res is not None:
+                pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
+                out.append(scored_entry(pc, res))
+        return out
+
+
+def scored_entry(c: Candidate, res: AddedVariableResult) -> dict:
+    """A scored candidate as the procedure passes it on: ``c``, ``score``, ``f``, ``p`` and the
+    number of columns ``q`` (the Holm-corrected ``p_adj`` is added once all are scored)."""
+    return {"c": c, "score": res.score, "f": res.f_statistic, "p": res.p_value, "q": res.n_columns}
