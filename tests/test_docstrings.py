@@ -46,7 +46,7 @@ PUBLIC_MODULES = (
     "arxid.models.pem",
     "arxid.models.convert",
     "arxid.selection.search",
-    "arxid.checks.validation",
+    "arxid.checks.residual_analysis",
     "arxid.diagnosis.suspects",
     "arxid.diagnosis.ladder",
     "arxid.analysis.pipeline",

@@ -26,7 +26,7 @@ from typing import Any
 
 from .analysis.pipeline import Analysis, analyse
 from .checks.frequency import FrequencyCheck, frequency_check
-from .checks.validation import compare, residuals, where_it_fails
+from .checks.residual_analysis import compare, residuals, where_it_fails
 from .data.iodata import IOData
 from .diagnosis.ladder import Ladder
 from .diagnosis.suspects import Diagnosis, diagnose

@@ -3,6 +3,6 @@
 (:func:`frequency_check`) and confidence bands."""
 
 from .frequency import FrequencyCheck, frequency_check
-from .validation import compare, residuals, where_it_fails
+from .residual_analysis import compare, residuals, where_it_fails
 
 __all__ = ["compare", "residuals", "where_it_fails", "frequency_check", "FrequencyCheck"]
