@@ -35,7 +35,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
-from ..checks.residual_analysis import ResidualAnalysis, error_rms, prediction_error, residuals
+from ..checks import ResidualAnalysis, error_rms, prediction_error, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_horizon, check_model
