@@ -15,7 +15,7 @@ import pytest
 
 import arxid
 from arxid.analysis.pipeline import analyse
-from arxid.checks.validation import error_rms
+from arxid.checks import error_rms
 from arxid.diagnosis.ladder import Ladder
 from arxid.diagnosis.suspects import INTEGRATING_HORIZON, Diagnosis, auto_candidates, diagnose
 

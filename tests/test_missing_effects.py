@@ -14,7 +14,7 @@ import pytest
 
 import arxid
 from arxid.analysis.pipeline import analyse
-from arxid.checks.validation import error_rms
+from arxid.checks import error_rms
 from arxid.diagnosis.candidates import CATALOGUE, auto_candidates, physics, threshold_grid
 from arxid.diagnosis.ladder import Ladder
 from arxid.diagnosis.suspects import diagnose

@@ -10,7 +10,8 @@ import pytest
 from scipy import stats
 
 import arxid
-from arxid.checks.validation import Z99, compare, residuals, where_it_fails
+from arxid.checks import compare, residuals, where_it_fails
+from arxid.checks.residual_analysis import Z99
 
 
 def first_order(seed=0, n=1000, noise=0.0, b2=0.0, extra_gain=0.0):

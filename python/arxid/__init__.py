@@ -25,8 +25,7 @@ import importlib
 from typing import Any
 
 from .analysis.pipeline import Analysis, analyse
-from .checks.frequency import FrequencyCheck, frequency_check
-from .checks.validation import compare, residuals, where_it_fails
+from .checks import FrequencyCheck, compare, frequency_check, residuals, where_it_fails
 from .data.iodata import IOData
 from .diagnosis.ladder import Ladder
 from .diagnosis.suspects import Diagnosis, diagnose

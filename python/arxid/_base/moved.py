@@ -20,7 +20,7 @@ __all__ = ["MOVED", "PUBLIC", "install"]
 MOVED = {
     "arxid.orders": "arxid.selection.search",
     "arxid.missing": "arxid.diagnosis.suspects",
-    "arxid.validation": "arxid.checks.validation",
+    "arxid.validation": "arxid.checks",
     "arxid.model": "arxid.models.arx_model",
     "arxid.polynomial": "arxid.models.polynomial",
     "arxid.pem": "arxid.models.pem",

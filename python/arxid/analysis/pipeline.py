@@ -30,9 +30,9 @@ from dataclasses import dataclass
 from typing import Any, TypedDict, cast
 
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
+from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
 from ..checks.frequency import FrequencyCheck, frequency_check
-from ..checks.validation import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.suspects import Diagnosis

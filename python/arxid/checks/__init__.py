@@ -1,8 +1,31 @@
-"""Checking a model against measurements: free-run comparison (:func:`compare`), residual tests
-(:func:`residuals`), where the model fails (:func:`where_it_fails`), the frequency check
-(:func:`frequency_check`) and confidence bands."""
+"""Checking a model against measurements.
 
+* :mod:`~arxid.checks.comparison` -- free-run comparison (:func:`compare`) and the prediction error
+  the other checks start from (:func:`prediction_error`, :func:`error_rms`)
+* :mod:`~arxid.checks.residual_analysis` -- residual tests: whiteness and independence
+  (:func:`residuals`)
+* :mod:`~arxid.checks.failures` -- where the model fails, in time and by operating point
+  (:func:`where_it_fails`)
+* :mod:`~arxid.checks.frequency` -- the frequency check (:func:`frequency_check`)
+* :mod:`~arxid.checks.bands` -- confidence bands of the step, free-run and frequency responses
+"""
+
+from .comparison import Comparison, compare, error_rms, prediction_error
+from .failures import FailureAnalysis, SignalBins, WorstSegment, where_it_fails
 from .frequency import FrequencyCheck, frequency_check
-from .validation import compare, residuals, where_it_fails
+from .residual_analysis import ResidualAnalysis, residuals
 
-__all__ = ["compare", "residuals", "where_it_fails", "frequency_check", "FrequencyCheck"]
+__all__ = [
+    "compare",
+    "Comparison",
+    "prediction_error",
+    "error_rms",
+    "residuals",
+    "ResidualAnalysis",
+    "where_it_fails",
+    "FailureAnalysis",
+    "WorstSegment",
+    "SignalBins",
+    "frequency_check",
+    "FrequencyCheck",
+]

@@ -11,7 +11,7 @@ import re
 from dataclasses import dataclass
 from typing import cast
 
-from ..checks.validation import error_rms
+from ..checks import error_rms
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, OrderError
 from ..models.arx_model import ArxModel

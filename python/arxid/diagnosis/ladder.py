@@ -15,7 +15,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
-from ..checks.validation import error_rms, prediction_error
+from ..checks import error_rms, prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model

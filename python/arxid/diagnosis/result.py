@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
-from ..checks.validation import ResidualAnalysis
+from ..checks import ResidualAnalysis
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel

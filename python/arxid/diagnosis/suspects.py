@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._base import metrics
-from ..checks.validation import ResidualAnalysis, error_rms, prediction_error, residuals
+from ..checks import ResidualAnalysis, error_rms, prediction_error, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model

@@ -503,7 +503,7 @@ class SweepResult:
         and the data complete; else the model's own prediction)."""
         from scipy.signal import lfilter
 
-        from ..checks.validation import prediction_error
+        from ..checks import prediction_error
 
         data = self.validation if self.validation is not None else self.estimation
         horizon = self.horizon if self.sort_by in FREE_RUN_KEYS else 1

@@ -1,0 +1,275 @@
+"""Free-run comparison: measured output against models' simulations or k-step predictions.
+
+* :func:`compare` — fit percent and RMS of one or more models on measured data (MATLAB ``compare``),
+  as a :class:`Comparison`.
+* :func:`prediction_error` — a model's prediction, error and divergence flag at a horizon: the
+  error the residual tests, the failure analysis and the diagnosis start from.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._base import metrics
+from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arguments import check_data, check_horizon, check_model, check_same_signals
+from ..models.arx_model import ArxModel
+from ..models.polynomial import PolynomialModel, as_polynomial, check_initial
+
+__all__ = ["compare", "Comparison", "prediction_error", "error_rms"]
+
+
+def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, initial: str = "zero"):
+    """Prediction, error and a divergence flag.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted model.
+    data : IOData
+        Measured data.
+    horizon : int or None
+        None: free-run simulation; k: k-step-ahead prediction.
+    initial : {"zero", "estimate"}
+        ``"estimate"``: each run's initial state is fitted to ``data`` first (see
+        :meth:`arxid.PolynomialModel.predict`; an ARX model is taken in its polynomial form).
+
+    Returns
+    -------
+    pred : ndarray of shape (n_samples,)
+        Output predicted with ``horizon``; NaN where no prediction exists.
+    error : ndarray of shape (n_samples,)
+        ``y - pred`` (NaN where either is missing).
+    diverged : bool
+        The prediction diverged (see :mod:`arxid._metrics`: inf, or beyond
+        ``DIVERGENCE_FACTOR`` times the largest measured |y|); its RMS is reported as infinite.
+    """
+    with np.errstate(all="ignore"):
+        if check_initial(initial) == "estimate":
+            pred = np.asarray(as_polynomial(model).predict(data, horizon, initial="estimate"), dtype=float)
+        else:
+            pred = np.asarray(model.predict(data, horizon), dtype=float)
+        err = data.y - pred
+    return pred, err, metrics.diverged(data.y, pred)
+
+
+def error_rms(model: ArxModel, data: IOData, horizon: int | None = None) -> float:
+    """RMS of ``y - prediction`` at ``horizon``; ``inf`` when the prediction diverges.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+    horizon : int or None
+        None: free run; k: k-step-ahead prediction.
+
+    Returns
+    -------
+    float
+    """
+    return model.rms(data, horizon)
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """Measured output against several models' predictions.
+
+    Attributes
+    ----------
+    names : tuple of str
+        One label per model.
+    fit_percent, rms : tuple of float
+        NRMSE fit in percent and RMS of the error, per model (``rms`` is ``inf`` for a simulation
+        that diverges).
+    horizon : int or None
+        None: free-run simulation; k: k-step-ahead prediction.
+    time, y : ndarray of shape (n_samples,)
+        Sample times and the measured output.
+    predictions : tuple of ndarray of shape (n_samples,)
+        Each model's prediction (NaN where it has none).
+    diverged : tuple of bool
+    output_name : str
+    """
+
+    names: tuple[str, ...]
+    fit_percent: tuple[float, ...]
+    rms: tuple[float, ...]
+    horizon: int | None
+    time: np.ndarray
+    y: np.ndarray
+    predictions: tuple[np.ndarray, ...]
+    diverged: tuple[bool, ...]
+    output_name: str = "y"
+    output_unit: str = ""
+
+    @property
+    def best(self) -> str:
+        """Name of the model with the lowest RMS."""
+        return self.names[int(np.nanargmin(np.where(np.isfinite(self.rms), self.rms, np.inf)))]
+
+    def __str__(self) -> str:
+        rows = [
+            (n, f, r, "diverged" if d else "")
+            for n, f, r, d in zip(self.names, self.fit_percent, self.rms, self.diverged)
+        ]
+        return f"compare ({horizon_label(self.horizon)}), output {self.output_name}\n" + text_table(
+            ["model", "fit %", "rms", ""], rows
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: the horizon and, per model, its fit, RMS and divergence flag.
+
+        Returns
+        -------
+        dict
+            ``{"horizon": int or None, "models": [{"name", "fit_percent", "rms", "diverged"}, ...]}``;
+            non-finite numbers are None.
+        """
+        return {
+            "horizon": self.horizon,
+            "models": [
+                {"name": n, "fit_percent": finite_or_none(f), "rms": finite_or_none(r), "diverged": bool(d)}
+                for n, f, r, d in zip(self.names, self.fit_percent, self.rms, self.diverged)
+            ],
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation of the JSON; None writes one line.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def to_pandas(self):
+        """One row per model: fit, RMS and divergence flag.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by model name, columns ``fit_percent``, ``rms``, ``diverged``.
+        """
+        pd = require_pandas()
+        return pd.DataFrame(
+            {"fit_percent": self.fit_percent, "rms": self.rms, "diverged": self.diverged},
+            index=pd.Index(self.names, name="model"),
+        )
+
+    def plot(self, ax: Any = None) -> Any:
+        """Measured against predicted output, with the error underneath.
+
+        Parameters
+        ----------
+        ax : pair of Axes, optional
+            Where to draw (output, error); default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plots.diagnostics import plot_comparison
+
+        return plot_comparison(self, ax=ax)
+
+
+def _model_list(models) -> tuple[list[str], list[ArxModel]]:
+    if isinstance(models, (ArxModel, PolynomialModel)):
+        models = [models]
+    if isinstance(models, Mapping):
+        names, ms = [str(k) for k in models], list(models.values())
+    else:
+        try:
+            ms = list(models)
+        except TypeError:
+            raise ArxidError(
+                f"compare takes a model, a list of models or a dict name -> model, got {type(models).__name__}"
+            ) from None
+        names = []
+        for m in ms:
+            check_model(m)
+            base = m.structure_name()
+            name, i = base, 2
+            while name in names:
+                name, i = f"{base} #{i}", i + 1
+            names.append(name)
+    if not ms:
+        raise ArxidError("compare needs at least one model")
+    for m in ms:
+        check_model(m)
+    return names, ms
+
+
+def compare(models, data: IOData, horizon: int | None = None, initial: str = "zero") -> Comparison:
+    """Compare models with measured data.
+
+    Parameters
+    ----------
+    models : ArxModel, sequence of ArxModel or mapping of str to ArxModel
+        The models (a mapping gives them names).
+    data : IOData
+        Measured data, preferably not the estimation data.
+    horizon : int or None
+        None (default): free-run simulation, as MATLAB ``compare``; 1: one-step prediction;
+        k: k-step-ahead prediction (for plants with an integrator, whose free run drifts).
+    initial : {"zero", "estimate"}
+        ``"zero"`` (default): each model starts at rest in each run of the data. ``"estimate"``:
+        each run's initial state is fitted to the data first, as MATLAB ``compare`` does, so a
+        record that starts mid-transient is not held against the model (OE, ARMAX, BJ and ARX
+        models without effect terms).
+
+    Returns
+    -------
+    Comparison
+        ``fit_percent`` and ``rms`` per model; ``.plot()`` draws measured against predicted output.
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(1)
+    >>> u = rng.standard_normal(400); y = np.zeros(400)
+    >>> for t in range(1, 400):
+    ...     y[t] = 0.9 * y[t - 1] + u[t - 1]
+    >>> d = arxid.IOData(y, u, ts=1.0)
+    >>> c = arxid.compare(arxid.arx(d, 1, 1, 1), d)
+    >>> round(c.fit_percent[0], 6)
+    100.0
+    """
+    data = check_data(data)
+    horizon = check_horizon(horizon)
+    names, ms = _model_list(models)
+    for m in ms:
+        inputs = m.input_names if data.input_names == m.input_names else m.measured_input_names
+        check_same_signals(m.ts, m.output_name, inputs, data, "the data to compare with")
+    fits, rmss, preds, divs = [], [], [], []
+    for m in ms:
+        pred, _, diverged = prediction_error(m, data, horizon, initial)
+        fits.append(metrics.fit_percent(data.y, pred))
+        rmss.append(metrics.prediction_rms(data.y, pred))
+        preds.append(pred)
+        divs.append(diverged)
+    t = np.arange(data.n_samples) * data.ts
+    return Comparison(
+        tuple(names),
+        tuple(fits),
+        tuple(rmss),
+        horizon,
+        t,
+        data.y.copy(),
+        tuple(preds),
+        tuple(divs),
+        data.output_name,
+        data.output_unit,
+    )

@@ -1,0 +1,422 @@
+"""Where a model fails: its error located in time (rolling RMS, worst segments) and by operating
+point (RMS of the one-step residual binned by each signal, with a significance test).
+
+:func:`where_it_fails` returns a :class:`FailureAnalysis`. It tells *where* a model is wrong;
+:func:`arxid.diagnose` tells *which effect* is missing.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._base import metrics
+from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arguments import check_data, check_horizon, check_model
+from ..models.arx_model import ArxModel
+from .comparison import prediction_error
+
+__all__ = ["where_it_fails", "FailureAnalysis", "WorstSegment", "SignalBins"]
+
+
+@dataclass(frozen=True)
+class WorstSegment:
+    """A stretch of time where the error is largest.
+
+    ``start_time``/``end_time`` in seconds from the first sample of the data (experiments laid end
+    to end), ``start``/``end`` sample indices (half open), ``rms`` the error RMS inside, ``ratio``
+    that RMS over the RMS of the whole record.
+
+    ``p_value`` asks whether the one-step residual is larger inside the window than outside: a
+    one-sided F test of the two variances (the one-step residual, unlike the free-run error, has
+    nearly independent samples), Bonferroni-corrected for the ``n / window`` windows the search
+    looked at. ``significant`` compares it with the analysis' ``alpha``.
+    """
+
+    start: int
+    end: int
+    start_time: float
+    end_time: float
+    rms: float
+    ratio: float
+    p_value: float = math.nan
+    significant: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class SignalBins:
+    """RMS of the one-step residual binned by the value of one signal.
+
+    Attributes
+    ----------
+    signal : str
+        Signal name (an input at ``t − nk``, the output ``y(t−1)``, its rate ``d<y>`` =
+        (y(t−1) − y(t−2)) / ts, or an extra signal at t).
+    edges : ndarray of shape (n_bins + 1,)
+    centers, rms, mean, counts : ndarray of shape (n_bins,)
+        Bin centres, residual RMS, residual mean and sample count per bin.
+    ratio : float
+        Largest bin RMS over the overall RMS (1 = the error does not depend on this signal).
+    p_value : float
+        Probability that bins this different arise by chance when the error does not depend on
+        the signal: Bonferroni combination of a Kruskal–Wallis test on the squared residual (the
+        error size differs) and a one-way ANOVA on the residual (a bias differs between bins).
+    """
+
+    signal: str
+    edges: np.ndarray
+    centers: np.ndarray
+    rms: np.ndarray
+    mean: np.ndarray
+    counts: np.ndarray
+    ratio: float
+    p_value: float
+
+
+@dataclass(frozen=True, eq=False)
+class FailureAnalysis:
+    """Where in time and at which operating points a model's error is large.
+
+    Attributes
+    ----------
+    time : ndarray of shape (n_samples,)
+    error : ndarray of shape (n_samples,)
+        ``y − prediction`` at ``horizon`` (None: free run).
+    residual : ndarray of shape (n_samples,)
+        One-step residual (used for the binning, where samples are close to independent).
+    rolling_rms : ndarray of shape (n_samples,)
+        RMS of ``error`` over a centred window of ``window`` samples.
+    window : int
+    rms : float
+        RMS of ``error`` over the record.
+    worst_segments : tuple of WorstSegment
+        Non-overlapping windows with the largest error, worst first.
+    by_signal : tuple of SignalBins
+        Sorted by p-value (most significant first).
+    horizon : int or None
+    alpha : float
+    """
+
+    time: np.ndarray
+    error: np.ndarray
+    residual: np.ndarray
+    rolling_rms: np.ndarray
+    window: int
+    rms: float
+    worst_segments: tuple
+    by_signal: tuple
+    horizon: int | None
+    alpha: float = 0.01
+    model_name: str = ""
+
+    @property
+    def significant_signals(self) -> tuple[str, ...]:
+        """Signals whose binned residual differs significantly (p < alpha, Bonferroni over signals)."""
+        k = max(len(self.by_signal), 1)
+        return tuple(b.signal for b in self.by_signal if b.p_value * k < self.alpha)
+
+    def bins(self, signal: str) -> SignalBins:
+        """The binned one-step residual of one signal.
+
+        Parameters
+        ----------
+        signal : str
+            Name as in ``by_signal`` (e.g. ``u1``, ``y``, ``dy``).
+
+        Returns
+        -------
+        SignalBins
+
+        Raises
+        ------
+        ArxidError
+            When ``signal`` was not binned.
+        """
+        for b in self.by_signal:
+            if b.signal == signal:
+                return b
+        raise ArxidError(f"no binned signal {signal!r}; have {[b.signal for b in self.by_signal]}")
+
+    def __str__(self) -> str:
+        lines = [
+            f"where {self.model_name or 'the model'} fails ({horizon_label(self.horizon)} error, rms {self.rms:.4g})",
+            f"worst segments (window {self.window} samples):",
+        ]
+        lines.append(
+            text_table(
+                ["from [s]", "to [s]", "rms", "× overall", "p-value", "significant"],
+                [
+                    (s.start_time, s.end_time, s.rms, s.ratio, s.p_value, "yes" if s.significant else "")
+                    for s in self.worst_segments
+                ],
+            )
+        )
+        k = max(len(self.by_signal), 1)
+        lines.append("one-step residual binned by signal (Bonferroni over signals):")
+        rows = []
+        for b in self.by_signal:
+            i = int(np.nanargmax(b.rms))
+            rows.append(
+                (
+                    b.signal,
+                    b.ratio,
+                    f"{b.edges[i]:.4g}..{b.edges[i + 1]:.4g}",
+                    b.p_value,
+                    "yes" if b.p_value * k < self.alpha else "",
+                )
+            )
+        lines.append(text_table(["signal", "max/overall", "worst bin", "p-value", "significant"], rows, digits=3))
+        return "\n".join(lines)
+
+    def to_pandas(self):
+        """One row per (signal, bin): edges, centre, count, residual RMS and mean, p-value.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``signal``, ``low``, ``high``, ``center``, ``count``, ``rms``, ``mean``, ``p_value``.
+        """
+        pd = require_pandas()
+        rows = []
+        for b in self.by_signal:
+            for i in range(len(b.centers)):
+                rows.append(
+                    {
+                        "signal": b.signal,
+                        "low": b.edges[i],
+                        "high": b.edges[i + 1],
+                        "center": b.centers[i],
+                        "count": int(b.counts[i]),
+                        "rms": b.rms[i],
+                        "mean": b.mean[i],
+                        "p_value": b.p_value,
+                    }
+                )
+        return pd.DataFrame(rows)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: overall RMS, the worst segments and the binned residual per signal.
+
+        Returns
+        -------
+        dict
+            ``horizon``, ``rms``, ``window``, ``worst_segments``, ``by_signal`` and
+            ``significant_signals``; NaN becomes None.
+        """
+        return {
+            "horizon": self.horizon,
+            "rms": finite_or_none(self.rms),
+            "window": self.window,
+            "worst_segments": [
+                {
+                    "start_time": s.start_time,
+                    "end_time": s.end_time,
+                    "start": s.start,
+                    "end": s.end,
+                    "rms": s.rms,
+                    "ratio": s.ratio,
+                    "p_value": finite_or_none(s.p_value),
+                    "significant": s.significant,
+                }
+                for s in self.worst_segments
+            ],
+            "by_signal": [
+                {
+                    "signal": b.signal,
+                    "ratio": b.ratio,
+                    "p_value": b.p_value,
+                    "edges": b.edges.tolist(),
+                    "rms": [finite_or_none(x) for x in b.rms],
+                    "counts": b.counts.tolist(),
+                }
+                for b in self.by_signal
+            ],
+            "significant_signals": list(self.significant_signals),
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation of the JSON; None writes one line.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def plot(self, ax: Any = None) -> Any:
+        """Rolling RMS of the error in time, worst segments shaded.
+
+        Parameters
+        ----------
+        ax : Axes, optional
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plots.diagnostics import plot_failures
+
+        return plot_failures(self, ax=ax)
+
+
+def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int) -> SignalBins | None:
+    from scipy import stats
+
+    ok = np.isfinite(x) & np.isfinite(e)
+    x, e = x[ok], e[ok]
+    if len(x) < 4 * n_bins:
+        return None
+    values = np.unique(x)
+    if len(values) < 2:
+        return None
+    if len(values) <= n_bins:
+        mids = (values[1:] + values[:-1]) / 2
+        edges = np.concatenate([[values[0]], mids, [values[-1]]])
+        idx = np.searchsorted(values, x)
+    else:
+        edges = np.unique(np.quantile(x, np.linspace(0, 1, n_bins + 1)))
+        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    nb = len(edges) - 1
+    groups = [e[idx == i] for i in range(nb)]
+    counts = np.array([len(g) for g in groups])
+    rms = np.array([metrics.rms(g) for g in groups])
+    mean = np.array([np.mean(g) if len(g) else np.nan for g in groups])
+    overall = metrics.rms(e)
+    used = [g for g in groups if len(g) >= 2]
+    if len(used) < 2 or overall == 0:
+        return None
+    sq = [g**2 for g in used]
+    p_kw = float(stats.kruskal(*sq).pvalue) if np.ptp(np.concatenate(sq)) > 0 else 1.0
+    p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
+    p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
+    p_an = 1.0 if not math.isfinite(p_an) else p_an
+    p = min(1.0, 2 * min(p_kw, p_an))
+    centers = (edges[1:] + edges[:-1]) / 2
+    return SignalBins(name, edges, centers, rms, mean, counts, float(np.nanmax(rms) / overall), p)
+
+
+def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int) -> float:
+    """One-sided F test: is the one-step residual variance in [lo, hi) larger than outside it?"""
+    from scipy import stats
+
+    inside = res[lo:hi]
+    outside = np.concatenate([res[:lo], res[hi:]])
+    inside, outside = inside[np.isfinite(inside)], outside[np.isfinite(outside)]
+    if inside.size < 2 or outside.size < 2:
+        return math.nan
+    v_out = metrics.mean_square(outside)
+    if v_out == 0:
+        return math.nan
+    f = metrics.mean_square(inside) / v_out
+    return float(min(1.0, stats.f.sf(f, inside.size, outside.size) * n_windows))
+
+
+def where_it_fails(
+    model: ArxModel,
+    data: IOData,
+    horizon: int | None = None,
+    *,
+    window: int | None = None,
+    n_worst: int = 3,
+    n_bins: int = 8,
+    alpha: float = 0.01,
+) -> FailureAnalysis:
+    """Locate a model's error in time and by operating point.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+        Preferably validation data.
+    horizon : int or None
+        Error used in time: None (default) free-run simulation, k k-step prediction.
+    window : int, optional
+        Rolling-RMS window in samples (default: 1/50 of the record, at least 10).
+    n_worst : int
+        Number of worst segments to report.
+    n_bins : int
+        Quantile bins per signal.
+    alpha : float
+        Level for calling a signal significant (Bonferroni over the signals).
+
+    Returns
+    -------
+    FailureAnalysis
+        ``worst_segments`` with their time ranges and ``by_signal``: residual RMS binned by each
+        input (at t − nk), the output (at t − 1), the output rate and each extra signal, with a
+        p-value, most significant first. ``.plot()`` and ``.to_pandas()`` give figure and table.
+    """
+    model = check_model(model)
+    data = check_data(data)
+    horizon = check_horizon(horizon)
+    n = data.n_samples
+    window = max(10, n // 50) if window is None else int(window)
+    if window < 2 or window > n:
+        raise ArxidError(f"window must be between 2 and the number of samples ({n}), got {window}")
+    _, err, diverged = prediction_error(model, data, horizon)
+    if diverged:
+        err = np.where(np.isfinite(err), err, np.nan)
+    _, res, _ = prediction_error(model, data, 1)
+    t = np.arange(n) * data.ts
+    roll = np.full(n, np.nan)
+    for a, b in data.segments:
+        if b - a >= 2:
+            roll[a:b] = metrics.rolling_rms(err[a:b], min(window, b - a))
+    overall = metrics.rms(err)
+    # Greedy non-overlapping picks of the largest rolling RMS.
+    worst = []
+    r = roll.copy()
+    half = window // 2
+    for _ in range(int(n_worst)):
+        if not np.isfinite(r).any():
+            break
+        i = int(np.nanargmax(r))
+        lo, hi = max(0, i - half), min(n, i - half + window)
+        rms = metrics.rms(err[lo:hi])
+        p = _segment_p_value(res, lo, hi, n_windows=max(1, n // window))
+        worst.append(
+            WorstSegment(
+                lo,
+                hi,
+                float(t[lo]),
+                float(t[hi - 1] + data.ts),
+                rms,
+                rms / overall if overall > 0 else math.nan,
+                p,
+                bool(p < alpha),
+            )
+        )
+        r[max(0, lo - half) : min(n, hi + half)] = np.nan
+    # Operating points.
+    signals = []
+    for i, name in enumerate(data.input_names):
+        x = np.full(n, np.nan)
+        k = model.nk_[i]
+        for a, b in data.segments:
+            if b - a > k:
+                x[a + k : b] = data.u[a : b - k, i]
+        signals.append((name, x))
+    y1 = np.full(n, np.nan)
+    dy1 = np.full(n, np.nan)
+    for a, b in data.segments:
+        y1[a + 1 : b] = data.y[a : b - 1]
+        dy1[a + 2 : b] = (data.y[a + 1 : b - 1] - data.y[a : b - 2]) / data.ts
+    signals.append((data.output_name, y1))
+    signals.append((f"d{data.output_name}", dy1))
+    signals += [(k, np.asarray(v, dtype=float)) for k, v in data.extra.items()]
+    bins = [b for b in (_bin_signal(name, x, res, n_bins) for name, x in signals) if b is not None]
+    bins.sort(key=lambda b: (b.p_value, -b.ratio))
+    return FailureAnalysis(
+        t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()
+    )

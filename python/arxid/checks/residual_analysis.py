@@ -1,0 +1,441 @@
+"""Residual tests (MATLAB ``resid``): is a model's one-step residual white and independent of every
+input and logged signal?
+
+:func:`residuals` returns a :class:`ResidualAnalysis`: autocorrelation and cross-correlations with
+99% bounds, the Ljung–Box test of whiteness and Haugh's test of independence on prewhitened series.
+A residual correlated with a signal tells *that* the model misses something; :func:`arxid.diagnose`
+tells *which effect*.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._base import metrics
+from .._base.formatting import finite_or_none, require_pandas, text_table
+from ..data.iodata import IOData
+from ..exceptions import ArxidError, DataError, OrderError
+from ..models.arguments import check_data, check_model
+from ..models.arx_model import ArxModel
+from ..models.polynomial import PolynomialModel
+from .comparison import prediction_error
+
+__all__ = ["residuals", "ResidualAnalysis"]
+
+#: Two-sided 99% point of the standard normal distribution.
+Z99 = 2.5758293035489004
+
+
+def _centered(x: np.ndarray) -> np.ndarray:
+    x = np.asarray(x, dtype=float).copy()
+    ok = np.isfinite(x)
+    if ok.any():
+        x[ok] -= x[ok].mean()
+    return x
+
+
+def _correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray, segments) -> np.ndarray:
+    """corr(a(t), b(t − k)) for each lag k, over pairs inside one experiment where both exist.
+
+    Normalised by √(Σa² Σb²) over the valid samples of each, as MATLAB ``resid`` and ``xcorr``
+    with the biased estimator do.
+    """
+    av = np.where(np.isfinite(a), a, 0.0)
+    bv = np.where(np.isfinite(b), b, 0.0)
+    den = math.sqrt(float(np.sum(av * av)) * float(np.sum(bv * bv)))
+    out = np.zeros(len(lags))
+    if den == 0:
+        return out
+    for i, k in enumerate(lags):
+        s = 0.0
+        for lo, hi in segments:
+            n = hi - lo
+            if abs(k) >= n:
+                continue
+            if k >= 0:
+                s += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
+            else:
+                s += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
+        out[i] = s / den
+    return out
+
+
+def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
+    """Innovations of an AR model of ``x`` (order by AIC, 0..max_order), NaN where none exists.
+
+    Lags stay inside one experiment and skip missing samples. Used for the independence test:
+    the cross-correlations of two whitened series at different lags are nearly uncorrelated, so
+    their sum of squares is χ² (Haugh 1976); those of a coloured signal are not.
+    """
+    x = _centered(x)
+    n = len(x)
+    starts = [np.arange(lo + max_order, hi) for lo, hi in segments]
+    rows = np.concatenate(starts) if starts else np.zeros(0, dtype=int)
+    if rows.size == 0:
+        return x
+    lagged = np.column_stack([x[rows - k] for k in range(max_order + 1)])
+    ok = np.all(np.isfinite(lagged), axis=1)
+    rows, lagged = rows[ok], lagged[ok]
+    m = len(rows)
+    if m <= 2 * max_order + 2:
+        return x
+    best_aic, best = math.log(max(metrics.mean_square(lagged[:, 0]), 1e-300)), (0, np.zeros(0))
+    for p in range(1, max_order + 1):
+        a, *_ = np.linalg.lstsq(lagged[:, 1 : p + 1], lagged[:, 0], rcond=None)
+        rss = metrics.mean_square(lagged[:, 0] - lagged[:, 1 : p + 1] @ a)
+        aic = math.log(max(rss, 1e-300)) + 2.0 * p / m
+        if aic < best_aic:
+            best_aic, best = aic, (p, a)
+    p, a = best
+    if p == 0:
+        return x
+    out = np.full(n, np.nan)
+    for lo, hi in segments:
+        if hi - lo > p:
+            out[lo + p : hi] = x[lo + p : hi] - sum(a[i] * x[lo + p - 1 - i : hi - 1 - i] for i in range(p))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ResidualAnalysis:
+    """Whiteness and independence tests of a model's one-step residual (MATLAB ``resid``).
+
+    Attributes
+    ----------
+    residual : ndarray of shape (n_samples,)
+        One-step prediction error ``y − ŷ(t|t−1)`` (NaN where no prediction exists).
+    n_samples : int
+        Samples with a residual.
+    lags : ndarray of shape (max_lag + 1,)
+        0..L for the autocorrelation.
+    autocorrelation : ndarray of shape (max_lag + 1,)
+        Normalised autocorrelation of the residual (1 at lag 0).
+    autocorrelation_bound : float
+        99% bound ``z₀.₉₉₅ / √N`` for lags ≥ 1 under the hypothesis of a white residual.
+    cross_lags : ndarray of shape (2 max_lag + 1,)
+        −L..L. Positive lag k: the residual at t against the signal at t − k (the signal leads);
+        significant values at negative lags point to feedback.
+    cross_correlation : dict of str to ndarray of shape (2 max_lag + 1,)
+        Normalised cross-correlation with every input and extra signal.
+    cross_bounds : dict of str to float
+        99% bound of each cross-correlation under independence, with Bartlett's correction for the
+        colour of both signals: ``z₀.₉₉₅ √(Σ_k ρ_ee(k) ρ_ss(k) / N)``, k = −L..L.
+    cross_p_values : dict of str to float
+        Test of independence per signal (Haugh 1976): residual and signal are each prewhitened by
+        an AR model (order by AIC, at most min(L, 10)), and ``S = N² Σ_k r_k² / (N − |k|)`` over the
+        2L + 1 cross-correlations r_k of the whitened series is compared with χ² with 2L + 1
+        degrees of freedom. (Checking each lag against its own 99% bound would flag an independent
+        signal about 40% of the time at L = 25; summing the raw cross-correlations of a coloured
+        signal, whose neighbouring lags are nearly equal, would flag it far more often than 1%.)
+        NaN when the signal has too few numbers where the residual exists (untested).
+    ljung_box_statistic, ljung_box_p_value : float
+        ``Q = N (N + 2) Σ_{k=1..L} ρ_ee(k)² / (N − k)`` and its χ² tail probability with
+        ``ljung_box_dof = L − n`` degrees of freedom, n the estimated noise-model parameters (na for
+        ARX and ARMAX plus nc, nc + nd for Box–Jenkins, none for output-error).
+    whiteness_expected : bool
+        False for an output-error model: it has no noise model, so its residual is the output noise
+        itself, white only if that noise is. MATLAB's ``resid`` draws the same test; what judges an
+        OE model is the residual's independence of the inputs.
+    """
+
+    residual: np.ndarray
+    n_samples: int
+    lags: np.ndarray
+    autocorrelation: np.ndarray
+    autocorrelation_bound: float
+    cross_lags: np.ndarray
+    cross_correlation: dict
+    cross_bounds: dict
+    ljung_box_statistic: float
+    ljung_box_p_value: float
+    ljung_box_dof: int
+    cross_p_values: dict = field(default_factory=dict)
+    alpha: float = 0.01
+    model_name: str = ""
+    whiteness_expected: bool = True
+
+    @property
+    def whiteness_text(self) -> str:
+        """The Ljung–Box verdict in words: ``white``, ``NOT white (...)``, or for an output-error model
+        why a coloured residual is expected."""
+        if self.is_white:
+            return "white"
+        if not self.whiteness_expected:
+            return (
+                "not white, which an output-error model allows: it models no noise, so coloured output noise "
+                "stays in its residual; its test is the independence of the inputs"
+            )
+        return "NOT white (the model misses dynamics or an effect)"
+
+    @property
+    def is_white(self) -> bool:
+        """True when the Ljung–Box test does not reject whiteness at level ``alpha``."""
+        return bool(self.ljung_box_p_value >= self.alpha)
+
+    @property
+    def autocorrelation_outside(self) -> np.ndarray:
+        """Lags ≥ 1 where the autocorrelation leaves its 99% bound."""
+        return self.lags[1:][np.abs(self.autocorrelation[1:]) > self.autocorrelation_bound]
+
+    def cross_outside(self, name: str) -> np.ndarray:
+        """Lags where the cross-correlation with ``name`` leaves its 99% bound.
+
+        Parameters
+        ----------
+        name : str
+            An input or extra signal, a key of ``cross_correlation``.
+
+        Returns
+        -------
+        ndarray of int
+            The lags (−L..L, positive: the signal leads) outside ``cross_bounds[name]``.
+        """
+        return self.cross_lags[np.abs(self.cross_correlation[name]) > self.cross_bounds[name]]
+
+    @property
+    def independent(self) -> dict[str, bool]:
+        """Per tested signal: True when the independence test does not reject at ``alpha``.
+
+        Signals that could not be tested (no numbers where the residual exists) are left out.
+        """
+        return {k: bool(p >= self.alpha) for k, p in self.cross_p_values.items() if math.isfinite(p)}
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary of the tests: Ljung–Box, autocorrelation and per-signal cross-correlation.
+
+        Returns
+        -------
+        dict
+            ``n_samples``, ``max_lag``, ``ljung_box`` (statistic, dof, p-value, white),
+            ``autocorrelation`` (bound, lags outside) and ``cross_correlation`` per signal (largest
+            value and its lag, bound, lags outside, p-value, independent); NaN becomes None.
+        """
+        cross = {}
+        for k, r in self.cross_correlation.items():
+            i = int(np.argmax(np.nan_to_num(np.abs(r), nan=-1.0)))
+            cross[k] = {
+                "max_abs": finite_or_none(float(abs(r[i]))),
+                "lag_of_max": int(self.cross_lags[i]),
+                "bound": finite_or_none(float(self.cross_bounds[k])),
+                "lags_outside": [int(x) for x in self.cross_outside(k)],
+                "p_value": finite_or_none(float(self.cross_p_values[k])),
+                "independent": self.independent.get(k),
+            }
+        return {
+            "n_samples": int(self.n_samples),
+            "max_lag": int(self.lags[-1]),
+            "ljung_box": {
+                "statistic": float(self.ljung_box_statistic),
+                "dof": int(self.ljung_box_dof),
+                "p_value": float(self.ljung_box_p_value),
+                "white": self.is_white,
+                "whiteness_expected": self.whiteness_expected,
+            },
+            "autocorrelation": {
+                "bound": float(self.autocorrelation_bound),
+                "lags_outside": [int(x) for x in self.autocorrelation_outside],
+            },
+            "cross_correlation": cross,
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        indent : int or None
+            Indentation of the JSON; None writes one line.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def to_pandas(self):
+        """Correlations by lag: column ``residual`` (autocorrelation) and one per signal.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by ``lag`` (−L..L); ``residual`` is NaN at negative lags.
+        """
+        pd = require_pandas()
+        df = pd.DataFrame(
+            {name: r for name, r in self.cross_correlation.items()}, index=pd.Index(self.cross_lags, name="lag")
+        )
+        auto = pd.Series(self.autocorrelation, index=self.lags)
+        df.insert(0, "residual", auto.reindex(df.index))
+        return df
+
+    def __str__(self) -> str:
+        lb = (
+            f"Ljung–Box Q = {self.ljung_box_statistic:.4g} with {self.ljung_box_dof} dof, p = {self.ljung_box_p_value:.3g}: "  # noqa: E501
+            + self.whiteness_text
+        )
+        lines = [
+            f"residual analysis{' of ' + self.model_name if self.model_name else ''} ({self.n_samples} samples, "
+            f"99% bounds)",
+            "  " + lb,
+        ]
+        out = self.autocorrelation_outside
+        lines.append(
+            f"  autocorrelation: bound ±{self.autocorrelation_bound:.3g}, "
+            + (f"outside at lags {list(map(int, out[:10]))}" if len(out) else "inside")
+        )
+        rows = []
+        for k, r in self.cross_correlation.items():
+            i = int(np.argmax(np.nan_to_num(np.abs(r), nan=-1.0)))
+            o = self.cross_outside(k)
+            p = self.cross_p_values[k]
+            rows.append(
+                (
+                    k,
+                    float(r[i]),
+                    int(self.cross_lags[i]),
+                    self.cross_bounds[k],
+                    len(o),
+                    p,
+                    "untested (no data)" if not math.isfinite(p) else "yes" if p >= self.alpha else "NO",
+                )
+            )
+        if rows:
+            lines.append(
+                text_table(
+                    ["signal", "max corr", "at lag", "bound", "lags outside", "p-value", "independent"], rows, digits=3
+                )
+            )
+        return "\n".join(lines)
+
+    def plot(self, axes: Any = None) -> Any:
+        """Autocorrelation and cross-correlations with their 99% bands (MATLAB ``resid`` style).
+
+        Parameters
+        ----------
+        axes : sequence of Axes, optional
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plots.diagnostics import plot_residuals
+
+        return plot_residuals(self, axes=axes)
+
+
+#: A one-step residual whose RMS is below this share of the output's RMS is rounding error: the
+#: model reproduces the data exactly (noise-free data) and the tests pass.
+ROUND_OFF_SHARE = 1e-9
+
+
+def _at_round_off(e: np.ndarray, y: np.ndarray) -> bool:
+    scale = float(np.sqrt(np.mean(y * y))) if y.size else 0.0
+    return scale > 0 and float(np.sqrt(np.mean(e * e))) <= ROUND_OFF_SHARE * scale
+
+
+def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0.01) -> ResidualAnalysis:
+    """Residual analysis: is the one-step residual white and independent of the inputs?
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+        Preferably validation data. Cross-correlations are computed with every input and every
+        extra signal of ``data``.
+    max_lag : int
+        Largest lag L (autocorrelation at 0..L, cross-correlation at −L..L).
+    alpha : float
+        Level of the Ljung–Box test used by ``is_white`` (bounds are always 99%).
+
+    Returns
+    -------
+    ResidualAnalysis
+
+    Notes
+    -----
+    A residual correlated with a signal at positive lags means the model does not use all the
+    information that signal carries: a missing input, a wrong delay, or a missing effect built
+    from it. :func:`arxid.diagnose` ranks such effects.
+
+    For an output-error model the one-step residual is the free-run error (it has no noise model):
+    its whiteness is reported but not expected (``whiteness_expected`` is False), and its
+    independence of the inputs is the test of the model, as in MATLAB's ``resid``.
+    """
+    model = check_model(model)
+    data = check_data(data)
+    if isinstance(max_lag, bool) or not isinstance(max_lag, (int, np.integer)) or max_lag < 1:
+        raise OrderError(f"max_lag must be an integer >= 1, got {max_lag!r}")
+    max_lag = int(max_lag)
+    _, e, diverged = prediction_error(model, data, 1)
+    if diverged:
+        raise ArxidError("the one-step prediction is not finite on these data; check the data for outliers")
+    ok = np.isfinite(e)
+    n = int(ok.sum())
+    if n <= max_lag + 1:
+        raise DataError(f"only {n} residual samples for max_lag={max_lag}; use more data or a smaller max_lag")
+    segs = data.segments
+    ec = _centered(e)
+    lags = np.arange(0, max_lag + 1)
+    auto = _correlation(ec, ec, lags, segs)
+    cl = np.arange(-max_lag, max_lag + 1)
+    auto_full = np.concatenate([auto[:0:-1], auto])  # ρ_ee(k) for k = -L..L
+    from scipy import stats
+
+    cross, bounds, pvals = {}, {}, {}
+    signals = [(name, data.u[:, i]) for i, name in enumerate(data.input_names)] + list(data.extra.items())
+    order = min(max_lag, 10)
+    ew = _prewhiten(e, segs, order)
+    for name, s in signals:
+        s = np.asarray(s, dtype=float)
+        sc = _centered(np.where(ok, s, np.nan))
+        both = ok & np.isfinite(s)
+        if int(both.sum()) <= max_lag + 1 or np.ptp(s[both]) == 0:
+            cross[name] = np.full(len(cl), np.nan)
+            bounds[name] = pvals[name] = math.nan
+            continue
+        cross[name] = _correlation(ec, sc, cl, segs)
+        ss = _correlation(sc, sc, lags, segs)
+        ss_full = np.concatenate([ss[:0:-1], ss])
+        v = max(float(np.dot(auto_full, ss_full)), 1.0 / max_lag)  # a (near-)constant signal gives ~0
+        bounds[name] = Z99 * math.sqrt(v / n)
+        # Independence: cross-correlations of the prewhitened series (Haugh's test).
+        sw = _prewhiten(np.where(ok, s, np.nan), segs, order)
+        pair = np.isfinite(ew) & np.isfinite(sw)
+        nw = int(pair.sum())
+        if nw <= 2 * max_lag + 1:
+            pvals[name] = math.nan
+            continue
+        rw = _correlation(_centered(np.where(pair, ew, np.nan)), _centered(np.where(pair, sw, np.nan)), cl, segs)
+        stat = float(nw * nw * np.sum(rw**2 / (nw - np.abs(cl))))
+        pvals[name] = float(stats.chi2.sf(stat, len(cl)))
+
+    q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
+    noise_parameters = model.na_ + (model.nc_ + model.nd_ if isinstance(model, PolynomialModel) else 0)
+    dof = max(max_lag - noise_parameters, 1)
+    p = float(stats.chi2.sf(q, dof))
+    if _at_round_off(e[ok], data.y[ok]):
+        # Nothing left to explain: the correlations of rounding errors say nothing about the model.
+        p, pvals = 1.0, {k: (1.0 if math.isfinite(v) else v) for k, v in pvals.items()}
+    expected = not (isinstance(model, PolynomialModel) and model.kind == "OE")
+    return ResidualAnalysis(
+        e,
+        n,
+        lags,
+        auto,
+        Z99 / math.sqrt(n),
+        cl,
+        cross,
+        bounds,
+        q,
+        p,
+        dof,
+        pvals,
+        alpha,
+        model.structure_name(),
+        expected,
+    )
