@@ -24,6 +24,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from . import fleet  # noqa: F401 - provides the models with their fits of many logs (client=, per_experiment=True)
 from .analysis.pipeline import Analysis, analyse
 from .checks import FrequencyCheck, compare, frequency_check, residuals, where_it_fails
 from .data.iodata import IOData

@@ -1,6 +1,8 @@
 """Measured data: :class:`IOData` (validated float64 samples, experiments, NaN gaps, names, units,
-sample time) and the CSV reader behind :meth:`IOData.from_csv`."""
+sample time), the CSV reader behind :meth:`IOData.from_csv`, and logs read and merged into one
+IOData with one experiment per log (:func:`load_experiment`, :func:`merge_logs`)."""
 
 from .iodata import IOData
+from .logs import load_experiment, merge_logs
 
-__all__ = ["IOData"]
+__all__ = ["IOData", "load_experiment", "merge_logs"]

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from ..data.iodata import IOData
+from ..data.logs import LogSignals, check_alike, load_logs, log_name, merge_split, merged_parts, split_experiment
 from ..exceptions import DataError
-from . import logs as fleet
 
 __all__ = ["LogShape", "LogsOnDemand", "WorkerLogs", "load_share", "reduce_tree", "stack_factors"]
 
@@ -44,7 +44,7 @@ class LogShape:
         Whether its estimation / validation part has a measured (finite) output sample.
     """
 
-    signals: fleet.LogSignals
+    signals: LogSignals
     est_starts: tuple
     n_est: int
     val_starts: tuple
@@ -66,7 +66,7 @@ class LogShape:
         LogShape
         """
         return cls(
-            fleet.LogSignals.of(log),
+            LogSignals.of(log),
             est.experiment_starts,
             est.n_samples,
             val.experiment_starts if val is not None else (),
@@ -85,7 +85,7 @@ def load_share(sources: Sequence[Any], names: Sequence[str], read: Any, validati
     names : sequence of str
         The logs' names in messages.
     read : dict or callable or None
-        As in :func:`arxid.fleet.load_experiment`.
+        As in :func:`arxid.data.logs.load_experiment`.
     validation : float or None
         Fraction of each log held out.
 
@@ -95,9 +95,9 @@ def load_share(sources: Sequence[Any], names: Sequence[str], read: Any, validati
         ``(estimation parts merged, validation parts merged or None, [LogShape of each log], the first
         samples of the first log's estimation part)``.
     """
-    logs = fleet.load_logs(sources, read, names)
-    split = [fleet.split_experiment(d, validation) for d in logs]
-    est, val = fleet.merge_split(split)
+    logs = load_logs(sources, read, names)
+    split = [split_experiment(d, validation) for d in logs]
+    est, val = merge_split(split)
     shapes = [LogShape.of(d, e, v) for d, (e, v) in zip(logs, split, strict=True)]
     return est, val, shapes, split[0][0][: min(HEAD, split[0][0].n_samples)]
 
@@ -153,7 +153,7 @@ class WorkerLogs:
     client : dask.distributed.Client
     sources : sequence of IOData or paths
     read : dict or callable or None
-        As in :func:`arxid.fleet.load_experiment`.
+        As in :func:`arxid.data.logs.load_experiment`.
     validation : float or None
         Fraction of each log held out for validation.
 
@@ -180,7 +180,7 @@ class WorkerLogs:
         if not self.sources:
             raise DataError("the list of logs is empty; give at least one IOData or file path")
         self.client, self.read, self.validation = client, read, validation
-        self.names = [fleet.log_name(s, i) for i, s in enumerate(self.sources)]
+        self.names = [log_name(s, i) for i, s in enumerate(self.sources)]
         # Two shares per worker thread: every thread loads, factors and simulates, and a lost worker
         # costs only its shares. (client.nthreads() lists every worker; scheduler_info() may not.)
         threads = max(1, sum(client.nthreads().values()))
@@ -197,7 +197,7 @@ class WorkerLogs:
         for g, (shapes, _) in zip(groups, described, strict=True):
             for j, shape in zip(g, shapes, strict=True):
                 self.shapes[j] = shape
-        fleet.check_alike([s.signals for s in self.shapes], self.names)
+        check_alike([s.signals for s in self.shapes], self.names)
         self.signals = self.shapes[0].signals
         self.head = described[0][1]
 
@@ -247,7 +247,7 @@ def read_part(sources: Sequence[Any], read: Any, validation: float | None, which
     -------
     IOData
     """
-    est, val = fleet.merged_parts(sources, read, validation)
+    est, val = merged_parts(sources, read, validation)
     return est if which == "est" else val
 
 

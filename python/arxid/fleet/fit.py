@@ -1,7 +1,7 @@
 """One ARX model fitted to a fleet of logs, in process or on a Dask cluster; or one model per log.
 
 :func:`arxid.arx` and :meth:`ArxModel.fit` accept a list of experiments (:class:`~arxid.IOData`
-objects or file paths, read as :func:`arxid.fleet.load_experiment` reads them) and, optionally,
+objects or file paths, read as :func:`arxid.data.logs.load_experiment` reads them) and, optionally,
 ``client=`` (a ``dask.distributed.Client``; ``pip install 'arxid[dask]'``).
 
 Merged, in process. The logs are read, checked to share their sampling time and signal names, and
@@ -38,11 +38,12 @@ import numpy as np
 from .._base import _core, metrics
 from .._base.formatting import require_pandas, text_table
 from ..data.iodata import IOData
+from ..data.logs import LogSignals, check_alike, load_logs, log_name, read_log
 from ..exceptions import ArxidError, DataError
+from ..models import many_logs
 from ..models.effects import compile_effects
 from ..models.regressors import max_lag, row_bound
 from . import cluster
-from . import logs as fleet
 
 __all__ = ["ClusterLogs", "FleetModels", "ParameterSpread", "fit_each", "outlier_logs", "OUTLIER_Z", "OUTLIER_SE"]
 
@@ -325,10 +326,10 @@ def fit_log(source: Any, read: Any, name: str, fit: Callable) -> tuple:
     tuple
         ``(model, LogSignals of the log)``.
     """
-    data = fleet.read_log(source, read, name)
+    data = read_log(source, read, name)
     model = _fit_named(fit, data, name)
     model.data_ = None
-    return model, fleet.LogSignals.of(data)
+    return model, LogSignals.of(data)
 
 
 def fit_each(sources: Sequence[Any], client: Any, read: Any, fit: Callable) -> FleetModels:
@@ -339,7 +340,7 @@ def fit_each(sources: Sequence[Any], client: Any, read: Any, fit: Callable) -> F
     sources : sequence of IOData or paths
     client : dask.distributed.Client or None
     read : dict or callable or None
-        As in :func:`arxid.fleet.load_experiment`.
+        As in :func:`arxid.data.logs.load_experiment`.
     fit : callable
         Of an IOData, returning the fitted model (picklable when there is a client).
 
@@ -353,15 +354,20 @@ def fit_each(sources: Sequence[Any], client: Any, read: Any, fit: Callable) -> F
         For an empty list, or naming a log that cannot be read or whose signals differ.
     """
     sources = list(sources)
-    names = [fleet.log_name(s, i) for i, s in enumerate(sources)]
+    names = [log_name(s, i) for i, s in enumerate(sources)]
     if client is None:
-        logs = fleet.load_logs(sources, read)
+        logs = load_logs(sources, read)
         models = [_fit_named(fit, d, n) for d, n in zip(logs, names, strict=True)]
     else:
         if not sources:
             raise DataError("the list of logs is empty; give at least one IOData or file path")
         futures = [client.submit(fit_log, s, read, n, fit, pure=False) for s, n in zip(sources, names, strict=True)]
         out = client.gather(futures)
-        fleet.check_alike([o[1] for o in out], names)
+        check_alike([o[1] for o in out], names)
         models = [o[0] for o in out]
     return FleetModels(tuple(models), tuple(names))
+
+
+# The models fit lists of logs on a cluster, or one model per log, through these: they are stated in
+# the model layer (arxid.models.many_logs), which cannot import this one.
+many_logs.provide(many_logs.LogsFitting(cluster_logs=ClusterLogs, fit_each=fit_each))

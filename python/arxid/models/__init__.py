@@ -2,3 +2,29 @@
 models by prediction-error minimisation (:func:`oe`, :func:`armax`, :func:`bj`, :func:`polyest`,
 :class:`PolynomialModel`), the physical-effect grammar (``effects``), regressor layouts, conversion
 to python-control and scipy, continuous-time conversion, and model files."""
+
+from .arx_model import ArxModel, FittedLayout, arx
+from .continuous import d2c
+from .convert import to_control, to_scipy
+from .fitted import FittedModel
+from .pem import armax, bj, delayest, oe, polyest
+from .polynomial import PolynomialModel, as_polynomial
+from .spec import parse_model_spec
+
+__all__ = [
+    "ArxModel",
+    "arx",
+    "FittedLayout",
+    "FittedModel",
+    "PolynomialModel",
+    "as_polynomial",
+    "oe",
+    "armax",
+    "bj",
+    "polyest",
+    "delayest",
+    "to_control",
+    "to_scipy",
+    "d2c",
+    "parse_model_spec",
+]

@@ -4,208 +4,26 @@ from __future__ import annotations
 
 import functools
 import math
-import types
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal, overload
+from typing import Any, Literal, overload
 
 import numpy as np
 
 from .._base import _core, metrics
-from .._base.formatting import format_polynomial as _format_poly
 from .._base.limits import check_memory, check_order, check_work
 from ..data.iodata import IOData
-from ..exceptions import ArxidError, DataError, IdentifiabilityError, NotFittedError, OrderError
-from ..fleet import fit as fleet_fit
-from ..fleet import logs as fleet
+from ..data.logs import merge_logs
+from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
+from . import arx_text, convert
 from . import files as modelfile
+from .arx_solver import check_excitation, check_rows, check_size, per_input, solve, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
 from .fitted import FittedModel
-from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names, row_bound
-
-if TYPE_CHECKING:
-    from ..selection.search import Selection
+from .fitted_layout import FittedLayout
+from .many_logs import FactorSource, logs_fitting
+from .regressors import max_lag, regressor_names
 
 __all__ = ["ArxModel", "FittedLayout", "arx"]
-
-
-def _per_input(name: str, value, m: int) -> tuple[int, ...]:
-    if isinstance(value, (list, tuple, np.ndarray)):
-        vals = tuple(check_order(f"{name}[{i}]", v) for i, v in enumerate(value))
-        if len(vals) != m:
-            raise OrderError(
-                f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input or a single integer"
-            )
-        return vals
-    return (check_order(name, value),) * m
-
-
-@dataclass(frozen=True)
-class FittedLayout:
-    """What every parameter of a fitted model multiplies: the columns of its effect layout.
-
-    Attributes
-    ----------
-    nb, nk : tuple of int
-        Orders and delays per column (the inputs, then input-derived effect columns).
-    output_terms : tuple of (kind, power, carrier)
-        Output-derived effect terms, one parameter each.
-    column_labels : tuple of str
-        Name of each column (an input name or the effect that built it).
-    effect_of_column : tuple of (str or None)
-        The effect each column belongs to (None for the model's inputs).
-    effect_of_term : tuple of str
-        The effect each output term belongs to.
-    """
-
-    nb: tuple[int, ...]
-    nk: tuple[int, ...]
-    output_terms: tuple[tuple[str, int, int], ...]
-    column_labels: tuple[str, ...]
-    effect_of_column: tuple[str | None, ...]
-    effect_of_term: tuple[str, ...]
-
-    @classmethod
-    def of(cls, layout: EffectLayout) -> FittedLayout:
-        """The fitted part of an :class:`~arxid.effects.EffectLayout` (no data arrays).
-
-        Parameters
-        ----------
-        layout : EffectLayout
-
-        Returns
-        -------
-        FittedLayout
-        """
-        return cls(
-            tuple(layout.nb),
-            tuple(layout.nk),
-            tuple(tuple(t) for t in layout.output_terms),  # type: ignore[misc]
-            tuple(layout.column_labels),
-            tuple(layout.effect_of_column),
-            tuple(layout.effect_of_term),
-        )
-
-    def to_dict(self) -> dict:
-        """JSON-ready.
-
-        Returns
-        -------
-        dict
-        """
-        return {
-            "nb": list(self.nb),
-            "nk": list(self.nk),
-            "output_terms": [list(t) for t in self.output_terms],
-            "column_labels": list(self.column_labels),
-            "effect_of_column": list(self.effect_of_column),
-            "effect_of_term": list(self.effect_of_term),
-        }
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any], input_names: Sequence[str], effects: Sequence[str]) -> FittedLayout:
-        """Read :meth:`to_dict`; files written before the labels were stored get generic labels.
-
-        Parameters
-        ----------
-        d : mapping
-        input_names : sequence of str
-        effects : sequence of str
-
-        Returns
-        -------
-        FittedLayout
-        """
-        nb, terms = tuple(int(v) for v in d["nb"]), tuple((str(k), int(p), int(c)) for k, p, c in d["output_terms"])
-        m = len(input_names)
-        labels = d.get("column_labels") or list(input_names) + [f"effect{j}" for j in range(m, len(nb))]
-        of_column = d.get("effect_of_column") or [None] * len(nb)
-        of_term = d.get("effect_of_term") or [f"term{j}" for j in range(len(terms))]
-        return cls(nb, tuple(int(v) for v in d["nk"]), terms, tuple(labels), tuple(of_column), tuple(of_term))
-
-
-def _check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> tuple[int, int]:
-    """The parameter count and the regression rows at most available, after checking the data leave
-    enough rows for the parameters.
-
-    Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
-    """
-    lag = max(first_lag, max_lag(na, layout))
-    usable = row_bound(data, lag)
-    return _check_rows(na, layout, usable, data.n_samples, lag), usable
-
-
-def _check_rows(na: int, layout: EffectLayout, usable: int, n_samples: int, lag: int) -> int:
-    """The parameter count, after checking that ``usable`` regression rows can determine them."""
-    p = na + sum(layout.nb) + len(layout.output_terms)
-    if p == 0:
-        raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
-    if usable < p + 1:
-        raise DataError(
-            f"too few samples for the orders: {p} parameters need at least {p + 1} regression rows, "
-            f"but {n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
-            f"lower na/nb/nk or use more data"
-        )
-    return p
-
-
-def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
-    """A constant input cannot identify its coefficients: say which one, before the core sees it."""
-    for i, b in enumerate(nb):
-        if b == 0:
-            continue
-        x = data.u[:, i]
-        x = x[np.isfinite(x)]
-        if x.size == 0 or np.ptp(x) == 0:
-            raise IdentifiabilityError(
-                f"input {data.input_names[i]!r} is constant ({x[0] if x.size else 'NaN'}): it does not excite the "
-                f"system, so its coefficients cannot be identified; use data where it varies, or set nb=0 for it",
-                (data.input_names[i],),
-            )
-
-
-def _solve(
-    data: IOData,
-    na: int,
-    layout: EffectLayout,
-    names: list[str],
-    first_lag: int,
-    n_threads: int,
-    rows_like: tuple[int, Sequence[int], Sequence[int]] | None,
-) -> Any:
-    """The core's QR solve; a rank-deficient regressor is named with the columns it depends on."""
-    y = np.require(data.y, requirements=["C", "A"])  # arrays unpickled on a Dask worker may be misaligned
-    try:
-        res = _core.fit(
-            y,
-            layout.u,
-            list(data.experiment_starts),
-            na,
-            list(layout.nb),
-            list(layout.nk),
-            list(layout.output_terms),
-            first_lag=first_lag,
-            n_threads=n_threads,
-            rows_like=rows_like,
-        )
-    except IdentifiabilityError as exc:
-        if getattr(exc, "column", None) is None:
-            raise
-        phi, _, _ = regressor_matrix(data, na, layout, first_lag)
-        raise _collinear(exc.column, phi, names) from None  # type: ignore[attr-defined]
-    return res
-
-
-def _collinear(col: int, phi: np.ndarray, names: list[str]) -> IdentifiabilityError:
-    """The error naming a regressor that depends on the ones before it. ``phi`` is the regressor
-    matrix, or its triangular factor R (the same least squares, so the same partners)."""
-    partners = dependent_partners(phi, col, names)
-    return IdentifiabilityError(
-        f"regressor {names[col]} is a linear combination of {', '.join(partners) or 'the regressors before it'} "
-        f"on these data (collinear regressors): remove one of them, lower the orders, or use data that excite them "
-        f"independently",
-        tuple(partners) + (names[col],),
-    )
 
 
 class ArxModel(FittedModel):
@@ -246,7 +64,9 @@ class ArxModel(FittedModel):
     """
 
     data_: IOData | None
-    selection_: Selection | None
+    # The sweep that chose this structure (an arxid.selection.search.Selection, set by
+    # SweepResult.model); a model knows nothing of sweeps, so its type is not named here.
+    selection_: Any
 
     def __init__(self, *, na: int, nb, nk, effects: Sequence[str] = ()):
         self.na = na
@@ -271,7 +91,7 @@ class ArxModel(FittedModel):
         ----------
         data : IOData, or list of IOData or file paths
             Estimation data. A list of logs is fitted as one data set with one experiment per log
-            (see :mod:`arxid.fleet_fit`).
+            (see :func:`arxid.data.logs.merge_logs` and :mod:`arxid.fleet.fit`).
         first_lag : int
             Start the regression rows this far into each experiment (at least the model's own
             largest lag); sweeps use it to compare structures on the same rows.
@@ -283,9 +103,9 @@ class ArxModel(FittedModel):
             on data with NaN the refit uses exactly the sweep's rows).
         client : dask.distributed.Client, optional
             With a list of logs: fit on this Dask cluster, each worker reducing its own logs to a
-            triangular factor (:mod:`arxid.fleet_fit`); the model then keeps no ``data_``.
+            triangular factor (:mod:`arxid.fleet.fit`); the model then keeps no ``data_``.
         read : dict or callable, optional
-            With file paths: how to read them (see :func:`arxid.fleet.load_experiment`).
+            With file paths: how to read them (see :func:`arxid.data.logs.load_experiment`).
 
         Returns
         -------
@@ -294,8 +114,9 @@ class ArxModel(FittedModel):
         """
         if isinstance(data, (list, tuple)):
             if client is not None:
-                return self._fit_cluster(fleet_fit.ClusterLogs(client, data, read), first_lag, rows_like)
-            data = fleet.merge_logs(data, read)
+                logs = logs_fitting("client=").cluster_logs(client, data, read)
+                return self._fit_cluster(logs, first_lag, rows_like)
+            data = merge_logs(data, read)
         elif client is not None:
             raise DataError("client= fits a list of logs: pass a list of IOData objects or file paths")
         if not isinstance(data, IOData):
@@ -303,48 +124,33 @@ class ArxModel(FittedModel):
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
             )
         m = data.n_inputs
-        na, nb, nk = check_order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
+        na, nb, nk = check_order("na", self.na), per_input("nb", self.nb, m), per_input("nk", self.nk, m)
         first_lag = check_order("first_lag", first_lag)
         n_threads = check_order("n_threads", n_threads)
         layout = compile_effects(self.effects, data, nb, nk)
-        p, usable = _check_size(na, layout, data, first_lag)
+        p, usable = check_size(na, layout, data, first_lag)
         check_memory(
             _core.fit_memory(usable, p, n_threads) + layout.u.nbytes,
             f"the fit of {self.structure_name()} ({p} parameters) on {usable:,} regression rows",
             "lower the orders or use fewer samples",
         )
-        _check_excitation(data, nb)
+        check_excitation(data, nb)
         names = regressor_names(data.output_name, na, layout)
-        res = _solve(data, na, layout, names, first_lag, n_threads, rows_like)
+        res = solve(data, na, layout, names, first_lag, n_threads, rows_like)
         self._store(data, (na, nb, nk), layout, names, first_lag, res)
         return self
 
-    def _fit_cluster(self, logs: fleet_fit.ClusterLogs, first_lag: int, rows_like: Any) -> ArxModel:
+    def _fit_cluster(self, logs: FactorSource, first_lag: int, rows_like: Any) -> ArxModel:
         """The fit of logs kept on a Dask cluster, solved from their combined factor."""
         if first_lag or rows_like is not None:
             raise ArxidError("first_lag and rows_like are not available with client=; fit the merged IOData instead")
         sig = logs.signals
         m = len(sig.input_names)
-        na, nb, nk = check_order("na", self.na), _per_input("nb", self.nb, m), _per_input("nk", self.nk, m)
+        na, nb, nk = check_order("na", self.na), per_input("nb", self.nb, m), per_input("nk", self.nk, m)
         r, n_rows, usable, layout, n_samples = logs.factor(na, nb, nk, self.effects)
-        lag = max_lag(na, layout)
-        _check_rows(na, layout, usable, n_samples, lag)
+        check_rows(na, layout, usable, n_samples, max_lag(na, layout))
         names = regressor_names(sig.output_name, na, layout)
-        orders = (na, list(layout.nb), list(layout.nk))
-        if n_rows < r.shape[0]:
-            raise DataError(
-                f"too few complete regression rows on these logs: {r.shape[0] - 1} parameters need at least "
-                f"{r.shape[0]}, the logs have {n_rows} without missing samples; lower na/nb/nk or use more data"
-            )
-        try:
-            out = _core.fit_from_factor(r, n_rows, orders, orders, list(layout.output_terms))
-        except IdentifiabilityError as exc:
-            if getattr(exc, "column", None) is None:
-                raise
-            raise _collinear(exc.column, r[:, :-1], names) from None  # type: ignore[attr-defined]
-        res = types.SimpleNamespace(
-            theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows, inv_gram=out.inv_gram
-        )
+        res = solve_factor(r, n_rows, usable, na, layout, names)
         self._store(sig, (na, nb, nk), layout, names, 0, res, fit_percent=logs.fit_percent)
         return self
 
@@ -635,9 +441,7 @@ class ArxModel(FittedModel):
         -------
         control.TransferFunction or list of them
         """
-        from .convert import to_control
-
-        return to_control(self, continuous=continuous, input=input, method=method)
+        return convert.to_control(self, continuous=continuous, input=input, method=method)
 
     def to_scipy(self) -> Any:
         """``scipy.signal.dlti``; see :func:`arxid.convert.to_scipy`.
@@ -646,9 +450,7 @@ class ArxModel(FittedModel):
         -------
         scipy.signal.dlti
         """
-        from .convert import to_scipy
-
-        return to_scipy(self)
+        return convert.to_scipy(self)
 
     def to_dict(self) -> dict:
         """Everything needed to rebuild the fitted model (the JSON content).
@@ -657,29 +459,7 @@ class ArxModel(FittedModel):
         -------
         dict
         """
-        self.check_fitted()
-        return {
-            "format": modelfile.FORMAT,
-            "version": modelfile.VERSION,
-            "na": self.na_,
-            "nb": list(self.nb_),
-            "nk": list(self.nk_),
-            "effects": list(self.effects),
-            "ts": self.ts_,
-            "output_name": self.output_name_,
-            "input_names": list(self.input_names_),
-            "output_unit": self.output_unit_,
-            "input_units": list(self.input_units_),
-            "parameters": [float(x) for x in self.parameters_],
-            "covariance": [[float(x) for x in row] for row in self.covariance_],
-            "regressor_names": list(self.regressor_names_),
-            "n_rows": self.n_rows_,
-            "n_skipped": self.n_skipped_,
-            "first_lag": self.first_lag_,
-            "rss": self.rss_,
-            "fit_percent": self.fit_percent_,
-            "layout": self.layout_.to_dict(),
-        }
+        return modelfile.model_content(self)
 
     @classmethod
     def from_json(cls, path_or_text: Any) -> ArxModel:
@@ -736,7 +516,7 @@ class ArxModel(FittedModel):
         -------
         ArxModel
         """
-        return _model_from_dict(cls, modelfile.parse(text))
+        return modelfile.model_of(cls, modelfile.parse(text))
 
     # ------------------------------------------------------------------ printing
     def structure_name(self) -> str:
@@ -758,54 +538,7 @@ class ArxModel(FittedModel):
     def __str__(self) -> str:
         if "parameters_" not in self.__dict__:
             return f"ArxModel(na={self.na}, nb={self.nb}, nk={self.nk}, effects={list(self.effects)}) (not fitted)"
-        lines = [f"{self.structure_name()}   ts = {self.ts:g} s"] + self._fraction_lines() + self._term_lines()
-        lines.append(
-            f"  fit {self.fit_percent_:.2f}% (one-step, estimation), noise variance {self.noise_variance_:.4g}, "
-            f"FPE {self.fpe_:.4g}, {self.n_rows_} rows"
-            + (f", {self.n_skipped_} rows skipped (NaN)" if self.n_skipped_ else "")
-        )
-        if self.output_unit:
-            lines.append(f"  output unit: {self.output_unit}")
-        return "\n".join(lines)
-
-    def _fraction_lines(self) -> list[str]:
-        """y(z) = B(z)/A(z) u(z) z^-nk, one fraction per input or effect column (as a published
-        quadrotor study, Sarıoğlu & Kural, writes it)."""
-        den = _format_poly(self.a.tolist())
-        labels, lines, c = self.input_labels(), [], self.na_
-        lhs = f"{self.output_name}(z) = "
-        pad = " " * len(lhs)
-        for j, (b, k) in enumerate(zip(self.layout_.nb, self.layout_.nk)):
-            if b == 0:
-                continue
-            coefs = self.parameters_[c : c + b]
-            c += b
-            num = _format_poly(coefs.tolist()) if b > 1 else f"{coefs[0]:.4g}"
-            width = max(len(num), len(den))
-            lines.append(pad + num.center(width))
-            lines.append(
-                (lhs if j == 0 else pad[:-2] + "+ ") + "-" * width + f" {labels[j]}(z)" + (f" z^-{k}" if k else "")
-            )
-            lines.append(pad + den.center(width))
-        return lines
-
-    def _term_lines(self) -> list[str]:
-        c = self.na_ + sum(self.layout_.nb)
-        out = []
-        for j, (kind, power, mult) in enumerate(self.layout_.output_terms):
-            coef = self.parameters_[c + j]
-            out.append(f"      {'+' if coef >= 0 else '-'} {abs(coef):.4g}/A(z) · {self._term_text(kind, power, mult)}")
-        return out
-
-    def _term_text(self, kind: str, power: int, mult: int) -> str:
-        y = self.output_name
-        g = {
-            "pow": f"{y}(t-1)^{power}" if power != 1 else f"{y}(t-1)",
-            "abs": f"|{y}(t-1)|",
-            "sign": f"sign({y}(t-1))",
-            "signdiff": f"sign(d{y}(t-1))",
-        }[kind]
-        return g + (" · carrier(t-1)" if mult >= 0 else "")
+        return arx_text.describe(self)
 
     def __repr__(self) -> str:
         if "parameters_" not in self.__dict__:
@@ -815,27 +548,6 @@ class ArxModel(FittedModel):
 
 def _as_tuple(v: Any) -> tuple:
     return tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else (v,)
-
-
-def _model_from_dict(cls: type[ArxModel], d: dict) -> ArxModel:
-    """The model of validated model-file content (:func:`arxid.modelfile.validate`)."""
-    na, nb, nk = d["na"], tuple(d["nb"]), tuple(d["nk"])
-    model = cls(na=na, nb=nb, nk=nk, effects=tuple(d["effects"]))
-    model.na_, model.nb_, model.nk_ = na, nb, nk
-    model.ts_, model.output_name_ = float(d["ts"]), d["output_name"]
-    model.input_names_ = tuple(d["input_names"])
-    model.output_unit_ = d.get("output_unit", "")
-    model.input_units_ = tuple(d.get("input_units", ("",) * len(model.input_names_)))
-    model.parameters_ = np.array(d["parameters"], dtype=float)
-    p = len(model.parameters_)
-    model.covariance_ = np.array(d["covariance"], dtype=float).reshape(p, p)
-    model.regressor_names_ = tuple(d["regressor_names"])
-    model.n_rows_, model.n_skipped_ = d["n_rows"], d["n_skipped"]
-    model.first_lag_, model.rss_ = d["first_lag"], float(d["rss"])
-    model.fit_percent_ = float(d["fit_percent"])
-    model.layout_ = FittedLayout.from_dict(d["layout"], model.input_names_, model.effects)
-    model.data_ = None
-    return model
 
 
 @overload
@@ -865,7 +577,7 @@ def arx(
     client: Any = ...,
     per_experiment: Literal[True],
     read: Any = ...,
-) -> fleet_fit.FleetModels: ...
+) -> Any: ...
 
 
 def arx(
@@ -886,7 +598,7 @@ def arx(
     ----------
     data : IOData, or list of IOData or file paths
         Estimation data. A list of logs is fitted as one data set with one experiment per log (no
-        regressor straddles two logs); see :mod:`arxid.fleet_fit`.
+        regressor straddles two logs); see :mod:`arxid.fleet.fit`.
     na : int
         Number of poles.
     nb, nk : int or sequence of int
@@ -899,15 +611,15 @@ def arx(
         With a list of logs: fit on this Dask cluster; the workers read their own logs and send
         back triangular factors, never the samples.
     per_experiment : bool
-        With a list of logs: fit one model per log and return a :class:`arxid.fleet_fit.FleetModels`
+        With a list of logs: fit one model per log and return a :class:`arxid.fleet.fit.FleetModels`
         (the models, and how each parameter varies across the logs).
     read : dict or callable, optional
-        With file paths: how to read them (see :func:`arxid.fleet.load_experiment`).
+        With file paths: how to read them (see :func:`arxid.data.logs.load_experiment`).
 
     Returns
     -------
     ArxModel
-        A :class:`arxid.fleet_fit.FleetModels` with ``per_experiment=True``.
+        A :class:`arxid.fleet.fit.FleetModels` with ``per_experiment=True``.
 
     Raises
     ------
@@ -917,5 +629,5 @@ def arx(
         if not isinstance(data, (list, tuple)):
             raise DataError("per_experiment=True fits each log of a list: pass a list of IOData objects or file paths")
         fit = functools.partial(arx, na=na, nb=nb, nk=nk, effects=effects, n_threads=1 if client else n_threads)
-        return fleet_fit.fit_each(data, client, read, fit)
+        return logs_fitting("per_experiment=True").fit_each(data, client, read, fit)
     return ArxModel(na=na, nb=nb, nk=nk, effects=effects).fit(data, n_threads=n_threads, client=client, read=read)

@@ -1,10 +1,14 @@
-"""Export a fitted ARX model to control design: python-control, scipy, and continuous time (d2c)."""
+"""Export a fitted model to control design: python-control, scipy, and continuous time (d2c).
+
+The converters read a model through :class:`ConvertibleModel`, the surface :class:`~arxid.ArxModel`
+and :class:`~arxid.PolynomialModel` share, so that the model classes can use them without this
+module knowing either."""
 
 from __future__ import annotations
 
 import numbers
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -12,23 +16,75 @@ from .._base.optional import require
 from ..exceptions import ArxidError, DataError
 from .continuous import d2c
 
-if TYPE_CHECKING:
-    from .arx_model import ArxModel
+__all__ = ["ConvertibleModel", "to_control", "to_scipy", "tf_coefficients"]
 
-__all__ = ["to_control", "to_scipy", "tf_coefficients"]
+
+class ConvertibleModel(Protocol):
+    """What the converters read of a fitted model. A polynomial model (OE, ARMAX, BJ) also has
+    ``common_denominator()``: its inputs' B_i / (A F_i) over one denominator."""
+
+    @property
+    def ts(self) -> float:
+        """Sampling time in seconds."""
+
+    @property
+    def output_name(self) -> str:
+        """Name of the output."""
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """Effect terms of the model."""
+
+    @property
+    def is_linear(self) -> bool:
+        """False when a term of the output makes the model nonlinear."""
+
+    @property
+    def a(self) -> np.ndarray:
+        """Denominator A(z⁻¹)."""
+
+    def check_fitted(self) -> None:
+        """Raise :class:`~arxid.NotFittedError` unless fitted.
+
+        Returns
+        -------
+        None
+        """
+
+    def layout_numerators(self) -> list[np.ndarray]:
+        """Numerators of every input column, delays as leading zeros.
+
+        Returns
+        -------
+        list of ndarray
+        """
+
+    def input_labels(self) -> list[str]:
+        """Names of the input columns.
+
+        Returns
+        -------
+        list of str
+        """
 
 
 def _control() -> Any:
     return require("control", "to_control")
 
 
-def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
+def _fractions(model: ConvertibleModel) -> tuple[list[np.ndarray], np.ndarray]:
+    """Numerators (one per input column) and their denominator, in powers of z⁻¹."""
+    common = getattr(model, "common_denominator", None)
+    return common() if common is not None else (model.layout_numerators(), model.a)
+
+
+def tf_coefficients(model: ConvertibleModel) -> tuple[list[np.ndarray], np.ndarray]:
     """Numerators (one per layout column) and the denominator, in descending powers of z, all of
     one length.
 
     Parameters
     ----------
-    model : ArxModel
+    model : ArxModel or PolynomialModel
         A fitted linear model (no output-derived effects).
 
     Returns
@@ -40,9 +96,7 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
         raise ArxidError(
             f"the effects {list(model.effects)} involve the output: the model is nonlinear and has no transfer function"
         )
-    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
-    num_z1, den_z1 = model.common_denominator() if hasattr(model, "common_denominator") else (None, model.a)
-    num_z1 = model.layout_numerators() if num_z1 is None else num_z1
+    num_z1, den_z1 = _fractions(model)
     n = max([len(den_z1) - 1] + [len(x) - 1 for x in num_z1])
     den = np.zeros(n + 1)
     den[: len(den_z1)] = den_z1
@@ -54,12 +108,12 @@ def tf_coefficients(model: ArxModel) -> tuple[list[np.ndarray], np.ndarray]:
     return nums, den
 
 
-def to_control(model: ArxModel, continuous: bool = False, input: int | None = None, method: str = "zoh") -> Any:
+def to_control(model: ConvertibleModel, continuous: bool = False, input: int | None = None, method: str = "zoh") -> Any:
     """python-control transfer function with ``dt = ts`` (descending powers of z).
 
     Parameters
     ----------
-    model : ArxModel
+    model : ArxModel or PolynomialModel
         A fitted linear model.
     continuous : bool
         Convert to continuous time (d2c, see :mod:`arxid.continuous`). The input delay is returned
@@ -106,12 +160,12 @@ def to_control(model: ArxModel, continuous: bool = False, input: int | None = No
     return tfs[0] if len(tfs) == 1 else tfs
 
 
-def to_scipy(model: ArxModel) -> Any:
+def to_scipy(model: ConvertibleModel) -> Any:
     """``scipy.signal.dlti``: a transfer function for one input, a state-space model for several.
 
     Parameters
     ----------
-    model : ArxModel
+    model : ArxModel or PolynomialModel
         A fitted linear model.
 
     Returns
@@ -137,14 +191,10 @@ def to_scipy(model: ArxModel) -> Any:
     return signal.dlti(a, b, c, dmat, dt=model.ts)
 
 
-def _d2c(model: ArxModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
+def _d2c(model: ConvertibleModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
     """Continuous transfer functions (one per layout column) whose sampling is the discrete model."""
     control = _control()
-    # A polynomial model (OE, ARMAX, BJ) gives its inputs' B_i / (A F_i) over one denominator.
-    if hasattr(model, "common_denominator"):
-        nums, den = model.common_denominator()
-    else:
-        nums, den = model.layout_numerators(), model.a
+    nums, den = _fractions(model)
     results = []
     for i, label in zip(columns, labels):
         cont = d2c(den, nums[i], model.ts, method)

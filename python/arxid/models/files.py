@@ -1,4 +1,5 @@
-"""The model file: a versioned JSON schema for a fitted :class:`~arxid.ArxModel`, read strictly.
+"""The model file: a versioned JSON schema for a fitted :class:`~arxid.ArxModel`, read strictly, and
+the model written to it (:func:`model_content`) and rebuilt from it (:func:`model_of`).
 
 Version 1 holds these fields (all required unless marked optional):
 
@@ -45,8 +46,9 @@ from .._base.limits import MAX_ORDER
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from .effects import compile_effects
+from .fitted_layout import FittedLayout
 
-__all__ = ["FORMAT", "VERSION", "MAX_FILE_BYTES", "read_text", "parse", "validate"]
+__all__ = ["FORMAT", "VERSION", "MAX_FILE_BYTES", "read_text", "parse", "validate", "model_content", "model_of"]
 
 FORMAT = "arxid.ArxModel"
 VERSION = 1
@@ -141,6 +143,76 @@ def validate(content: Any) -> dict:
     except _Corrupt as exc:
         raise DataError(f"corrupt model file: {exc}; write models with ArxModel.to_json()") from None
     return content
+
+
+def model_content(model: Any) -> dict:
+    """The model-file content of a fitted ARX model (what :meth:`ArxModel.to_dict` gives).
+
+    Parameters
+    ----------
+    model : ArxModel
+        Fitted.
+
+    Returns
+    -------
+    dict
+    """
+    model.check_fitted()
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "na": model.na_,
+        "nb": list(model.nb_),
+        "nk": list(model.nk_),
+        "effects": list(model.effects),
+        "ts": model.ts_,
+        "output_name": model.output_name_,
+        "input_names": list(model.input_names_),
+        "output_unit": model.output_unit_,
+        "input_units": list(model.input_units_),
+        "parameters": [float(x) for x in model.parameters_],
+        "covariance": [[float(x) for x in row] for row in model.covariance_],
+        "regressor_names": list(model.regressor_names_),
+        "n_rows": model.n_rows_,
+        "n_skipped": model.n_skipped_,
+        "first_lag": model.first_lag_,
+        "rss": model.rss_,
+        "fit_percent": model.fit_percent_,
+        "layout": model.layout_.to_dict(),
+    }
+
+
+def model_of(cls: Callable[..., Any], d: dict) -> Any:
+    """The model of validated model-file content (:func:`validate`); it keeps no data.
+
+    Parameters
+    ----------
+    cls : type
+        :class:`~arxid.ArxModel` (or a subclass).
+    d : dict
+        Content checked by :func:`validate`.
+
+    Returns
+    -------
+    ArxModel
+    """
+    na, nb, nk = d["na"], tuple(d["nb"]), tuple(d["nk"])
+    model = cls(na=na, nb=nb, nk=nk, effects=tuple(d["effects"]))
+    model.na_, model.nb_, model.nk_ = na, nb, nk
+    model.ts_, model.output_name_ = float(d["ts"]), d["output_name"]
+    model.input_names_ = tuple(d["input_names"])
+    model.output_unit_ = d.get("output_unit", "")
+    model.input_units_ = tuple(d.get("input_units", ("",) * len(model.input_names_)))
+    model.parameters_ = np.array(d["parameters"], dtype=float)
+    p = len(model.parameters_)
+    model.covariance_ = np.array(d["covariance"], dtype=float).reshape(p, p)
+    model.regressor_names_ = tuple(d["regressor_names"])
+    model.n_rows_, model.n_skipped_ = d["n_rows"], d["n_skipped"]
+    model.first_lag_, model.rss_ = d["first_lag"], float(d["rss"])
+    model.fit_percent_ = float(d["fit_percent"])
+    model.layout_ = FittedLayout.from_dict(d["layout"], model.input_names_, model.effects)
+    model.data_ = None
+    return model
 
 
 # ---------------------------------------------------------------------------------------------- rules

@@ -1,12 +1,13 @@
 """Polynomial models A y = B/F u + C/D e (output-error, ARMAX, Box–Jenkins): :class:`PolynomialModel`.
 
 The estimation functions (:func:`arxid.oe`, :func:`arxid.armax`, :func:`arxid.bj`) live in
-:mod:`arxid.pem`; this module holds, predicts, simulates, prints and stores the fitted model.
+:mod:`arxid.pem`; this module holds, predicts, simulates and prints the fitted model. Its JSON is in
+:mod:`arxid.models.polynomial_files`, the runs of finite samples its filters restart in and their
+initial conditions in :mod:`arxid.models.filter_runs`.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from collections.abc import Sequence
@@ -18,71 +19,17 @@ from .._base import _core, metrics
 from .._base.formatting import format_polynomial
 from .._base.limits import check_order
 from ..data.iodata import IOData
-from ..exceptions import ArxidError, ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
-from .arx_model import FittedLayout
+from ..exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
+from . import convert
+from . import polynomial_files as polyfile
 from .derived_inputs import DerivedInput, complete_inputs
+from .filter_runs import check_excitation, check_initial, check_size, finite_segments, per_input
 from .fitted import FittedModel
+from .fitted_layout import FittedLayout
 
 __all__ = ["PolynomialModel", "finite_segments", "as_polynomial", "check_initial"]
 
-_JSON_FORMAT = "arxid.PolynomialModel"
-_JSON_VERSION = 1
 _POLY_NAMES = ("a", "b", "c", "d", "f")
-_INITIAL = ("zero", "estimate")
-
-
-def check_initial(initial: Any) -> str:
-    """The initial-condition option checked: ``"zero"`` or ``"estimate"`` (MATLAB's names).
-
-    Parameters
-    ----------
-    initial : str
-
-    Returns
-    -------
-    str
-    """
-    if initial not in _INITIAL:
-        raise ArxidError(f"initial must be 'zero' or 'estimate' (MATLAB's InitialCondition), got {initial!r}")
-    return str(initial)
-
-
-def _per_input(name: str, value: Any, m: int) -> tuple[int, ...]:
-    if isinstance(value, (list, tuple, np.ndarray)):
-        vals = tuple(check_order(f"{name}[{i}]", v) for i, v in enumerate(value))
-        if len(vals) != m:
-            raise OrderError(f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input")
-        return vals
-    return (check_order(name, value),) * m
-
-
-def finite_segments(data: IOData, lag: int, need_output: bool = True) -> list[tuple[int, int]]:
-    """Runs of finite samples inside each experiment that are longer than ``lag``.
-
-    A missing sample (NaN) ends a run: filters restart from rest after it, as a new experiment,
-    and the first ``lag`` samples of every run are initial conditions.
-
-    Parameters
-    ----------
-    data : IOData
-    lag : int
-        Samples at the start of each run that are not scored.
-    need_output : bool
-        Also require a finite output (prediction needs it; free-run simulation does not).
-
-    Returns
-    -------
-    list of (start, end)
-        Half-open sample ranges.
-    """
-    ok = np.isfinite(data.u).all(axis=1)
-    if need_output:
-        ok &= np.isfinite(data.y)
-    out = []
-    for a, b in data.segments:
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], ok[a:b].astype(np.int8), [0]])))
-        out += [(a + int(s), a + int(e)) for s, e in zip(edges[::2], edges[1::2]) if e - s > lag]
-    return out
 
 
 class PolynomialModel(FittedModel):
@@ -138,11 +85,11 @@ class PolynomialModel(FittedModel):
         m = data.n_inputs
         orders = (
             check_order("na", self.na),
-            _per_input("nb", self.nb, m),
+            per_input("nb", self.nb, m),
             check_order("nc", self.nc),
             check_order("nd", self.nd),
-            _per_input("nf", self.nf, m),
-            _per_input("nk", self.nk, m),
+            per_input("nf", self.nf, m),
+            per_input("nk", self.nk, m),
         )
         return orders
 
@@ -191,8 +138,8 @@ class PolynomialModel(FittedModel):
         initial = check_initial(initial)
         lag = int(_core.pem_max_lag(orders)) if initial == "zero" else 0
         segments = finite_segments(data, lag)
-        _check_size(orders, segments, lag, data)
-        _check_excitation(data, orders[1])
+        check_size(orders, segments, lag, data)
+        check_excitation(data, orders[1])
         st = None if start is None else np.ascontiguousarray(start, dtype=float)
         try:
             res = _core.pem_fit(
@@ -531,9 +478,7 @@ class PolynomialModel(FittedModel):
         -------
         control.TransferFunction or list of them
         """
-        from .convert import to_control
-
-        return to_control(self, continuous=continuous, input=input)  # type: ignore[arg-type]
+        return convert.to_control(self, continuous=continuous, input=input)
 
     def to_scipy(self) -> Any:
         """``scipy.signal.dlti`` of the input-to-output part; see :func:`arxid.convert.to_scipy`.
@@ -542,9 +487,7 @@ class PolynomialModel(FittedModel):
         -------
         scipy.signal.dlti
         """
-        from .convert import to_scipy
-
-        return to_scipy(self)  # type: ignore[arg-type]
+        return convert.to_scipy(self)
 
     def to_dict(self) -> dict:
         """Everything needed to rebuild the fitted model (the JSON content).
@@ -553,42 +496,7 @@ class PolynomialModel(FittedModel):
         -------
         dict
         """
-        self.check_fitted()
-        return {
-            "format": _JSON_FORMAT,
-            "version": _JSON_VERSION,
-            "orders": {
-                "na": self.na_,
-                "nb": list(self.nb_),
-                "nc": self.nc_,
-                "nd": self.nd_,
-                "nf": list(self.nf_),
-                "nk": list(self.nk_),
-            },
-            "ts": self.ts_,
-            "output_name": self.output_name_,
-            "input_names": list(self.input_names_),
-            "output_unit": self.output_unit_,
-            "input_units": list(self.input_units_),
-            "parameters": [float(x) for x in self.parameters_],
-            "start_parameters": [float(x) for x in self.start_parameters_],
-            "covariance": [[float(x) for x in row] for row in self.covariance_],
-            "n_rows": self.n_rows_,
-            "n_skipped": self.n_skipped_,
-            "first_lag": self.first_lag_,
-            "rss": self.rss_,
-            "fit_percent": self.fit_percent_,
-            "iterations": self.iterations_,
-            "termination": self.termination_,
-            "converged": self.converged_,
-            "losses": [float(x) for x in self.losses_],
-            "initial": self.initial_,
-            "initial_states": [[a, b, [float(x) for x in v]] for (a, b), v in self.initial_states_.items()],
-            "derived_inputs": [
-                {"effect": d.effect, "source": None if d.source is None else d.source.to_dict()}
-                for d in self.derived_inputs
-            ],
-        }
+        return polyfile.model_content(self)
 
     @classmethod
     def from_arx(cls, model: Any) -> PolynomialModel:
@@ -604,36 +512,7 @@ class PolynomialModel(FittedModel):
         PolynomialModel
             Same parameters, covariance, loss and names; ``iterations_`` 0.
         """
-        model.check_fitted()
-        if model.effects:
-            raise ArxidError(
-                f"the ARX model has effect terms {list(model.effects)}: it has no polynomial form; "
-                f"use a model without effects"
-            )
-        m = len(model.input_names_)
-        d = {
-            "format": _JSON_FORMAT,
-            "version": _JSON_VERSION,
-            "orders": {"na": model.na_, "nb": list(model.nb_), "nc": 0, "nd": 0, "nf": [0] * m, "nk": list(model.nk_)},
-            "ts": model.ts_,
-            "output_name": model.output_name_,
-            "input_names": list(model.input_names_),
-            "output_unit": model.output_unit_,
-            "input_units": list(model.input_units_),
-            "parameters": model.parameters_,
-            "start_parameters": model.parameters_,
-            "covariance": model.covariance_,
-            "n_rows": model.n_rows_,
-            "n_skipped": model.n_skipped_,
-            "first_lag": model.first_lag_,
-            "rss": model.rss_,
-            "fit_percent": model.fit_percent_,
-            "iterations": 0,
-            "termination": "linear least squares (ARX)",
-            "converged": True,
-            "losses": [model.rss_ / model.n_rows_],
-        }
-        return _model_from_dict(cls, d)
+        return polyfile.model_of(cls, polyfile.arx_content(model))
 
     @classmethod
     def from_json(cls, text_or_path: str) -> PolynomialModel:
@@ -648,19 +527,7 @@ class PolynomialModel(FittedModel):
         -------
         PolynomialModel
         """
-        text = text_or_path
-        if not (isinstance(text, str) and text.lstrip().startswith("{")):
-            try:
-                with open(text_or_path) as fh:
-                    text = fh.read()
-            except OSError as exc:
-                raise DataError(f"cannot read model file {text_or_path!r}: {exc}") from None
-        try:
-            return _model_from_dict(cls, json.loads(text))
-        except (ValueError, KeyError, TypeError) as exc:
-            if isinstance(exc, DataError):
-                raise
-            raise DataError(f"corrupt model file: {exc}; write models with PolynomialModel.to_json()") from None
+        return polyfile.model_from_json(cls, text_or_path)
 
     # ------------------------------------------------------------------ printing
     def structure_name(self) -> str:
@@ -758,31 +625,6 @@ def _as_tuple(v: Any) -> tuple:
     return tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else (v,)
 
 
-def _check_size(orders: tuple, segments: list[tuple[int, int]], lag: int, data: IOData) -> None:
-    """Enough scored samples for the parameters, counted before the core allocates anything."""
-    p = orders[0] + sum(orders[1]) + orders[2] + orders[3] + sum(orders[4])
-    usable = sum(b - a - lag for a, b in segments)
-    if usable < p + 1:
-        raise DataError(
-            f"too few samples for the orders: {p} parameters need at least {p + 1} scored samples, but the "
-            f"{data.n_samples} samples leave {usable} after the first {lag} of each run of finite samples; lower "
-            f"the orders or use more data"
-        )
-
-
-def _check_excitation(data: IOData, nb: Sequence[int]) -> None:
-    """A constant input cannot identify its coefficients: say which one, before the core sees it."""
-    for i, b in enumerate(nb):
-        x = data.u[:, i]
-        x = x[np.isfinite(x)]
-        if b and (x.size == 0 or np.ptp(x) == 0):
-            raise IdentifiabilityError(
-                f"input {data.input_names[i]!r} is constant: it does not excite the system, so its B and F "
-                f"cannot be identified; use data where it varies, or set nb=0 for it",
-                (data.input_names[i],),
-            )
-
-
 def as_polynomial(model: Any) -> PolynomialModel:
     """``model`` itself when it is a :class:`PolynomialModel`, else :meth:`PolynomialModel.from_arx`.
 
@@ -795,36 +637,3 @@ def as_polynomial(model: Any) -> PolynomialModel:
     PolynomialModel
     """
     return model if isinstance(model, PolynomialModel) else PolynomialModel.from_arx(model)
-
-
-def _model_from_dict(cls: type[PolynomialModel], d: Any) -> PolynomialModel:
-    if not isinstance(d, dict) or d.get("format") != _JSON_FORMAT:
-        raise ValueError("not an arxid polynomial model")
-    if d.get("version") != _JSON_VERSION:
-        raise ValueError(f"unsupported version {d.get('version')!r}")
-    o = d["orders"]
-    model = cls(na=o["na"], nb=tuple(o["nb"]), nc=o["nc"], nd=o["nd"], nf=tuple(o["nf"]), nk=tuple(o["nk"]))
-    fake = IOData(np.zeros(2), np.zeros((2, len(d["input_names"]))), float(d["ts"]), input_names=d["input_names"])
-    model.na_, model.nb_, model.nc_, model.nd_, model.nf_, model.nk_ = model.orders_for(fake)
-    model.ts_, model.output_name_ = float(d["ts"]), str(d["output_name"])
-    model.input_names_ = tuple(map(str, d["input_names"]))
-    model.output_unit_, model.input_units_ = str(d.get("output_unit", "")), tuple(d.get("input_units", ()))
-    model.parameters_ = np.array(d["parameters"], dtype=float)
-    model.start_parameters_ = np.array(d["start_parameters"], dtype=float)
-    p = len(model.parameters_)
-    if p != sum([model.na_, sum(model.nb_), model.nc_, model.nd_, sum(model.nf_)]):
-        raise ValueError("the parameter count does not match the model structure")
-    model.covariance_ = np.array(d["covariance"], dtype=float).reshape(p, p)
-    model.n_rows_, model.n_skipped_, model.first_lag_ = int(d["n_rows"]), int(d["n_skipped"]), int(d["first_lag"])
-    model.rss_, model.fit_percent_ = float(d["rss"]), float(d["fit_percent"])
-    model.iterations_, model.termination_ = int(d["iterations"]), str(d["termination"])
-    model.converged_, model.losses_ = bool(d["converged"]), np.array(d["losses"], dtype=float)
-    model.initial_ = check_initial(d.get("initial", "zero"))
-    model.initial_states_ = {(int(a), int(b)): np.array(v, dtype=float) for a, b, v in d.get("initial_states", [])}
-    model.data_ = None
-    # how the inputs the diagnosis added are computed (a term of the output: from its source's simulation)
-    model.derived_inputs_ = tuple(
-        DerivedInput(str(x["effect"]), None if x["source"] is None else _model_from_dict(cls, x["source"]))
-        for x in d.get("derived_inputs", ())
-    )
-    return model

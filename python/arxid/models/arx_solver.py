@@ -1,0 +1,136 @@
+"""The least-squares steps of an ARX fit, before and after the Rust core's QR: the orders per input,
+the checks that the data can determine the parameters (enough rows, inputs that vary), the solve of
+the regressors or of their triangular factor, and the error that names a collinear regressor."""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .._base import _core
+from .._base.limits import check_order
+from ..data.iodata import IOData
+from ..exceptions import DataError, IdentifiabilityError, OrderError
+from .effects import EffectLayout
+from .regressors import dependent_partners, max_lag, regressor_matrix, row_bound
+
+__all__ = ["check_excitation", "check_rows", "check_size", "collinear", "per_input", "solve", "solve_factor"]
+
+
+def per_input(name: str, value: Any, m: int) -> tuple[int, ...]:
+    """One checked order per input, from a sequence of them or one for all."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        vals = tuple(check_order(f"{name}[{i}]", v) for i, v in enumerate(value))
+        if len(vals) != m:
+            raise OrderError(
+                f"{name} has {len(vals)} entries but the data have {m} inputs; give one per input or a single integer"
+            )
+        return vals
+    return (check_order(name, value),) * m
+
+
+def check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> tuple[int, int]:
+    """The parameter count and the regression rows at most available, after checking the data leave
+    enough rows for the parameters.
+
+    Counted, not listed: orders far beyond the data must fail here, not while naming 10^12 regressors.
+    """
+    lag = max(first_lag, max_lag(na, layout))
+    usable = row_bound(data, lag)
+    return check_rows(na, layout, usable, data.n_samples, lag), usable
+
+
+def check_rows(na: int, layout: EffectLayout, usable: int, n_samples: int, lag: int) -> int:
+    """The parameter count, after checking that ``usable`` regression rows can determine them."""
+    p = na + sum(layout.nb) + len(layout.output_terms)
+    if p == 0:
+        raise OrderError("the model has no parameters: use na >= 1 or nb >= 1")
+    if usable < p + 1:
+        raise DataError(
+            f"too few samples for the orders: {p} parameters need at least {p + 1} regression rows, "
+            f"but {n_samples} samples minus the largest lag {lag} per experiment leave {usable}; "
+            f"lower na/nb/nk or use more data"
+        )
+    return p
+
+
+def check_excitation(data: IOData, nb: Sequence[int]) -> None:
+    """A constant input cannot identify its coefficients: say which one, before the core sees it."""
+    for i, b in enumerate(nb):
+        if b == 0:
+            continue
+        x = data.u[:, i]
+        x = x[np.isfinite(x)]
+        if x.size == 0 or np.ptp(x) == 0:
+            raise IdentifiabilityError(
+                f"input {data.input_names[i]!r} is constant ({x[0] if x.size else 'NaN'}): it does not excite the "
+                f"system, so its coefficients cannot be identified; use data where it varies, or set nb=0 for it",
+                (data.input_names[i],),
+            )
+
+
+def solve(
+    data: IOData,
+    na: int,
+    layout: EffectLayout,
+    names: list[str],
+    first_lag: int,
+    n_threads: int,
+    rows_like: tuple[int, Sequence[int], Sequence[int]] | None,
+) -> Any:
+    """The core's QR solve; a rank-deficient regressor is named with the columns it depends on."""
+    y = np.require(data.y, requirements=["C", "A"])  # arrays unpickled on a Dask worker may be misaligned
+    try:
+        res = _core.fit(
+            y,
+            layout.u,
+            list(data.experiment_starts),
+            na,
+            list(layout.nb),
+            list(layout.nk),
+            list(layout.output_terms),
+            first_lag=first_lag,
+            n_threads=n_threads,
+            rows_like=rows_like,
+        )
+    except IdentifiabilityError as exc:
+        if getattr(exc, "column", None) is None:
+            raise
+        phi, _, _ = regressor_matrix(data, na, layout, first_lag)
+        raise collinear(exc.column, phi, names) from None  # type: ignore[attr-defined]
+    return res
+
+
+def collinear(col: int, phi: np.ndarray, names: list[str]) -> IdentifiabilityError:
+    """The error naming a regressor that depends on the ones before it. ``phi`` is the regressor
+    matrix, or its triangular factor R (the same least squares, so the same partners)."""
+    partners = dependent_partners(phi, col, names)
+    return IdentifiabilityError(
+        f"regressor {names[col]} is a linear combination of {', '.join(partners) or 'the regressors before it'} "
+        f"on these data (collinear regressors): remove one of them, lower the orders, or use data that excite them "
+        f"independently",
+        tuple(partners) + (names[col],),
+    )
+
+
+def solve_factor(r: np.ndarray, n_rows: int, usable: int, na: int, layout: EffectLayout, names: list[str]) -> Any:
+    """The fit from the triangular factor R of ``[Φ | y]`` over logs kept elsewhere, as :func:`solve`
+    gives it (``theta``, ``rss``, ``n_rows``, ``n_skipped``, ``inv_gram``)."""
+    if n_rows < r.shape[0]:
+        raise DataError(
+            f"too few complete regression rows on these logs: {r.shape[0] - 1} parameters need at least "
+            f"{r.shape[0]}, the logs have {n_rows} without missing samples; lower na/nb/nk or use more data"
+        )
+    orders = (na, list(layout.nb), list(layout.nk))
+    try:
+        out = _core.fit_from_factor(r, n_rows, orders, orders, list(layout.output_terms))
+    except IdentifiabilityError as exc:
+        if getattr(exc, "column", None) is None:
+            raise
+        raise collinear(exc.column, r[:, :-1], names) from None  # type: ignore[attr-defined]
+    return types.SimpleNamespace(
+        theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows, inv_gram=out.inv_gram
+    )
