@@ -42,8 +42,9 @@ from .exceptions import (
     OrderError,
 )
 from .models.arx_model import ArxModel, arx
-from .models.pem import RefinedSweep, armax, bj, delayest, oe, polyest, refine
+from .models.pem import armax, bj, delayest, oe, polyest
 from .models.polynomial import PolynomialModel
+from .selection.refine import RefinedSweep, refine
 from .selection.search import DEFAULT_GRID, SweepResult, sweep
 
 __all__ = [
