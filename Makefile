@@ -108,9 +108,9 @@ docs: develop $(VENV)/.extra-docs
 bench-pem: develop
 	$(PY) benches/pem_vs_sippy.py
 
-# Python: lint, format, and the stub of the compiled core against the built module (hence
-# `develop`). Rust: format and clippy (--release: it shares target/release with `make test`'s
-# builds, but only their build scripts; its metadata-only check artifacts are its own, about a
+# Python: lint, format, the stub of the compiled core against the built module (hence `develop`),
+# and the layers (import-linter's contracts in pyproject.toml, docs/architecture.md). Rust: format
+# and clippy (--release: it shares target/release with `make test`'s builds, but only their build scripts; its metadata-only check artifacts are its own, about a
 # minute from clean, seconds when warm). Every step runs, in this order; lint fails at the end if
 # any step failed, naming them.
 LINT_STEPS = \
@@ -118,6 +118,7 @@ LINT_STEPS = \
 	"$(PY) -m ruff format --check python tests benches examples docs/gallery" \
 	"$(PY) -m mypy" \
 	"$(PY) -m mypy.stubtest arxid._base._core" \
+	"$(VENV)/bin/lint-imports --no-cache" \
 	"cargo fmt --check" \
 	"env $(MATURIN_PYO3_ENV) cargo clippy --release --all-targets --features python -- -D warnings"
 

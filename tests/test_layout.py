@@ -39,6 +39,8 @@ Nothing here imports arxid, so the rules hold whatever state the modules are in.
     Every cycle is reported as its strongly connected component with each import statement
     (file:line) that forms one of its edges.
 
+(e) No module over :data:`MAX_MODULE_LINES` lines.
+
 (f) At most :data:`MAX_TOP_ENTRIES` entries directly in ``python/arxid/``: the layers live in
     subpackages (docs/architecture.md; the import-linter contracts in pyproject.toml enforce them).
 """
@@ -54,6 +56,7 @@ import pytest
 PKG_DIR = Path(__file__).resolve().parents[1] / "python" / "arxid"
 PKG = "arxid"
 MAX_FUNCTION_LINES = 80
+MAX_MODULE_LINES = 700
 #: Entries directly in ``python/arxid/`` (files and folders, the compiled core and caches excluded).
 MAX_TOP_ENTRIES = 14
 
@@ -295,8 +298,6 @@ def import_graph() -> dict[str, dict[str, list[str]]]:
         src = module_name(path)
         mine = own_packages(path)
         for site in import_sites(path, tree):
-            if site.type_checking:
-                continue
             for target in imported_modules(site):
                 deps = [target] + [a for a in ancestors(target) if a not in mine]
                 for dep in deps:
@@ -363,6 +364,14 @@ def import_cycles() -> list[str]:
                     lines += [f"    {w}: {src} imports {dst}" for w in where]
         msgs.append("\n".join(lines))
     return msgs
+
+
+def test_modules_are_at_most_700_lines():
+    """(e) No module longer than :data:`MAX_MODULE_LINES` lines: a longer one holds more than one concept."""
+    long = {
+        rel(p): n for p in source_files() if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
+    }
+    assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by responsibility): {long}"
 
 
 def test_the_package_root_shows_the_architecture():

@@ -5,18 +5,18 @@ A Rust core (faer) fits ARX models by Householder QR and sweeps every (na, nb, n
 single factorization; this package prepares data, checks models, diagnoses them and exports them to
 python-control and scipy.
 
-The map (one module per concept):
+The map (one subpackage per layer, top to bottom; docs/architecture.md has the rules):
 
-* :mod:`arxid.data` — :class:`IOData`; :mod:`arxid.effects` — the physical-term grammar;
-* :mod:`arxid.model` — :func:`arx`, :class:`ArxModel`; :mod:`arxid.polynomial` — :class:`PolynomialModel`;
-* :mod:`arxid.pem` — :func:`oe`, :func:`armax`, :func:`bj`, :func:`delayest`, :func:`refine`;
-  :mod:`arxid.convert` — python-control, scipy, d2c;
-* :mod:`arxid.orders` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`;
-* :mod:`arxid.validation` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`;
-* :mod:`arxid.frequency` — :func:`frequency_check`; :mod:`arxid.uncertainty` — confidence bands;
-* :mod:`arxid.missing` — :func:`diagnose`, :class:`Diagnosis`; :mod:`arxid.ladder` — :class:`Ladder`;
 * :mod:`arxid.analysis` — :func:`analyse`, the one pipeline behind the CLI, the report and the demo;
-* :mod:`arxid.report`, :mod:`arxid.plots`, :mod:`arxid.cli`, :mod:`arxid.quadrotor`, :mod:`arxid.datasets`.
+* :mod:`arxid.diagnosis` — :func:`diagnose`, :class:`Diagnosis`, :class:`Ladder`;
+* :mod:`arxid.selection` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`, :func:`refine`;
+* :mod:`arxid.checks` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`,
+  :func:`frequency_check`, confidence bands; :mod:`arxid.fleet` — many logs, Dask;
+* :mod:`arxid.models` — :func:`arx`, :class:`ArxModel`, :class:`PolynomialModel`, :func:`oe`,
+  :func:`armax`, :func:`bj`, :func:`polyest`, :func:`delayest`, effects, conversion, model files;
+* :mod:`arxid.quadrotor` — mixer, motor, thrust, set membership, the simulators (``arxid.datasets``);
+  :mod:`arxid.plots`;
+* :mod:`arxid.data` — :class:`IOData`, CSV, logs; ``arxid._base`` — the compiled core and the metrics.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from . import fleet  # noqa: F401 - provides the models with their fits of many logs (client=, per_experiment=True)
+from . import fleet  # noqa: F401 - gives the models their fits of many logs (client=, per_experiment=True)
 from .analysis.pipeline import Analysis, analyse
 from .checks import FrequencyCheck, compare, frequency_check, residuals, where_it_fails
 from .data.iodata import IOData
@@ -42,8 +42,9 @@ from .exceptions import (
     OrderError,
 )
 from .models.arx_model import ArxModel, arx
-from .models.pem import RefinedSweep, armax, bj, delayest, oe, polyest, refine
+from .models.pem import armax, bj, delayest, oe, polyest
 from .models.polynomial import PolynomialModel
+from .selection.refine import RefinedSweep, refine
 from .selection.search import DEFAULT_GRID, SweepResult, sweep
 
 __all__ = [
