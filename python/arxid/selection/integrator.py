@@ -376,9 +376,12 @@ def _unit_root_numbers(t: np.ndarray, tau: np.ndarray, record: int) -> str:
     )
 
 
-def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, record: int) -> bool:
+def structure_integrates(
+    theta: np.ndarray, covariance: np.ndarray, na: int, record: int, free_run_fit: float | None = None
+) -> bool:
     """One structure's vote: its unit root is not rejected, or its slowest low-frequency pole is
-    too slow for the record (the rule of :func:`integrator_test`, applied to a single model).
+    too slow for the record (the rule of :func:`integrator_test`, applied to a single model), unless
+    its free run settles and follows validation data (:class:`SettlingEvidence`, one structure).
 
     Parameters
     ----------
@@ -390,6 +393,8 @@ def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, rec
         Number of a's.
     record : int
         Estimation rows.
+    free_run_fit : float, optional
+        The structure's free-run fit on validation data, percent (unknown when None).
 
     Returns
     -------
@@ -397,5 +402,9 @@ def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, rec
     """
     if na == 0:
         return False
+    tau = slowest_time_constant(theta, na)
     t = unit_root_t(theta, covariance, na)
-    return bool(not t > UNIT_ROOT_CRITICAL or slowest_time_constant(theta, na) > RECORD_SHARE * record)
+    votes = bool(not t > UNIT_ROOT_CRITICAL or tau > RECORD_SHARE * record)
+    if votes and free_run_fit is not None:
+        return not SettlingEvidence(("",), (tau,), (float(free_run_fit),), record).settles
+    return votes
