@@ -59,6 +59,10 @@ def test_readme_walk_through_names_the_battery_and_nothing_with_true_motor_speed
     assert any("vbat" in e for e in first["effects"]), command["ladder"]
     assert first["rms_sim_val"] < 0.9 * command["ladder"][0]["rms_sim_val"]
     assert command["sweep"]["integrating"] is False and command["sweep"]["horizon"] is None
+    if seed is None:  # the fall the README states, to the percent it prints
+        stated = float(re.search(r"error falls by (\d+) %", README.read_text(encoding="utf-8")).group(1))
+        fall = 100 * (1 - first["rms_sim_val"] / command["ladder"][0]["rms_sim_val"])
+        assert abs(fall - stated) < 1.0, (fall, stated)
 
     assert len(true_speeds["ladder"]) == 1, true_speeds["ladder"]  # nothing added
     assert not any(s["significant"] for s in true_speeds["suspects"])
