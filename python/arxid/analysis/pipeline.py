@@ -322,7 +322,7 @@ class Analysis:
             lines.append(f"  ({negative_fit_note(d.fit_val)})")
         lines += self.notes
         if self.residual_tests is not None:
-            lines += ["", "residual tests:"] + [f"  {t}" for t in residual_sentences(self.residual_tests)]
+            lines += ["", "residual tests:"] + [f"  {t}" for t in residual_sentences(self.residual_tests, d)]
             lines += ["", "details:", str(self.residual_tests)]
         lines += ["", *[f"frequency check of {f.model_name}: {f.summary}" for f in self.frequency]]
         lines += self._suspect_lines(n_suspects)

@@ -16,6 +16,7 @@ Examples
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -97,8 +98,14 @@ def _whiteness(rt: Any) -> str:
     )
 
 
+def _slow_p(rt: Any, name: str) -> float:
+    return float(getattr(rt, "low_frequency_p_values", {}).get(name, math.nan))
+
+
 def _independence(rt: Any, name: str) -> str:
     p = rt.cross_p_values.get(name, math.nan)
+    slow = _slow_p(rt, name)
+    block = getattr(rt, "low_frequency_block", 0)
     out = rt.cross_outside(name)
     if not math.isfinite(p):
         return f"Whether the residuals depend on {name} could not be tested (no numbers where the residual exists)."
@@ -106,11 +113,25 @@ def _independence(rt: Any, name: str) -> str:
         lead = [int(k) for k in out if k >= 0]
         lag = [int(k) for k in out if k < 0]
         where = f" at lags {lag_ranges(lead)}" if lead else ""
-        text = f"The residuals still depend on {name}{where} (p = {p:.2g}): the model misses something driven by {name}"
+        also = ""
+        if math.isfinite(slow):
+            also = f"; {'slowly too, ' if slow < rt.alpha else ''}low-frequency p = {slow:.2g}"
+        text = (
+            f"The residuals still depend on {name}{where} (p = {p:.2g}{also}): the model misses something driven "
+            f"by {name}"
+        )
         if lag and not lead:
             text += f", or {name} responds to the output (feedback: only negative lags {lag_ranges(lag)})"
         return text + "."
-    text = f"The residuals do not depend on {name} (p = {p:.2g} on the prewhitened signals)"
+    if math.isfinite(slow) and slow < rt.alpha:
+        return (
+            f"The residuals drift with {name} (low-frequency test on {block}-sample means: p = {slow:.2g}): their "
+            f"slow changes follow {name}, as when an effect of {name} builds up over the record. The prewhitened "
+            f"test (p = {p:.2g}) cannot see it: prewhitening turns a slow signal into its sample-to-sample changes "
+            "and discounts a drift."
+        )
+    tail = f", p = {slow:.2g} on {block}-sample means" if math.isfinite(slow) else ""
+    text = f"The residuals do not depend on {name} (p = {p:.2g} on the prewhitened signals{tail})"
     if len(out):
         text += (
             f"; the raw correlation leaves its 99 % band at {len(out)} of {len(rt.cross_lags)} lags only "
@@ -119,18 +140,45 @@ def _independence(rt: Any, name: str) -> str:
     return text + "."
 
 
-def residual_sentences(rt: Any) -> list[str]:
+def _signals_of(effect: str, names: Sequence[str]) -> list[str]:
+    """The signals of ``names`` an effect string is built from (``collective*vbat`` → collective, vbat)."""
+    words = set(re.findall(r"[A-Za-z_]\w*", effect))
+    return [n for n in names if n in words]
+
+
+def _named_but_unseen(rt: Any, diagnosis: Any) -> list[str]:
+    """A sentence for each logged signal a significant suspect uses that neither residual test sees."""
+    extra = set(getattr(diagnosis.validation, "extra", {}) or {})
+    out = []
+    for s in diagnosis.significant:
+        for name in _signals_of(s.effect, [n for n in rt.cross_correlation if n in extra]):
+            p, slow = rt.cross_p_values.get(name, math.nan), _slow_p(rt, name)
+            if (math.isfinite(p) and p < rt.alpha) or (math.isfinite(slow) and slow < rt.alpha):
+                continue
+            out.append(
+                f"The diagnosis names {s.effect} although neither residual test sees {name} in this record: its "
+                f"evidence is the validation error, which falls {100 * s.improvement:.0f} % when {s.effect} is "
+                f"added (a residual test on one record cannot tell a slow effect of {name} from other slow drift)."
+            )
+    return out
+
+
+def residual_sentences(rt: Any, diagnosis: Any = None) -> list[str]:
     """One sentence per residual test: whiteness, then independence of each signal.
 
     Parameters
     ----------
     rt : ResidualAnalysis
+    diagnosis : Diagnosis, optional
+        When given, a sentence follows for each logged signal a significant suspect uses that no
+        residual test sees, saying what the diagnosis rests on instead.
 
     Returns
     -------
     list of str
     """
-    return [_whiteness(rt)] + [_independence(rt, name) for name in rt.cross_correlation]
+    lines = [_whiteness(rt)] + [_independence(rt, name) for name in rt.cross_correlation]
+    return lines + (_named_but_unseen(rt, diagnosis) if diagnosis is not None else [])
 
 
 def ladder_headline(ladder: Any) -> str:

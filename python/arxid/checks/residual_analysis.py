@@ -2,9 +2,11 @@
 input and logged signal?
 
 :func:`residuals` returns a :class:`ResidualAnalysis`: autocorrelation and cross-correlations with
-99% bounds, the Ljung–Box test of whiteness and Haugh's test of independence on prewhitened series.
-A residual correlated with a signal tells *that* the model misses something; :func:`arxid.diagnose`
-tells *which effect*.
+99% bounds, the Ljung–Box test of whiteness, Haugh's test of independence on prewhitened series, and
+a low-frequency test per signal on block means (a slow drift that follows a signal, such as a
+draining battery, is what prewhitening removes, so the prewhitened test cannot see it). A residual
+correlated with a signal tells *that* the model misses something; :func:`arxid.diagnose` tells
+*which effect*.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
 from .comparison import prediction_error
 
-__all__ = ["residuals", "ResidualAnalysis"]
+__all__ = ["residuals", "ResidualAnalysis", "low_frequency_test"]
 
 #: Two-sided 99% point of the standard normal distribution.
 Z99 = 2.5758293035489004
@@ -101,6 +103,84 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     return out
 
 
+def _block_means(x: np.ndarray, segments, block: int) -> np.ndarray:
+    """Means of ``block`` consecutive samples inside each experiment (NaN for a block with fewer
+    than half its samples finite); a last partial block of an experiment is dropped."""
+    out = []
+    for lo, hi in segments:
+        m = (hi - lo) // block
+        if m == 0:
+            continue
+        b = x[lo : lo + m * block].reshape(m, block)
+        ok = np.isfinite(b)
+        count = ok.sum(axis=1)
+        total = np.where(ok, b, 0.0).sum(axis=1)
+        out.append(np.where(count >= max(block // 2, 1), total / np.maximum(count, 1), np.nan))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def _autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
+    """Biased sample autocorrelation of a centred series at lags 0..max_lag."""
+    full = np.correlate(x, x, mode="full")[len(x) - 1 : len(x) + max_lag]
+    return full / full[0] if full[0] > 0 else np.zeros(max_lag + 1)
+
+
+#: Fewest block means the low-frequency test needs.
+MIN_BLOCKS = 16
+
+
+def low_frequency_test(e: np.ndarray, s: np.ndarray, segments, block: int) -> float:
+    """p-value of the low-frequency dependence of ``e`` on ``s`` (NaN when there are too few blocks).
+
+    Both series become means over blocks of ``block`` samples (a low-pass filter and decimation:
+    what changes within a block is averaged out), and the block means of the residual are regressed
+    on those of the signal. The slope's t statistic uses a long-run variance that allows for the
+    colour of both series: Bartlett weights over half the blocks (b = 1/2) of the products of the
+    autocorrelations of the signal and of the regression's remainder; its p-value is read from a
+    Student t with ν = 3 / (2b) = 3 degrees of freedom, the fixed-b approximation of Kiefer and
+    Vogelsang (2005), which keeps the level near nominal for slowly drifting residuals and signals
+    (a t with M − 2 degrees of freedom would flag an unrelated drift far more often than ``alpha``).
+
+    Parameters
+    ----------
+    e : ndarray
+        The residual (NaN where it does not exist).
+    s : ndarray
+        The signal, same length.
+    segments : sequence of (int, int)
+        The experiments' sample ranges; blocks stay inside one.
+    block : int
+        Samples per block.
+
+    Returns
+    -------
+    float
+    """
+    from scipy import stats
+
+    eb, sb = _block_means(e, segments, block), _block_means(np.asarray(s, dtype=float), segments, block)
+    ok = np.isfinite(eb) & np.isfinite(sb)
+    eb, sb = eb[ok], sb[ok]
+    m = len(eb)
+    if m < MIN_BLOCKS:
+        return math.nan
+    ec, sc = eb - eb.mean(), sb - sb.mean()
+    sxx = float(np.dot(sc, sc))
+    if sxx <= 1e-300 * max(float(np.dot(sb, sb)), 1e-300) or not np.any(ec):
+        return math.nan if sxx <= 0 else 1.0
+    beta = float(np.dot(ec, sc)) / sxx
+    rest = ec - beta * sc
+    bandwidth = m // 2
+    weights = 1.0 - np.arange(1, bandwidth + 1) / (bandwidth + 1)
+    v = 1.0 + 2.0 * float(np.sum(weights * _autocorrelation(rest, bandwidth)[1:] * _autocorrelation(sc, bandwidth)[1:]))
+    v = max(v, 1.0 / bandwidth)
+    noise = float(np.dot(rest, rest)) / m
+    if noise <= 0:
+        return 0.0
+    t = beta * math.sqrt(sxx) / math.sqrt(noise * v)
+    return float(2.0 * stats.t.sf(abs(t), 1.5 * m / (bandwidth + 1)))
+
+
 @dataclass(frozen=True, eq=False)
 class ResidualAnalysis:
     """Whiteness and independence tests of a model's one-step residual (MATLAB ``resid``).
@@ -141,6 +221,15 @@ class ResidualAnalysis:
         False for an output-error model: it has no noise model, so its residual is the output noise
         itself, white only if that noise is. MATLAB's ``resid`` draws the same test; what judges an
         OE model is the residual's independence of the inputs.
+    low_frequency_p_values : dict of str to float
+        Low-frequency test of dependence per signal (:func:`low_frequency_test`): the residual's
+        means over blocks of ``low_frequency_block`` samples against the signal's. It sees a slow
+        drift that follows a signal (a battery that drains, a temperature), which the prewhitened
+        test discounts: prewhitening turns a slow signal into its tiny sample-to-sample changes.
+        NaN when the record has too few blocks.
+    low_frequency_block : int
+        Samples per block of the low-frequency test (= the largest lag L: it sees what is slower
+        than the lag window of the correlation tests).
     """
 
     residual: np.ndarray
@@ -158,6 +247,8 @@ class ResidualAnalysis:
     alpha: float = 0.01
     model_name: str = ""
     whiteness_expected: bool = True
+    low_frequency_p_values: dict = field(default_factory=dict)
+    low_frequency_block: int = 0
 
     @property
     def whiteness_text(self) -> str:
@@ -205,6 +296,26 @@ class ResidualAnalysis:
         """
         return {k: bool(p >= self.alpha) for k, p in self.cross_p_values.items() if math.isfinite(p)}
 
+    @property
+    def independent_low_frequency(self) -> dict[str, bool]:
+        """Per signal: True when the low-frequency test does not reject at ``alpha`` (untested left out)."""
+        return {k: bool(p >= self.alpha) for k, p in self.low_frequency_p_values.items() if math.isfinite(p)}
+
+    def slow_only(self, name: str) -> bool:
+        """True when only the low-frequency test sees ``name``: the residual drifts with it slowly,
+        and the prewhitened test does not reject.
+
+        Parameters
+        ----------
+        name : str
+            An input or extra signal.
+
+        Returns
+        -------
+        bool
+        """
+        return self.independent.get(name, False) and not self.independent_low_frequency.get(name, True)
+
     def to_dict(self) -> dict:
         """JSON-ready summary of the tests: Ljung–Box, autocorrelation and per-signal cross-correlation.
 
@@ -213,7 +324,8 @@ class ResidualAnalysis:
         dict
             ``n_samples``, ``max_lag``, ``ljung_box`` (statistic, dof, p-value, white),
             ``autocorrelation`` (bound, lags outside) and ``cross_correlation`` per signal (largest
-            value and its lag, bound, lags outside, p-value, independent); NaN becomes None.
+            value and its lag, bound, lags outside, p-value, independent, and the low-frequency
+            test's ``p_value_low_frequency`` and ``independent_low_frequency``); NaN becomes None.
         """
         cross = {}
         for k, r in self.cross_correlation.items():
@@ -225,6 +337,8 @@ class ResidualAnalysis:
                 "lags_outside": [int(x) for x in self.cross_outside(k)],
                 "p_value": finite_or_none(float(self.cross_p_values[k])),
                 "independent": self.independent.get(k),
+                "p_value_low_frequency": finite_or_none(float(self.low_frequency_p_values.get(k, math.nan))),
+                "independent_low_frequency": self.independent_low_frequency.get(k),
             }
         return {
             "n_samples": int(self.n_samples),
@@ -241,6 +355,7 @@ class ResidualAnalysis:
                 "lags_outside": [int(x) for x in self.autocorrelation_outside],
             },
             "cross_correlation": cross,
+            "low_frequency_block": int(self.low_frequency_block),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -301,16 +416,37 @@ class ResidualAnalysis:
                     self.cross_bounds[k],
                     len(o),
                     p,
-                    "untested (no data)" if not math.isfinite(p) else "yes" if p >= self.alpha else "NO",
+                    self.low_frequency_p_values.get(k, math.nan),
+                    self.verdict(k),
                 )
             )
         if rows:
+            head = ["signal", "max corr", "at lag", "bound", "lags outside", "p-value", "low-freq. p", "independent"]
+            lines.append(text_table(head, rows, digits=3))
             lines.append(
-                text_table(
-                    ["signal", "max corr", "at lag", "bound", "lags outside", "p-value", "independent"], rows, digits=3
-                )
+                f"  p-value: prewhitened series (Haugh); low-freq. p: means over {self.low_frequency_block} samples "
+                "(sees a slow drift that prewhitening removes)"
             )
         return "\n".join(lines)
+
+    def verdict(self, name: str) -> str:
+        """The table's verdict for ``name``: ``yes``, ``NO``, ``NO (slowly)`` (only the low-frequency
+        test rejects) or ``untested (no data)``.
+
+        Parameters
+        ----------
+        name : str
+            An input or extra signal.
+
+        Returns
+        -------
+        str
+        """
+        if name not in self.independent:
+            return "untested (no data)"
+        if not self.independent[name]:
+            return "NO"
+        return "NO (slowly)" if self.slow_only(name) else "yes"
 
     def plot(self, axes: Any = None) -> Any:
         """Autocorrelation and cross-correlations with their 99% bands (MATLAB ``resid`` style).
@@ -365,6 +501,12 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     For an output-error model the one-step residual is the free-run error (it has no noise model):
     its whiteness is reported but not expected (``whiteness_expected`` is False), and its
     independence of the inputs is the test of the model, as in MATLAB's ``resid``.
+
+    Each signal has two tests of independence: the prewhitened cross-correlations at lags −L..L
+    (``cross_p_values``), which see a dependence within L samples, and the low-frequency test on
+    means over L samples (``low_frequency_p_values``), which sees a slow drift that follows the
+    signal. ``independent`` is the first test's verdict; :meth:`ResidualAnalysis.verdict` combines
+    both.
     """
     model = check_model(model)
     data = check_data(data)
@@ -386,7 +528,7 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     auto_full = np.concatenate([auto[:0:-1], auto])  # ρ_ee(k) for k = -L..L
     from scipy import stats
 
-    cross, bounds, pvals = {}, {}, {}
+    cross, bounds, pvals, slow = {}, {}, {}, {}
     signals = [(name, data.u[:, i]) for i, name in enumerate(data.input_names)] + list(data.extra.items())
     order = min(max_lag, 10)
     ew = _prewhiten(e, segs, order)
@@ -396,8 +538,9 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
         both = ok & np.isfinite(s)
         if int(both.sum()) <= max_lag + 1 or np.ptp(s[both]) == 0:
             cross[name] = np.full(len(cl), np.nan)
-            bounds[name] = pvals[name] = math.nan
+            bounds[name] = pvals[name] = slow[name] = math.nan
             continue
+        slow[name] = low_frequency_test(e, np.where(ok, s, np.nan), segs, max_lag)
         cross[name] = _correlation(ec, sc, cl, segs)
         ss = _correlation(sc, sc, lags, segs)
         ss_full = np.concatenate([ss[:0:-1], ss])
@@ -421,6 +564,7 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     if _at_round_off(e[ok], data.y[ok]):
         # Nothing left to explain: the correlations of rounding errors say nothing about the model.
         p, pvals = 1.0, {k: (1.0 if math.isfinite(v) else v) for k, v in pvals.items()}
+        slow = {k: (1.0 if math.isfinite(v) else v) for k, v in slow.items()}
     expected = not (isinstance(model, PolynomialModel) and model.kind == "OE")
     return ResidualAnalysis(
         e,
@@ -438,4 +582,6 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
         alpha,
         model.structure_name(),
         expected,
+        slow,
+        max_lag,
     )

@@ -1,10 +1,12 @@
 """The validated refits (steps 3 and 4 of the procedure in :mod:`arxid.diagnosis.suspects`): the
-best candidates refitted and judged by the validation error, a suspect below the best one kept only
-if it still helps once the best one is in the model, and a pair only if it beats its single."""
+best candidates refitted and judged by the validation error, an effect kept only if it beats the
+simple explanations (an offset, a trend), a suspect below the best one kept only if it still helps
+once the best one is in the model, and a pair only if it beats its single."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 
 from ..data.iodata import IOData
@@ -14,11 +16,17 @@ from ..models.polynomial import PolynomialModel
 from .extension import Candidate, refit_and_validate
 from .result import Suspect
 
-__all__ = ["Judge", "demote_pairs", "TIE_SHARE"]
+__all__ = ["Judge", "demote_pairs", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
 
 #: Validation errors within this share of the lowest count as a tie between suspects of a
 #: polynomial model (the one adding fewer parameters is then the best).
 TIE_SHARE = 0.01
+
+#: The simple explanations, simplest first, that every other effect must beat before it is named:
+#: an offset, then a trend (see :meth:`Judge.simplest_first`).
+SIMPLE_EXPLANATIONS = ("const", "time")
+
+_IN_WORDS = {"const": "an offset (const)", "time": "a slow trend (time)"}
 
 
 class Judge:
@@ -82,6 +90,64 @@ class Judge:
             note,
             fitted,
         )
+
+    def simplest_first(self, suspects: list[Suspect], simple: Sequence[str] = SIMPLE_EXPLANATIONS) -> list[Suspect]:
+        """Keep an effect significant only when it beats the simpler explanations by ``min_improvement``.
+
+        An offset and a trend explain much of what a slow unlogged disturbance does to the output: a
+        logged signal that barely moves (a temperature near 25 °C), or a term whose mean shifts the
+        output (|y|, y², an effect paired with an offset), lowers the validation error about as much
+        as a constant does, and is then no physical effect. Each significant effect or pair is
+        compared with the explanations before it in ``simple`` (``time`` with ``const``, every other
+        effect with both), each refitted and judged on the validation data like any candidate. Its
+        validation error must be at most (1 − ``min_improvement``) times the lower of theirs: the same
+        margin an effect needs against the model itself, with the simple explanation as the model.
+        Else it is "no better than" that explanation, which is named instead when it is significant.
+        Structure changes are not compared (they add no signal).
+        """
+        simple = [n for n in simple if n not in self.model.effects]
+        judged = [s for s in suspects if s.significant and s.kind != "dynamics" and s.effect not in simple[:1]]
+        if not simple or not judged:
+            return suspects
+        refs = self._references(suspects, simple)
+        return [self._against_simple(s, simple, refs) for s in suspects]
+
+    def _references(self, suspects: list[Suspect], simple: Sequence[str]) -> dict[str, float]:
+        """Validation error of the model refitted with each simple explanation (from its suspect when
+        it was refitted, else refitted here)."""
+        by_label = {s.effect: s for s in suspects}
+        refs = {}
+        for name in simple:
+            s = by_label.get(name)
+            after = s.rms_sim_val_after if s is not None and s.refitted else math.nan
+            if s is None or not s.refitted:
+                m = self.model
+                try:
+                    c = Candidate(name, (name,), m.na_, m.nb_, m.nk_, "effect")
+                    after = refit_and_validate(m, self.data, self.validation, c, self.horizon)[1]
+                except ArxidError:
+                    after = math.nan
+            if math.isfinite(after):
+                refs[name] = after
+        return refs
+
+    def _against_simple(self, s: Suspect, simple: Sequence[str], refs: dict[str, float]) -> Suspect:
+        if not s.significant or s.kind == "dynamics" or not math.isfinite(s.rms_sim_val_after):
+            return s
+        before = simple[: simple.index(s.effect)] if s.effect in simple else simple
+        rivals = [(refs[n], n) for n in before if n in refs]
+        if not rivals:
+            return s
+        best, name = min(rivals)
+        if s.rms_sim_val_after <= (1.0 - self.min_improvement) * best:
+            return s
+        gain = 1.0 - s.rms_sim_val_after / best if best > 0 else 0.0
+        how = f"only {100 * gain:.1f} % below" if gain >= 0 else f"{-100 * gain:.1f} % above"
+        note = (
+            f"no better than {_IN_WORDS.get(name, name)}: validation error {how} the refit with {name} "
+            f"(needs {100 * self.min_improvement:.0f} % below)"
+        )
+        return replace(s, significant=False, note=note, explained_by=name)
 
     def conditional_on_top(self, suspects: list[Suspect]) -> list[Suspect]:
         """Keep a suspect significant only if it still helps once the best suspect is in the model.

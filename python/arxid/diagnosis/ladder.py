@@ -314,7 +314,9 @@ class Ladder:
 
     @property
     def unexplained(self) -> str:
-        """The last diagnosis's sentence for a nonlinear dependence no candidate removes (``""`` if none)."""
+        """The last diagnosis's sentence for what no candidate explains: an unlogged disturbance with
+        its low-frequency share of the error, a nonlinear dependence (``""`` if none, or while a
+        suspect is still significant)."""
         return self.diagnoses[-1].unexplained if self.diagnoses else ""
 
     def __repr__(self) -> str:
@@ -338,7 +340,8 @@ class Ladder:
         -------
         dict
             ``{"horizon": int or None, "steps": [...]}``, the steps as in :meth:`to_list`, and for a
-            ladder built by :meth:`run` ``nonlinear_dependence`` of its last diagnosis.
+            ladder built by :meth:`run` ``nonlinear_dependence`` of its last diagnosis (what it leaves
+            unexplained, with the remaining disturbance).
         """
         out: dict = {"horizon": self.horizon, "steps": self.to_list(), "error_fall": self.error_fall()}
         if self.diagnoses:

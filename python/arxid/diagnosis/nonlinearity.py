@@ -7,13 +7,23 @@ nonlinearity of an unusual shape). This test says so, and where.
 For each signal (the output and each input) and each lag near the model's own, a block of nonlinear
 functions of the standardised signal s = (x − mean) / std at that lag — s², s³, |s| and sign(s) for
 a signal that changes sign, and the sign of its first difference — is tested against the model's
-regressors **plus** the signal's plain lags (so a missing linear lag is not mistaken for a
-nonlinearity) by the added-variable F-test (:mod:`arxid.added_variable`). The p-values of all
+regressors **plus** the signal's plain lags, from the first tested lag to ``LINEAR_CONTEXT`` beyond
+the deepest (so a missing linear lag is not mistaken for a nonlinearity: a linear misfit at deeper
+lags of a held input shows in the sign of its difference at the last tested lag) by the
+added-variable F-test (:mod:`arxid.added_variable`). The p-values of all
 blocks are Holm-corrected together; a signal is named when one of its lags passes ``alpha``.
+
+The F-test assumes a white remainder. An unlogged slow disturbance (gusts, a drifting load) leaves a
+coloured one, and then every function of the output that follows the disturbance's level looks
+significant. So the regression is first prewhitened (Cochrane–Orcutt): an AR model of the base
+fit's remainder (order by AIC, at most ``MAX_NOISE_ORDER``) filters the output, the regressors and
+the tested blocks alike, and the tests run on the filtered rows (rows whose previous samples are
+missing are left out). A white remainder gives order 0 and the plain test.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +39,10 @@ __all__ = ["NonlinearDependence", "nonlinear_dependence", "dependence_sentence"]
 
 #: Largest number of lags tested per signal.
 MAX_LAGS = 3
+#: Plain lags beyond the deepest tested one that stay in the regression.
+LINEAR_CONTEXT = 3
+#: Largest order of the AR model that prewhitens the regression.
+MAX_NOISE_ORDER = 10
 
 
 @dataclass(frozen=True)
@@ -111,16 +125,17 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     """
     layout = compile_effects(model.effects, data, model.nb_, model.nk_)
     plan = _plan(model, data)
-    deepest = max((max(lags) for _, _, lags in plan if lags), default=0) + 1
+    deepest = max((max(lags) for _, _, lags in plan if lags), default=0) + LINEAR_CONTEXT
     first = max(model.first_lag_, max_lag(model.na_, layout), deepest)
     phi, y, rows = regressor_matrix(data, model.na_, layout, first)
-    linear = [x[rows - lag] for _, x, lags in plan for lag in lags]
+    linear = [x[rows - lag] for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
     blocks = [(name, lag, _features(x, rows, lag, changes_sign(x))) for name, x, lags in plan for lag in lags]
     ok = np.isfinite(np.column_stack(linear + [b for _, _, b in blocks])).all(axis=1) if blocks else None
     if ok is None or ok.sum() <= phi.shape[1] + len(linear) + 10:
         return ()
-    base = AddedVariableTest(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok])
-    tested = [(name, lag, res) for name, lag, b in blocks if (res := base.test(b[ok])[0]) is not None]
+    whiten = _prewhitening(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok], rows[ok])
+    base = AddedVariableTest(*whiten(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok]))
+    tested = [(name, lag, res) for name, lag, b in blocks if (res := base.test(whiten(b[ok])[0])[0]) is not None]
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))
@@ -135,6 +150,52 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
         for name, hits in found.items()
     ]
     return tuple(sorted(out, key=lambda d: d.p_value))
+
+
+def _previous_rows(rows: np.ndarray, order: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The positions in ``rows`` (ascending sample numbers) whose ``order`` previous samples are rows
+    too, and for each lag j = 1..order the positions of those previous samples."""
+    have = np.ones(len(rows), dtype=bool)
+    at = []
+    for j in range(1, order + 1):
+        pos = np.searchsorted(rows, rows - j)
+        have &= (pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == rows - j)
+        at.append(pos)
+    use = np.flatnonzero(have)
+    return use, [pos[use] for pos in at]
+
+
+def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
+    """The Cochrane–Orcutt filter of the regression of ``y`` on ``x``: ``whiten(z, y=None)`` returns
+    ``(A(q) z, A(q) y)`` on the rows whose previous samples are rows too, A the AR model of the
+    least-squares remainder (order by AIC up to ``MAX_NOISE_ORDER``; identity for a white one)."""
+
+    def identity(z: np.ndarray, yy: np.ndarray | None = None):
+        return z, yy
+
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    r = y - x @ coef
+    keep, prev = _previous_rows(rows, MAX_NOISE_ORDER)
+    if keep.size <= 4 * MAX_NOISE_ORDER + 10:
+        return identity
+    past, now = np.column_stack([r[p] for p in prev]), r[keep]
+    best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
+    for p in range(1, MAX_NOISE_ORDER + 1):
+        c, *_ = np.linalg.lstsq(past[:, :p], now, rcond=None)
+        ic = math.log(max(float(np.mean((now - past[:, :p] @ c) ** 2)), 1e-300)) + 2.0 * p / len(now)
+        if ic < best_ic:
+            best_ic, a = ic, c
+    if a.size == 0:
+        return identity
+    use, prev = _previous_rows(rows, a.size)
+
+    def whiten(z: np.ndarray, yy: np.ndarray | None = None):
+        def f(v: np.ndarray) -> np.ndarray:
+            return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
+
+        return f(z), (None if yy is None else f(yy))
+
+    return whiten
 
 
 def dependence_sentence(found: tuple[NonlinearDependence, ...]) -> str:

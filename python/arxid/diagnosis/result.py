@@ -18,6 +18,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
+from .disturbance import Disturbance
 from .extension import refit
 from .nonlinearity import NonlinearDependence, dependence_sentence
 
@@ -152,6 +153,10 @@ class Diagnosis:
     nonlinear_dependence : tuple of NonlinearDependence
         Signals and lags on which the model's residual still depends nonlinearly
         (:func:`arxid.nonlinearity.nonlinear_dependence`, on the estimation data).
+    disturbance : Disturbance or None
+        The validation error split at the model's slowest mode, and whether the residual is white
+        (:func:`~arxid.diagnosis.disturbance.remaining_disturbance`); None when the residual tests
+        could not be run.
     """
 
     model: ArxModel
@@ -168,12 +173,28 @@ class Diagnosis:
     n_tested: int = 0
     validation_is_estimation: bool = False
     nonlinear_dependence: tuple[NonlinearDependence, ...] = ()
+    disturbance: Disturbance | None = None
 
     @property
     def unexplained(self) -> str:
-        """The sentence for a nonlinear dependence no candidate removes (``""`` when there is a
-        significant suspect, or no such dependence)."""
-        return "" if self.significant else dependence_sentence(self.nonlinear_dependence)
+        """What no candidate explains, in plain words (``""`` when there is a significant suspect).
+
+        A nonlinear dependence on an input that no candidate removes comes alone: it is the more
+        specific finding, and what it leaves (a backlash's held output) is slow as well. Otherwise an
+        unlogged disturbance when one dominates what remains (with the low-frequency share of the
+        validation error, :attr:`Disturbance.sentence`), then a nonlinear dependence on the output,
+        which such a disturbance causes too (it moves the output); ``""`` when nothing is found.
+        """
+        if self.significant:
+            return ""
+        nonlinear = dependence_sentence(self.nonlinear_dependence)
+        inputs = set(self.data.input_names)
+        if any(d.signal in inputs for d in self.nonlinear_dependence) or self.disturbance is None:
+            return nonlinear
+        disturbance = self.disturbance.sentence
+        if disturbance and nonlinear:
+            return f"{disturbance}; {nonlinear} (a disturbance that moves the output can cause this too)"
+        return disturbance or nonlinear
 
     @property
     def significant(self) -> tuple[Suspect, ...]:
@@ -342,8 +363,9 @@ class Diagnosis:
 
         Keys ``model`` (na, nb, nk, effects), ``baseline`` (rms_sim_val, rms_pred_val, fit_val,
         horizon), ``residual_tests``, ``suspects`` (effect, score, p_value, significant,
-        rms_sim_val_after) and ``ladder`` (effects, rms_sim_val); without ``ladder`` the ladder holds
-        the diagnosed model only.
+        rms_sim_val_after), ``ladder`` (effects, rms_sim_val) and ``nonlinear_dependence`` (what the
+        ladder's last diagnosis leaves unexplained, see :meth:`dependence_dict`); without ``ladder``
+        the ladder holds the diagnosed model only.
 
         Parameters
         ----------
@@ -356,6 +378,7 @@ class Diagnosis:
             JSON-ready; NaN and inf become None.
         """
         m = self.model
+        last = ladder.diagnoses[-1] if ladder and ladder.diagnoses else self
         if ladder is None:
             steps = [{"effects": list(m.effects), "rms_sim_val": finite_or_none(float(self.rms_sim_val))}]
         else:
@@ -378,19 +401,26 @@ class Diagnosis:
             "residual_tests": self.residual_tests.to_dict() if self.residual_tests is not None else {},
             "suspects": [{**s.to_dict(), "why": self.why(s)} for s in self.suspects],
             "ladder": steps,
-            "nonlinear_dependence": (ladder.diagnoses[-1] if ladder and ladder.diagnoses else self).dependence_dict(),
+            "nonlinear_dependence": last.dependence_dict(),
         }
 
     def dependence_dict(self) -> dict:
-        """``{"signals": [...], "unexplained": sentence}``: where the residual still depends nonlinearly.
+        """What no candidate explains: where the residual still depends nonlinearly, and the remaining
+        disturbance.
 
         Returns
         -------
         dict
             ``signals`` one dict per :class:`~arxid.nonlinearity.NonlinearDependence`;
-            ``unexplained`` the sentence of :attr:`unexplained`.
+            ``unexplained`` the sentence of :attr:`unexplained`; and, only when that sentence reports
+            an unlogged disturbance, ``disturbance``: its numbers (:meth:`Disturbance.to_dict`: the
+            low-frequency share of the validation error, the split frequency, the colour test).
         """
-        return {"signals": [d.to_dict() for d in self.nonlinear_dependence], "unexplained": self.unexplained}
+        sentence = self.unexplained
+        out: dict = {"signals": [d.to_dict() for d in self.nonlinear_dependence], "unexplained": sentence}
+        if self.disturbance is not None and self.disturbance.sentence and self.disturbance.sentence in sentence:
+            out["disturbance"] = self.disturbance.to_dict()
+        return out
 
     def to_json(self, indent: int | None = 2, ladder: LadderReport | None = None) -> str:
         """JSON of :meth:`to_dict` (the ``arxid diagnose --json`` output).

@@ -15,8 +15,14 @@ The procedure (see ``DESIGN.md``, *Diagnosing a missing effect*):
    validation error by at least ``min_improvement`` (5%), and — below the best suspect — only if it
    still lowers the error by that much once the best one is in the model (else it is "explained
    by" the best). With no missing effect, none is.
-5. Strong candidates are also tried together with ``const`` (asymmetric Coulomb friction is
+5. The simplest explanation first: an effect is named only when its validation error is at least
+   ``min_improvement`` below that of the model refitted with an offset (``const``) and with a trend
+   (``time``) — a logged signal that does no better than a constant is not a physical effect.
+6. Strong candidates are also tried together with ``const`` (asymmetric Coulomb friction is
    c·sign(v) plus an offset); the pair is reported as one suspect, ``sign(dy)+const``.
+7. When nothing is significant and the residuals are not white, the diagnosis says how much of the
+   remaining validation error is slower than the model's slowest mode: an unlogged disturbance
+   that no candidate explains (:mod:`~arxid.diagnosis.disturbance`).
 
 :func:`diagnose` runs these steps; they live in :mod:`~arxid.diagnosis.extension` (a candidate
 and the model refitted with it), :mod:`~arxid.diagnosis.scoring` (step 2 and the pairs, ARX) or
@@ -42,8 +48,9 @@ from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
 from .candidates import auto_candidates, output_integrates, physics
+from .disturbance import Disturbance, remaining_disturbance
 from .extension import Candidate, candidate_list
-from .judge import Judge, demote_pairs
+from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
 from .nonlinearity import NonlinearDependence, nonlinear_dependence
 from .polynomial_scoring import score_polynomial
 from .result import Diagnosis, Suspect
@@ -67,6 +74,7 @@ def diagnose(
     n_refit: int = 8,
     n_pairs: int = 8,
     residual_max_lag: int = 25,
+    simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
 ) -> Diagnosis:
     """Rank the physical effects (and structure changes) the model is missing.
 
@@ -98,6 +106,11 @@ def diagnose(
         no offset).
     residual_max_lag : int
         Largest lag of the residual tests reported in ``residual_tests``.
+    simple_explanations : sequence of str
+        Effects every other effect must beat before it is named, simplest first (default ``("const",
+        "time")``: an offset, then a trend): a suspect whose validation error is not at least
+        ``min_improvement`` below that of the model refitted with one of them is "no better than" it
+        (see :meth:`~arxid.diagnosis.judge.Judge.simplest_first`). ``()`` turns the comparison off.
 
     Returns
     -------
@@ -131,12 +144,13 @@ def diagnose(
     scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
     judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
-    suspects = demote_pairs(suspects, min_improvement)
+    suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
     suspects = judge.conditional_on_top(suspects)
     if scoring is not None and auto and not any(s.significant for s in suspects):
         # Two effects can hide each other: try the strongest candidate with its strongest partner.
         masked = scoring.masked_pairs(scored, alpha)
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
+        suspects = judge.simplest_first(suspects, simple_explanations)
     suspects += _unscored(notes, cands, suspects)
     suspects = sorted((replace(s, physics=physics(s.effect, data)) for s in suspects), key=_rank_key)
     return Diagnosis(
@@ -154,6 +168,7 @@ def diagnose(
         len(scored),
         same,
         () if polynomial else _dependence(model, data, alpha),
+        base.disturbance,
     )
 
 
@@ -192,6 +207,7 @@ class _Baseline:
     rms_one_step: float
     fit: float
     residual_tests: ResidualAnalysis | None
+    disturbance: Disturbance | None
 
 
 def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int) -> _Baseline:
@@ -212,7 +228,11 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
         rtests = residuals(model, validation, max_lag=max_lag)
     except ArxidError:
         rtests = None
-    return _Baseline(horizon, rms, error_rms(model, validation, 1), metrics.fit_percent(validation.y, pred), rtests)
+    rest = None
+    if rtests is not None:
+        rest = remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
+    fit = metrics.fit_percent(validation.y, pred)
+    return _Baseline(horizon, rms, error_rms(model, validation, 1), fit, rtests, rest)
 
 
 def _free_run_fit(model: ArxModel, validation: IOData) -> float | None:

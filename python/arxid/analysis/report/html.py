@@ -359,7 +359,6 @@ def _residual_section(a: Analysis) -> Raw:
     )
     rows = []
     for name, d in rt.to_dict()["cross_correlation"].items():
-        verdict = "untested (no data)" if d["independent"] is None else ("yes" if d["independent"] else "NO")
         rows.append(
             [
                 name,
@@ -368,17 +367,19 @@ def _residual_section(a: Analysis) -> Raw:
                 _num(d["bound"], 3),
                 f"{len(d['lags_outside'])} of {len(rt.cross_lags)}",
                 _num(d["p_value"], 3),
-                verdict,
+                _num(d["p_value_low_frequency"], 3),
+                rt.verdict(name),
             ]
         )
-    table = _table(
-        ["signal", "largest |correlation|", "at lag", "99 % bound", "lags outside", "p-value", "independent"], rows
-    )
+    head = ["signal", "largest |correlation|", "at lag", "99 % bound", "lags outside", "p-value", "low-frequency p"]
+    table = _table([*head, "independent"], rows)
     note = (
         "Independence is judged by a test on the prewhitened series (Haugh), not by counting lags outside the "
-        "bound: a coloured signal can leave the bound at many lags and still be independent."
+        "bound: a coloured signal can leave the bound at many lags and still be independent. Prewhitening removes "
+        f"slow changes, so a second test compares means over {rt.low_frequency_block} samples: it sees a residual "
+        "that drifts with a signal (“NO (slowly)”)."
     )
-    plain = el("ul", *[el("li", t) for t in residual_sentences(rt)], cls="verdicts")
+    plain = el("ul", *[el("li", t) for t in residual_sentences(rt, a.diagnosis)], cls="verdicts")
     return _join(
         [
             plain,
