@@ -110,9 +110,9 @@ bench-pem: develop
 
 # Python: lint, format, the stub of the compiled core against the built module (hence `develop`),
 # and the layers (import-linter's contracts in pyproject.toml, docs/architecture.md). Rust: format
-# and clippy (--release: it shares target/release with `make test`'s builds, but only their build scripts; its metadata-only check artifacts are its own, about a
-# minute from clean, seconds when warm). Every step runs, in this order; lint fails at the end if
-# any step failed, naming them.
+# and clippy (--release: it shares target/release with `make test`'s builds, but only their build
+# scripts; its metadata-only check artifacts are its own, about a minute from clean, seconds when
+# warm). Every step runs, in this order; lint fails at the end if any step failed, naming them.
 LINT_STEPS = \
 	"$(PY) -m ruff check python tests benches examples docs/gallery" \
 	"$(PY) -m ruff format --check python tests benches examples docs/gallery" \

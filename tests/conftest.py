@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
@@ -114,3 +115,19 @@ def client_read_recorder(record: str):
 
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     return functools.partial(_read_and_record, record=record)
+
+
+@functools.cache
+def _demo_flight(seed: int):
+    """The demo simulator's flight ``seed`` (20 s, 9,500 samples), simulated once per session."""
+    from arxid.analysis.demo import demo_data
+
+    return demo_data(seed=seed)[0]
+
+
+@pytest.fixture(scope="session")
+def demo_flight():
+    """``demo_flight(seed)``: a demo flight, shared by every test that asks for the same seed
+    (each takes seconds to simulate). Validate on another seed: a separate flight of the same
+    aircraft, with its own battery level, drift and noise."""
+    return _demo_flight

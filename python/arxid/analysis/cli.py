@@ -461,6 +461,8 @@ def cmd_demo(args) -> int:
 
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration {args.duration:g} must be a positive number of seconds, e.g. 20")
+    if args.write_data is not None:
+        return _write_demo_flight(args)
 
     res = run_demo(
         output=args.o,
@@ -471,6 +473,21 @@ def cmd_demo(args) -> int:
     )
     if args.json:
         _print_json(res.to_dict())
+    return EXIT_OK
+
+
+def _write_demo_flight(args) -> int:
+    """``arxid demo --write-data FILE.csv``: the simulated flight as a CSV file, no analysis."""
+    from .demo import DURATION, demo_flight_columns
+
+    columns = demo_flight_columns(seed=args.seed, duration=args.duration or DURATION)
+    header = ",".join(columns)
+    try:
+        np.savetxt(args.write_data, np.column_stack(list(columns.values())), "%.12g", ",", header=header, comments="")
+    except OSError as exc:
+        raise UsageError(f"cannot write {args.write_data}: {exc.strerror or exc}") from exc
+    n, ts = len(columns["time"]), float(columns["time"][1])
+    print(f"flight of seed {args.seed} written to {args.write_data} ({n} samples, --ts {ts:g}; columns {header})")
     return EXIT_OK
 
 
@@ -486,7 +503,8 @@ _EXAMPLES = {
     "  arxid diagnose log.csv --output y --inputs u --ts 0.01 --model oe:2,2,3",
     "report": "example:\n  arxid report flight.csv --output roll --inputs roll_torque --extra vbat --time t -o report.html",  # noqa: E501
     "demo": "example:\n  arxid demo                       # simulated quadrotor flight, writes arxid-demo-report.html\n"
-    "  arxid demo -o /tmp/demo.html --seed 3",
+    "  arxid demo -o /tmp/demo.html --seed 3\n"
+    "  arxid demo --seed 1 --write-data est.csv   # the simulated flight only, as CSV",
 }
 
 
@@ -599,6 +617,11 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="simulation seed (default %(default)s)")
     p.add_argument("--duration", type=float, default=None, help="flight duration in seconds (default: the demo's)")
+    p.add_argument(
+        "--write-data",
+        metavar="FLIGHT.csv",
+        help="write the simulated flight (time, az, collective, collective_true, vbat, z) to a CSV file and stop",
+    )
     _common(p)
     p.set_defaults(func=cmd_demo)
 

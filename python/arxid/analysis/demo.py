@@ -35,7 +35,7 @@ from .pipeline import Analysis, analyse
 from .report.html import render_html
 from .verdicts import ladder_headline, negative_fit_note
 
-__all__ = ["DemoResult", "demo_data", "run_demo"]
+__all__ = ["DemoResult", "demo_data", "demo_flight_columns", "run_demo"]
 
 DURATION = 20.0
 TAKEOFF_S = 1.0
@@ -60,23 +60,55 @@ def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
     facts : dict
         What the simulation did (battery voltage range, nominal voltage, samples).
     """
+    data, facts, _ = _simulated_flight(seed, duration)
+    return data, facts
+
+
+def demo_flight_columns(seed: int = 0, duration: float = DURATION) -> dict[str, np.ndarray]:
+    """The demo flight as named columns, for a CSV file (``arxid demo --write-data``).
+
+    Parameters
+    ----------
+    seed : int
+        Simulation seed.
+    duration : float
+        Flight duration in seconds (the first second, the take-off, is cut).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``time`` [s], ``az``, ``collective`` and ``vbat``, ``z`` as in :func:`demo_data`, and
+        ``collective_true`` [(rad/s)^2]: Σω² of the true motor speeds, which already carry the
+        battery's sag (with it as input, no battery effect is missing).
+    """
+    data, _, true_collective = _simulated_flight(seed, duration)
+    return {
+        "time": np.arange(data.n_samples) * data.ts,
+        "az": data.y,
+        "collective": data.u[:, 0],
+        "collective_true": true_collective,
+        **{name: data.extra[name] for name in ("vbat", "z")},
+    }
+
+
+def _simulated_flight(seed: int, duration: float) -> tuple[IOData, dict, np.ndarray]:
+    """The demo's data, facts, and the collective channel of the true motor speeds."""
     from ..quadrotor.datasets import QuadrotorParameters, quadrotor_flight
     from ..quadrotor.mixer import Mixer
     from ..quadrotor.motor import MotorModel
 
     par = QuadrotorParameters()
     flight = quadrotor_flight(seed=seed, duration=duration, effects={"battery_sag": True})
-    duty = flight.u
     motor = MotorModel(*par.motor)
-    blind = motor.simulate(duty, np.full(flight.n_samples, par.nominal_voltage), flight.ts)
-    collective = Mixer("plus")(blind)[:, 3]
+    blind = motor.simulate(flight.u, np.full(flight.n_samples, par.nominal_voltage), flight.ts)
+    mixer = Mixer("plus")
+    true_speeds = np.column_stack([flight.signal(f"w{i}") for i in range(1, 5)])
     # the first second is the take-off transient, not the flight the model is about
     skip = min(int(round(TAKEOFF_S / flight.ts)), flight.n_samples // 4)
     vbat = flight.signal("vbat")[skip:]
-    collective = collective[skip:]
     data = IOData(
         flight.signal("az")[skip:],
-        collective,
+        mixer(blind)[skip:, 3],
         flight.ts,
         output_name="az",
         input_names=("collective",),
@@ -96,7 +128,7 @@ def demo_data(seed: int = 0, duration: float = DURATION) -> tuple[IOData, dict]:
         "vbat_min": float(vbat.min()),
         "nominal_voltage": par.nominal_voltage,
     }
-    return data, facts
+    return data, facts, mixer(true_speeds)[skip:, 3]
 
 
 @dataclass(frozen=True, eq=False)

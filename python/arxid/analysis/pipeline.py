@@ -131,7 +131,9 @@ def choose(result: SweepResult, rule: str = "lowest") -> tuple[ArxModel, Choice]
 
     The step sanity check includes stability for a plant the sweep does not call integrating, so
     the choice never has a pole outside the unit circle there; every better-ranked structure it
-    passed over is listed with its reasons, and a choice on an edge of the grid says so.
+    passed over is listed with its reasons, and a choice on an edge of the grid says so. When no
+    structure passes, the best one by validation error is chosen and the reason says what it fails:
+    valid data always get an answer.
 
     Parameters
     ----------
@@ -145,14 +147,20 @@ def choose(result: SweepResult, rule: str = "lowest") -> tuple[ArxModel, Choice]
         The structure refitted on the sweep's rows (its parameters equal the sweep's).
     choice : Choice
     """
-    sel = result.select(sane=True, rule=rule)
+    try:
+        sel = result.select(sane=True, rule=rule)
+        among = "among those whose step response passes the sanity check"
+    except ArxidError:  # valid data deserve an answer: the best one, with what it fails
+        sel = result.select(sane=False, rule=rule)
+        failed = "; ".join(result.sanity(sel.rank).reasons) or "its free run diverged"
+        among = (
+            f"although no structure's step response passes the sanity check (this one's: {failed}); "
+            f"check the data, or say what the plant does with expect='stable' or expect='integrating'"
+        )
     model = result.model(sel.rank)
-    reason = (
-        f"the lowest {result.ranking_text} of {len(result)} structures among those whose step response "
-        f"passes the sanity check"
-    )
+    reason = f"the lowest {result.ranking_text} of {len(result)} structures {among}"
     if sel.note:
-        reason = f"{sel.note}, among the structures whose step response passes the sanity check"
+        reason = f"{sel.note}, {among}"
     skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
     return model, Choice(sel.structure, sel.rank, reason, skipped, sel.grid_edge)
 

@@ -124,20 +124,23 @@ def changes_sign(x: np.ndarray) -> bool:
     return bool(x.size > 0 and min(np.mean(x < 0), np.mean(x > 0)) >= SIGN_CHANGE_SHARE)
 
 
-def output_integrates(model: ArxModel) -> bool:
+def output_integrates(model: ArxModel, free_run_fit: float | None = None) -> bool:
     """True when the model's output integrates (a position): the sweep's integrator rule
-    (:func:`arxid.integrator.structure_integrates`) applied to this one model.
+    (:func:`arxid.selection.integrator.structure_integrates`) applied to this one model.
 
     Parameters
     ----------
     model : ArxModel
         A fitted model.
+    free_run_fit : float, optional
+        Its free-run fit on validation data, percent: a stable model whose free run settles within
+        the record and follows the data is not integrating, whatever its unit-root statistic.
 
     Returns
     -------
     bool
     """
-    return structure_integrates(model.parameters_, model.covariance_, model.na_, model.n_rows_)
+    return structure_integrates(model.parameters_, model.covariance_, model.na_, model.n_rows_, free_run_fit)
 
 
 def threshold_grid(x: np.ndarray) -> np.ndarray:

@@ -203,7 +203,7 @@ class _Baseline:
 
 def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int, initial: str) -> _Baseline:
     """The model's validation errors; a free run that drifts or diverges is measured k steps ahead."""
-    if horizon is None and output_integrates(model):
+    if horizon is None and output_integrates(model, _free_run_fit(model, validation)):
         horizon = INTEGRATING_HORIZON
     rms = error_rms(model, validation, horizon, initial)
     if math.isnan(rms):  # no sample of the validation data has a prediction
@@ -220,6 +220,15 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
     except ArxidError:
         rtests = None
     return _Baseline(horizon, rms, error_rms(model, validation, 1), metrics.fit_percent(validation.y, pred), rtests)
+
+
+def _free_run_fit(model: ArxModel, validation: IOData) -> float | None:
+    """The model's free-run fit on the validation data, percent (None when it diverges or has a
+    pole on or outside the unit circle: then there is no settling to speak of)."""
+    if not model.is_stable:
+        return None
+    pred, _, diverged = prediction_error(model, validation, None)
+    return None if diverged else metrics.fit_percent(validation.y, pred)
 
 
 def _unscored(notes: dict[str, str], cands: list[Candidate], suspects: list[Suspect]) -> list[Suspect]:

@@ -32,8 +32,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm, logm
-from scipy.optimize import brentq, minimize_scalar
 
 from ..exceptions import ConversionError
 
@@ -137,6 +135,8 @@ def _real_log(m: np.ndarray) -> np.ndarray:
     if np.linalg.cond(v) < 1e6:
         return np.real((v * np.log(eig.astype(complex))) @ np.linalg.inv(v))
     with np.errstate(all="ignore"):
+        from scipy.linalg import logm  # scipy.linalg on first use: importing arxid stays light
+
         lg = logm(m)
     return np.real(lg)
 
@@ -201,6 +201,8 @@ class _Propagator:
         n = self.ac.shape[0]
         big = np.zeros((2 * n, 2 * n))
         big[:n, :n], big[:n, n:] = self.ac, np.eye(n)
+        from scipy.linalg import expm
+
         e = expm(big * t)
         return e[:n, :n], e[:n, n:]
 
@@ -221,6 +223,8 @@ def _zoh_fractional(a: np.ndarray, d: int, beta: np.ndarray, ts: float) -> Conti
     changes sign (bisection); a continuous system of relative degree >= 2 makes it a double root
     (a small change of delay is then, to first order, a change of B), found as the minimum of the
     least-squares residual."""
+    from scipy.optimize import brentq, minimize_scalar
+
     n = len(a) - 1
     prop = _Propagator(_real_log(_companion(a)) / ts)
     unit = beta / np.linalg.norm(beta)

@@ -1,12 +1,16 @@
-"""Quadrotor identification toolkit: the workflows of arxid's five seed papers.
+"""Quadrotor identification toolkit: the workflows of five published quadrotor studies.
 
 * :mod:`~arxid.quadrotor.mixer` -- motor speeds to pseudo-torques and thrust (a published quadrotor
   study, Sarıoğlu & Kural)
-* :mod:`~arxid.quadrotor.motor` -- motor model with battery voltage (seeds 003, 004)
-* :mod:`~arxid.quadrotor.rotational` -- grey-box roll/pitch model with delay (seed 003)
-* :mod:`~arxid.quadrotor.thrust` -- battery-aware total thrust model class (seed 001)
-* :mod:`~arxid.quadrotor.setmembership` -- LP parameter bounds with bounded error (seed 000)
-* :mod:`~arxid.quadrotor.physical` -- thrust/torque coefficients and inertias by LS (seed 002)
+* :mod:`~arxid.quadrotor.motor` -- motor model with battery voltage (a published grey-box study of a
+  Crazyflie's motor and rotational dynamics; Sarıoğlu & Kural)
+* :mod:`~arxid.quadrotor.rotational` -- grey-box roll/pitch model with delay (the grey-box Crazyflie study)
+* :mod:`~arxid.quadrotor.thrust` -- battery-aware total thrust model class (Staub & Franchi,
+  ICRA 2015)
+* :mod:`~arxid.quadrotor.setmembership` -- LP parameter bounds with bounded error (the set-membership
+  study "Robust Identification of Quadrocopter Model for Control Purposes")
+* :mod:`~arxid.quadrotor.physical` -- thrust/torque coefficients and inertias by LS (a published
+  study estimating a Newton-Euler quadrotor model's parameters with neural networks)
 """
 
 from .mixer import CHANNELS, Mixer, mix

@@ -20,10 +20,11 @@ complementary filter's estimate (gyro integrated, pulled towards the acceleromet
 ``estimator_time_constant``), delayed with the gyro by ``delay_samples - 1`` samples; the
 controller flies on these logged values. Motors follow ``w' = a0 vbat d - a1 w - a2 w^2``,
 integrated exactly over each sample. A PID attitude controller (on the delayed measurements) and an
-altitude loop tracking seed 001's eq. 15 compute thrust and torques, allocate them to squared
-speeds with the nominal parameters and turn those into duty assuming ``nominal_voltage`` (no
-battery compensation). The battery's open-circuit voltage falls linearly with charge drawn; the
-terminal voltage sags by ``R * I`` with ``I`` from the propellers' mechanical power.
+altitude loop tracking eq. 15 of the battery-aware thrust study (Staub & Franchi, ICRA 2015) compute
+thrust and torques, allocate them to squared speeds with the nominal parameters and turn those into
+duty assuming ``nominal_voltage`` (no battery compensation). The battery's open-circuit voltage falls
+linearly with charge drawn; the terminal voltage sags by ``R * I`` with ``I`` from the propellers'
+mechanical power.
 """
 
 from __future__ import annotations

@@ -122,7 +122,11 @@ class QuadrotorParameters:
 
     @property
     def roll_gain(self) -> float:
-        """``c`` of seed 003's ``roll'' = c (w4^2 - w2^2)``: ``k * arm / Ixx``."""
+        """``c`` of ``roll'' = c (w4^2 - w2^2)``: ``k * arm / Ixx``.
+
+        The rotational model of a published grey-box study of a Crazyflie's motor and rotational
+        dynamics.
+        """
         return self.thrust_coefficient * self.arm / self.inertia[0]
 
     @property
@@ -149,9 +153,10 @@ def effect_switches(effects) -> dict:
 
 def _sum_of_sines(rng, t, amplitude, f_lo, f_hi, n=5):
     """Pilot-like excitation: n sines log-spaced over [f_lo, f_hi] (each jittered by up to 10 %)
-    with random phases, amplitudes falling as 1/f^2 as in seed 001 eq. 15 (equal acceleration
-    content), normalised to ``amplitude`` RMS. Log spacing keeps every seed's log equally rich in
-    the fast content that makes the delay identifiable."""
+    with random phases, amplitudes falling as 1/f^2 as in eq. 15 of the battery-aware thrust study
+    (Staub & Franchi, ICRA 2015; equal acceleration content), normalised to ``amplitude`` RMS. Log
+    spacing keeps every random seed's log equally rich in the fast content that makes the delay
+    identifiable."""
     f = np.geomspace(f_lo, f_hi, n) * np.exp(rng.uniform(-0.1, 0.1, n))
     ph = rng.uniform(0, 2 * np.pi, n)
     a = 1.0 / f**2
@@ -163,7 +168,7 @@ def _sum_of_sines(rng, t, amplitude, f_lo, f_hi, n=5):
 
 
 def _eq15(t):
-    """Seed 001 eq. 15: the vertical reference z(t) and its first two derivatives."""
+    """Staub & Franchi eq. 15: the vertical reference z(t) and its first two derivatives."""
     w = 2 * np.pi * np.array([0.3, 0.2, 0.1, 0.5, 0.6])
     a = 0.3 * np.array([1.0, 0.95, 0.9, 0.8, 0.7]) / w**2
     ph = np.pi * np.array([1 / 2, 1 / 3, 1 / 4, 1 / 5, 1 / 6])
@@ -241,7 +246,8 @@ def quadrotor_flight(
     duration : float
         [s].
     ts : float
-        Sampling and integration step [s] (2 ms as in seeds 003 and 004).
+        Sampling and integration step [s] (2 ms as in the grey-box Crazyflie study and in
+        Sarıoğlu & Kural's ARX study).
     effects : dict of str to bool, optional
         Hidden effects to switch (missing keys keep their defaults):
 
@@ -320,7 +326,7 @@ class _References:
 
 def _pilot_references(rng: np.random.Generator, t: np.ndarray, par: QuadrotorParameters) -> _References:
     """Roll, pitch and yaw references as sums of sines (drawn from ``rng`` in that order), altitude
-    from seed 001 eq. 15."""
+    from Staub & Franchi's eq. 15."""
     (a_r, a_p, a_y), (lo, hi) = par.pilot_amplitude, par.pilot_band
     phr, phrd = _sum_of_sines(rng, t, a_r, lo, hi, par.pilot_sines)
     thr, thrd = _sum_of_sines(rng, t, a_p, lo, hi, par.pilot_sines)

@@ -1,4 +1,8 @@
-"""Motor model with battery (seeds 003 and 004, eqs. 21-23): simulate, identify, convert PWM.
+"""Motor model with battery: simulate, identify, convert PWM.
+
+The model of a published grey-box study of a Crazyflie quadrotor's motor and rotational dynamics
+and of Sarıoğlu & Kural's "Modeling and ARX Identification of a Quadrotor MiniUAV" (eqs. 21-23 in
+both).
 
 The motor speed obeys ``dw/dt = a0*V - a1*w - a2*w^2`` with armature voltage ``V = vbat*duty``
 (eq. 22). ``a1`` is back-EMF and friction, ``a2`` the propeller's aerodynamic load.
@@ -19,7 +23,7 @@ __all__ = ["MotorModel", "MotorFit", "identify_motor", "speeds_from_pwm", "fit_p
 
 
 def fit_percent(measured, simulated) -> float:
-    """NRMSE fit in percent, as MATLAB ``compare`` and seed 003 report it.
+    """NRMSE fit in percent, as MATLAB ``compare`` and the grey-box study report it.
 
     ``100 * (1 - ||y - yhat|| / ||y - mean(y)||)`` over the samples where both exist (NaN marks a
     missing sample): :func:`arxid._metrics.fit_percent`, the definition every arxid report uses.
@@ -179,7 +183,7 @@ class MotorFit:
     regression : MotorModel
         Linear-regression estimate on the discretised equation (the starting point).
     fit_percent : float
-        Free-run NRMSE fit of ``model`` on the data, in percent (seed 003: 91.73 %).
+        Free-run NRMSE fit of ``model`` on the data, in percent (the grey-box study: 91.73 %).
     rms : float
         Free-run RMS error [speed unit].
     regression_fit_percent : float
@@ -253,7 +257,7 @@ def identify_motor(duty, vbat, speed, ts: float, refine: bool = True) -> MotorFi
         Sampling time [s].
     refine : bool
         Refine the regression estimate by minimising the free-run simulation error with
-        ``scipy.optimize.least_squares`` (seed 003's grey-box PEM).
+        ``scipy.optimize.least_squares`` (the grey-box study's PEM).
 
     Returns
     -------

@@ -1,10 +1,11 @@
-"""Physical parameters by structured least squares (seed 002).
+"""Physical parameters by structured least squares, after a published neural-network study.
 
 Thrust and torque coefficients from static stand data, and the principal inertias from
 Newton-Euler rotational data, each as a closed-form least-squares problem with standard errors.
-Seed 002 trains a linear neural network without bias for the same purpose; with linear
-activations and no bias its output is linear in the same regressors, so at convergence it
-reaches this least-squares estimate, which QR gives directly.
+That study, which estimates the parameters of a Newton-Euler quadrotor model, trains a linear
+neural network without bias for the same purpose; with linear activations and no bias its output
+is linear in the same regressors, so at convergence it reaches this least-squares estimate, which
+QR gives directly.
 """
 
 from __future__ import annotations
@@ -139,8 +140,8 @@ def thrust_torque_coefficients(speed, thrust, torque=None) -> tuple:
     Returns
     -------
     (LeastSquaresEstimate, LeastSquaresEstimate or None)
-        ``k`` and, when ``torque`` is given, ``b``: seed 002's second-order polynomial through the
-        origin, closed form ``k = sum(w^2 f) / sum(w^4)``.
+        ``k`` and, when ``torque`` is given, ``b``: the neural-network study's second-order
+        polynomial through the origin, closed form ``k = sum(w^2 f) / sum(w^4)``.
     """
     w = np.asarray(speed, dtype=float)
     w2 = (w * w).sum(axis=1) if w.ndim == 2 else w * w
@@ -199,8 +200,8 @@ def inertia_from_rotation(
         Iyy q' + (Ixx - Izz) p r - Ir p W = tau_y
         Izz r' + (Iyy - Ixx) p q          = tau_z
 
-    Solving the axes together uses the gyroscopic coupling as information, as seed 002's sparse
-    network does.
+    Solving the axes together uses the gyroscopic coupling as information, as the neural-network
+    study's sparse network does.
     """
     om, acc_in, tau, W = _rotation_data(rates, accelerations, torques, rotor_speed_sum, ts, int(delay))
     smooth = _smoother(smoothing, om.shape[0])

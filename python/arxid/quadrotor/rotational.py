@@ -1,4 +1,7 @@
-"""Rotational grey box (seed 003, eqs. 24-26): ``roll'' = c (w4^2 - w2^2)`` with a delay.
+"""Rotational grey box ``roll'' = c (w4^2 - w2^2)`` with a delay.
+
+The rotational model (eqs. 24-26) of a published grey-box study of a Crazyflie quadrotor's motor
+and rotational dynamics.
 
 Each attitude axis, seen through the input mixer, is a double integrator with a gain ``c``
 (``k l / Ixx`` for roll) and a pure delay. The sampled model is
@@ -136,7 +139,8 @@ class RotationalModel:
     def evaluate(self, data: IOData, window: int = 100) -> RotationalScore:
         """RMS and fit percent of :meth:`predict` on ``data``.
 
-        For example pitch data for a roll model: the symmetry check of seeds 003 and 004.
+        For example pitch data for a roll model: the symmetry check of the grey-box Crazyflie
+        study and of Sarıoğlu & Kural's ARX study.
 
         Parameters
         ----------
@@ -243,8 +247,8 @@ def identify_rotational(data: IOData, delays=range(0, 16), window: int = 100, of
     Inside a window the model output is linear in the initial angle, the initial rate and ``c``,
     so the output-error minimum for each delay is a closed-form least-squares problem (the two
     initial-state columns are projected out). The delay is the candidate with the smallest
-    error. This is seed 003's PEM (output error with estimated initial states, as MATLAB ``pem``
-    does for a grey box) without an iterative search, and it is not biased by white angle noise
+    error. This is the grey-box study's PEM (output error with estimated initial states, as MATLAB
+    ``pem`` does for a grey box) without an iterative search, and it is not biased by white angle noise
     the way one-step (equation-error) regression on second differences is.
     """
     if data.n_inputs < 1:

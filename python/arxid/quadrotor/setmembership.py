@@ -1,8 +1,9 @@
-"""Set-membership parameter bounds with bounded error (seed 000).
+"""Set-membership parameter bounds with bounded error.
 
 For a model linear in its parameters with bounded error ``|y - phi^T theta| <= eps``, the feasible
 set is a polytope; its bounding box follows from two linear programs per parameter (HiGHS).
-Seed 000 applies this per battery-voltage level to thrust ``F = b(e) u^2`` and torque
+The set-membership quadrocopter study ("Robust Identification of Quadrocopter Model for Control
+Purposes") applies this per battery-voltage level to thrust ``F = b(e) u^2`` and torque
 ``M = d(e) u^2``, then bounds ``b(e) = p1 e + p2`` from the per-level intervals, and shrinks the
 conservative box by a rotated parametrisation (eqs. 17-22, 27).
 """
@@ -115,7 +116,7 @@ def smallest_epsilon(phi, y, nonnegative: bool = False) -> float:
     phi : array_like of shape (n_rows, n_params)
     y : array_like of shape (n_rows,)
     nonnegative : bool
-        Restrict ``theta >= 0`` (seed 000 eqs. 11-12).
+        Restrict ``theta >= 0`` (the set-membership study, eqs. 11-12).
 
     Returns
     -------
@@ -144,7 +145,7 @@ def parameter_box(phi, y, epsilon: float, names=None, nonnegative: bool = False)
     phi : array_like of shape (n_rows, n_params)
     y : array_like of shape (n_rows,)
     epsilon : float
-        Error bound (measurement plus structural error, seed 000 Assumption 7).
+        Error bound (measurement plus structural error, the set-membership study's Assumption 7).
     names : sequence of str, optional
     nonnegative : bool
         Restrict the parameters to be non-negative.
@@ -180,8 +181,9 @@ def parameter_box(phi, y, epsilon: float, names=None, nonnegative: bool = False)
             e_min = smallest_epsilon(phi, y, nonnegative)
             raise EmptyFeasibleSetError(
                 f"no parameter explains all {n} samples within eps = {epsilon:.4g}; the smallest error "
-                f"bound that does is eps = {e_min:.4g}. Raise epsilon to at least that (seed 000 "
-                "Assumption 7: the bound must cover measurement and structural error)",
+                f"bound that does is eps = {e_min:.4g}. Raise epsilon to at least that (Assumption 7 "
+                "of the set-membership quadrocopter study: the bound must cover measurement and structural "
+                "error)",
                 epsilon,
                 e_min,
             )
@@ -193,7 +195,7 @@ def parameter_box(phi, y, epsilon: float, names=None, nonnegative: bool = False)
 
 
 def levels_box(u, y, levels, epsilon: float, offset: float = 0.0):
-    """Seed 000 eqs. 9-12: interval of ``b >= 0`` in ``y = b (u - offset)^2`` per voltage level.
+    """Interval of ``b >= 0`` in ``y = b (u - offset)^2`` per voltage level (set-membership study eqs. 9-12).
 
     Parameters
     ----------
@@ -205,7 +207,7 @@ def levels_box(u, y, levels, epsilon: float, offset: float = 0.0):
         Voltage level of each sample; samples with equal level form one LP.
     epsilon : float
     offset : float
-        Command at zero speed (seed 000: ``c = 1000 us`` of PPM).
+        Command at zero speed (the set-membership study: ``c = 1000 us`` of PPM).
 
     Returns
     -------
@@ -223,7 +225,7 @@ def levels_box(u, y, levels, epsilon: float, offset: float = 0.0):
 
 
 def linear_in_voltage_box(levels, lower, upper) -> ParameterBox:
-    """Seed 000 eqs. 13-16, 25: box of ``(p1, p2)`` with ``lower_i <= p1 e_i + p2 <= upper_i``.
+    """Box of ``(p1, p2)`` with ``lower_i <= p1 e_i + p2 <= upper_i`` (set-membership study eqs. 13-16, 25).
 
     Parameters
     ----------
@@ -270,7 +272,7 @@ def _interval_box(phi, lo, hi, names) -> ParameterBox:
 
 @dataclass(frozen=True)
 class RotatedBox:
-    """Box in rotated coordinates ``p = center + R q`` (seed 000 eqs. 17-22, 27).
+    """Box in rotated coordinates ``p = center + R q`` (set-membership study eqs. 17-22, 27).
 
     Attributes
     ----------
@@ -334,7 +336,7 @@ class RotatedBox:
 
 
 def rotated_box(levels, lower, upper) -> RotatedBox:
-    """Seed 000's conservatism reduction for ``b(e) = p1 e + p2``.
+    """The set-membership study's conservatism reduction for ``b(e) = p1 e + p2``.
 
     The axis-aligned box of ``(p1, p2)`` is loose because the feasible set is a thin sliver along
     a diagonal (slope and intercept trade off). Re-parametrise ``p = center + R q`` with ``R``
@@ -365,7 +367,7 @@ def rotated_box(levels, lower, upper) -> RotatedBox:
 
 @dataclass(frozen=True)
 class InertiaIntervals:
-    """Seed 000 eqs. 4, 23-24: inertia intervals from measured mass and length intervals."""
+    """Inertia intervals from measured mass and length intervals (set-membership study eqs. 4, 23-24)."""
 
     ixy: tuple
     iz: tuple
@@ -387,8 +389,8 @@ def inertia_intervals(
     Parameters
     ----------
     body_mass, body_length, arm, motor_mass : (float, float)
-        Measured intervals of ``m_M`` [kg], ``l_M`` [m], ``l`` [m], ``m_s`` [kg] (defaults: seed
-        000 Table I).
+        Measured intervals of ``m_M`` [kg], ``l_M`` [m], ``l`` [m], ``m_s`` [kg] (defaults: the
+        set-membership study's Table I).
 
     Returns
     -------

@@ -31,7 +31,7 @@ def _stand_pwm(profile, t, rng):
             out[k : k + hold] = rng.uniform(0.15, 1.0) * 65535
             k += hold
         return out
-    if profile == "sines":  # seed 001 eq. 15 shape on the command, around 55 % throttle
+    if profile == "sines":  # eq. 15 shape (Staub & Franchi) on the command, around 55 % throttle
         f = np.array([0.3, 0.2, 0.1, 0.5, 0.6]) * 4
         a = np.array([1.0, 0.95, 0.9, 0.8, 0.7])
         ph = np.pi * np.array([1 / 2, 1 / 3, 1 / 4, 1 / 5, 1 / 6]) + rng.uniform(0, 0.3, 5)
@@ -59,8 +59,9 @@ def thrust_stand(
     ts : float
         [s].
     profile : {"sines", "ramp", "steps"}
-        PWM command: a sum of five sines (seed 001 eq. 15 shape), a slow ramp up and back down
-        (like the Bitcraze Crazyflie stand log) or random throttle steps (motor dynamics).
+        PWM command: a sum of five sines (the shape of eq. 15 of the battery-aware thrust study,
+        Staub & Franchi, ICRA 2015), a slow ramp up and back down (like the Bitcraze Crazyflie stand
+        log) or random throttle steps (motor dynamics).
     supply : float, optional
         Constant supply voltage (bench supply); default: the draining, sagging battery.
     effects : dict, optional
@@ -176,7 +177,9 @@ def thrust_stand_static(
     pwm_levels : array_like, optional
         PWM commands (0..65535); default 12 levels from 15 % to 100 %.
     supply_levels : sequence of float
-        Bench-supply voltages [V], standing in for battery charge levels (seed 000).
+        Bench-supply voltages [V], standing in for battery charge levels (as in the
+        set-membership quadrocopter study "Robust Identification of Quadrocopter Model for Control
+        Purposes").
     thrust_noise : float
         Standard deviation of the load-cell noise [N] (uniform noise of that half-width, so the
         error is bounded as set-membership assumes).

@@ -1,4 +1,4 @@
-"""Battery-aware total thrust model class (seed 001, eqs. 5-10, Tables I-II).
+"""Battery-aware total thrust model class (Staub & Franchi, ICRA 2015, eqs. 5-10, Tables I-II).
 
     tau F_T' = sum_{j<=nu, k<=nb} alpha_jk v_jk - F_T,    v_jk = beta^k sum_i u_i^j
 
@@ -28,12 +28,12 @@ __all__ = [
     "SEED001_MODEL_IDS",
 ]
 
-#: Seed 001 Table I: model id for each (nu, nbeta).
+#: Staub & Franchi's Table I: model id for each (nu, nbeta).
 SEED001_MODEL_IDS = {(0, 0): 1, (0, 1): 2, (1, 0): 3, (1, 1): 4, (0, 2): 5, (2, 0): 6, (1, 2): 7, (2, 1): 8, (2, 2): 9}
 
 
 def thrust_from_accelerometer(az, mass: float) -> np.ndarray:
-    """Total thrust ``F_T = m a_z`` from the body-z accelerometer (seed 001 eq. 13).
+    """Total thrust ``F_T = m a_z`` from the body-z accelerometer (Staub & Franchi eq. 13).
 
     Parameters
     ----------
@@ -82,7 +82,7 @@ def _unpack(data, inputs, vbat):
 
 @dataclass(frozen=True)
 class ThrustModel:
-    """Member ``(nu, nb)`` of seed 001's model class.
+    """Member ``(nu, nb)`` of Staub & Franchi's model class.
 
     Attributes
     ----------
@@ -103,7 +103,7 @@ class ThrustModel:
 
     @property
     def n_params(self) -> int:
-        """``(nu + 1)(nb + 1) + 1`` as in seed 001 Table I."""
+        """``(nu + 1)(nb + 1) + 1`` as in Staub & Franchi's Table I."""
         return (self.nu + 1) * (self.nb + 1) + 1
 
     def static(self, u, beta) -> np.ndarray:
@@ -163,7 +163,7 @@ def fit_thrust_model(
         Output the total thrust [N] (or ``m a_z``, see :func:`thrust_from_accelerometer`); inputs
         the motor commands (one column per motor, or one shared command).
     nu, nb : int
-        Orders in the command and in the battery voltage, each in {0, 1, 2} in seed 001.
+        Orders in the command and in the battery voltage, each in {0, 1, 2} in Staub & Franchi.
     inputs : sequence of str, optional
         Signals to use as the commands (default: the inputs).
     vbat : str
@@ -227,7 +227,7 @@ class ThrustClassRow:
 
 @dataclass(frozen=True)
 class ThrustClassTable:
-    """Seed 001's model class fitted on estimation data and scored by free-run error on
+    """Staub & Franchi's model class fitted on estimation data and scored by free-run error on
     validation data (Table I numbering)."""
 
     rows: tuple
@@ -310,13 +310,13 @@ def thrust_model_class(
     Parameters
     ----------
     estimation, validation : IOData
-        As for :func:`fit_thrust_model`. For seed 001's claim 2, let the battery voltage in the
+        As for :func:`fit_thrust_model`. For Staub & Franchi's claim 2, let the battery voltage in the
         validation data span other values than in the estimation data.
     orders : sequence of int
     inputs, vbat
         As for :func:`fit_thrust_model`.
     skip_constant : bool
-        Leave out models without the command (``nu = 0``: seed 001's models 1, 2 and 5).
+        Leave out models without the command (``nu = 0``: Staub & Franchi's models 1, 2 and 5).
 
     Returns
     -------

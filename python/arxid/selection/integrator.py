@@ -21,6 +21,16 @@ A structure votes "integrating" when its unit root is not rejected or its slowes
 pole is that slow; the plant is integrating when most of the five best structures by FPE
 (estimation data) vote so. Measured values are in docs/selection.md.
 
+The unit-root t is weak near its threshold (2.4–2.5 on a quadrotor's collective thrust to vertical
+acceleration, which settles), so the fitted models have a say: when the unit root alone is not
+rejected, the best structures by **free-run validation error** are asked whether they settle
+(:class:`SettlingEvidence`). When most of them are stable, their slowest low-frequency pole decays
+within the record (time constant below ``RECORD_SHARE`` of it, the same rule as above) and their free
+run follows the validation data better than its mean (fit above 0 %), a stable model explains data it
+was not fitted on, which an integrating plant's drift would not allow: the plant is called not
+integrating, and the reason says that the fitted models decided. An integrator's stable
+approximation drifts away in free run (fit −108 % on the simulated roll axis), so it keeps its verdict.
+
 A pole outside the unit circle is judged with the same covariance: its magnitude's standard
 error is ``σ = √(gᵀ P_aa g)`` with ``g_k = Re(p̄/|p| · ∂p/∂a_k)`` and ``∂p/∂a_k = −p^(n−k) / A'(p)``
 (first order in the parameters), and ``(|p| − 1) / σ > UNIT_ROOT_CRITICAL`` is a pole
@@ -30,7 +40,7 @@ significantly outside.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,6 +53,7 @@ __all__ = [
     "slowest_time_constant",
     "integrator_test",
     "structure_integrates",
+    "SettlingEvidence",
 ]
 
 #: One-sided 1% critical value of the Dickey–Fuller t statistic without a constant (large samples).
@@ -78,6 +89,12 @@ class IntegratorTest:
         Estimation rows.
     critical : float
         The critical value: t above it rejects a pole at z = 1.
+    decided_by : str
+        Which evidence decided: ``"unit-root test"``, ``"record length"``, ``"fitted models"``
+        (the best free-run structures settle, :class:`SettlingEvidence`) or ``"step sanity of the
+        sweep"`` (the first verdict left no sane structure and was revised).
+    settling : SettlingEvidence or None
+        What the best structures by free-run validation error say (None without a free-run sweep).
     """
 
     integrating: bool
@@ -87,6 +104,8 @@ class IntegratorTest:
     time_constants: tuple[float, ...] = ()
     record: int = 0
     critical: float = UNIT_ROOT_CRITICAL
+    decided_by: str = "unit-root test"
+    settling: SettlingEvidence | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready verdict.
@@ -103,6 +122,96 @@ class IntegratorTest:
             "time_constants": [float(t) if np.isfinite(t) else None for t in self.time_constants],
             "record": self.record,
             "critical": self.critical,
+            "decided_by": self.decided_by,
+            "settling": self.settling.to_dict() if self.settling is not None else None,
+        }
+
+    def revised(self, integrating: bool, why: str) -> IntegratorTest:
+        """The verdict turned over because under it no structure of the sweep is sane.
+
+        Parameters
+        ----------
+        integrating : bool
+            The revised verdict.
+        why : str
+            One sentence: what left no sane structure.
+
+        Returns
+        -------
+        IntegratorTest
+        """
+        verdict = "integrating" if integrating else "not integrating"
+        reason = f"{verdict} (revised: {why}; the first verdict was: {self.reason})"
+        return replace(self, integrating=integrating, reason=reason, decided_by="step sanity of the sweep")
+
+
+@dataclass(frozen=True)
+class SettlingEvidence:
+    """What the best structures by free-run validation error say about settling.
+
+    Attributes
+    ----------
+    structures : tuple of str
+        The structures asked, best first.
+    time_constants : tuple of float
+        Time constant of each one's slowest low-frequency pole, in samples (inf on or beyond z = 1,
+        0 without one).
+    fits : tuple of float
+        Each one's free-run fit on the validation data, percent.
+    record : int
+        Estimation rows.
+    """
+
+    structures: tuple[str, ...]
+    time_constants: tuple[float, ...]
+    fits: tuple[float, ...]
+    record: int
+
+    def votes(self) -> np.ndarray:
+        """Per structure: stable, settling within the record, and following the data in free run.
+
+        Returns
+        -------
+        ndarray of bool
+        """
+        tau = np.asarray(self.time_constants, dtype=float)
+        fit = np.asarray(self.fits, dtype=float)
+        return (tau < RECORD_SHARE * self.record) & (fit > 0.0)
+
+    @property
+    def settles(self) -> bool:
+        """Most of the structures settle and follow the data (see :meth:`votes`)."""
+        return bool(self.structures) and 2 * int(self.votes().sum()) > len(self.structures)
+
+    def sentence(self) -> str:
+        """One sentence with the numbers, for the verdict's reason.
+
+        Returns
+        -------
+        str
+        """
+        ok = self.votes()
+        tau = np.asarray(self.time_constants, dtype=float)[ok]
+        fit = np.asarray(self.fits, dtype=float)[ok]
+        return (
+            f"{int(ok.sum())} of the {len(self.structures)} best structures by free-run validation error are stable, "
+            f"settle within the record (slowest time constant {np.max(tau):.4g} samples, "
+            f"{100 * np.max(tau) / self.record:.2g} % of the {self.record} estimation samples) and follow the "
+            f"validation data in free run (fit {np.min(fit):.3g} to {np.max(fit):.3g} %)"
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready evidence.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "structures": list(self.structures),
+            "time_constants": [float(t) if np.isfinite(t) else None for t in self.time_constants],
+            "fits": [float(f) if np.isfinite(f) else None for f in self.fits],
+            "settles": self.settles,
         }
 
 
@@ -197,9 +306,14 @@ def slowest_time_constant(theta: np.ndarray, na: int) -> float:
 
 
 def integrator_test(
-    names: Sequence[str], t_values: Sequence[float], time_constants: Sequence[float], record: int
+    names: Sequence[str],
+    t_values: Sequence[float],
+    time_constants: Sequence[float],
+    record: int,
+    settling: SettlingEvidence | None = None,
 ) -> IntegratorTest:
-    """Verdict from the unit-root t statistics and slowest time constants of the best structures.
+    """Verdict from the unit-root t statistics and slowest time constants of the best structures,
+    and from what the best free-run structures say about settling.
 
     Parameters
     ----------
@@ -211,37 +325,63 @@ def integrator_test(
         Their :func:`slowest_time_constant` (samples).
     record : int
         Estimation rows.
+    settling : SettlingEvidence, optional
+        The best structures by free-run validation error (from a free-run sweep).
 
     Returns
     -------
     IntegratorTest
-        Integrating when more than half of them vote so (see the module docstring).
+        Integrating when more than half of the voters say so, unless the best free-run structures
+        settle and follow the validation data (see the module docstring).
     """
     t = np.asarray(t_values, dtype=float)
     tau = np.asarray(time_constants, dtype=float)
     if not t.size:
         return IntegratorTest(False, "no structure with poles to test for an integrator", record=record)
-    votes = ~(t > UNIT_ROOT_CRITICAL) | (tau > RECORD_SHARE * record)
+    slow_votes = tau > RECORD_SHARE * record
+    votes = ~(t > UNIT_ROOT_CRITICAL) | slow_votes
     kept = int(votes.sum())
     integrating = 2 * kept > t.size
+    decided_by = "record length" if integrating and 2 * int(slow_votes.sum()) > t.size else "unit-root test"
+    verdict = "integrating" if integrating else "not integrating"
+    count = kept if integrating else t.size - kept
+    reason = f"{verdict}: {count} of the {t.size} best structures by FPE say so ({_unit_root_numbers(t, tau, record)})"
+    if integrating and settling is not None and settling.settles:
+        integrating, decided_by = False, "fitted models"
+        reason = (
+            f"not integrating: the fitted models decide, because {settling.sentence()}, which an integrating "
+            f"plant's drift would not allow; the unit-root test alone said integrating ({count} of the {t.size} "
+            f"best structures by FPE; {_unit_root_numbers(t, tau, record)})"
+        )
+    return IntegratorTest(
+        integrating,
+        reason,
+        tuple(names),
+        tuple(float(x) for x in t),
+        tuple(float(x) for x in tau),
+        record,
+        decided_by=decided_by,
+        settling=settling,
+    )
+
+
+def _unit_root_numbers(t: np.ndarray, tau: np.ndarray, record: int) -> str:
+    """The unit-root statistics and the slowest time constant, in words."""
     slow = np.max(tau)
-    numbers = (
+    return (
         f"unit-root test of a pole at z = 1, A(1) = 0: t from {np.min(t):.3g} to {np.max(t):.3g}, rejected above "
         f"{UNIT_ROOT_CRITICAL} at the 1% level; slowest time constant "
         + ("infinite" if not np.isfinite(slow) else "none near z = 1" if slow == 0 else f"{slow:.4g} samples")
         + f" against {record} estimation samples (an integrator above {RECORD_SHARE:g} of them)"
     )
-    verdict = "integrating" if integrating else "not integrating"
-    count = kept if integrating else t.size - kept
-    reason = f"{verdict}: {count} of the {t.size} best structures by FPE say so ({numbers})"
-    return IntegratorTest(
-        integrating, reason, tuple(names), tuple(float(x) for x in t), tuple(float(x) for x in tau), record
-    )
 
 
-def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, record: int) -> bool:
+def structure_integrates(
+    theta: np.ndarray, covariance: np.ndarray, na: int, record: int, free_run_fit: float | None = None
+) -> bool:
     """One structure's vote: its unit root is not rejected, or its slowest low-frequency pole is
-    too slow for the record (the rule of :func:`integrator_test`, applied to a single model).
+    too slow for the record (the rule of :func:`integrator_test`, applied to a single model), unless
+    its free run settles and follows validation data (:class:`SettlingEvidence`, one structure).
 
     Parameters
     ----------
@@ -253,6 +393,8 @@ def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, rec
         Number of a's.
     record : int
         Estimation rows.
+    free_run_fit : float, optional
+        The structure's free-run fit on validation data, percent (unknown when None).
 
     Returns
     -------
@@ -260,5 +402,9 @@ def structure_integrates(theta: np.ndarray, covariance: np.ndarray, na: int, rec
     """
     if na == 0:
         return False
+    tau = slowest_time_constant(theta, na)
     t = unit_root_t(theta, covariance, na)
-    return bool(not t > UNIT_ROOT_CRITICAL or slowest_time_constant(theta, na) > RECORD_SHARE * record)
+    votes = bool(not t > UNIT_ROOT_CRITICAL or tau > RECORD_SHARE * record)
+    if votes and free_run_fit is not None:
+        return not SettlingEvidence(("",), (tau,), (float(free_run_fit),), record).settles
+    return votes

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import numbers
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, overload
 
@@ -29,7 +29,14 @@ from .choice import Selection
 from .engine import Runner, check_validation_length, core_inputs, fleet_engine, fleet_parts
 from .grid import DEFAULT_GRID, Grid, check_grid_size, check_top, order_range, per_input_ranges
 from .grid_edges import grown_grid
-from .integrator import VOTERS, IntegratorTest, integrator_test, slowest_time_constant, unit_root_t
+from .integrator import (
+    VOTERS,
+    IntegratorTest,
+    SettlingEvidence,
+    integrator_test,
+    slowest_time_constant,
+    unit_root_t,
+)
 from .ranking import SORT_KEYS, ranked_columns
 from .refine import RefinedSweep
 from .refine import refine as refine_sweep
@@ -208,7 +215,8 @@ def _parameters_and_covariance(result: SweepResult, i: int) -> tuple[np.ndarray,
 
 
 def _integrator_verdict(result: SweepResult) -> IntegratorTest:
-    """Unit-root test (:mod:`arxid.integrator`) of the best structures by FPE of a free-run sweep."""
+    """Unit-root test (:mod:`arxid.selection.integrator`) of the best structures by FPE of a sweep,
+    with the settling evidence of its best free-run structures when it ran in free run."""
     fpe = np.where(np.isfinite(result.fpe), result.fpe, np.inf)
     names: list[str] = []
     t_values: list[float] = []
@@ -222,7 +230,63 @@ def _integrator_verdict(result: SweepResult) -> IntegratorTest:
         names.append(result.structure_name(int(i)))
         t_values.append(unit_root_t(theta, covariance, int(result.na[i])))
         taus.append(slowest_time_constant(theta, int(result.na[i])))
-    return integrator_test(names, t_values, taus, result.n_est)
+    return integrator_test(names, t_values, taus, result.n_est, _settling_evidence(result))
+
+
+def _settling_evidence(result: SweepResult) -> SettlingEvidence | None:
+    """The best structures by free-run validation error of a free-run sweep: their slowest
+    time constants and free-run fits (None for a k-step sweep or without validation errors)."""
+    if result.horizon is not None:
+        return None
+    score = np.where(np.isfinite(result.rms_val) & np.isfinite(result.fit_val), result.rms_val, np.inf)
+    best = [int(i) for i in np.argsort(score, kind="stable")[:VOTERS] if np.isfinite(score[i])]
+    if not best:
+        return None
+    taus = [
+        float("inf") if result.max_pole[i] >= 1.0 else slowest_time_constant(result.parameters[i], int(result.na[i]))
+        for i in best
+    ]
+    return SettlingEvidence(
+        tuple(result.structure_name(i) for i in best),
+        tuple(taus),
+        tuple(float(result.fit_val[i]) for i in best),
+        result.n_est,
+    )
+
+
+def _with_verdict(result: SweepResult, verdict: IntegratorTest) -> SweepResult:
+    return dataclasses.replace(
+        result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
+    )
+
+
+def _has_sane(result: SweepResult) -> bool:
+    """Some structure of the sweep passes the step sanity checks."""
+    try:
+        result.select(sane=True)
+    except ArxidError:
+        return False
+    return True
+
+
+def _detected(first: SweepResult, rerun: Callable[[IntegratorTest], SweepResult]) -> SweepResult:
+    """The free-run sweep ``first`` under the detected verdict, redone with k steps (``rerun``)
+    for an integrating plant. A verdict under which no structure is sane is revised when the other
+    verdict has one: the choice is never left empty by a borderline test (the reason says so)."""
+    verdict = _integrator_verdict(first)
+    if not verdict.integrating:
+        stable = _with_verdict(first, verdict)
+        if _has_sane(stable):
+            return stable
+        integ = rerun(verdict.revised(True, "as a stable plant no structure's step response passes the sanity checks"))
+        return integ if _has_sane(integ) else stable
+    integ = rerun(verdict)
+    if _has_sane(integ):
+        return integ
+    stable = _with_verdict(
+        first, verdict.revised(False, "as an integrating plant no structure's step response passes the sanity checks")
+    )
+    return stable if _has_sane(stable) else integ
 
 
 @overload
@@ -462,14 +526,10 @@ def sweep(
     )
     build = _ResultBuilder(g, terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings)
     result = build(run(k_step), k_step, integrating, reason)
-    if expect is None:
-        verdict = _integrator_verdict(result)
-        if verdict.integrating and k_step is None:
-            result = build(run(k_default), k_default, True, verdict.reason, verdict)
-        else:
-            result = dataclasses.replace(
-                result, integrating=verdict.integrating, integrating_reason=verdict.reason, integrator=verdict
-            )
+    if expect is None and k_step is None:
+        result = _detected(result, lambda v: build(run(k_default), k_default, v.integrating, v.reason, v))
+    elif expect is None:  # the user's horizon fixes the measure; the verdict is stated
+        result = _with_verdict(result, _integrator_verdict(result))
     result = result.extend() if auto_extend else result
     return result if refine is None else refine_sweep(result, refine, top=refine_top)
 
