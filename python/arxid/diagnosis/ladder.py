@@ -331,7 +331,13 @@ class Ladder:
             rechosen_from = None
             if restructure and rung.kind != "dynamics" and not isinstance(model, PolynomialModel):
                 choice = rechoose_structure(
-                    model, d.data, d.validation, d.horizon, initial=ladder.initial, expect=expect
+                    model,
+                    d.data,
+                    d.validation,
+                    d.horizon,
+                    initial=ladder.initial,
+                    expect=expect,
+                    min_improvement=d.min_improvement,
                 )
                 model, rechosen_from = choice.model, (model if choice.changed else None)
             step = ladder.add(

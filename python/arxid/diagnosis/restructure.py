@@ -10,8 +10,9 @@ The neighbourhood of the orders is every (na ± 1, nb ± 1, nk ± 1) for one inp
 with several inputs, na ± 1 and each input's nb ± 1, nk ± 1 and (nb + 1, nk − 1), (nb − 1, nk + 1)
 (the same last lag). A neighbour may replace the current structure only when
 
-* its validation error is lower by more than :data:`~arxid.diagnosis.judge.TIE_SHARE` (a tie keeps
-  the structure the sweep chose), and
+* its validation error is lower by at least ``min_improvement`` (5 %, the fall a structure change
+  needs to be a significant suspect of :func:`arxid.diagnose`; less keeps the structure the sweep
+  chose), and
 * the current structure's error is significantly larger than its own by the Diebold-Mariano test
   of :mod:`arxid.selection.parsimony` (one-sided 5 %, on the same validation samples).
 
@@ -37,7 +38,6 @@ from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..selection.parsimony import diebold_mariano
 from ..selection.sanity import step_sanity
-from .judge import TIE_SHARE
 
 __all__ = ["Rechoice", "rechoose_structure", "order_change", "linear_name"]
 
@@ -173,6 +173,7 @@ def rechoose_structure(
     *,
     initial: str = "zero",
     expect: str | None = None,
+    min_improvement: float = 0.05,
     max_rounds: int = 3,
 ) -> Rechoice:
     """Re-choose the orders of ``model`` (with its effects) by a local sweep around them.
@@ -189,6 +190,9 @@ def rechoose_structure(
         Initial conditions of the validation error (see :func:`arxid.compare`).
     expect : {None, "stable", "integrating", "double-integrating"}
         What the step sanity check assumes (the sweep's expectation).
+    min_improvement : float
+        Relative fall of the validation error a new structure must bring (0.05 = 5 %), as a
+        structure change suspect of :func:`arxid.diagnose` must.
     max_rounds : int
         Largest number of moves to a neighbouring structure.
 
@@ -220,7 +224,7 @@ def rechoose_structure(
             err = search.errors(m)
             fitted.append((_rms(err), m, err))
         tried += len(fitted)
-        better = [f for f in fitted if _better(f[2], err_base)]
+        better = [f for f in fitted if _better(f[2], err_base, min_improvement)]
         if not better:
             break
         lowest = min(better, key=lambda f: f[0])
@@ -236,9 +240,9 @@ def rechoose_structure(
     return Rechoice(current, model, rms_first, _rms(err_current), tried)
 
 
-def _better(err_new: np.ndarray, err_old: np.ndarray) -> bool:
-    """``err_new`` lower by more than a tie and ``err_old`` significantly larger (Diebold-Mariano)."""
+def _better(err_new: np.ndarray, err_old: np.ndarray, min_improvement: float) -> bool:
+    """``err_new`` lower by ``min_improvement`` and ``err_old`` significantly larger (Diebold-Mariano)."""
     new, old = _rms(err_new), _rms(err_old)
-    if not (math.isfinite(new) and new < (1.0 - TIE_SHARE) * old):
+    if not (math.isfinite(new) and new <= (1.0 - min_improvement) * old):
         return False
     return math.isinf(old) or diebold_mariano(err_old, err_new).worse
