@@ -155,6 +155,7 @@ def step_checks(
     flags: Mapping[str, str] | None = None,
     ylabel: str = "output",
     bands: Mapping[str, Any] | None = None,
+    negatives: Mapping[str, np.ndarray] | None = None,
 ) -> Any:
     """Responses to a positive and a negative step of several structures (the step sanity check a
     published quadrotor study, Sarıoğlu & Kural, used to reject its best-ranked structure).
@@ -162,8 +163,9 @@ def step_checks(
     Parameters
     ----------
     responses : sequence of (label, ndarray of shape (n_samples,))
-        Response to a positive step of typical amplitude; the negative step is drawn as its mirror
-        (``-response``, exact for a linear model).
+        Response to a positive step of typical amplitude, as a deviation from the response to no
+        step (what an offset does is not part of it); the negative step is drawn as its mirror
+        (``-response``, exact for a model linear in its inputs) unless ``negatives`` gives it.
     ts : float
         Sampling time [s].
     flags : mapping of label to str, optional
@@ -172,6 +174,9 @@ def step_checks(
         Output name with its unit.
     bands : mapping of label to ResponseBand, optional
         Confidence band of a response, shaded around both steps.
+    negatives : mapping of label to ndarray of shape (n_samples,), optional
+        Response to the negative step, where it is not the mirror of the positive one (input
+        nonlinearities such as ``u1^2``); default: the mirror for every label.
 
     Returns
     -------
@@ -179,20 +184,23 @@ def step_checks(
     """
     flags = dict(flags or {})
     bands = dict(bands or {})
+    negatives = dict(negatives or {})
     fig, axes = new_figure(1, 1, height=3.0)
     ax = axes[0, 0]
     for i, (label, r) in enumerate(responses):
         t = np.arange(len(r)) * ts
         style = "--" if label in flags else "-"
         text = f"{label} (rejected: {flags[label]})" if label in flags else f"{label}"
+        neg = np.asarray(negatives[label], dtype=float) if label in negatives else -np.asarray(r, dtype=float)
         if label in bands:
             b = bands[label]
             ax.fill_between(
                 t, b.lower, b.upper, color=f"C{i % 10}", alpha=0.25, lw=0, label=f"{label}: {b.description}"
             )
-            ax.fill_between(t, -b.upper, -b.lower, color=f"C{i % 10}", alpha=0.15, lw=0)
+            # the band's half-widths around the negative step (its mirror when neg = -r)
+            ax.fill_between(t, neg - (b.upper - r), neg + (r - b.lower), color=f"C{i % 10}", alpha=0.15, lw=0)
         ax.plot(t, r, style, color=f"C{i % 10}", lw=1.2, label=text)
-        ax.plot(t, -r, style, color=f"C{i % 10}", lw=0.6, alpha=0.6)
+        ax.plot(t, neg, style, color=f"C{i % 10}", lw=0.6, alpha=0.6)
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("time after the step [s]")
     ax.set_ylabel(ylabel)

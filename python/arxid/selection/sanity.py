@@ -4,12 +4,17 @@ A structure can win a sweep on validation error and still be physically wrong (i
 quadrotor study, Sarıoğlu & Kural, the best-ranked ARX(2,2,0) of a quadrotor roll axis answers a
 step with an amplitude that "cannot be true"; the chosen ARX(2,1,8) grows with the sign of the
 step). :func:`step_sanity` applies a positive and a negative step of typical input amplitude over
-the validation horizon and flags:
+the validation horizon and judges what the step itself does: the deviation ``s(±a) − s(0)`` from the
+response to no step at all (:func:`step_deviation`). A constant, a drift term or a logged signal held
+at its mean is not an input: it moves the output by the same amount whichever way the input steps, so
+it is taken out before any check (a model of raw data with ``effects=["const"]`` is judged as the
+same model of de-meaned data without it). The checks flag:
 
 =====================  ==================================================================
 flag                   meaning
 =====================  ==================================================================
-``not-antisymmetric``  step(−a) is not −step(a) (offsets, output nonlinearities)
+``not-antisymmetric``  step(−a) is not −step(a) (input or output nonlinearities; an offset
+                       or other term that is not an input cancels out)
 ``too-small``          peak |response| < ``small`` × measured output range
 ``too-large``          peak |response| > ``large`` × measured output range (not checked
                        for integrating expectations, whose response grows without bound)
@@ -36,15 +41,25 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from ..data.iodata import IOData
-from ..exceptions import ArxidError
+from ..exceptions import ArxidError, DataError
+from ..models.arx_model import ArxModel
 from .integrator import LOW_FREQUENCY, RECORD_SHARE, UNIT_ROOT_CRITICAL, pole_excess
 
-__all__ = ["SanityLimits", "StepSanity", "step_sanity", "growth_horizon", "EXPECTATIONS"]
+__all__ = [
+    "SanityLimits",
+    "StepSanity",
+    "step_sanity",
+    "step_deviation",
+    "step_inputs",
+    "growth_horizon",
+    "EXPECTATIONS",
+]
 
 EXPECTATIONS = (None, "stable", "integrating", "double-integrating")
 
@@ -242,7 +257,9 @@ def check_responses(
     structure : str
         Name of the model, for the verdict.
     positive, negative : list of ndarray
-        Responses to the positive and the negative step, one per input, of equal length.
+        Responses to the positive and the negative step, one per input, of equal length, as
+        deviations from the response to no step (:func:`step_deviation`): what terms that are not
+        inputs contribute is already taken out.
     poles : ndarray
         Poles of the model.
     out_range : float
@@ -429,10 +446,81 @@ def _growth_flags(
     return flags
 
 
+def step_inputs(data: IOData, horizon: int) -> dict[str, np.ndarray]:
+    """The extra signals a step response holds constant: each at its mean over ``data``.
+
+    Parameters
+    ----------
+    data : IOData
+        Measured data.
+    horizon : int
+        Samples of the step response.
+
+    Returns
+    -------
+    dict of str to ndarray of shape (horizon,)
+        One constant series per extra signal of ``data``.
+    """
+    return {k: np.full(int(horizon), float(np.nanmean(v))) for k, v in data.extra.items()}
+
+
+def _simulate(model, u: np.ndarray, extra: dict[str, np.ndarray] | None) -> np.ndarray:
+    """Free run of ``model`` from rest (an ARX model takes the extra signals its effects need)."""
+    with np.errstate(all="ignore"):
+        if extra is None or not isinstance(model, ArxModel):
+            return np.asarray(model.simulate(u), dtype=float)
+        return np.asarray(model.simulate(u, extra=extra), dtype=float)
+
+
+def step_deviation(
+    model, n_samples: int, amplitude: float = 1.0, input: int = 0, *, extra: dict[str, np.ndarray] | None = None
+) -> np.ndarray:
+    """What a step does: the response to a step of ``amplitude`` on ``input`` minus the response to
+    no step, ``s(a) − s(0)``, both from rest with the same extra signals.
+
+    A constant, a drift (``time``) or a logged signal held constant is not an input: it moves the
+    output the same way whether the input steps up, down or not at all. Taking ``s(0)`` out leaves
+    the input's own effect, so for a model linear in its inputs ``step_deviation(m, n, -a)`` is
+    exactly ``-step_deviation(m, n, a)``, offset or not; input terms such as ``u1^2`` or
+    ``abs(u1)`` keep their asymmetry. For a linear model without effects it is the step response.
+
+    Parameters
+    ----------
+    model : ArxModel or PolynomialModel
+        A fitted model.
+    n_samples : int
+        Samples of the response.
+    amplitude : float
+        Step height in the input's units.
+    input : int
+        Index of the input that steps.
+    extra : mapping of str to ndarray of shape (n_samples,), optional
+        Extra signals an ARX model's effects need (:func:`step_inputs` holds each at its mean);
+        other model classes compute their inputs from ``u`` and ignore it.
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+    """
+    n, m = int(n_samples), len(model.input_names)
+    if isinstance(input, bool) or not isinstance(input, numbers.Integral) or not 0 <= int(input) < m:
+        raise DataError(f"input {input!r} does not exist: the model has {m} input(s), numbered 0 to {m - 1}")
+    u = np.zeros((n, m))
+    base = _simulate(model, u, extra)
+    u[:, int(input)] = amplitude
+    with np.errstate(all="ignore"):
+        return _simulate(model, u, extra) - base
+
+
 def step_sanity(
     model, data: IOData, expect: str | None = None, limits: SanityLimits | None = None, horizon: int | None = None
 ) -> StepSanity:
     """Step sanity checks of a fitted :class:`~arxid.ArxModel` against measured ``data``.
+
+    Each input steps up and down by its typical amplitude (:func:`typical_amplitudes`), the other
+    inputs at zero and the extra signals at their means; the checks judge the deviations from the
+    response to no step (:func:`step_deviation`), so a constant or other term that is not an input
+    never reads as an asymmetry, a size or a growth.
 
     Parameters
     ----------
@@ -455,17 +543,18 @@ def step_sanity(
     limits = limits or SanityLimits()
     horizon = int(horizon or data.n_samples)
     amps = typical_amplitudes(data)
-    extra = {k: np.full(horizon, float(np.nanmean(v))) for k, v in data.extra.items()}
+    extra = step_inputs(data, horizon)
     pos, neg = [], []
     m = data.n_inputs
+    base = _simulate(model, np.zeros((horizon, m)), extra)
     for i in range(m):
         if model.nb_[i] == 0:
             continue
         u = np.zeros((horizon, m))
         u[:, i] = amps[i]
         with np.errstate(all="ignore"):
-            pos.append(model.simulate(u, extra=extra))
-            neg.append(model.simulate(-u, extra=extra))
+            pos.append(_simulate(model, u, extra) - base)
+            neg.append(_simulate(model, -u, extra) - base)
     poles = model.poles()
     excess = None
     if poles.size and np.max(np.abs(poles)) > 1.0 and expect in ("integrating", "double-integrating"):

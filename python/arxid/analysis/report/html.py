@@ -275,12 +275,21 @@ def _step_section(a: Analysis) -> Raw:
             if name in names:
                 models.append((name, a.sweep.model(names.index(name))))
                 flags[name] = reason
-    from ...checks.bands import step_band
+    from ...checks.bands import response_band
+    from ...selection.sanity import step_deviation, step_inputs
 
-    band = step_band(a.model, n, amp, 0)
-    responses = [(models[0][0], band.response)] + [(label, m.step(n, amp, 0)) for label, m in models[1:]]
+    # What the step does, s(a) - s(0), as the step sanity check judges it: an offset or a logged
+    # signal (held at its mean) moves both steps alike and is not drawn as part of the response.
+    extra = step_inputs(val, n)
+    band = response_band(a.model, lambda m: step_deviation(m, n, amp, 0, extra=extra), np.arange(n) * val.ts)
+    responses = [(models[0][0], band.response)] + [
+        (label, step_deviation(m, n, amp, 0, extra=extra)) for label, m in models[1:]
+    ]
+    negatives = {label: step_deviation(m, n, -amp, 0, extra=extra) for label, m in models}
     unit = f" [{val.output_unit}]" if val.output_unit else ""
-    fig = step_checks(responses, val.ts, flags, ylabel=val.output_name + unit, bands={models[0][0]: band})
+    fig = step_checks(
+        responses, val.ts, flags, ylabel=val.output_name + unit, bands={models[0][0]: band}, negatives=negatives
+    )
     in_unit = f" {val.input_units[0]}" if val.input_units[0] else ""
     stable = a.model.is_stable
     dc = ", ".join(_num(g) for g in np.atleast_1d(a.model.dc_gain())) if stable else ""
