@@ -128,14 +128,15 @@ def test_compare_estimates_initial_states_of_every_linear_model():
     # The validation record starts mid-transient: from rest the OE model misses it.
     assert at_rest.fit_percent[0] < 90 < 99 < estimated.fit_percent[0]
     assert estimated.fit_percent[1] > at_rest.fit_percent[1]
-    # The ARX model is compared in its polynomial form, with the same parameters and the same
-    # one-step predictions from rest.
+    # The ARX model's polynomial form has the same parameters and the same one-step predictions.
     poly = arxid.PolynomialModel.from_arx(arx)
     np.testing.assert_array_equal(poly.parameters_, arx.parameters_)
     np.testing.assert_allclose(poly.predict(val, 1), arx.predict(val, 1), atol=1e-9, equal_nan=True)
     np.testing.assert_allclose(estimated.predictions[0], oe.predict(val, None, initial="estimate"))
-    with pytest.raises(arxid.ArxidError, match="effect terms"):
-        arxid.compare(arxid.arx(est, 2, 2, 1, effects=["const"]), val, initial="estimate")
+    # An ARX model with effect terms is compared from fitted initial outputs too (issue 27, point 7:
+    # the ladder's models carry effects); it used to be refused.
+    const = arxid.arx(est, 2, 2, 1, effects=["const"])
+    assert arxid.compare(const, val, initial="estimate").rms[0] < arxid.compare(const, val).rms[0]
 
 
 @pytest.mark.parametrize("fit", ["oe_two_inputs", "polyest"])

@@ -423,6 +423,7 @@ def _analyse(args) -> Analysis:
         expect=args.expect,
         max_steps=args.max_steps,
         progress=_progress(args),
+        initial=args.initial,
     )
 
 
@@ -554,6 +555,16 @@ def build_parser() -> argparse.ArgumentParser:
     return root
 
 
+def _initial_arg(p: Any) -> None:
+    p.add_argument(
+        "--initial",
+        choices=["zero", "estimate"],
+        default="zero",
+        help="initial conditions of the validation free runs: 'zero' starts from the measured outputs, 'estimate' "
+        "fits them first, for a validation record that starts mid-transient (default %(default)s)",
+    )
+
+
 def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     """The commands that run the analysis pipeline: diagnose, report, demo."""
     p = sub.add_parser(
@@ -570,6 +581,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--all", action="store_true", help="print every suspect (default: the best 12)")
+    _initial_arg(p)
     _common(p)
     p.set_defaults(func=cmd_diagnose)
 
@@ -588,6 +600,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--title", help="report title")
+    _initial_arg(p)
     _common(p)
     p.set_defaults(func=cmd_report)
 

@@ -39,7 +39,7 @@ from ..diagnosis.suspects import Diagnosis
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel, arx
-from ..models.polynomial import PolynomialModel
+from ..models.polynomial import PolynomialModel, check_initial
 from ..models.spec import parse_model_spec
 from ..selection.search import DEFAULT_GRID, SweepResult, sweep
 from .verdicts import ladder_headline, negative_fit_note, residual_sentences
@@ -202,6 +202,8 @@ class Analysis:
     bands : tuple of ResponseBand
         Free-run simulation of each model of ``comparison`` on the validation data with its 99 %
         band from the parameter covariance (empty for a k-step measure).
+    initial : {"zero", "estimate"}
+        Initial conditions of every validation error (see :func:`arxid.compare`).
     """
 
     estimation: IOData
@@ -219,6 +221,7 @@ class Analysis:
     notes: tuple[str, ...] = ()
     frequency: tuple[FrequencyCheck, ...] = ()
     bands: tuple[ResponseBand, ...] = ()
+    initial: str = "zero"
 
     @property
     def final_model(self) -> ArxModel:
@@ -430,13 +433,13 @@ def _structure(
 
 
 def _checks(
-    model: ArxModel, final: ArxModel, val: IOData, horizon: int | None
+    model: ArxModel, final: ArxModel, val: IOData, horizon: int | None, initial: str = "zero"
 ) -> tuple[Comparison, tuple[FailureAnalysis, ...]]:
     models = {model.structure_name(): model}
     if final is not model:
         models["+ " + ", ".join(final.effects)] = final
-    cmp = compare(models, val, horizon)
-    return cmp, tuple(where_it_fails(m, val, horizon) for m in models.values())
+    cmp = compare(models, val, horizon, initial)
+    return cmp, tuple(where_it_fails(m, val, horizon, initial=initial) for m in models.values())
 
 
 def _frequency(
@@ -471,6 +474,30 @@ def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) 
     return tuple(notes)
 
 
+def _ladder(
+    chosen: ArxModel,
+    est: IOData,
+    val: IOData,
+    res: SweepResult | None,
+    max_steps: int,
+    horizon: int | None,
+    initial: str,
+    diagnose_kwargs: dict[str, Any],
+) -> Ladder:
+    """The ladder from the chosen model; a structure the sweep chose is re-chosen as effects are added."""
+    return Ladder.run(
+        chosen,
+        est,
+        val,
+        max_steps=max_steps,
+        horizon=horizon,
+        initial=initial,
+        restructure=res is not None,
+        expect=None if res is None else res.expectation,
+        **diagnose_kwargs,
+    )
+
+
 def analyse(
     data: IOData,
     validation: IOData | None = None,
@@ -483,6 +510,7 @@ def analyse(
     max_steps: int = 3,
     progress: bool = False,
     model: ArxModel | PolynomialModel | str | None = None,
+    initial: str = "zero",
     **diagnose_kwargs: Any,
 ) -> Analysis:
     """Sweep (unless ``orders`` or a ``model`` are given), choose, compare, test, diagnose and climb the ladder.
@@ -514,6 +542,12 @@ def analyse(
         ``"bj:2,1,1,2,3"``, ``"armax:2,2,1,3"``, ``"arx:2,2,1"``), fitted on the estimation data.
         The diagnosis refits it with each candidate in its own class (an effect of an OE model
         becomes one more input with its own B/F).
+    initial : {"zero", "estimate"}
+        Initial conditions of every validation error after the sweep (the comparison, the
+        diagnosis' validated refits and the ladder): ``"zero"`` (default) starts each free run from
+        the measured outputs (a polynomial model from rest); ``"estimate"`` fits the initial
+        conditions first, as :func:`arxid.compare` does, so a validation record that starts
+        mid-transient is not held against the model.
     **diagnose_kwargs
         Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
 
@@ -523,6 +557,10 @@ def analyse(
 
     Notes
     -----
+    When the structure comes from the sweep, the ladder re-chooses it around the chosen orders each
+    time it adds an effect (:func:`arxid.diagnosis.restructure.rechoose_structure`); given orders
+    or a given model keep theirs.
+
     For an output-error model the residual tests report whiteness without expecting it (the model
     has no noise model); the independence of the inputs is its test (see :func:`arxid.residuals`).
 
@@ -540,16 +578,17 @@ def analyse(
     """
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)
+    initial = check_initial(initial)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     res, chosen, choice, g = _structure(est, val, orders, grid, requested, expect, progress, model)
     measure = res.horizon if res is not None else requested
     timings["sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ladder = Ladder.run(chosen, est, val, max_steps=max_steps, horizon=measure, **diagnose_kwargs)
+    ladder = _ladder(chosen, est, val, res, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    cmp, failures = _checks(chosen, ladder.final_model, val, ladder.horizon)
+    cmp, failures = _checks(chosen, ladder.final_model, val, ladder.horizon, initial)
     timings["checks"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     compared = [chosen] if ladder.final_model is chosen else [chosen, ladder.final_model]
@@ -571,4 +610,5 @@ def analyse(
         _notes(res, ladder.horizon, requested) + freq_notes,
         freq,
         bands,
+        initial,
     )

@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -21,7 +22,8 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon, check_model, check_same_signals
 from ..models.arx_model import ArxModel
-from ..models.polynomial import PolynomialModel, as_polynomial, check_initial
+from ..models.polynomial import PolynomialModel, check_initial
+from .initial_state import estimated_free_run
 
 __all__ = ["compare", "Comparison", "prediction_error", "error_rms"]
 
@@ -39,7 +41,8 @@ def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, 
         None: free-run simulation; k: k-step-ahead prediction.
     initial : {"zero", "estimate"}
         ``"estimate"``: each run's initial state is fitted to ``data`` first (see
-        :meth:`arxid.PolynomialModel.predict`; an ARX model is taken in its polynomial form).
+        :meth:`arxid.PolynomialModel.predict`; for an ARX model, with or without effect terms, the
+        outputs its free run starts from, see :mod:`arxid.checks.initial_state`).
 
     Returns
     -------
@@ -52,15 +55,17 @@ def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, 
         ``DIVERGENCE_FACTOR`` times the largest measured |y|); its RMS is reported as infinite.
     """
     with np.errstate(all="ignore"):
-        if check_initial(initial) == "estimate":
-            pred = np.asarray(as_polynomial(model).predict(data, horizon, initial="estimate"), dtype=float)
+        if check_initial(initial) == "estimate" and isinstance(model, PolynomialModel):
+            pred = np.asarray(model.predict(data, horizon, initial="estimate"), dtype=float)
+        elif initial == "estimate":
+            pred = estimated_free_run(model, data, horizon)
         else:
             pred = np.asarray(model.predict(data, horizon), dtype=float)
         err = data.y - pred
     return pred, err, metrics.diverged(data.y, pred)
 
 
-def error_rms(model: ArxModel, data: IOData, horizon: int | None = None) -> float:
+def error_rms(model: ArxModel, data: IOData, horizon: int | None = None, initial: str = "zero") -> float:
     """RMS of ``y - prediction`` at ``horizon``; ``inf`` when the prediction diverges.
 
     Parameters
@@ -69,12 +74,17 @@ def error_rms(model: ArxModel, data: IOData, horizon: int | None = None) -> floa
     data : IOData
     horizon : int or None
         None: free run; k: k-step-ahead prediction.
+    initial : {"zero", "estimate"}
+        Initial conditions of the prediction (see :func:`prediction_error`).
 
     Returns
     -------
     float
     """
-    return model.rms(data, horizon)
+    if check_initial(initial) == "zero":
+        return model.rms(data, horizon)
+    pred, _, diverged = prediction_error(model, data, horizon, initial)
+    return math.inf if diverged else metrics.prediction_rms(data.y, pred)
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,8 +237,9 @@ def compare(models, data: IOData, horizon: int | None = None, initial: str = "ze
     initial : {"zero", "estimate"}
         ``"zero"`` (default): each model starts at rest in each run of the data. ``"estimate"``:
         each run's initial state is fitted to the data first, as MATLAB ``compare`` does, so a
-        record that starts mid-transient is not held against the model (OE, ARMAX, BJ and ARX
-        models without effect terms).
+        record that starts mid-transient is not held against the model (OE, ARMAX and BJ models
+        from their fitted initial state; ARX models, with their effect terms, from fitted initial
+        outputs on the samples ``"zero"`` predicts, see :mod:`arxid.checks.initial_state`).
 
     Returns
     -------

@@ -331,6 +331,7 @@ def where_it_fails(
     n_worst: int = 3,
     n_bins: int = 8,
     alpha: float = 0.01,
+    initial: str = "zero",
 ) -> FailureAnalysis:
     """Locate a model's error in time and by operating point.
 
@@ -349,6 +350,8 @@ def where_it_fails(
         Quantile bins per signal.
     alpha : float
         Level for calling a signal significant (Bonferroni over the signals).
+    initial : {"zero", "estimate"}
+        Initial conditions of the error in time (see :func:`compare`).
 
     Returns
     -------
@@ -364,7 +367,7 @@ def where_it_fails(
     window = max(10, n // 50) if window is None else int(window)
     if window < 2 or window > n:
         raise ArxidError(f"window must be between 2 and the number of samples ({n}), got {window}")
-    _, err, diverged = prediction_error(model, data, horizon)
+    _, err, diverged = prediction_error(model, data, horizon, initial)
     if diverged:
         err = np.where(np.isfinite(err), err, np.nan)
     _, res, _ = prediction_error(model, data, 1)

@@ -132,7 +132,10 @@ def refit(model: ArxModel, data: IOData, c) -> ArxModel:
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
 
 
-def refit_and_validate(model, data: IOData, validation: IOData, c, horizon: int | None) -> tuple[ArxModel, float]:
-    """The model refitted with candidate ``c`` and its validation error at ``horizon``."""
+def refit_and_validate(
+    model, data: IOData, validation: IOData, c, horizon: int | None, initial: str = "zero"
+) -> tuple[ArxModel, float]:
+    """The model refitted with candidate ``c`` and its validation error at ``horizon`` (from the
+    ``initial`` conditions, see :func:`arxid.checks.prediction_error`)."""
     fitted = refit(model, data, c)
-    return fitted, error_rms(fitted, validation, horizon)
+    return fitted, error_rms(fitted, validation, horizon, initial)

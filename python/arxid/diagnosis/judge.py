@@ -40,9 +40,11 @@ class Judge:
         horizon: int | None,
         base_rms: float,
         min_improvement: float,
+        initial: str = "zero",
     ):
         self.model, self.data, self.validation = model, data, validation
         self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
+        self.initial = initial
 
     def _improvement(self, after: float) -> float:
         if math.isfinite(after) and math.isfinite(self.base_rms) and self.base_rms > 0:
@@ -65,7 +67,9 @@ class Judge:
         after, fitted = math.nan, None
         if refit:
             try:
-                fitted, after = refit_and_validate(self.model, self.data, self.validation, c, self.horizon)
+                fitted, after = refit_and_validate(
+                    self.model, self.data, self.validation, c, self.horizon, self.initial
+                )
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:
@@ -179,7 +183,7 @@ class Judge:
         nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
         both = Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
         try:
-            after = refit_and_validate(m, self.data, self.validation, both, self.horizon)[1]
+            after = refit_and_validate(m, self.data, self.validation, both, self.horizon, self.initial)[1]
         except ArxidError:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
@@ -194,7 +198,7 @@ class Judge:
         if top.model is not None:
             try:
                 c = Candidate(s.effect, s.effects, s.na, s.nb, s.nk, s.kind)
-                after = refit_and_validate(top.model, self.data, self.validation, c, self.horizon)[1]
+                after = refit_and_validate(top.model, self.data, self.validation, c, self.horizon, self.initial)[1]
             except ArxidError:
                 pass
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:

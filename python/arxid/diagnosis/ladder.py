@@ -1,7 +1,11 @@
 """The error ladder: models as effects are added, with the validation error at each step.
 
-:meth:`Ladder.run` adds the best significant suspect of :func:`arxid.diagnose`, re-diagnoses, and
-repeats until nothing significant is left, so the user watches the error fall step by step.
+:meth:`Ladder.run` adds the best significant physical effect that :func:`arxid.diagnose` finds,
+re-diagnoses, and repeats until nothing significant is left, so the user watches the error fall
+step by step. The rungs are physical effects: a structure change (``nb+1``) stands on its own only
+when no effect is significant, and with ``restructure=True`` the orders are re-chosen around the
+current ones each time an effect is added (:mod:`arxid.diagnosis.restructure`); the rung then says
+how the structure changed.
 """
 
 from __future__ import annotations
@@ -20,11 +24,13 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model
 from ..models.arx_model import ArxModel
+from ..models.polynomial import PolynomialModel, check_initial
 from .candidates import physics
-from .result import Diagnosis
+from .restructure import linear_name, order_change, rechoose_structure
+from .result import Diagnosis, Suspect
 from .suspects import diagnose
 
-__all__ = ["Ladder", "LadderStep"]
+__all__ = ["Ladder", "LadderStep", "next_rung"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +58,12 @@ class LadderStep:
         it and was taken out of the model then (``"y^3"`` approximating ``"sign(y)"``).
     replaces : tuple of str
         Effects of earlier steps this step's effect made unnecessary (they approximated it).
+    restructured : str
+        Set when the structure was re-chosen once ``added`` was in the model: how the orders
+        changed (``"nb+1"``; ``""`` when they did not).
+    rms_before_restructure : float
+        Validation error of the model with ``added`` at the structure before it was re-chosen
+        (NaN when it was not).
     """
 
     added: str
@@ -64,20 +76,25 @@ class LadderStep:
     physics: str = ""
     approximation_of: str = ""
     replaces: tuple[str, ...] = ()
+    restructured: str = ""
+    rms_before_restructure: float = math.nan
 
     def label(self) -> str:
-        """What the step added, with the approximation or replacement said in words.
+        """What the step added, with the approximation, replacement or new structure said in words.
 
         Returns
         -------
         str
-            e.g. ``"y^3 (approximated sign(y))"``, ``"sign(y) (replaces y^3)"``, ``"(start)"``.
+            e.g. ``"y^3 (approximated sign(y))"``, ``"sign(y) (replaces y^3)"``,
+            ``"u1*vbat, and the structure became ARX(4,2,5)"``, ``"(start)"``.
         """
         text = self.added or "(start)"
         if self.approximation_of:
             text += f" (approximated {self.approximation_of})"
         if self.replaces:
             text += f" (replaces {', '.join(self.replaces)})"
+        if self.restructured:
+            text += f", and the structure became {linear_name(self.model)}"
         return text
 
     def to_dict(self) -> dict:
@@ -87,7 +104,8 @@ class LadderStep:
         -------
         dict
             ``added``, ``structure``, ``effects``, ``rms_sim_val``, ``fit_val``, ``physics``,
-            ``approximation_of``, ``replaces``.
+            ``approximation_of``, ``replaces``, ``restructured`` (the change of orders made when
+            the structure was re-chosen, None when it was not) and ``rms_before_restructure``.
         """
         return {
             "added": self.added,
@@ -98,6 +116,8 @@ class LadderStep:
             "physics": self.physics,
             "approximation_of": self.approximation_of,
             "replaces": list(self.replaces),
+            "restructured": self.restructured or None,
+            "rms_before_restructure": finite_or_none(float(self.rms_before_restructure)),
         }
 
 
@@ -114,6 +134,9 @@ class Ladder:
         model's estimation data.
     horizon : int, optional
         Validation error measure: None = free-run simulation; k = k-step-ahead prediction.
+    initial : {"zero", "estimate"}
+        Initial conditions of the validation error: ``"zero"`` (default) starts each free run from
+        the measured outputs; ``"estimate"`` fits them first (see :func:`arxid.compare`).
 
     Attributes
     ----------
@@ -136,9 +159,10 @@ class Ladder:
     ['', 'u1^2']
     """
 
-    def __init__(self, validation: IOData | None = None, horizon: int | None = None):
+    def __init__(self, validation: IOData | None = None, horizon: int | None = None, initial: str = "zero"):
         self.validation = validation
         self.horizon = check_horizon(horizon)
+        self.initial = check_initial(initial)
         self.steps: list[LadderStep] = []
         self.diagnoses: list[Diagnosis] = []
 
@@ -150,6 +174,7 @@ class Ladder:
         *,
         settle: bool = False,
         min_improvement: float = 0.05,
+        rechosen_from: ArxModel | None = None,
     ) -> LadderStep:
         """Record ``model`` as the next step, measured on ``validation`` (default: the ladder's).
 
@@ -168,6 +193,9 @@ class Ladder:
             new effect; it is taken out of the model and its step labelled an approximation.
         min_improvement : float
             Relative fall of the validation error an earlier effect must still bring (0.05 = 5%).
+        rechosen_from : ArxModel, optional
+            The model with ``added`` at the structure before it was re-chosen: the step records
+            how the orders changed and that model's validation error.
 
         Returns
         -------
@@ -190,11 +218,14 @@ class Ladder:
         if settle and added and self.steps:
             model, replaces = self._settle(model, added, val, min_improvement)
         step = self._step(model, added, val, replaces)
+        if rechosen_from is not None and order_change(rechosen_from, model):
+            before = error_rms(rechosen_from, val, self.horizon, self.initial)
+            step = replace(step, restructured=order_change(rechosen_from, model), rms_before_restructure=before)
         self.steps.append(step)
         return step
 
     def _step(self, model: ArxModel, added: str, val: IOData, replaces: tuple[str, ...]) -> LadderStep:
-        pred, _, _ = prediction_error(model, val, self.horizon)
+        pred, _, _ = prediction_error(model, val, self.horizon, self.initial)
         data = model.data_ if model.data_ is not None else val
         return LadderStep(
             added,
@@ -228,7 +259,8 @@ class Ladder:
                 reduced = ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=without).fit(
                     model.data_, first_lag=model.first_lag_
                 )
-                before, after = error_rms(reduced, val, self.horizon), error_rms(model, val, self.horizon)
+                before = error_rms(reduced, val, self.horizon, self.initial)
+                after = error_rms(model, val, self.horizon, self.initial)
             except ArxidError:
                 continue
             if math.isfinite(before) and after > (1.0 - min_improvement) * before:
@@ -246,9 +278,16 @@ class Ladder:
         *,
         max_steps: int = 3,
         horizon: int | None = None,
+        initial: str = "zero",
+        restructure: bool = False,
+        expect: str | None = None,
         **diagnose_kwargs,
     ) -> Ladder:
-        """Greedy ladder: diagnose, add the best significant suspect, repeat.
+        """Greedy ladder: diagnose, add the best significant physical effect, repeat.
+
+        Each rung adds the significant suspect of :func:`diagnose` with the lowest validation
+        error among the physical effects (and pairs); a structure change (``na+1``, ``nb+1``,
+        ``nk-1`` ...) is a rung of its own only when no effect is significant.
 
         Parameters
         ----------
@@ -261,6 +300,15 @@ class Ladder:
         horizon : int or None
             Validation error measure (the first diagnosis may switch a free run to k-step for an
             integrating plant; the whole ladder then uses that horizon).
+        initial : {"zero", "estimate"}
+            Initial conditions of every validation error, the diagnoses' included (see
+            :func:`arxid.compare`); default ``"zero"``.
+        restructure : bool
+            Re-choose the orders around the current ones each time an effect is added
+            (:func:`arxid.diagnosis.restructure.rechoose_structure`; ARX models). Default False:
+            the starting model's orders are kept (a structure change is then a rung of its own).
+        expect : {None, "stable", "integrating", "double-integrating"}
+            What the step sanity check of a re-chosen structure assumes (the sweep's expectation).
         **diagnose_kwargs
             Passed to :func:`diagnose` (``candidates``, ``alpha``, ``min_improvement`` ...).
 
@@ -271,18 +319,32 @@ class Ladder:
         """
         model = check_model(model)
         data = data if data is not None else model.data_
-        d = diagnose(model, data, validation, horizon=horizon, **diagnose_kwargs)
-        ladder = cls(d.validation, d.horizon)
+        d = diagnose(model, data, validation, horizon=horizon, initial=initial, **diagnose_kwargs)
+        ladder = cls(d.validation, d.horizon, initial)
         ladder.add(model)
         ladder.diagnoses.append(d)
         for _ in range(int(max_steps)):
-            top = d.top
-            if top is None:
+            rung = next_rung(d)
+            if rung is None:
                 break
-            model = d.apply(top.effect)
-            step = ladder.add(model, top.effect, settle=True, min_improvement=d.min_improvement)
+            model = d.apply(rung.effect)
+            rechosen_from = None
+            if restructure and rung.kind != "dynamics" and not isinstance(model, PolynomialModel):
+                choice = rechoose_structure(
+                    model,
+                    d.data,
+                    d.validation,
+                    d.horizon,
+                    initial=ladder.initial,
+                    expect=expect,
+                    min_improvement=d.min_improvement,
+                )
+                model, rechosen_from = choice.model, (model if choice.changed else None)
+            step = ladder.add(
+                model, rung.effect, settle=True, min_improvement=d.min_improvement, rechosen_from=rechosen_from
+            )
             model = step.model
-            d = diagnose(model, data, validation, horizon=d.horizon, **diagnose_kwargs)
+            d = diagnose(model, data, validation, horizon=d.horizon, initial=initial, **diagnose_kwargs)
             ladder.diagnoses.append(d)
         return ladder
 
@@ -424,20 +486,31 @@ class Ladder:
     def error_fall(self) -> dict:
         """How much of the starting validation error the ladder removed, split by what the steps added.
 
+        A step that added an effect and re-chose the structure counts twice: the fall to the
+        error of the effect at the old structure is the effect's, the rest the structure's.
+
         Returns
         -------
         dict
             ``total``, ``effects`` (steps that added an effect), ``structure`` (steps that changed
-            na, nb or nk): shares of the first step's error (0.9 = 90 %), None when undefined;
-            ``added_effects`` and ``structure_changes``: the names added by each kind of step.
+            na, nb or nk, and re-chosen structures): shares of the first step's error (0.9 = 90 %),
+            None when undefined; ``added_effects`` and ``structure_changes``: the names added by
+            each kind of step (a re-chosen structure by its change of orders, ``"nb+1"``).
         """
         parts = {"effect": 0.0, "structure": 0.0}
         names: dict[str, list[str]] = {"effect": [], "structure": []}
+        first = self.steps[0].rms_sim_val if self.steps else math.nan
         for i in range(1, len(self.steps)):
-            d = self.step_details(i)
+            d, step = self.step_details(i), self.steps[i]
             kind = d["kind"]
-            parts[kind] += d["fall"] if d["fall"] is not None else math.nan
-            names[kind].append(self.steps[i].added)
+            fall = d["fall"] if d["fall"] is not None else math.nan
+            names[kind].append(step.added)
+            if step.restructured:
+                by_structure = (step.rms_before_restructure - step.rms_sim_val) / first
+                parts["structure"] += by_structure
+                names["structure"].append(step.restructured)
+                fall -= by_structure
+            parts[kind] += fall
         ok = len(self.steps) > 1 and all(math.isfinite(v) for v in parts.values())
         return {
             "total": finite_or_none(parts["effect"] + parts["structure"]) if ok else None,
@@ -461,3 +534,22 @@ class Ladder:
         from ..plots.diagnostics import plot_ladder
 
         return plot_ladder(self, ax=ax)
+
+
+def next_rung(d: Diagnosis) -> Suspect | None:
+    """The suspect the ladder adds next: the significant physical effect (or pair) with the lowest
+    validation error; a structure change only when no effect is significant.
+
+    Parameters
+    ----------
+    d : Diagnosis
+
+    Returns
+    -------
+    Suspect or None
+        None when nothing is significant.
+    """
+    significant = [s for s in d.suspects if s.significant]  # ranked, the lowest validation error first
+    effects = [s for s in significant if s.kind != "dynamics"]
+    ranked = effects or significant
+    return ranked[0] if ranked else None

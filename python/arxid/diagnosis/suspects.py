@@ -46,7 +46,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel
-from ..models.polynomial import PolynomialModel
+from ..models.polynomial import PolynomialModel, check_initial
 from .candidates import auto_candidates, output_integrates, physics
 from .disturbance import Disturbance, remaining_disturbance
 from .extension import Candidate, candidate_list
@@ -75,6 +75,7 @@ def diagnose(
     n_pairs: int = 8,
     residual_max_lag: int = 25,
     simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
+    initial: str = "zero",
 ) -> Diagnosis:
     """Rank the physical effects (and structure changes) the model is missing.
 
@@ -111,6 +112,11 @@ def diagnose(
         "time")``: an offset, then a trend): a suspect whose validation error is not at least
         ``min_improvement`` below that of the model refitted with one of them is "no better than" it
         (see :meth:`~arxid.diagnosis.judge.Judge.simplest_first`). ``()`` turns the comparison off.
+    initial : {"zero", "estimate"}
+        Initial conditions of every validation error (the baseline's and the refits'): ``"zero"``
+        (default) starts each free run from the measured outputs (a polynomial model from rest);
+        ``"estimate"`` fits them first, so a validation record that starts mid-transient is not held
+        against the models (see :func:`arxid.compare`).
 
     Returns
     -------
@@ -134,15 +140,16 @@ def diagnose(
     polynomial = isinstance(model, PolynomialModel)
     data, validation, same = _data_pair(model, data, validation)
     horizon = check_horizon(horizon)
+    initial = check_initial(initial)
     if not 0 < alpha < 1:
         raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
-    base = _baseline(model, validation, horizon, residual_max_lag)
+    base = _baseline(model, validation, horizon, residual_max_lag, initial)
     cands, auto = candidate_list(candidates, model, data)
     scoring = None if polynomial else Scoring(model, data, cands)
     scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
-    judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement)
+    judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement, initial)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
     suspects = judge.conditional_on_top(suspects)
@@ -210,11 +217,11 @@ class _Baseline:
     disturbance: Disturbance | None
 
 
-def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int) -> _Baseline:
+def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int, initial: str) -> _Baseline:
     """The model's validation errors; a free run that drifts or diverges is measured k steps ahead."""
     if horizon is None and output_integrates(model, _free_run_fit(model, validation)):
         horizon = INTEGRATING_HORIZON
-    rms = error_rms(model, validation, horizon)
+    rms = error_rms(model, validation, horizon, initial)
     if math.isnan(rms):  # no sample of the validation data has a prediction
         raise DataError(
             f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
@@ -222,8 +229,8 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
         )
     if horizon is None and math.isinf(rms):
         horizon = INTEGRATING_HORIZON
-        rms = error_rms(model, validation, horizon)
-    pred, _, _ = prediction_error(model, validation, horizon)
+        rms = error_rms(model, validation, horizon, initial)
+    pred, _, _ = prediction_error(model, validation, horizon, initial)
     try:
         rtests = residuals(model, validation, max_lag=max_lag)
     except ArxidError:

@@ -16,6 +16,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import text_table
+from ..checks import prediction_error
 from ..exceptions import ArxidError, ArxidWarning, OrderError
 from ..models.pem import oe
 from ..models.polynomial import check_initial
@@ -37,7 +38,7 @@ class RefinedRow:
     n_params : int
     rms_val : float
         Free-run RMS error on the validation data (the estimation data without them), on the
-        samples every row predicts.
+        samples every row predicts, from the initial conditions the refinement was asked for.
     fit_val : float
         Free-run NRMSE fit in percent on the same samples.
     score : float
@@ -179,8 +180,11 @@ def refine(
         ``{"nb": ..., "nf": ..., "nk": ...}`` ranges of the OE grid fitted as well (default nb and
         nf in 1..3, nk over the sweep's delays). Orders are shared by all inputs.
     initial : {"zero", "estimate"}
-        Initial conditions of the OE fits (see :meth:`PolynomialModel.fit`). Every row is still
-        ranked by its free run from rest on the validation data, so ARX and OE rows compare.
+        Initial conditions of the OE fits (see :meth:`PolynomialModel.fit`) and of every row's free
+        run on the validation data (see :func:`arxid.compare`): ``"zero"`` (default) runs OE models
+        from rest and ARX models from the measured outputs; ``"estimate"`` fits each row's initial
+        conditions first, so a validation record that starts mid-transient is not held against
+        the OE rows. ARX and OE rows are scored alike either way.
 
     Returns
     -------
@@ -198,8 +202,9 @@ def refine(
         raise ArxidError(f"refine supports structure='oe' only, got {structure!r}")
     top = _int("top", top, 1)
     val = result.validation if result.validation is not None else result.estimation
-    cands = _candidates(result, top, grid, check_initial(initial))
-    preds = [np.asarray(m.predict(val, None), dtype=float) for _, m in cands]
+    initial = check_initial(initial)
+    cands = _candidates(result, top, grid, initial)
+    preds = [prediction_error(m, val, None, initial)[0] for _, m in cands]
     ok = np.isfinite(val.y)
     for p in preds:
         ok &= np.isfinite(p) | ~np.isfinite(p).any()

@@ -1,0 +1,248 @@
+"""The structure re-chosen once the ladder adds an effect (:func:`rechoose_structure`).
+
+The sweep chose (na, nb, nk) for the model without effects. An effect the ladder adds can change
+which structure is best: a model that had to spend an input lag on a slow drift no longer needs it,
+or a missing effect hid the benefit of one more lag. So after an effect is accepted the orders are
+swept again around the current ones, with the effects in every model, every model fitted on the
+same rows and judged by the same validation measure as the ladder.
+
+The neighbourhood of the orders is every (na ± 1, nb ± 1, nk ± 1) for one input (26 structures);
+with several inputs, na ± 1 and each input's nb ± 1, nk ± 1 and (nb + 1, nk − 1), (nb − 1, nk + 1)
+(the same last lag). A neighbour may replace the current structure only when
+
+* its validation error is lower by at least ``min_improvement`` (5 %, the fall a structure change
+  needs to be a significant suspect of :func:`arxid.diagnose`; less keeps the structure the sweep
+  chose), and
+* the current structure's error is significantly larger than its own by the Diebold-Mariano test
+  of :mod:`arxid.selection.parsimony` (one-sided 5 %, on the same validation samples).
+
+Of those, the one with the fewest parameters whose error is not significantly larger than the
+lowest (the sweep's "smallest within noise" rule) is taken, provided its step sanity check
+(:func:`arxid.sanity.step_sanity`, with the sweep's expectation) raises no flag the current model
+does not raise already (else the next smallest).
+
+The search moves to the new structure and repeats, at most ``max_rounds`` times.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..checks import prediction_error
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arx_model import ArxModel
+from ..selection.parsimony import diebold_mariano
+from ..selection.sanity import step_sanity
+
+__all__ = ["Rechoice", "rechoose_structure", "order_change", "linear_name"]
+
+Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
+
+
+@dataclass(frozen=True, eq=False)
+class Rechoice:
+    """The outcome of :func:`rechoose_structure`.
+
+    Attributes
+    ----------
+    model : ArxModel
+        The model at the chosen structure (the given model itself when it did not change).
+    before : ArxModel
+        The given model.
+    rms_before, rms_after : float
+        Validation error of ``before`` and ``model`` at the ladder's measure.
+    tried : int
+        Structures fitted and validated.
+    """
+
+    model: ArxModel
+    before: ArxModel
+    rms_before: float
+    rms_after: float
+    tried: int
+
+    @property
+    def changed(self) -> bool:
+        """True when the structure changed."""
+        return self.model is not self.before
+
+    @property
+    def change(self) -> str:
+        """The change of orders in words, e.g. ``"nb+1"`` or ``"na+1, nk-2"`` (``""`` when none)."""
+        return order_change(self.before, self.model) if self.changed else ""
+
+
+def linear_name(model: ArxModel) -> str:
+    """The structure without its effects.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted model.
+
+    Returns
+    -------
+    str
+        e.g. ``ARX(4,2,5)``.
+    """
+    return ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_).structure_name()
+
+
+def order_change(before: ArxModel, after: ArxModel) -> str:
+    """How the orders of ``after`` differ from those of ``before``, e.g. ``"nb+1, nk-1"``.
+
+    Parameters
+    ----------
+    before, after : ArxModel
+        Fitted models with the same inputs.
+
+    Returns
+    -------
+    str
+        One ``name±d`` per order that changed (``nb(u2)+1`` with several inputs); ``""`` when none did.
+    """
+    names = before.input_names
+    parts = [f"na{after.na_ - before.na_:+d}"] if after.na_ != before.na_ else []
+    for key in ("nb", "nk"):
+        old, new = getattr(before, key + "_"), getattr(after, key + "_")
+        for i, (a, b) in enumerate(zip(old, new)):
+            if a != b:
+                parts.append(f"{key}{'' if len(old) == 1 else f'({names[i]})'}{b - a:+d}")
+    return ", ".join(parts)
+
+
+def _neighbours(orders: Orders) -> list[Orders]:
+    na, nb, nk = orders
+    out: list[Orders]
+    if len(nb) == 1:
+        steps = itertools.product((-1, 0, 1), repeat=3)
+        out = [(na + a, (nb[0] + b,), (nk[0] + k,)) for a, b, k in steps if (a, b, k) != (0, 0, 0)]
+    else:
+        out = [(na - 1, nb, nk), (na + 1, nb, nk)]
+        for i in range(len(nb)):
+            for db, dk in ((-1, 0), (1, 0), (0, -1), (0, 1), (1, -1), (-1, 1)):
+                b, k = list(nb), list(nk)
+                b[i], k[i] = b[i] + db, k[i] + dk
+                out.append((na, tuple(b), tuple(k)))
+    low_b = tuple(min(1, b) for b in nb)
+    return [o for o in out if o[0] >= 0 and all(b >= lb for b, lb in zip(o[1], low_b)) and min(o[2]) >= 0]
+
+
+def _lag(orders: Orders, output_terms: bool) -> int:
+    na, nb, nk = orders
+    return max(na, max((b + k - 1 for b, k in zip(nb, nk) if b > 0), default=0), 2 if output_terms else 0)
+
+
+@dataclass
+class _Search:
+    """Fits and judges the structures of one neighbourhood."""
+
+    data: IOData
+    validation: IOData
+    horizon: int | None
+    initial: str
+    expect: str | None
+
+    def fit(self, model: ArxModel, orders: Orders, first_lag: int) -> ArxModel:
+        na, nb, nk = orders
+        return ArxModel(na=na, nb=nb, nk=nk, effects=model.effects).fit(self.data, first_lag=first_lag)
+
+    def errors(self, model: ArxModel) -> np.ndarray:
+        _, err, diverged = prediction_error(model, self.validation, self.horizon, self.initial)
+        return np.full_like(err, np.inf) if diverged else err
+
+    def flags(self, model: ArxModel) -> set[str]:
+        return set(step_sanity(model, self.validation, expect=self.expect).flags)
+
+
+def _rms(err: np.ndarray) -> float:
+    e = err[~np.isnan(err)]
+    return float(np.sqrt(np.mean(e**2))) if e.size else math.nan
+
+
+def rechoose_structure(
+    model: ArxModel,
+    data: IOData,
+    validation: IOData,
+    horizon: int | None = None,
+    *,
+    initial: str = "zero",
+    expect: str | None = None,
+    min_improvement: float = 0.05,
+    max_rounds: int = 3,
+) -> Rechoice:
+    """Re-choose the orders of ``model`` (with its effects) by a local sweep around them.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted model, normally just refitted with a new effect.
+    data, validation : IOData
+        Estimation and validation data.
+    horizon : int or None
+        Validation error measure: None = free run; k = k-step prediction.
+    initial : {"zero", "estimate"}
+        Initial conditions of the validation error (see :func:`arxid.compare`).
+    expect : {None, "stable", "integrating", "double-integrating"}
+        What the step sanity check assumes (the sweep's expectation).
+    min_improvement : float
+        Relative fall of the validation error a new structure must bring (0.05 = 5 %), as a
+        structure change suspect of :func:`arxid.diagnose` must.
+    max_rounds : int
+        Largest number of moves to a neighbouring structure.
+
+    Returns
+    -------
+    Rechoice
+        The model at the chosen structure, with the errors before and after.
+    """
+    search = _Search(data, validation, horizon, initial, expect)
+    terms = bool(model.layout_.output_terms)
+    current, tried = model, 0
+    err_current = search.errors(current)
+    rms_first = _rms(err_current)
+    for _ in range(int(max_rounds)):
+        orders = (current.na_, tuple(current.nb_), tuple(current.nk_))
+        cands = _neighbours(orders)
+        first_lag = max([current.first_lag_, _lag(orders, terms)] + [_lag(o, terms) for o in cands])
+        try:  # the current structure on the same rows as its neighbours
+            base = current if first_lag == current.first_lag_ else search.fit(current, orders, first_lag)
+        except ArxidError:
+            break
+        err_base = search.errors(base)
+        fitted = []
+        for o in cands:
+            try:
+                m = search.fit(current, o, first_lag)
+            except ArxidError:
+                continue
+            err = search.errors(m)
+            fitted.append((_rms(err), m, err))
+        tried += len(fitted)
+        better = [f for f in fitted if _better(f[2], err_base, min_improvement)]
+        if not better:
+            break
+        lowest = min(better, key=lambda f: f[0])
+        # the smallest structure not significantly worse than the lowest error, as the sweep's
+        # "smallest-within-noise" rule: one more order is taken only when it is needed
+        near = [f for f in better if f is lowest or not diebold_mariano(f[2], lowest[2]).worse]
+        flags = search.flags(base)
+        ranked = sorted(near, key=lambda f: (f[1].n_params, f[0]))
+        chosen = next((f for f in ranked if not search.flags(f[1]) - flags), None)
+        if chosen is None:
+            break
+        _, current, err_current = chosen
+    return Rechoice(current, model, rms_first, _rms(err_current), tried)
+
+
+def _better(err_new: np.ndarray, err_old: np.ndarray, min_improvement: float) -> bool:
+    """``err_new`` lower by ``min_improvement`` and ``err_old`` significantly larger (Diebold-Mariano)."""
+    new, old = _rms(err_new), _rms(err_old)
+    if not (math.isfinite(new) and new <= (1.0 - min_improvement) * old):
+        return False
+    return math.isinf(old) or diebold_mariano(err_old, err_new).worse
