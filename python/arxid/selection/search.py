@@ -269,11 +269,14 @@ def _has_sane(result: SweepResult) -> bool:
     return True
 
 
-def _detected(first: SweepResult, rerun: Callable[[IntegratorTest], SweepResult]) -> SweepResult:
+def _detected(first: SweepResult, rerun: Callable[[IntegratorTest], SweepResult], revise: bool = True) -> SweepResult:
     """The free-run sweep ``first`` under the detected verdict, redone with k steps (``rerun``)
     for an integrating plant. A verdict under which no structure is sane is revised when the other
-    verdict has one: the choice is never left empty by a borderline test (the reason says so)."""
+    verdict has one: the choice is never left empty by a borderline test (the reason says so).
+    Without ``revise`` (a fleet on a cluster, whose samples the client does not read) it stands."""
     verdict = _integrator_verdict(first)
+    if not revise:
+        return rerun(verdict) if verdict.integrating else _with_verdict(first, verdict)
     if not verdict.integrating:
         stable = _with_verdict(first, verdict)
         if _has_sane(stable):
@@ -527,7 +530,11 @@ def sweep(
     build = _ResultBuilder(g, terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings)
     result = build(run(k_step), k_step, integrating, reason)
     if expect is None and k_step is None:
-        result = _detected(result, lambda v: build(run(k_default), k_default, v.integrating, v.reason, v))
+
+        def rerun(verdict: IntegratorTest) -> SweepResult:
+            return build(run(k_default), k_default, verdict.integrating, verdict.reason, verdict)
+
+        result = _detected(result, rerun, revise=workers is None)
     elif expect is None:  # the user's horizon fixes the measure; the verdict is stated
         result = _with_verdict(result, _integrator_verdict(result))
     result = result.extend() if auto_extend else result
