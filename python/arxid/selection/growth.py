@@ -421,7 +421,7 @@ def grow(
         _say(
             res,
             f"{rounds[-1].structure} is on an edge of the grid; sweeping {n_new:,} structures "
-            f"({grid_text(new)}, about {predicted:.0f} s)",
+            f"({grid_text(new)}, about {_seconds(predicted)})",
         )
         t0 = time.perf_counter()
         try:
@@ -451,6 +451,10 @@ def grow(
             why = f"the grid {new_rec.text} {found}, so {rounds[-2].structure} of the grid {rounds[-2].text} stands."
             return res, GridGrowth(tuple(rounds), "no-gain", why, max_seconds, len(rounds) - 2, min_gain)
         res, rank = grown, new_rank
+
+
+def _seconds(s: float) -> str:
+    return f"{s:.0f} s" if s >= 10 else (f"{s:.1f} s" if s >= 1 else f"{s:.2g} s")
 
 
 def _with_seconds(rec: GridRound, seconds: float) -> GridRound:
@@ -493,9 +497,9 @@ def _next_grid(
         return _Stop(
             "budget",
             (
-                f"the next grid ({grid_text(new)}, {n_new:,} structures) would take about {predicted:.0f} s, past the "
-                f"budget of {max_seconds:g} s for the search ({spent:.1f} s spent; max_seconds raises it); the choice "
-                f"still sits on an edge."
+                f"the next grid ({grid_text(new)}, {n_new:,} structures) would take about {_seconds(predicted)}, past "
+                f"the budget of {max_seconds:g} s for the search ({_seconds(spent)} spent; max_seconds raises it); the "
+                f"choice still sits on an edge."
             ),
         )
     return new, n_new, predicted
