@@ -259,8 +259,8 @@ def _grow_args(p: argparse.ArgumentParser) -> None:
         action="store_const",
         const=True,
         default=None,
-        help="grow the grid while the chosen structure sits on its edge and improves, also a grid given by "
-        "--na/--nb/--nk (the default grid always grows)",
+        help="grow the grid while the chosen structure sits on its edge and growing lowers its validation error, "
+        "also a grid given by --na/--nb/--nk (the default grid grows unless --no-grow)",
     )
     g.add_argument("--no-grow", dest="grow", action="store_const", const=False, help="sweep the grid as it is")
     p.add_argument(
