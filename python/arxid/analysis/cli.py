@@ -25,6 +25,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arx_model import arx
 from ..models.spec import MODEL_FORMS, parse_model_spec
+from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import DEFAULT_GRID, sweep
 from .pipeline import DEFAULT_SPLIT, Analysis, analyse, choose
 from .report.html import render_html
@@ -250,6 +251,35 @@ def _order_args(p: argparse.ArgumentParser) -> None:
         )
 
 
+def _grow_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--grow",
+        dest="grow",
+        action="store_const",
+        const=True,
+        default=None,
+        help="grow the grid while the chosen structure sits on its edge and growing lowers its validation error, "
+        "also a grid given by --na/--nb/--nk (the default grid grows unless --no-grow)",
+    )
+    g.add_argument("--no-grow", dest="grow", action="store_const", const=False, help="sweep the grid as it is")
+    p.add_argument(
+        "--max-seconds",
+        type=float,
+        default=DEFAULT_GROWTH_SECONDS,
+        metavar="S",
+        help="time budget of the grid search in seconds: no larger grid is started that would pass it "
+        "(default %(default)g)",
+    )
+
+
+def _grows(args) -> bool:
+    """Grow the grid: asked for, or the default grid (no --na/--nb/--nk and no --no-grow)."""
+    if args.grow is not None:
+        return bool(args.grow)
+    return all(getattr(args, k, None) is None for k in ("na", "nb", "nk"))
+
+
 def _model_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--model",
@@ -361,6 +391,8 @@ def cmd_sweep(args) -> int:
         grid = {"na": [o[0]], "nb": [o[1]], "nk": [o[2]]}
     t0 = time.perf_counter()
     res = sweep(est, validation=val, progress=_progress(args), expect=args.expect, horizon=args.horizon, **grid)
+    res = res.extend(max_rounds=None if _grows(args) else 0, max_seconds=args.max_seconds)
+    growth = res.growth
     best, choice = choose(res)
     elapsed = time.perf_counter() - t0
     rank = choice.rank or 0  # a sweep's choice always has a rank
@@ -371,6 +403,7 @@ def cmd_sweep(args) -> int:
         "n_structures": len(res),
         "seconds": elapsed,
         "grid": {k: list(v) for k, v in grid.items()},
+        "grid_growth": None if growth is None else growth.to_dict(),
         "measure": res.measure,
         "horizon": res.horizon,
         "integrating": res.integrating,
@@ -396,6 +429,8 @@ def cmd_sweep(args) -> int:
         print(f"skipped {name}: {why}")
     if choice.grid_edge:
         print(choice.grid_edge)
+    if growth is not None and (growth.grew or growth.stop != "inside"):
+        print("\n".join(growth.lines()))
     print(
         f"best sane structure: {best.structure_name()}  (validation RMS {format_value(row['rms_val'])}, "
         f"fit {format_value(row['fit_val'])} %, {res.measure})"
@@ -413,11 +448,14 @@ def _analyse(args) -> Analysis:
             raise UsageError("give either --model or --orders / --na --nb --nk, not both")
         parse_model_spec(spec)  # a typed error with the correct form, before the data are read
     est, val = _load(args)
+    grid = None if spec is not None or all(getattr(args, k, None) is None for k in ("na", "nb", "nk")) else _grid(args)
     return analyse(
         est,
         val,
         orders=orders,
-        grid=None if spec is not None else _grid(args),
+        grid=grid,
+        grow=args.grow,
+        max_seconds=args.max_seconds,
         model=spec,
         horizon=args.horizon,
         expect=args.expect,
@@ -549,6 +587,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--top", type=int, default=20, metavar="N", help="rows to print (default %(default)s)")
     p.add_argument("--all", action="store_true", help="print every structure (instead of --top)")
+    _grow_args(p)
     _common(p)
     p.set_defaults(func=cmd_sweep)
     _add_analysis_commands(sub, kw)
@@ -582,6 +621,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--all", action="store_true", help="print every suspect (default: the best 12)")
     _initial_arg(p)
+    _grow_args(p)
     _common(p)
     p.set_defaults(func=cmd_diagnose)
 
@@ -601,6 +641,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
     p.add_argument("--title", help="report title")
     _initial_arg(p)
+    _grow_args(p)
     _common(p)
     p.set_defaults(func=cmd_report)
 
@@ -637,6 +678,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             v = getattr(args, name, None)
             if v is not None and v < 1:
                 raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
+        budget = getattr(args, "max_seconds", None)
+        if budget is not None and not (math.isfinite(budget) and budget >= 0):
+            raise UsageError(f"--max-seconds must be a number of seconds >= 0, got {budget:g}")
         return int(args.func(args) or EXIT_OK)
     except UsageError as exc:
         print(str(exc).splitlines()[0], file=sys.stderr)

@@ -41,6 +41,7 @@ from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel, arx
 from ..models.polynomial import PolynomialModel, check_initial
 from ..models.spec import parse_model_spec
+from ..selection.growth import DEFAULT_GROWTH_SECONDS, GridGrowth, grid_text
 from ..selection.search import DEFAULT_GRID, SweepResult, sweep
 from .verdicts import ladder_headline, negative_fit_note, residual_sentences
 
@@ -174,9 +175,10 @@ class Analysis:
     estimation, validation : IOData
         The data the models were fitted on and judged on.
     grid : dict of str to tuple of int, or None
-        The order grid swept (None when the orders or the model were given).
+        The order grid asked for (None when the orders or the model were given); the grids swept
+        when it was grown are in ``grid_growth``.
     sweep : SweepResult or None
-        Every structure of the grid, ranked (None when the orders or the model were given).
+        Every structure of the last grid swept, ranked (None when the orders or the model were given).
     choice : Choice
         Which structure was chosen and why.
     model : ArxModel or PolynomialModel
@@ -230,10 +232,19 @@ class Analysis:
 
     @property
     def grid_text(self) -> str:
-        """The swept order ranges as text, e.g. ``na 1..4, nb 1..3, nk 0..5`` (empty when orders were given)."""
+        """The order ranges of the last grid swept as text, e.g. ``na 1..4, nb 1..3, nk 0..5`` (empty
+        when orders were given)."""
         if self.grid is None:
             return ""
+        if self.sweep is not None and self.sweep.grid:
+            return grid_text(self.sweep.grid)
         return ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in _grid_lists(self.grid).items())
+
+    @property
+    def grid_growth(self) -> GridGrowth | None:
+        """Every grid swept (the first, then each grown one), and why growing stopped (None
+        without a sweep)."""
+        return None if self.sweep is None else self.sweep.growth
 
     @property
     def residual_tests(self) -> ResidualAnalysis | None:
@@ -258,7 +269,8 @@ class Analysis:
         """The machine-readable result (the ``arxid diagnose --json`` and ``report --json`` contract).
 
         Keys ``model``, ``baseline``, ``residual_tests``, ``suspects`` and ``ladder`` as
-        :meth:`Diagnosis.to_dict`; ``choice``, ``grid``, ``sweep`` (summary and best rows),
+        :meth:`Diagnosis.to_dict`; ``choice``, ``grid``, ``grid_growth`` (every grid swept, see
+        :meth:`arxid.selection.growth.GridGrowth.to_dict`), ``sweep`` (summary and best rows),
         ``comparison``, ``where_it_fails`` (one per compared model), ``notes``,
         ``frequency_check`` (one per compared model, see :meth:`FrequencyCheck.to_dict`) and
         ``error_fall`` (see :meth:`Ladder.error_fall`).
@@ -272,6 +284,7 @@ class Analysis:
             {
                 "choice": self.choice.to_dict(),
                 "grid": None if self.grid is None else _grid_lists(self.grid),
+                "grid_growth": None if self.grid_growth is None else self.grid_growth.to_dict(),
                 "sweep": None if self.sweep is None else self.sweep.summary(),
                 "comparison": self.comparison.to_dict(),
                 "where_it_fails": [f.to_dict() for f in self.failures],
@@ -317,6 +330,8 @@ class Analysis:
         lines += [f"  skipped {s}: {w}" for s, w in self.choice.skipped[:3]]
         if self.choice.grid_edge:
             lines.append(f"  {self.choice.grid_edge}")
+        if self.grid_growth is not None and (self.grid_growth.grew or self.grid_growth.stop != "inside"):
+            lines += [f"  {line}" for line in self.grid_growth.lines()]
         lines.append(
             f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
             f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"
@@ -415,6 +430,8 @@ def _structure(
     expect: str | None,
     progress: bool,
     given: ArxModel | PolynomialModel | str | None = None,
+    grow: bool | None = None,
+    max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
 ) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
     if given is not None:
         model, choice = _given_model(est, given, orders, grid)
@@ -428,6 +445,9 @@ def _structure(
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
     g = grid_of(grid)
     res = sweep(est, validation=val, horizon=horizon, expect=expect, progress=progress, **g)
+    # The default grid grows while its choice sits on an edge; a given grid only when asked.
+    grows = grid is None if grow is None else bool(grow)
+    res = res.extend(max_rounds=None if grows else 0, max_seconds=max_seconds)
     model, choice = choose(res)
     return res, model, choice, g
 
@@ -511,6 +531,8 @@ def analyse(
     progress: bool = False,
     model: ArxModel | PolynomialModel | str | None = None,
     initial: str = "zero",
+    grow: bool | None = None,
+    max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
     **diagnose_kwargs: Any,
 ) -> Analysis:
     """Sweep (unless ``orders`` or a ``model`` are given), choose, compare, test, diagnose and climb the ladder.
@@ -526,7 +548,8 @@ def analyse(
     orders : (na, nb, nk), optional
         A fixed structure; skips the sweep.
     grid : mapping with keys na, nb, nk, optional
-        Sweep grid; missing keys take :data:`arxid.DEFAULT_GRID`.
+        Sweep grid; missing keys take :data:`arxid.DEFAULT_GRID`. A given grid is swept as it is
+        (``grow=True`` grows it too).
     horizon : int, optional
         Validation error measure: None = free run (k-step for an integrating plant, as the sweep
         and the diagnosis detect it); k = k-step-ahead prediction.
@@ -548,6 +571,14 @@ def analyse(
         the measured outputs (a polynomial model from rest); ``"estimate"`` fits the initial
         conditions first, as :func:`arxid.compare` does, so a validation record that starts
         mid-transient is not held against the model.
+    grow : bool or None
+        Grow the grid while the chosen structure sits on an edge of it and growing improves its
+        validation error (:meth:`arxid.SweepResult.extend`: poles and zeros together, orders up to
+        30). None (default): grow the default grid, not a given ``grid``; True: grow either; False:
+        never. ``Analysis.grid_growth`` says what was tried and why it stopped.
+    max_seconds : float or None
+        Time budget of the grid search in seconds, the first sweep included (default 30): no
+        larger grid is started whose predicted time would pass it. None: no budget.
     **diagnose_kwargs
         Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
 
@@ -581,7 +612,9 @@ def analyse(
     initial = check_initial(initial)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    res, chosen, choice, g = _structure(est, val, orders, grid, requested, expect, progress, model)
+    res, chosen, choice, g = _structure(
+        est, val, orders, grid, requested, expect, progress, model, grow=grow, max_seconds=max_seconds
+    )
     measure = res.horizon if res is not None else requested
     timings["sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()

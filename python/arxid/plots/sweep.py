@@ -11,8 +11,14 @@ from .._base.optional import require
 __all__ = ["plot_sweep"]
 
 
+#: Panels (nb values) drawn at most: a grown grid has up to 30, which would take matplotlib tens of
+#: seconds to lay out; the panels nearest the chosen nb (else the best-ranked structure's) are drawn.
+MAX_PANELS = 8
+
+
 def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any:
-    """Heat map of the validation error of every structure over (na, nk), one panel per nb.
+    """Heat map of the validation error of every structure over (na, nk), one panel per nb (at
+    most :data:`MAX_PANELS`, those nearest the chosen nb; the title says which).
 
     Parameters
     ----------
@@ -32,7 +38,9 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
     score = result.ranking_score().astype(float)
     score = np.where(result.diverged_val | result.diverged_est, np.nan, score)
     nas = np.unique(result.na)
-    nbs = np.unique(result.nb[:, nb_input])
+    all_nbs = np.unique(result.nb[:, nb_input])
+    centre = int(result.nb[0 if chosen is None else chosen, nb_input])
+    nbs = np.sort(all_nbs[np.argsort(np.abs(all_nbs - centre), kind="stable")[:MAX_PANELS]])
     nks = np.unique(result.nk[:, nb_input])
     grids = {}
     for b in nbs:
@@ -49,6 +57,7 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
     fig = Figure(figsize=(3.6 * ncols + 1.0, 3.0 * nrows + 0.6), layout="constrained")
     axes = fig.subplots(nrows, ncols, squeeze=False)
     from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.ticker import MaxNLocator
 
     positive = finite[finite > 0]
     norm = LogNorm(positive.min(), positive.max()) if positive.size and positive.max() > positive.min() else Normalize()
@@ -80,8 +89,10 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
 
             handles = ax.get_legend_handles_labels()[0] + [Patch(color="0.75", label="diverged or not fitted")]
             fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=2)
-        ax.set_xticks(nks)
-        ax.set_yticks(nas)
+        # Every order a tick while they fit; a grown grid (na up to 30) gets about 8 integer ticks,
+        # which also keeps the layout's text measurements (the slow part of a large figure) few.
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True)) if len(nks) > 8 else ax.set_xticks(nks)
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=8, integer=True)) if len(nas) > 8 else ax.set_yticks(nas)
         ax.set_title(f"nb = {b}")
         ax.set_xlabel("nk")
         ax.set_ylabel("na")
@@ -92,5 +103,6 @@ def plot_sweep(result: Any, nb_input: int = 0, chosen: int | None = None) -> Any
         label = result.sort_by.upper()
     if image is not None:
         fig.colorbar(image, ax=axes, label=label)
-    fig.suptitle(f"ARX sweep, {len(result)} structures (grey: diverged or not fitted)")
+    shown = "" if len(nbs) == len(all_nbs) else f"; nb {nbs[0]}..{nbs[-1]} of {all_nbs[0]}..{all_nbs[-1]} shown"
+    fig.suptitle(f"ARX sweep, {len(result)} structures (grey: diverged or not fitted{shown})")
     return fig

@@ -5,6 +5,12 @@ largest of its range, or the smallest where the range does not start at 0 (a ran
 was fixed by the user and is no edge). The best structure of a grid could then lie outside it;
 the suggestion grows each edge range by ``max(2, ⌈len/2⌉)`` values, the step
 :meth:`arxid.SweepResult.extend` takes.
+
+Poles and zeros grow together (:func:`grown_grid` with ``together``): an edge on na or on an nb
+grows na and every nb range that is not fixed, each by its own step. A plant of order n needs about
+n poles and n zeros; growing only the range on the edge walks one order at a time and stops at a
+structure such as ARX(13,4,0) that is inside its grid but far from a plant that needs ARX(11,12,0)
+(a flexible arm, ``tests/test_robust_grid.py``). The delay nk grows only on its own edge.
 """
 
 from __future__ import annotations
@@ -85,7 +91,7 @@ def grid_edges(
     return tuple(out)
 
 
-def grown_grid(grid: dict, edges: Sequence[Edge], limit: int) -> dict | None:
+def grown_grid(grid: dict, edges: Sequence[Edge], limit: int, together: bool = False) -> dict | None:
     """``grid`` with every edge range replaced by its suggestion (capped at ``limit``); None when
     nothing could grow.
 
@@ -96,6 +102,10 @@ def grown_grid(grid: dict, edges: Sequence[Edge], limit: int) -> dict | None:
     edges : sequence of Edge
     limit : int
         Largest order allowed.
+    together : bool
+        Grow poles and zeros together: an edge on na or on any nb also grows na and every nb range
+        of more than one value (each by ``max(2, ⌈len/2⌉)``), as :meth:`arxid.SweepResult.extend`
+        does.
 
     Returns
     -------
@@ -103,6 +113,9 @@ def grown_grid(grid: dict, edges: Sequence[Edge], limit: int) -> dict | None:
     """
     na: tuple[int, ...] = tuple(grid["na"])
     per_input: dict[str, list[tuple[int, ...]]] = {k: [tuple(r) for r in grid[k]] for k in ("nb", "nk")}
+    edges = list(edges)
+    if together and any(e.order in ("na", "nb") for e in edges):
+        edges = [e for e in edges if e.order == "nk"] + _size_edges(na, per_input["nb"])
     grew = False
     for e in edges:
         sug = tuple(v for v in e.suggestion if v <= limit)
@@ -115,6 +128,19 @@ def grown_grid(grid: dict, edges: Sequence[Edge], limit: int) -> dict | None:
                 grew |= sug != ranges[j]
                 ranges[j] = sug
     return {"na": na, **per_input} if grew else None
+
+
+def _size_edges(na: tuple[int, ...], nbs: list[tuple[int, ...]]) -> list[Edge]:
+    """Largest-side edges on na and on every nb range of more than one value (poles and zeros grown
+    together)."""
+    out = []
+    if len(na) > 1:
+        out.append(Edge("na", None, max(na), "largest", tuple(range(min(na), max(na) + _step(na) + 1))))
+    for j, nbs_j in enumerate(nbs):
+        if len(nbs_j) > 1:
+            grown = tuple(range(min(nbs_j), max(nbs_j) + _step(nbs_j) + 1))
+            out.append(Edge("nb", j, max(nbs_j), "largest", grown))
+    return out
 
 
 def edge_text(structure: str, edges: Sequence[Edge]) -> str:

@@ -9,11 +9,13 @@ the choice of a structure (:mod:`.choice`) and the output-error refinement (:mod
 from __future__ import annotations
 
 import dataclasses
+import math
 import numbers
+import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from typing import Any, Literal, overload
+from dataclasses import dataclass, field
+from typing import Any, Literal, cast, overload
 
 import numpy as np
 
@@ -28,7 +30,7 @@ from . import choice, stages
 from .choice import Selection
 from .engine import Runner, check_validation_length, core_inputs, fleet_engine, fleet_parts
 from .grid import DEFAULT_GRID, Grid, check_grid_size, check_top, order_range, per_input_ranges
-from .grid_edges import grown_grid
+from .growth import DEFAULT_GROWTH_SECONDS, GROWTH_ORDER_LIMIT, MIN_GROWTH_GAIN, GridGrowth, grow
 from .integrator import (
     VOTERS,
     IntegratorTest,
@@ -102,7 +104,14 @@ class SweepResult(SweepTable):
     estimation_factor : ndarray of shape (q, q) or None
         Upper-triangular factor R of the envelope's regressor ``[Φ | y]`` on the estimation rows:
         every structure's parameters and their covariance follow from it without the data.
+    seconds : float
+        Wall time of the sweep that made this result (NaN when unknown).
+    growth : GridGrowth or None
+        After :meth:`extend`: every grid tried, and why growing stopped (None before).
     """
+
+    seconds: float = field(default=math.nan, repr=False)
+    growth: GridGrowth | None = field(default=None, repr=False)
 
     # The columns and their reading are the table's (:class:`~arxid.selection.table.SweepTable`); a
     # result adds the choice of a structure and the sweep of a grown grid, which re-runs :func:`sweep`.
@@ -171,34 +180,95 @@ class SweepResult(SweepTable):
         model.selection_ = sel
         return model
 
-    def extend(self, max_rounds: int = 3, limit: int = 30, sane: bool = True) -> SweepResult:
-        """Grow the grid past the edges the chosen structure sits on, until it is inside or a limit.
-
-        Each round re-runs :func:`sweep` with the same data and settings on the grid whose edge
-        ranges are grown by ``max(2, ⌈len/2⌉)`` values (:func:`arxid.grid_edges.grown_grid`).
+    def grid_edge_text(self, i: int) -> str:
+        """One sentence when ranked structure ``i`` sits on a grid edge, with the ranges to try, or
+        (after :meth:`extend` found that a larger grid did not pay) what the larger grid gave; else "".
 
         Parameters
         ----------
-        max_rounds : int
-            Largest number of re-runs.
+        i : int
+            Rank of the structure.
+
+        Returns
+        -------
+        str
+        """
+        edges = self.grid_edges(i)
+        if edges and self.growth is not None and self.growth.stop in ("no-gain", "integrates"):
+            return self.growth.edge_note(self.structure_name(i), "; ".join(str(e) for e in edges))
+        return super().grid_edge_text(i)
+
+    def extend(
+        self,
+        max_rounds: int | None = None,
+        limit: int = GROWTH_ORDER_LIMIT,
+        sane: bool = True,
+        *,
+        max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
+        min_gain: float = MIN_GROWTH_GAIN,
+    ) -> SweepResult:
+        """Grow the grid past the edges the chosen structure sits on, while it sits on one and improves.
+
+        Each round re-runs :func:`sweep` with the same data and settings on the grid whose edge
+        ranges are grown by ``max(2, ⌈len/2⌉)`` values, poles and zeros together (an edge on na or
+        nb grows both; :func:`arxid.selection.grid_edges.grown_grid`). The re-runs keep this
+        sweep's measure (free run, or k-step with its k) and integrator verdict, so the grids
+        compare like with like. Growing stops when the
+        choice lies inside the grid, when a growth lowered its validation error by less than
+        ``min_gain``, at the order ``limit``, after ``max_rounds``, or before a sweep that would
+        take the search past ``max_seconds`` (predicted from the measured time of the last sweep);
+        see :mod:`arxid.selection.growth`.
+
+        Parameters
+        ----------
+        max_rounds : int or None
+            Largest number of re-runs (None: no limit, the other rules stop it; 0: none).
         limit : int
-            Largest na, nb or nk tried.
+            Largest na, nb or nk tried (default 30).
         sane : bool
             Judge the choice as :meth:`select` with ``sane`` does.
+        max_seconds : float or None
+            Time budget of the whole search in seconds, this sweep included (default 30; None: none).
+        min_gain : float
+            Smallest relative fall of the choice's validation error for which growing goes on
+            (default 0.01, 1 %).
 
         Returns
         -------
         SweepResult
-            The last sweep (this one when the choice is already inside the grid).
+            The last sweep (this one when the choice is already inside the grid), with ``growth``
+            set: every grid tried, its size, time and best structure, and why growing stopped.
         """
-        res = self
-        for _ in range(max_rounds):
-            rank = choice.choice_rank(res, sane)
-            new = grown_grid(res.grid, res.grid_edges(rank), limit)
-            if new is None:
-                break
-            res = sweep(res.estimation, na=new["na"], nb=new["nb"], nk=new["nk"], **res.settings)
-        return res
+
+        # Like with like: the larger grids keep this sweep's measure and integrator verdict (a
+        # verdict re-made on a larger grid could switch free run to k-step, or change k, between
+        # rounds). The re-runs declare it and the results carry this sweep's reasons.
+        settings = dict(self.settings)
+        if self.expect is None:
+            settings["expect"] = "integrating" if self.integrating else "stable"
+            settings["horizon"] = self.horizon if self.horizon is not None else settings.get("horizon")
+
+        def rerun(grid: dict) -> SweepResult:
+            res = sweep(self.estimation, na=grid["na"], nb=grid["nb"], nk=grid["nk"], **settings)
+            return dataclasses.replace(
+                res,
+                expect=self.expect,
+                integrating_reason=self.integrating_reason,
+                integrator=self.integrator,
+                settings=self.settings,
+            )
+
+        res, growth = grow(
+            self,
+            rerun,
+            first_seconds=self.seconds,
+            max_rounds=max_rounds,
+            limit=limit,
+            sane=sane,
+            max_seconds=max_seconds,
+            min_gain=min_gain,
+        )
+        return dataclasses.replace(cast(SweepResult, res), growth=growth)
 
 
 def _parameters_and_covariance(result: SweepResult, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -409,7 +479,9 @@ def sweep(
         Also simulate every structure on the estimation data (``rms_est``).
     auto_extend : bool
         When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
-        again (:meth:`SweepResult.extend`, at most 3 rounds, orders up to 30).
+        again (:meth:`SweepResult.extend` with its defaults: while the choice sits on an edge and
+        improves, orders up to 30, 30 s of sweeping in all); ``growth`` of the result says what
+        was tried.
     refine : {None, "oe"}
         ``"oe"`` refits the ``refine_top`` best ARX structures (and a small grid of nb, nf, nk) as
         output-error models and ranks all of them by validation free-run error
@@ -463,6 +535,7 @@ def sweep(
     >>> res.structure_name(0)
     'ARX(2,1,3)'
     """
+    started = time.perf_counter()
     workers = None  # a fleet's logs on a Dask cluster
     if isinstance(data, (list, tuple)):
         options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
@@ -537,6 +610,7 @@ def sweep(
         result = _detected(result, rerun, revise=workers is None)
     elif expect is None:  # the user's horizon fixes the measure; the verdict is stated
         result = _with_verdict(result, _integrator_verdict(result))
+    result = dataclasses.replace(result, seconds=time.perf_counter() - started)
     result = result.extend() if auto_extend else result
     return result if refine is None else refine_sweep(result, refine, top=refine_top)
 

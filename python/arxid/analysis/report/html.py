@@ -210,6 +210,7 @@ def _sweep_section(a: Analysis) -> Raw:
         parts.append(_p("Skipped by the step sanity check: " + "; ".join(f"{s}: {w}" for s, w in a.choice.skipped[:8])))
     if a.choice.grid_edge:
         parts.append(_p(a.choice.grid_edge))
+    parts += _growth_parts(a)
     try:
         fig = res.plot(chosen=a.choice.rank)
     except (ArxidError, ValueError) as exc:  # a grid with one na or nk value cannot be drawn as a map
@@ -237,6 +238,29 @@ def _sweep_section(a: Analysis) -> Raw:
             )
         )
     return _join(parts)
+
+
+def _growth_parts(a: Analysis) -> list[Raw]:
+    """The grids tried while growing the grid past the choice's edges, and why growing stopped."""
+    g = a.grid_growth
+    if g is None or not (g.grew or g.stop != "inside"):
+        return []
+    if not g.grew:
+        return [_p(f"The grid ({g.rounds[0].text}) was swept once: {g.reason}")]
+    one = len({r.measure for r in g.rounds}) == 1  # the integrator verdict can change the measure
+    rows = [
+        [
+            r.text,
+            f"{r.n_structures:,}",
+            f"{r.seconds:.2f}",
+            r.structure,
+            r.error_text if one else f"{r.error_text} ({r.measure})",
+            "yes" if r.edge else "no",
+        ]
+        for r in g.rounds
+    ]
+    head = ["grid", "structures", "seconds", "best structure", g.rounds[-1].measure if one else "error", "on an edge"]
+    return [_p(g.lines()[0]), _table(head, rows, left=1), _p(f"Growing stopped: {g.reason}")]
 
 
 def _model_section(a: Analysis) -> Raw:
