@@ -234,7 +234,7 @@ class GridGrowth:
         head = (
             f"The first choice {first.structure} sat on an edge of the grid, so {len(self.rounds) - 1} larger "
             f"grid{'s were' if len(self.rounds) > 2 else ' was'} tried: {self.n_structures:,} structures in all, "
-            f"{self.seconds:.1f} s"
+            f"{_seconds(self.seconds)}"
             + ("" if self.max_seconds is None else f" (budget {self.max_seconds:g} s)")
             + f"; chosen {self.chosen.structure} of the grid {self.chosen.text}."
         )
