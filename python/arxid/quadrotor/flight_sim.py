@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -236,6 +236,7 @@ def quadrotor_flight(
     effects: Mapping[str, bool] | None = None,
     output: str = "roll",
     parameters: QuadrotorParameters | None = None,
+    roll_reference=None,
 ) -> IOData:
     """Simulate a closed-loop quadrotor flight with pilot-like excitation.
 
@@ -271,6 +272,10 @@ def quadrotor_flight(
         Which logged signal becomes the output (``"roll"``, ``"pitch"``, ``"yaw"``, ``"az"``, ...).
     parameters : QuadrotorParameters, optional
         True parameters (default :class:`QuadrotorParameters()`).
+    roll_reference : array_like of shape (>= n_samples,), optional
+        A designed roll setpoint [rad] (for instance an :mod:`arxid.inputs` PRBS or multisine)
+        flown instead of the pilot's roll; its first ``duration / ts`` samples are used, with no
+        rate feed-forward (the setpoint may step). It is logged as ``roll_ref``.
 
     Returns
     -------
@@ -302,6 +307,8 @@ def quadrotor_flight(
     # the draw order is fixed (references, then noise): switching an effect never changes the
     # other random signals
     ref = _pilot_references(rng, np.arange(n) * ts, par)
+    if roll_reference is not None:
+        ref = _designed_roll(ref, roll_reference, n)
     noise = _sensor_noise(rng, n, ts, par, eff)
     air = _Airframe.of(par, eff)
     log = _fly(ref, noise, air, par, ts)
@@ -333,6 +340,17 @@ def _pilot_references(rng: np.random.Generator, t: np.ndarray, par: QuadrotorPar
     psr, psrd = _sum_of_sines(rng, t, a_y, 0.05, 0.5)
     zr, zrd, zrdd = _eq15(t)
     return _References(phr, phrd, thr, thrd, psr, psrd, zr, zrd, zrdd)
+
+
+def _designed_roll(ref: _References, roll_reference, n: int) -> _References:
+    """``ref`` with the roll setpoint replaced by a designed one (no rate feed-forward)."""
+    r = np.asarray(roll_reference, dtype=float).reshape(-1)
+    if r.shape[0] < n or not np.all(np.isfinite(r[:n])):
+        raise DataError(
+            f"roll_reference must hold at least {n} finite samples (duration / ts), got {r.shape[0]}; "
+            "design a longer input or fly a shorter duration"
+        )
+    return replace(ref, roll=r[:n].copy(), roll_rate=np.zeros(n))
 
 
 @dataclass(frozen=True)
