@@ -26,7 +26,7 @@ from typing import Any
 
 from . import fleet  # noqa: F401 - gives the models their fits of many logs (client=, per_experiment=True)
 from .analysis.pipeline import Analysis, analyse
-from .checks import FrequencyCheck, compare, frequency_check, residuals, where_it_fails
+from .checks import FeedbackTest, FrequencyCheck, compare, feedback, frequency_check, residuals, where_it_fails
 from .data.iodata import IOData
 from .diagnosis.ladder import Ladder
 from .diagnosis.suspects import Diagnosis, diagnose
@@ -67,6 +67,8 @@ __all__ = [
     "where_it_fails",
     "frequency_check",
     "FrequencyCheck",
+    "feedback",
+    "FeedbackTest",
     "diagnose",
     "Diagnosis",
     "Ladder",

@@ -8,10 +8,12 @@
   (:func:`where_it_fails`)
 * :mod:`~arxid.checks.frequency` -- the frequency check (:func:`frequency_check`)
 * :mod:`~arxid.checks.bands` -- confidence bands of the step, free-run and frequency responses
+* :mod:`~arxid.checks.feedback` -- is there feedback from the output to the input (:func:`feedback`)
 """
 
 from .comparison import Comparison, compare, error_rms, prediction_error
 from .failures import FailureAnalysis, SignalBins, WorstSegment, where_it_fails
+from .feedback import FeedbackTest, feedback
 from .frequency import FrequencyCheck, frequency_check
 from .residual_analysis import ResidualAnalysis, residuals
 
@@ -28,4 +30,6 @@ __all__ = [
     "SignalBins",
     "frequency_check",
     "FrequencyCheck",
+    "feedback",
+    "FeedbackTest",
 ]

@@ -1,0 +1,64 @@
+"""Lagged signals as regression rows, in numpy: rows never cross an experiment start and rows that
+touch a missing sample (NaN) are left out. Used by the feedback test and the Python reference of
+the instrumental-variable estimator."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = ["lagged_columns", "filter_segments"]
+
+
+def lagged_columns(
+    columns: Sequence[tuple[np.ndarray, int]], segments: Sequence[tuple[int, int]], back: int, ahead: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The matrix whose column ``j`` holds ``signal_j(t - lag_j)`` for every usable row ``t``.
+
+    Parameters
+    ----------
+    columns : sequence of (ndarray of shape (n_samples,), int)
+        A signal and its lag (negative: a lead, a later sample).
+    segments : sequence of (int, int)
+        Half-open sample ranges of the experiments.
+    back, ahead : int
+        Largest lag and largest lead: row ``t`` of an experiment ``[a, b)`` is used when
+        ``a + back <= t < b - ahead``.
+
+    Returns
+    -------
+    matrix : ndarray of shape (n_rows, n_columns)
+    rows : ndarray of int
+        The sample ``t`` of each row.
+    """
+    parts = [np.arange(a + back, b - ahead) for a, b in segments if b - ahead > a + back]
+    rows = np.concatenate(parts) if parts else np.zeros(0, dtype=int)
+    mat = np.empty((rows.shape[0], len(columns)))
+    for j, (signal, lag) in enumerate(columns):
+        mat[:, j] = signal[rows - lag]
+    keep = np.all(np.isfinite(mat), axis=1)
+    return mat[keep], rows[keep]
+
+
+def filter_segments(num: np.ndarray, den: np.ndarray, x: np.ndarray, segments: Sequence[tuple[int, int]]) -> np.ndarray:
+    """``num(q^-1) / den(q^-1)`` applied to ``x`` from rest in each experiment (NaN samples as 0).
+
+    Parameters
+    ----------
+    num, den : ndarray
+        Polynomials in ``q^-1``, ``den[0] != 0``.
+    x : ndarray of shape (n_samples,)
+    segments : sequence of (int, int)
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+    """
+    from scipy.signal import lfilter
+
+    out = np.empty_like(x, dtype=float)
+    clean = np.where(np.isfinite(x), x, 0.0)
+    for a, b in segments:
+        out[a:b] = lfilter(num, den, clean[a:b])
+    return out

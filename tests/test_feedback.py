@@ -1,0 +1,69 @@
+"""arxid.feedback: the same plant flagged under a PI controller, not flagged in open loop."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import arxid
+from arxid.datasets import PiLoopPlant, pi_loop
+
+SEEDS = range(6)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_pi_loop_with_coloured_noise_is_flagged(seed):
+    result = arxid.feedback(pi_loop(seed))
+    assert result.feedback
+    assert result.p_value < 1e-6  # tolerance: the closed loop's p-values measured 1e-8 .. 1e-13
+    assert result.probability > 99.9
+    assert "closed loop" in result.sentence
+    assert "arxid.iv" in result.consequences and "biased" in result.consequences
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_same_plant_in_open_loop_is_not_flagged(seed):
+    result = arxid.feedback(pi_loop(seed, closed=False))
+    assert not result.feedback
+    assert result.p_value > 0.01
+    assert result.consequences == ""
+    assert "open-loop" in result.sentence
+
+
+def test_p_value_is_calibrated_in_open_loop():
+    # without feedback the p-value is uniform: about 5 % of records below 0.05, not many more
+    p = np.array([arxid.feedback(pi_loop(seed, n_samples=1500, closed=False)).p_value for seed in range(200, 240)])
+    assert np.mean(p < 0.05) <= 0.15
+    assert 0.3 < np.median(p) < 0.7
+
+
+def test_lag_zero_controller_needs_the_default_test():
+    # the PI controller reacts within the sample: with direct=True (MATLAB fbck, u(t) may act on
+    # y(t)) that reaction is explained away and the evidence is much weaker than by default
+    d = pi_loop(0)
+    assert arxid.feedback(d, direct=True).p_value > 1e3 * arxid.feedback(d).p_value
+
+
+def test_feedback_across_experiments_and_gaps():
+    d = arxid.IOData.merge([pi_loop(1, 2000), pi_loop(2, 2000)])
+    y = d.y.copy()
+    y[500:520] = np.nan
+    gappy = arxid.IOData(y, d.u, d.ts, experiment_starts=d.experiment_starts)
+    result = arxid.feedback(gappy)
+    assert result.feedback
+    assert result.n_rows < 4000 - 2 * 21 - 20
+    json.loads(result.to_json())
+
+
+def test_feedback_refuses_too_short_data():
+    d = pi_loop(0, 200)
+    with pytest.raises(arxid.DataError, match="usable samples"):
+        arxid.feedback(d, order=40, lead=40)
+
+
+def test_true_plant_parameters():
+    p = PiLoopPlant()
+    assert p.gain == pytest.approx(0.75)
+    np.testing.assert_allclose(np.abs(p.poles), np.sqrt(0.7))
