@@ -4,6 +4,7 @@
 pub mod columns;
 pub mod error;
 pub mod fit;
+pub mod iv;
 pub mod kstep;
 pub mod one_step;
 pub mod pem;

@@ -914,6 +914,9 @@ fn pem_max_lag(py: Python<'_>, orders: PolyOrders) -> PyResult<usize> {
 
 // ---------------------------------------------------------------- end of prediction-error models
 
+#[path = "py_iv.rs"]
+mod py_iv;
+
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
@@ -924,6 +927,8 @@ mod core_module {
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
+    #[pymodule_export]
+    use super::py_iv::iv_sweep;
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

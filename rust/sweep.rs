@@ -103,7 +103,7 @@ pub struct StructureResult {
 }
 
 /// `‖R[:, cols ∪ y] · [−θ; 1]‖²`: the residual sum of squares of θ on the rows that produced R.
-fn rss_from_r(r: &[f64], q: usize, cols: &[usize], theta: &[f64]) -> f64 {
+pub(crate) fn rss_from_r(r: &[f64], q: usize, cols: &[usize], theta: &[f64]) -> f64 {
     let mut v = vec![0.0; q];
     for (c, &j) in cols.iter().enumerate() {
         for i in 0..q {
@@ -118,7 +118,7 @@ fn rss_from_r(r: &[f64], q: usize, cols: &[usize], theta: &[f64]) -> f64 {
 
 /// Regression rows of the envelope: every sample from `first_lag` into each experiment when the data
 /// are complete (no per-row check needed), else the rows [`usable_rows`] keeps.
-fn rows_of(d: &Data, env: &Structure, first_lag: usize) -> Vec<usize> {
+pub(crate) fn rows_of(d: &Data, env: &Structure, first_lag: usize) -> Vec<usize> {
     if env.output_terms.is_empty() && d.y.iter().all(|v| v.is_finite()) && d.u.iter().all(|v| v.is_finite()) {
         let lag = first_lag.max(env.max_lag());
         d.segments().into_iter().flat_map(|(a, b)| (a + lag).min(b)..b).collect()
@@ -170,18 +170,18 @@ fn simulate_group(
 }
 
 /// The triangular factors every structure of a grid is solved from.
-struct GridFactors {
-    env: Structure,
-    first_lag: usize,
-    q: usize,
-    r_est: Vec<f64>,
-    n_est: usize,
-    r_val: Option<Vec<f64>>,
-    n_val: usize,
+pub(crate) struct GridFactors {
+    pub(crate) env: Structure,
+    pub(crate) first_lag: usize,
+    pub(crate) q: usize,
+    pub(crate) r_est: Vec<f64>,
+    pub(crate) n_est: usize,
+    pub(crate) r_val: Option<Vec<f64>>,
+    pub(crate) n_val: usize,
 }
 
 /// Checks the grid and reduces the envelope's regressor on both data sets to R.
-fn factor_grid(
+pub(crate) fn factor_grid(
     est: &Data,
     val: Option<&Data>,
     structures: &[Structure],
@@ -224,7 +224,7 @@ fn factor_grid(
     Ok(GridFactors { env, first_lag, q, r_est, n_est, r_val, n_val })
 }
 
-const NAN_SCORE: SimScore = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN, mean: f64::NAN };
+pub(crate) const NAN_SCORE: SimScore = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN, mean: f64::NAN };
 
 /// Exact QR solve of one structure from the factors, with its one-step losses (stage 2).
 fn fit_exact(f: &GridFactors, s: &Structure) -> StructureResult {
@@ -482,7 +482,7 @@ const NA_SPAN: usize = 4;
 /// Simulates the structures `order` (fitted ones) on the estimation data (when asked) and the
 /// validation data, in lane groups of neighbouring `na`; returns `(index, estimation, validation)`.
 #[allow(clippy::too_many_arguments)]
-fn simulate_all(
+pub(crate) fn simulate_all(
     est: &Data,
     val: Option<&Data>,
     structures: &[Structure],

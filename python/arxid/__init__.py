@@ -42,6 +42,7 @@ from .exceptions import (
     OrderError,
 )
 from .models.arx_model import ArxModel, arx
+from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
 from .models.polynomial import PolynomialModel
 from .selection.refine import RefinedSweep, refine
@@ -55,6 +56,8 @@ __all__ = [
     "SweepResult",
     "DEFAULT_GRID",
     "PolynomialModel",
+    "iv",
+    "IvModel",
     "oe",
     "armax",
     "bj",

@@ -231,3 +231,19 @@ def simulate_structures(
     limit: float | None = None,
 ) -> tuple[_F, _F, _F, _F, _B]: ...
 def fma_limit(n_vectors: int, n_threads: int = 0) -> float: ...
+def iv_sweep(
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    xy: _F,
+    xu: _F,
+    structures: npt.NDArray[np.int64],
+    yv: _F | None = None,
+    uv: _F | None = None,
+    starts_v: Sequence[int] | None = None,
+    simulate_estimation: bool = True,
+    horizon: int | None = None,
+    n_threads: int = 0,
+    chunk: int = 64,
+    progress: Callable[[int], object] | None = None,
+) -> tuple[SweepOutput, list[_F], int]: ...

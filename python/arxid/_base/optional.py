@@ -16,7 +16,7 @@ from ..exceptions import ArxidWarning, MissingDependencyError
 __all__ = ["EXTRAS", "require", "optional"]
 
 # The extra of pyproject.toml that installs each optional distribution (import name -> extra).
-EXTRAS = {"matplotlib": "plot", "control": "control", "tqdm": "progress", "pandas": "pandas"}
+EXTRAS = {"matplotlib": "plot", "control": "control", "tqdm": "progress", "pandas": "pandas", "pyulog": "px4"}
 
 _PACKAGES = {"control": "python-control"}  # names a user would search for, where they differ
 _warned: set[str] = set()

@@ -317,6 +317,65 @@ class IOData:
         )
 
     @classmethod
+    def from_ulog(
+        cls,
+        path,
+        *,
+        output: str,
+        inputs: Sequence[str],
+        extra: Sequence[str] = (),
+        ts: float | None = None,
+        max_gap: float | None = None,
+    ) -> IOData:
+        """Read a PX4 flight log (ULog) onto one time grid (needs ``pip install 'arxid[px4]'``).
+
+        Commands (the inputs, setpoint and actuator topics) are held between samples, measurements
+        interpolated linearly; a dropout longer than ``max_gap`` becomes a NaN gap, never bridged
+        (see :mod:`arxid.data.ulog`). Names are the selectors with ``.`` and brackets replaced by
+        ``_`` (``vehicle_angular_velocity_xyz_0``); units come from the PX4 message definitions.
+
+        Parameters
+        ----------
+        path : str or Path
+            A ``.ulg`` file.
+        output : str
+            ``topic.field``, e.g. ``"vehicle_angular_velocity.xyz[0]"``.
+        inputs : sequence of str
+            Command fields, e.g. ``["actuator_controls_0.control[0]"]``.
+        extra : sequence of str
+            Other fields kept for diagnostics and instruments (``"vehicle_rates_setpoint.roll"``,
+            ``"battery_status.voltage_v"``).
+        ts : float, optional
+            Grid step [s]; default the output topic's median sample interval.
+        max_gap : float, optional
+            Longest interval between samples bridged [s]; default 3 times each topic's own.
+
+        Returns
+        -------
+        IOData
+        """
+        from .ulog import read_ulog
+
+        inputs = [inputs] if isinstance(inputs, str) else list(inputs)
+        extra = [extra] if isinstance(extra, str) else list(extra)
+        if not inputs:
+            raise DataError("name at least one input field (topic.field)")
+        sig = read_ulog(path, [output, *inputs, *extra], hold=inputs, ts=ts, max_gap=max_gap)
+        names = list(sig.values)
+        out, ins, ext = names[0], names[1 : 1 + len(inputs)], names[1 + len(inputs) :]
+        return cls(
+            sig.values[out],
+            np.column_stack([sig.values[c] for c in ins]),
+            sig.ts,
+            output_name=out,
+            input_names=tuple(ins),
+            output_unit=sig.units[out],
+            input_units=tuple(sig.units[c] for c in ins),
+            extra={c: sig.values[c] for c in ext},
+            extra_units={c: sig.units[c] for c in ext},
+        )
+
+    @classmethod
     def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source) -> IOData:
         if isinstance(inputs, str):
             inputs = [inputs]

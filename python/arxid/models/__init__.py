@@ -1,4 +1,5 @@
 """Models and their estimation: ARX by Householder QR (:func:`arx`, :class:`ArxModel`), polynomial
+models by instrumental variables (:func:`iv`, :class:`IvModel`, open and closed loop), polynomial
 models by prediction-error minimisation (:func:`oe`, :func:`armax`, :func:`bj`, :func:`polyest`,
 :class:`PolynomialModel`), the physical-effect grammar (``effects``), regressor layouts, conversion
 to python-control and scipy, continuous-time conversion, and model files."""
@@ -7,6 +8,7 @@ from .arx_model import ArxModel, FittedLayout, arx
 from .continuous import d2c
 from .convert import to_control, to_scipy
 from .fitted import FittedModel
+from .iv import IvModel, iv
 from .pem import armax, bj, delayest, oe, polyest
 from .polynomial import PolynomialModel, as_polynomial
 from .spec import parse_model_spec
@@ -17,6 +19,8 @@ __all__ = [
     "FittedLayout",
     "FittedModel",
     "PolynomialModel",
+    "iv",
+    "IvModel",
     "as_polynomial",
     "oe",
     "armax",

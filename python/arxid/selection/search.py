@@ -39,6 +39,7 @@ from .integrator import (
     slowest_time_constant,
     unit_root_t,
 )
+from .iv_engine import IvRunner, check_iv_options
 from .ranking import SORT_KEYS, ranked_columns
 from .refine import RefinedSweep
 from .refine import refine as refine_sweep
@@ -274,7 +275,7 @@ class SweepResult(SweepTable):
 def _parameters_and_covariance(result: SweepResult, i: int) -> tuple[np.ndarray, np.ndarray]:
     """Parameters and covariance of ranked structure ``i``: from the sweep's estimation factor
     (microseconds), or by refitting where there is none or effect columns change the layout."""
-    if result.estimation_factor is None or result.effects:
+    if result.estimation_factor is None or result.effects or result.settings.get("method") == "iv":
         m = result.model(i)
         return m.parameters_, m.covariance_
     orders = (int(result.na[i]), [int(v) for v in result.nb[i]], [int(v) for v in result.nk[i]])
@@ -387,6 +388,8 @@ def sweep(
     client: Any = ...,
     per_experiment: bool = ...,
     read: Any = ...,
+    method: str = ...,
+    instruments: str | Sequence[str] | None = ...,
 ) -> SweepResult: ...
 
 
@@ -415,6 +418,8 @@ def sweep(
     client: Any = ...,
     per_experiment: bool = ...,
     read: Any = ...,
+    method: str = ...,
+    instruments: str | Sequence[str] | None = ...,
 ) -> RefinedSweep: ...
 
 
@@ -442,6 +447,8 @@ def sweep(
     client: Any = None,
     per_experiment: bool = False,
     read: Any = None,
+    method: str = "arx",
+    instruments: str | Sequence[str] | None = None,
 ) -> Any:
     """Fit and validate every ARX structure of a grid (MATLAB ``arxstruc`` / ``selstruc``, faster).
 
@@ -505,6 +512,13 @@ def sweep(
         With a list of logs: sweep each log separately and return a :class:`arxid.fleet.FleetSweep`.
     read : dict or callable, optional
         With file paths in ``data``: how to read them (see :func:`arxid.fleet.load_experiment`).
+    method : {"arx", "iv"}
+        ``"arx"``: least squares. ``"iv"``: instrumental variables (:func:`arxid.iv`, first IV
+        step, instruments common to the grid), consistent with coloured noise and, with
+        ``instruments``, in closed loop; no effects, refinement or lists of logs.
+    instruments : None, str or sequence of str
+        With ``method="iv"``: the measured reference signal(s) of a closed loop (None: open loop,
+        instruments from the input).
 
     Returns
     -------
@@ -537,6 +551,7 @@ def sweep(
     """
     started = time.perf_counter()
     workers = None  # a fleet's logs on a Dask cluster
+    check_iv_options(method, effects, refine, isinstance(data, (list, tuple)))
     if isinstance(data, (list, tuple)):
         options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
         options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
@@ -578,7 +593,9 @@ def sweep(
     terms = inputs.terms if inputs is not None else engine.terms
     first_lag, _ = _core.grid_envelope(g.layout, terms)
     check_validation_length(val, first_lag)
-    run = Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
+    run: Any = Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
+    if method == "iv":
+        run = IvRunner(est, val, g, instruments, int(n_threads), simulate_estimation)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when the unit-root test calls the plant integrating, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
@@ -600,6 +617,8 @@ def sweep(
         top=top,
         max_seconds=max_seconds,
     )
+    if method == "iv":
+        settings.update(method=method, instruments=instruments)
     build = _ResultBuilder(g, terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings)
     result = build(run(k_step), k_step, integrating, reason)
     if expect is None and k_step is None:

@@ -17,6 +17,7 @@ from .._base.formatting import json_safe
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arx_model import ArxModel
+from ..models.iv import IvModel
 from . import stages
 from .grid_edges import Edge, edge_text, grid_edges
 from .integrator import IntegratorTest, pole_excess
@@ -166,9 +167,12 @@ class SweepTable:
         if key not in self._cache:
             nb = tuple(int(v) for v in self.nb[i])
             nk = tuple(int(v) for v in self.nk[i])
-            self._cache[key] = ArxModel(na=int(self.na[i]), nb=nb, nk=nk, effects=self.effects).fit(
-                self.estimation, first_lag=self.first_lag, rows_like=self.row_orders
-            )
+            if self.settings.get("method") == "iv":  # the sweep's first IV step, on its rows
+                instruments = self.settings.get("instruments")
+                model: ArxModel = IvModel(na=int(self.na[i]), nb=nb, nk=nk, instruments=instruments, iterations=0)
+            else:
+                model = ArxModel(na=int(self.na[i]), nb=nb, nk=nk, effects=self.effects)
+            self._cache[key] = model.fit(self.estimation, first_lag=self.first_lag, rows_like=self.row_orders)
         return self._cache[key]
 
     def sanity(self, i: int) -> StepSanity:

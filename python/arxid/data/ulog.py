@@ -1,0 +1,241 @@
+"""PX4 flight logs (ULog) onto one time grid: :func:`read_ulog`, behind :meth:`IOData.from_ulog`.
+
+A ULog holds each topic at its own rate, with bursts and dropouts. The reader puts the chosen
+fields on one grid of step ``ts``:
+
+* the **inputs** (actuator and torque commands) and any field of a ``*setpoint*`` or ``actuator*``
+  topic are held between samples (zero-order hold, as the autopilot applies them);
+* the **output** and the other **measurements** are interpolated linearly between samples;
+* a grid point farther than ``max_gap`` from the topic's samples (a dropout longer than a few
+  samples) is a missing sample (NaN), never interpolated or held across.
+
+Times are the topic's ``timestamp_sample`` (when the sample was taken) where it has one, else its
+``timestamp`` (microseconds since boot). The grid runs where every chosen topic has samples.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._base.optional import require
+from ..exceptions import DataError
+
+__all__ = ["UlogSignals", "read_ulog", "px4_unit"]
+
+#: Units of PX4 fields that are not spelled in their names (PX4 uORB message definitions).
+_UNITS = {
+    "vehicle_angular_velocity.xyz": "rad/s",
+    "vehicle_angular_acceleration.xyz": "rad/s^2",
+    "vehicle_rates_setpoint.roll": "rad/s",
+    "vehicle_rates_setpoint.pitch": "rad/s",
+    "vehicle_rates_setpoint.yaw": "rad/s",
+    "vehicle_attitude_setpoint.roll_body": "rad",
+    "vehicle_attitude_setpoint.pitch_body": "rad",
+    "vehicle_attitude_setpoint.yaw_body": "rad",
+    "actuator_controls_0.control": "1",
+    "vehicle_torque_setpoint.xyz": "1",
+    "vehicle_thrust_setpoint.xyz": "1",
+    "actuator_motors.control": "1",
+    "actuator_outputs.output": "us",
+    "sensor_combined.gyro_rad": "rad/s",
+    "sensor_combined.accelerometer_m_s2": "m/s^2",
+    "vehicle_attitude.q": "1",
+}
+# Unit suffixes of PX4 field names (``voltage_v``, ``current_a``, ``gyro_rad``, ...), longest first.
+_SUFFIXES = (
+    ("_m_s2", "m/s^2"),
+    ("_rad_s", "rad/s"),
+    ("_m_s", "m/s"),
+    ("_mah", "mAh"),
+    ("_rad", "rad"),
+    ("_deg", "deg"),
+    ("_hz", "Hz"),
+    ("_pa", "Pa"),
+    ("_v", "V"),
+    ("_a", "A"),
+    ("_m", "m"),
+    ("_s", "s"),
+    ("_c", "degC"),
+)
+
+
+def px4_unit(topic: str, field: str) -> str:
+    """Unit of a PX4 field, from its topic's message definition or its name's suffix ('' if unknown).
+
+    Parameters
+    ----------
+    topic, field : str
+        E.g. ``"battery_status"``, ``"voltage_v"``.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> px4_unit("battery_status", "voltage_v"), px4_unit("vehicle_angular_velocity", "xyz[0]")
+    ('V', 'rad/s')
+    """
+    base = re.sub(r"\[\d+\]$", "", field)
+    if f"{topic}.{base}" in _UNITS:
+        return _UNITS[f"{topic}.{base}"]
+    for suffix, unit in _SUFFIXES:
+        if base.endswith(suffix):
+            return unit
+    return ""
+
+
+@dataclass(frozen=True)
+class _Selector:
+    text: str
+    topic: str
+    instance: int
+    field: str
+
+    @classmethod
+    def parse(cls, text: str) -> _Selector:
+        m = re.fullmatch(r"([A-Za-z0-9_]+)(?::(\d+))?\.(.+)", text)
+        if not m:
+            raise DataError(
+                f"{text!r} does not name a ULog field; write topic.field, e.g. 'vehicle_angular_velocity.xyz[0]' "
+                "(topic:1.field for a second instance)"
+            )
+        return cls(text, m.group(1), int(m.group(2) or 0), m.group(3))
+
+    @property
+    def name(self) -> str:
+        """The signal name: the selector with characters an effect cannot hold replaced by ``_``."""
+        return re.sub(r"\W+", "_", self.text).strip("_")
+
+
+@dataclass(frozen=True)
+class UlogSignals:
+    """Fields of a ULog on one grid (what :meth:`IOData.from_ulog` builds its IOData from).
+
+    Attributes
+    ----------
+    time : ndarray of shape (n,)
+        Seconds since boot.
+    values : dict of str to ndarray
+        Each field on the grid, NaN in dropouts, by signal name.
+    units : dict of str to str
+    held : dict of str to bool
+        Zero-order hold (True) or linear interpolation (False), per signal.
+    ts : float
+    """
+
+    time: np.ndarray
+    values: dict[str, np.ndarray]
+    units: dict[str, str]
+    held: dict[str, bool]
+    ts: float
+
+
+def _topic_samples(ulog, sel: _Selector, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    found = [d for d in ulog.data_list if d.name == sel.topic and d.multi_id == sel.instance]
+    if not found:
+        topics = sorted({d.name for d in ulog.data_list})
+        raise DataError(f"{path.name} has no topic {sel.topic!r} (instance {sel.instance}); it logs {topics}")
+    data = found[0].data
+    if sel.field not in data:
+        fields = [k for k in data if not k.startswith("timestamp")]
+        raise DataError(f"topic {sel.topic!r} of {path.name} has no field {sel.field!r}; its fields are {fields}")
+    t_us = data["timestamp_sample"] if "timestamp_sample" in data else data["timestamp"]
+    t = np.asarray(t_us, dtype=np.float64) * 1e-6
+    v = np.asarray(data[sel.field], dtype=np.float64)
+    order = np.argsort(t, kind="stable")
+    return t[order], v[order]
+
+
+def _on_grid(t: np.ndarray, v: np.ndarray, grid: np.ndarray, hold: bool, max_gap: float) -> np.ndarray:
+    """``v(t)`` on ``grid``: held or interpolated, NaN where the samples are more than ``max_gap`` apart."""
+    after = np.searchsorted(t, grid, side="right")  # first sample after each grid time
+    before = np.clip(after - 1, 0, len(t) - 1)
+    nxt = np.clip(after, 0, len(t) - 1)
+    out = v[before].copy() if hold else np.interp(grid, t, v)
+    # inside a dropout (next sample more than max_gap after the last): unknown, neither held nor bridged
+    out[(t[nxt] - t[before] > max_gap) & (grid > t[before])] = np.nan
+    out[(grid < t[0]) | (grid > t[-1])] = np.nan
+    return out
+
+
+def read_ulog(
+    path,
+    fields: Sequence[str],
+    *,
+    hold: Sequence[str] = (),
+    ts: float | None = None,
+    max_gap: float | None = None,
+) -> UlogSignals:
+    """Read ULog fields onto one time grid.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.ulg`` file.
+    fields : sequence of str
+        ``topic.field`` selectors (``topic:1.field`` for instance 1); the first one sets the
+        default grid step.
+    hold : sequence of str
+        Selectors held between samples (zero-order hold) besides setpoint and actuator topics.
+    ts : float, optional
+        Grid step [s] (default: the median sample interval of the first field's topic).
+    max_gap : float, optional
+        Longest interval between samples bridged [s] (default: 3 times each topic's median
+        interval, or 3 grid steps if longer); a grid point inside a longer dropout is NaN.
+
+    Returns
+    -------
+    UlogSignals
+
+    Raises
+    ------
+    DataError
+        On a missing file, topic or field, or no time where all topics were logged.
+    MissingDependencyError
+        Without pyulog (``pip install 'arxid[px4]'``).
+    """
+    pyulog = require("pyulog", "reading PX4 flight logs")
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"no ULog file at {path}")
+    selectors = [_Selector.parse(f) for f in fields]
+    repeated = sorted({f for f in fields if list(fields).count(f) > 1})
+    if repeated:
+        raise DataError(f"each field may be chosen once; repeated: {repeated}")
+    try:
+        with path.open("rb") as handle:  # our handle: pyulog leaves its own open on a bad header
+            if handle.read(7) != b"ULog\x01\x12\x35":
+                raise ValueError("it does not start with the ULog header")
+            handle.seek(0)
+            ulog = pyulog.ULog(handle, sorted({s.topic for s in selectors}))
+    except Exception as exc:  # pyulog raises its own and struct errors on a damaged file
+        raise DataError(f"{path.name} is not a readable ULog file ({exc})") from None
+    samples = {s.text: _topic_samples(ulog, s, path) for s in selectors}
+    for s in selectors:
+        if samples[s.text][0].shape[0] < 2:
+            raise DataError(f"{s.text} has fewer than 2 samples in {path.name}")
+    steps = {s.text: float(np.median(np.diff(samples[s.text][0]))) for s in selectors}
+    step = float(ts) if ts is not None else steps[selectors[0].text]
+    if not np.isfinite(step) or step <= 0:
+        raise DataError(f"ts must be a positive number of seconds, got {ts!r}")
+    start = max(t[0] for t, _ in samples.values())
+    stop = min(t[-1] for t, _ in samples.values())
+    if stop - start < step:
+        raise DataError(f"the chosen topics of {path.name} were never logged at the same time; choose others")
+    grid = start + step * np.arange(int(np.floor((stop - start) / step)) + 1)
+    held_names = set(hold)
+    values, units, held = {}, {}, {}
+    for s in selectors:
+        t, v = samples[s.text]
+        is_held = s.text in held_names or "setpoint" in s.topic or s.topic.startswith("actuator")
+        gap = float(max_gap) if max_gap is not None else 3.0 * max(steps[s.text], step)
+        values[s.name] = _on_grid(t, v, grid, is_held, gap)
+        units[s.name] = px4_unit(s.topic, s.field)
+        held[s.name] = is_held
+    return UlogSignals(grid, values, units, held, step)

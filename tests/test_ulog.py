@@ -1,0 +1,136 @@
+"""IOData.from_ulog: PX4 flight logs onto one grid (commands held, measurements interpolated,
+dropouts as NaN), on a synthetic ULog written here and on a real log from pyulog's test data."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+import arxid
+
+pyulog = pytest.importorskip("pyulog", reason="needs the px4 extra: pip install 'arxid[px4]'")
+
+
+def _msg(kind: bytes, payload: bytes) -> bytes:
+    return struct.pack("<HB", len(payload), kind[0]) + payload
+
+
+def write_ulog(path, topics: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]) -> None:
+    """A minimal valid ULog (version 1): header, flag bits, one format and subscription per topic
+    (``uint64_t timestamp`` then float fields), and the data messages in time order."""
+    out = bytearray(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", 0))
+    out += _msg(b"B", bytes(8) + bytes(8) + struct.pack("<3Q", 0, 0, 0))
+    for name, (_, fields) in topics.items():
+        spec = "uint64_t timestamp;" + "".join(f"float {f};" for f in fields)
+        out += _msg(b"F", f"{name}:{spec}".encode())
+    events = []
+    for msg_id, (name, (t_us, fields)) in enumerate(topics.items()):
+        out += _msg(b"A", struct.pack("<BH", 0, msg_id) + name.encode())
+        for k, t in enumerate(t_us):
+            values = [float(v[k]) for v in fields.values()]
+            events.append((int(t), msg_id, struct.pack(f"<HQ{len(values)}f", msg_id, int(t), *values)))
+    for _, _, payload in sorted(events, key=lambda e: (e[0], e[1])):
+        out += _msg(b"D", payload)
+    path.write_bytes(bytes(out))
+
+
+@pytest.fixture
+def synthetic(tmp_path):
+    # gyro at 500 Hz with a 40 ms dropout at 1.0 s; command at 250 Hz; setpoint at 50 Hz; battery at 10 Hz
+    t_gyro = np.arange(0, 2_000_000, 2000)
+    t_gyro = t_gyro[(t_gyro < 1_000_000) | (t_gyro >= 1_040_000)]
+    t_cmd = np.arange(500, 2_000_000, 4000)
+    t_sp = np.arange(1000, 2_000_000, 20000)
+    t_bat = np.arange(0, 2_000_000, 100_000)
+    topics = {
+        "vehicle_angular_velocity": (t_gyro, {"xyz[0]": np.sin(t_gyro * 1e-6 * 7), "xyz[1]": 0 * t_gyro}),
+        "actuator_controls_0": (t_cmd, {"control[0]": np.cos(t_cmd * 1e-6 * 5)}),
+        "vehicle_rates_setpoint": (t_sp, {"roll": np.sign(np.sin(t_sp * 1e-6 * 3))}),
+        "battery_status": (t_bat, {"voltage_v": 16.0 - t_bat * 1e-6}),
+    }
+    path = tmp_path / "flight.ulg"
+    write_ulog(path, topics)
+    return path, topics
+
+
+def test_synthetic_log_on_one_grid(synthetic):
+    path, topics = synthetic
+    d = arxid.IOData.from_ulog(
+        path,
+        output="vehicle_angular_velocity.xyz[0]",
+        inputs=["actuator_controls_0.control[0]"],
+        extra=["vehicle_rates_setpoint.roll", "battery_status.voltage_v"],
+        ts=0.002,
+    )
+    assert d.ts == 0.002
+    assert d.output_name == "vehicle_angular_velocity_xyz_0" and d.output_unit == "rad/s"
+    assert d.input_names == ("actuator_controls_0_control_0",) and d.input_units == ("1",)
+    assert d.extra_units == {"vehicle_rates_setpoint_roll": "rad/s", "battery_status_voltage_v": "V"}
+    t = 0.001 + np.arange(d.n_samples) * 0.002  # from the latest first sample (the setpoint's, 1 ms)
+    # measurement: linear interpolation between samples; exact at sample times
+    ok = np.isfinite(d.y)
+    tg, vg = topics["vehicle_angular_velocity"][0] * 1e-6, topics["vehicle_angular_velocity"][1]["xyz[0]"]
+    np.testing.assert_allclose(d.y[ok], np.interp(t[ok], tg, vg.astype(np.float32)), atol=1e-6)
+    # the 40 ms dropout is a NaN gap (never bridged), and nothing else is missing from the gyro
+    gap = (t > 0.998) & (t < 1.040)
+    assert np.all(np.isnan(d.y[gap])) and np.all(np.isfinite(d.y[~gap]))
+    # commands: zero-order hold (the last command at or before each grid time)
+    tc, vc = topics["actuator_controls_0"][0] * 1e-6, topics["actuator_controls_0"][1]["control[0]"]
+    last = np.searchsorted(tc, t + 1e-9, side="right") - 1
+    np.testing.assert_array_equal(d.u[:, 0], vc.astype(np.float32)[last])
+    sp = d.extra["vehicle_rates_setpoint_roll"]
+    assert set(np.unique(sp)) <= {-1.0, 0.0, 1.0}  # a held step setpoint is never smeared
+    np.testing.assert_allclose(d.extra["battery_status_voltage_v"], 16.0 - t, atol=1e-5)
+
+
+def test_errors_name_what_the_log_holds(synthetic, tmp_path):
+    path, _ = synthetic
+    with pytest.raises(arxid.DataError, match="no topic 'vehicle_attitude'"):
+        arxid.IOData.from_ulog(path, output="vehicle_attitude.q[0]", inputs=["actuator_controls_0.control[0]"])
+    with pytest.raises(arxid.DataError, match="its fields are"):
+        arxid.IOData.from_ulog(
+            path, output="vehicle_angular_velocity.xyz[5]", inputs=["actuator_controls_0.control[0]"]
+        )
+    with pytest.raises(arxid.DataError, match="topic.field"):
+        arxid.IOData.from_ulog(path, output="gyro", inputs=["actuator_controls_0.control[0]"])
+    bad = tmp_path / "bad.ulg"
+    bad.write_bytes(b"not a log at all")
+    with pytest.raises(arxid.DataError, match="not a readable ULog"):
+        arxid.IOData.from_ulog(bad, output="a.b", inputs=["c.d"])
+
+
+@pytest.mark.realdata
+def test_real_px4_log_matches_pyulog_at_the_sample_times(shared_data):
+    path = shared_data / "px4-ulog" / "sample_log_small.ulg"
+    if not path.is_file():
+        pytest.skip("px4-ulog/sample_log_small.ulg is absent from the shared data")
+    d = arxid.IOData.from_ulog(
+        path,
+        output="vehicle_angular_velocity.xyz[0]",
+        inputs=["actuator_controls_0.control[0]"],
+        extra=["vehicle_rates_setpoint.roll"],
+    )
+    topics = ["vehicle_angular_velocity", "actuator_controls_0", "vehicle_rates_setpoint"]
+    log = pyulog.ULog(str(path), topics)
+
+    def times(topic: str) -> np.ndarray:  # when the sample was taken, where the topic says
+        data = log.get_dataset(topic).data
+        return data["timestamp_sample" if "timestamp_sample" in data else "timestamp"] * 1e-6
+
+    t = times("vehicle_angular_velocity")
+    x = log.get_dataset("vehicle_angular_velocity").data["xyz[0]"].astype(float)
+    # the grid starts at the latest first sample of the three topics, with the gyro's median step
+    assert d.ts == pytest.approx(float(np.median(np.diff(t))))
+    grid = max(times(topic)[0] for topic in topics) + d.ts * np.arange(d.n_samples)
+    assert grid[0] >= t[0]
+    ok = np.isfinite(d.y)
+    assert ok.sum() > 2000
+    np.testing.assert_allclose(d.y[ok], np.interp(grid[ok], t, x), rtol=0, atol=1e-12)
+    # the log's first gyro interval is a 164 ms dropout: a NaN gap at the start, never interpolated
+    dropout = (grid > t[0]) & (grid < t[1])
+    assert dropout.sum() > 50 and np.all(np.isnan(d.y[dropout]))
+    assert np.all(np.isfinite(d.y[grid >= t[1]]))
+    # the feedback test sees the attitude controller in this log
+    assert arxid.feedback(d[int(dropout.sum()) + 1 :]).feedback
