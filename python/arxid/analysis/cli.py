@@ -27,6 +27,8 @@ from ..models.arx_model import arx
 from ..models.spec import MODEL_FORMS, parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import DEFAULT_GRID, sweep
+from .flight_log import flight_log_data, is_flight_log
+from .npz_data import read_npz
 from .pipeline import DEFAULT_SPLIT, Analysis, analyse, choose
 from .report.html import render_html
 from .verdicts import negative_fit_note
@@ -143,41 +145,15 @@ def load_data(  # noqa: C901
     if not output:
         raise UsageError("name the output column with --output COL")
     wanted = [output, *inputs, *extra] + ([time_col] if time_col else [])
+    if is_flight_log(p):  # a PX4 ULog: topic.field selectors, grid from the log (analysis/flight_log.py)
+        return flight_log_data(p, output, inputs, extra, ts, units)
     if p.suffix.lower() == ".npy":
         raise DataError(
             f"{p.name} holds one unnamed array; save the signals by name with "
             "numpy.savez('log.npz', y=..., u=..., ts=...) or write a CSV file with a header row"
         )
     if p.suffix.lower() == ".npz":
-        try:
-            with np.load(p, allow_pickle=False) as z:
-                arrays = {k: np.asarray(z[k]) for k in z.files}
-        except Exception as exc:  # any failure to read the archive: BadZipFile, zlib.error, EOFError, ...
-            raise DataError(f"{p.name} is not a readable .npz archive ({' '.join(str(exc).split()[:12])})") from None
-        if ts is None and time_col is None and "ts" in arrays and arrays["ts"].size == 1:
-            if not np.issubdtype(arrays["ts"].dtype, np.number) or np.iscomplexobj(arrays["ts"]):
-                raise DataError(
-                    f"{p.name}: the array 'ts' holds {arrays['ts'].reshape(-1)[0]!r}, not a sampling "
-                    "time in seconds; store a number or pass --ts"
-                )
-            ts = float(arrays["ts"].reshape(-1)[0])
-        columns = {}
-        for k, v in arrays.items():
-            if v.ndim == 0 or v.size <= 1:
-                continue
-            numeric = np.issubdtype(v.dtype, np.number) or v.dtype == bool
-            if k not in wanted:
-                if numeric and not np.iscomplexobj(v) and v.ndim == 1:
-                    columns[k] = v.astype(float)
-                continue
-            if not numeric or np.iscomplexobj(v):
-                raise DataError(f"{p.name}: the array {k!r} holds {v.dtype} values, not real numbers")
-            if v.ndim != 1:
-                raise DataError(
-                    f"{p.name}: the array {k!r} has shape {v.shape}; store each signal as a 1-D "
-                    "array of samples under its own name"
-                )
-            columns[k] = v.astype(float)
+        columns, ts = read_npz(p, wanted, ts, time_col)
         data = IOData._from_columns(
             columns,
             output=output,
@@ -207,7 +183,7 @@ def load_data(  # noqa: C901
 
 
 def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_default: bool = True) -> None:
-    p.add_argument("data", metavar="DATA", help="CSV file with a header row, or .npz archive of named arrays")
+    p.add_argument("data", metavar="DATA", help="CSV file with a header row, .npz archive, or PX4 .ulg (topic.field)")
     p.add_argument("--output", required=True, metavar="COL", help="output column")
     p.add_argument("--inputs", required=True, metavar="A[,B]", help="input column(s), comma separated")
     p.add_argument("--extra", metavar="C[,D]", default="", help="logged signals kept for diagnostics (e.g. vbat)")

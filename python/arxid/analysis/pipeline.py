@@ -32,6 +32,7 @@ from typing import Any, TypedDict, cast
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
+from ..checks.feedback import FeedbackTest
 from ..checks.frequency import FrequencyCheck, frequency_check
 from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
@@ -43,6 +44,7 @@ from ..models.polynomial import PolynomialModel, check_initial
 from ..models.spec import parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS, GridGrowth, grid_text
 from ..selection.search import DEFAULT_GRID, SweepResult, sweep
+from .closed_loop import feedback_check, feedback_notes
 from .verdicts import ladder_headline, negative_fit_note, residual_sentences
 
 __all__ = ["Analysis", "Choice", "analyse", "choose", "grid_of", "DEFAULT_SPLIT"]
@@ -206,6 +208,9 @@ class Analysis:
         band from the parameter covariance (empty for a k-step measure).
     initial : {"zero", "estimate"}
         Initial conditions of every validation error (see :func:`arxid.compare`).
+    feedback : FeedbackTest or None
+        The feedback test of the estimation data (:func:`arxid.feedback`; None when too short);
+        its meaning for the model is in ``notes``.
     """
 
     estimation: IOData
@@ -224,6 +229,7 @@ class Analysis:
     frequency: tuple[FrequencyCheck, ...] = ()
     bands: tuple[ResponseBand, ...] = ()
     initial: str = "zero"
+    feedback: FeedbackTest | None = None
 
     @property
     def final_model(self) -> ArxModel:
@@ -291,6 +297,7 @@ class Analysis:
                 "notes": list(self.notes),
                 "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
                 "error_fall": self.ladder.error_fall(),
+                "feedback": None if self.feedback is None else json.loads(self.feedback.to_json()),
             }
         )
         return out
@@ -627,6 +634,7 @@ def analyse(
     compared = [chosen] if ladder.final_model is chosen else [chosen, ladder.final_model]
     freq, bands, freq_notes = _frequency(compared, val, ladder.horizon)
     timings["frequency"] = time.perf_counter() - t0
+    fb = feedback_check(est)
     return Analysis(
         est,
         val,
@@ -640,8 +648,9 @@ def analyse(
         cmp,
         failures,
         timings,
-        _notes(res, ladder.horizon, requested) + freq_notes,
+        _notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est),
         freq,
         bands,
         initial,
+        fb,
     )
