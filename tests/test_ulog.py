@@ -134,3 +134,42 @@ def test_real_px4_log_matches_pyulog_at_the_sample_times(shared_data):
     assert np.all(np.isfinite(d.y[grid >= t[1]]))
     # the feedback test sees the attitude controller in this log
     assert arxid.feedback(d[int(dropout.sum()) + 1 :]).feedback
+
+
+def test_cli_diagnoses_a_closed_loop_flight_log(tmp_path, capsys):
+    import json
+
+    from arxid.analysis.cli import main
+    from arxid.datasets import pi_loop
+
+    d = pi_loop(1, 3000)  # a rate loop at 100 Hz under a PI controller, logged as PX4 would
+    t_us = np.arange(d.n_samples) * 10_000
+    topics = {
+        "vehicle_angular_velocity": (t_us, {"xyz[0]": d.y}),
+        "actuator_controls_0": (t_us + 100, {"control[0]": d.u[:, 0]}),
+        "vehicle_rates_setpoint": (t_us + 50, {"roll": d.extra["r"]}),
+    }
+    path = tmp_path / "flight.ulg"
+    write_ulog(path, topics)
+    argv = ["diagnose", str(path), "--output", "vehicle_angular_velocity.xyz[0]"]
+    argv += ["--inputs", "actuator_controls_0.control[0]", "--extra", "vehicle_rates_setpoint.roll"]
+    argv += ["--na", "1:3", "--nb", "1:3", "--nk", "0:2", "--no-progress", "--json"]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["feedback"]["feedback"] is True
+    notes = " ".join(out["notes"])
+    assert "closed loop" in notes and "instruments='vehicle_rates_setpoint_roll'" in notes
+
+
+@pytest.mark.realdata
+def test_cli_runs_on_the_real_px4_log(shared_data, capsys):
+    from arxid.analysis.cli import main
+
+    path = shared_data / "px4-ulog" / "sample_log_small.ulg"
+    if not path.is_file():
+        pytest.skip("px4-ulog/sample_log_small.ulg is absent from the shared data")
+    argv = ["diagnose", str(path), "--output", "vehicle_angular_velocity.xyz[0]"]
+    argv += ["--inputs", "actuator_controls_0.control[0]", "--na", "1:2", "--nb", "1:2", "--nk", "0:2", "--no-progress"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "Feedback:" in text and "closed loop" in text
