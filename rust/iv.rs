@@ -69,11 +69,8 @@ pub fn moments(
         }
         (zphi, zz, n)
     };
-    let parts: Vec<(Vec<f64>, Vec<f64>, usize)> = if parallel {
-        rows.par_chunks(BLOCK).map(block).collect()
-    } else {
-        rows.chunks(BLOCK).map(block).collect()
-    };
+    let parts: Vec<(Vec<f64>, Vec<f64>, usize)> =
+        if parallel { rows.par_chunks(BLOCK).map(block).collect() } else { rows.chunks(BLOCK).map(block).collect() };
     let mut out = Moments { p, zphi: vec![0.0; p * (p + 1)], zz: vec![0.0; p * p], n_rows: 0 };
     for (a, b, n) in parts {
         out.zphi.iter_mut().zip(a).for_each(|(o, v)| *o += v);
@@ -217,12 +214,22 @@ pub fn iv_sweep(
             Ok((theta, cov)) => {
                 let rss_est = rss_from_r(&f.r_est, f.q, &cols, &theta);
                 let rss_val = f.r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, f.q, &cols, &theta));
-                let r = StructureResult { theta, rss_est, rss_val, sim_est: NAN_SCORE, sim_val: NAN_SCORE, error: None, stage: 2 };
+                let r = StructureResult {
+                    theta,
+                    rss_est,
+                    rss_val,
+                    sim_est: NAN_SCORE,
+                    sim_val: NAN_SCORE,
+                    error: None,
+                    stage: 2,
+                };
                 (r, cov)
             }
             Err(e) => {
                 let e = match e {
-                    ArxError::RankDeficient { column, ratio } => ArxError::RankDeficient { column: cols[column], ratio },
+                    ArxError::RankDeficient { column, ratio } => {
+                        ArxError::RankDeficient { column: cols[column], ratio }
+                    }
                     other => other,
                 };
                 let r = StructureResult {

@@ -920,6 +920,8 @@ mod py_iv;
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
+    use super::py_iv::iv_sweep;
+    #[pymodule_export]
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
@@ -927,8 +929,6 @@ mod core_module {
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
-    #[pymodule_export]
-    use super::py_iv::iv_sweep;
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use super::{run, slices, sweep_output, to_pyerr, parse_grid, SweepOutput};
+use super::{parse_grid, run, slices, sweep_output, to_pyerr, SweepOutput};
 use crate::error::ArxError;
 use crate::structure::Data;
 use crate::sweep::SweepOptions;

@@ -224,7 +224,8 @@ pub(crate) fn factor_grid(
     Ok(GridFactors { env, first_lag, q, r_est, n_est, r_val, n_val })
 }
 
-pub(crate) const NAN_SCORE: SimScore = SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN, mean: f64::NAN };
+pub(crate) const NAN_SCORE: SimScore =
+    SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN, mean: f64::NAN };
 
 /// Exact QR solve of one structure from the factors, with its one-step losses (stage 2).
 fn fit_exact(f: &GridFactors, s: &Structure) -> StructureResult {

@@ -29,7 +29,7 @@ def _pole_error(a) -> float:
 @pytest.mark.parametrize("seed", SEEDS)
 def test_closed_loop_iv_with_the_reference_recovers_gain_and_poles(seed):
     # Tolerances: IV with the reference within 5 % on the gain and 3 % on the poles (measured at
-    # most 2.6 % and 1.4 % over seeds 0-4); least squares and OE are off by more.
+    # most 2.1 % and 1.4 % over seeds 0-4); ARX's poles are 21-23 % off, OE's gain 17-22 %.
     d = pi_loop(seed, 8000)
     m = arxid.iv(d, 2, 2, 1, instruments="r")
     assert isinstance(m, arxid.ArxModel) and m.structure_name() == "IV(2,2,1)"
@@ -47,7 +47,7 @@ def test_open_loop_iv4_is_consistent_where_least_squares_is_not(seed):
     m = arxid.iv(d, 2, 2, 1)
     assert abs(_gain(m.a, m.b[0]) / PLANT.gain - 1) < 0.05
     assert _pole_error(m.a) < 0.03
-    assert _pole_error(arxid.arx(d, 2, 2, 1).a) > 0.1
+    assert _pole_error(arxid.arx(d, 2, 2, 1).a) > 0.08  # measured 11-13 % (IV4: at most 1.3 %)
 
 
 def test_core_solves_the_iv_equations_as_numpy_does():
@@ -95,7 +95,13 @@ def test_sweep_by_iv_ranks_the_true_structure_and_refits_its_parameters():
     best = res.model(0)
     assert isinstance(best, arxid.IvModel)
     np.testing.assert_allclose(best.parameters_, res.parameters[0], rtol=1e-9)
-    assert res.na[0] >= 2 and res.nk[0][0] == 1
-    assert res.fit_val[0] > 60
+    # the best structure by validation free run keeps the plant's gain (measured -1.8 %); the best
+    # least-squares structure of the same grid misses it (measured -16 %)
+    assert abs(_gain(best.a, best.b[0]) / PLANT.gain - 1) < 0.05
+    ls = arxid.sweep(
+        est, na=range(1, 4), nb=range(1, 4), nk=range(0, 3), validation=val, progress=False, expect="stable"
+    )
+    assert abs(_gain(ls.model(0).a, ls.model(0).b[0]) / PLANT.gain - 1) > 0.1
+    assert res.fit_val[0] > ls.fit_val[0]
     with pytest.raises(arxid.ArxidError, match="method='iv'"):
         arxid.sweep(est, na=2, nb=2, nk=1, method="iv", effects=["u1^2"], progress=False)

@@ -361,7 +361,7 @@ def iv(
     >>> import arxid
     >>> from arxid.datasets import pi_loop, PiLoopPlant
     >>> m = arxid.iv(pi_loop(seed=2, n_samples=8000), 2, 2, 1, instruments="r")
-    >>> abs(m.b[0].sum() / m.a.sum() / PiLoopPlant().gain - 1) < 0.05
+    >>> bool(abs(m.b[0].sum() / m.a.sum() / PiLoopPlant().gain - 1) < 0.05)
     True
     """
     if iterations < 0:

@@ -46,7 +46,7 @@ class PiLoopPlant:
     a: tuple[float, float] = (-1.5, 0.7)
     b: tuple[float, float] = (0.10, 0.05)
     noise_pole: float = 0.95
-    noise_std: float = 0.05
+    noise_std: float = 0.1
     kp: float = 0.8
     ki: float = 5.0
     reference: float = 1.0
