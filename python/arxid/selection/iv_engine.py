@@ -12,34 +12,25 @@ from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.iv import instrument_signals
+from .engine import Runner
 from .grid import Grid
 
-__all__ = ["IvRunner", "check_iv_options"]
+__all__ = ["IvRunner", "iv_settings"]
 
 
-def check_iv_options(method: str, effects: Sequence[str], refine: Any, fleet: bool) -> None:
-    """Refuse what an instrumental-variable sweep does not do.
+def iv_settings(method: str, instruments: str | Sequence[str] | None) -> dict:
+    """The settings an instrumental-variable sweep adds to its result (none for least squares).
 
     Parameters
     ----------
     method : str
-        ``"arx"`` or ``"iv"``.
-    effects : sequence of str
-    refine : None or str
-    fleet : bool
-        The data are a list of logs.
+    instruments : None, str or sequence of str
 
-    Raises
-    ------
-    ArxidError
+    Returns
+    -------
+    dict
     """
-    if method not in ("arx", "iv"):
-        raise ArxidError(f"method must be 'arx' (least squares) or 'iv' (instrumental variables), got {method!r}")
-    if method == "iv" and (effects or refine is not None or fleet):
-        raise ArxidError(
-            "method='iv' sweeps linear ARX structures of one IOData: drop effects=, refine= and lists of logs "
-            "(or sweep them by least squares)"
-        )
+    return {"method": method, "instruments": instruments} if method == "iv" else {}
 
 
 class IvRunner:
@@ -69,6 +60,38 @@ class IvRunner:
         self.est, self.val, self.g = est, val, g
         self.n_threads, self.simulate_estimation = n_threads, simulate_estimation
         self.xy, self.xu = instrument_signals(est, instruments)
+
+    @classmethod
+    def of(cls, runner: Runner, method: str, instruments: str | Sequence[str] | None, refine: Any) -> IvRunner:
+        """The IV runner of the data and grid of a least-squares ``runner``.
+
+        Parameters
+        ----------
+        runner : Runner
+        method : str
+            Must be ``"iv"`` (the caller keeps ``runner`` for ``"arx"``).
+        instruments : None, str or sequence of str
+        refine : None or str
+            The sweep's refinement (refused with IV).
+
+        Returns
+        -------
+        IvRunner
+
+        Raises
+        ------
+        ArxidError
+            For another method, or effects, refinement or logs on a cluster with ``method="iv"``.
+        """
+        if method != "iv":
+            raise ArxidError(f"method must be 'arx' (least squares) or 'iv' (instrumental variables), got {method!r}")
+        inputs = runner.inputs
+        if inputs is None or inputs.terms or inputs.u_est.shape[1] != runner.est.n_inputs or refine is not None:
+            raise ArxidError(
+                "method='iv' sweeps linear ARX structures of one IOData: drop effects=, refine= and lists of logs "
+                "(or sweep them by least squares)"
+            )
+        return cls(runner.est, runner.val, runner.g, instruments, runner.n_threads, runner.simulate_estimation)
 
     def __call__(self, k: int | None) -> Any:
         val = self.val

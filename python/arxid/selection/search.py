@@ -39,7 +39,7 @@ from .integrator import (
     slowest_time_constant,
     unit_root_t,
 )
-from .iv_engine import IvRunner, check_iv_options
+from .iv_engine import IvRunner, iv_settings
 from .ranking import SORT_KEYS, ranked_columns
 from .refine import RefinedSweep
 from .refine import refine as refine_sweep
@@ -551,7 +551,6 @@ def sweep(
     """
     started = time.perf_counter()
     workers = None  # a fleet's logs on a Dask cluster
-    check_iv_options(method, effects, refine, isinstance(data, (list, tuple)))
     if isinstance(data, (list, tuple)):
         options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
         options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
@@ -593,9 +592,8 @@ def sweep(
     terms = inputs.terms if inputs is not None else engine.terms
     first_lag, _ = _core.grid_envelope(g.layout, terms)
     check_validation_length(val, first_lag)
-    run: Any = Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
-    if method == "iv":
-        run = IvRunner(est, val, g, instruments, int(n_threads), simulate_estimation)
+    run = Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
+    run = run if method == "arx" else IvRunner.of(run, method, instruments, refine)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when the unit-root test calls the plant integrating, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
@@ -616,9 +614,8 @@ def sweep(
         simulate_estimation=simulate_estimation,
         top=top,
         max_seconds=max_seconds,
+        **iv_settings(method, instruments),
     )
-    if method == "iv":
-        settings.update(method=method, instruments=instruments)
     build = _ResultBuilder(g, terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings)
     result = build(run(k_step), k_step, integrating, reason)
     if expect is None and k_step is None:
