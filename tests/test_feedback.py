@@ -67,3 +67,22 @@ def test_true_plant_parameters():
     p = PiLoopPlant()
     assert p.gain == pytest.approx(0.75)
     np.testing.assert_allclose(np.abs(p.poles), np.sqrt(0.7))
+
+
+def test_analyse_and_report_say_what_feedback_means():
+    from arxid.analysis.report.html import render_html
+
+    a = arxid.analyse(pi_loop(0, 2000), validation=pi_loop(1, 1000), orders=(2, 2, 1), max_steps=0)
+    assert a.feedback is not None and a.feedback.feedback
+    notes = " ".join(a.notes)
+    assert "closed loop" in notes and "may be biased" in notes
+    assert "instrumental variables" in notes
+    assert a.to_dict()["feedback"]["feedback"] is True
+    assert "the data were logged in closed loop" in "\n".join(a.summary_lines())
+    html = render_html(a)
+    assert "logged in closed loop" in html and "instrumental variables" in html
+    from arxid.analysis.closed_loop import feedback_notes
+
+    open_loop = pi_loop(0, 2000, closed=False)
+    notes = feedback_notes(arxid.feedback(open_loop), open_loop)
+    assert len(notes) == 1 and "open-loop" in notes[0]
