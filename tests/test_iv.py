@@ -93,7 +93,7 @@ def test_sweep_by_iv_ranks_the_true_structure_and_refits_its_parameters():
         expect="stable",
     )
     best = res.model(0)
-    assert isinstance(best, arxid.IvModel)
+    assert isinstance(best, arxid.IvModel) and res.structure_name(0).startswith("IV(")
     np.testing.assert_allclose(best.parameters_, res.parameters[0], rtol=1e-9)
     # the best structure by validation free run keeps the plant's gain (measured -1.8 %); the best
     # least-squares structure of the same grid misses it (measured -16 %)

@@ -88,12 +88,14 @@ class SweepTable:
         Returns
         -------
         str
-            E.g. ``ARX(2,1,1)`` or ``ARX(2,[1, 2],[1, 0]) + const``; effect terms are appended.
+            E.g. ``ARX(2,1,1)`` or ``ARX(2,[1, 2],[1, 0]) + const``; effect terms are appended;
+            ``IV(2,1,1)`` in a sweep by instrumental variables.
         """
         nb, nk = self.nb[i], self.nk[i]
         b = int(nb[0]) if len(set(nb.tolist())) == 1 else list(map(int, nb))
         k = int(nk[0]) if len(set(nk.tolist())) == 1 else list(map(int, nk))
-        return f"ARX({int(self.na[i])},{b},{k})" + (" + " + " + ".join(self.effects) if self.effects else "")
+        kind = "IV" if self.settings.get("method") == "iv" else "ARX"  # fitted by instrumental variables
+        return f"{kind}({int(self.na[i])},{b},{k})" + (" + " + " + ".join(self.effects) if self.effects else "")
 
     @property
     def ranking_text(self) -> str:
