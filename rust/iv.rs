@@ -91,7 +91,7 @@ fn lu_solve(a: &mut [f64], k: usize, b: &mut [f64], c: usize) -> Result<()> {
         let scale = (0..k).map(|r| a[r * k + col].abs()).fold(0.0, f64::max);
         let piv = (col..k).max_by(|&i, &j| a[i * k + col].abs().total_cmp(&a[j * k + col].abs())).unwrap_or(col);
         let ratio = if scale > 0.0 { a[piv * k + col].abs() / scale } else { 0.0 };
-        if !(ratio > 1e-12) {
+        if ratio.is_nan() || ratio <= 1e-12 {
             return Err(ArxError::RankDeficient { column: col, ratio });
         }
         if piv != col {
