@@ -13,6 +13,7 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
     "divergence_limit",
+    "iv_sweep",
     "fma_limit",
     "grid_factor",
     "simulate_structures",
