@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._base.formatting import json_safe
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
@@ -91,7 +92,7 @@ class FeedbackTest:
         str
         """
         fields = {k: getattr(self, k) for k in self.__dataclass_fields__}
-        return json.dumps(fields, allow_nan=False, default=float)
+        return json.dumps(json_safe(fields), allow_nan=False)  # NaN (no conclusion) becomes null
 
 
 def _f_test(y, x_small, x_big) -> tuple[float, float, int, int]:
