@@ -153,3 +153,21 @@ def test_semicolon_and_tab_delimiters_are_sniffed(tmp_path, reader):
     for sep in (";", "\t"):
         d = _read(_write(tmp_path, f"y{sep}u\n1{sep}2\n3{sep}4\n"))
         assert d.y.tolist() == [1, 3] and d.u[:, 0].tolist() == [2, 4]
+
+
+@pytest.mark.parametrize("eol", ["\r", "\n", "\r\n"])
+def test_old_mac_unix_and_windows_line_endings_read_the_same(tmp_path, reader, eol):
+    lines = ["t,y,u", "0,1.5,2", "0.1,,3", "0.2,nan,4e-3", "", "0.3,-7,5"]
+    for end in ("", eol):  # with and without a line ending after the last row
+        p = _write(tmp_path, eol.join(lines) + end)
+        d = arxid.IOData.from_csv(p, output="y", inputs=["u"], time="t")
+        np.testing.assert_array_equal(d.y, [1.5, np.nan, np.nan, -7])
+        np.testing.assert_array_equal(d.u[:, 0], [2, 3, 4e-3, 5])
+        assert d.ts == pytest.approx(0.1)
+
+
+def test_old_mac_line_endings_with_a_bad_cell_name_its_row(tmp_path, reader):
+    with pytest.raises(DataError, match="column 'u' row 3 holds 'x', which is not a number"):
+        _read(_write(tmp_path, "y,u\r1,2\r3,x\r"))
+    with pytest.raises(DataError, match="row 3 has 1 fields, fewer than the 2 of the header"):
+        _read(_write(tmp_path, "y,u\r1,2\r3\r", "short.csv"))

@@ -86,14 +86,15 @@ class CsvFile:
         """
         path = Path(path)
         _check_regular_file(path)
-        header_line = _first_line(path)
+        header_line, cr_only = _first_line(path)
         if delimiter is None:
             counts = [header_line.count(c) for c in _DELIMITERS]
             delimiter = _DELIMITERS[counts.index(max(counts))] if max(counts) else ","
         raw = [h.strip() for h in next(csv.reader([header_line], delimiter=delimiter))]
         names, units, rename = _clean_header(raw)
         _check_unique(names, raw, path.name)
-        quoted = _check_body(path, delimiter, len(raw))
+        # old Mac line endings (CR only): the csv module, which takes any of CR, LF, CRLF, reads them
+        quoted = _check_body(path, delimiter, len(raw), count_lines=not cr_only) or cr_only
         return cls(path, delimiter, tuple(names), units, rename, quoted)
 
     def read(self, wanted: Iterable[str]) -> dict[str, np.ndarray]:
@@ -139,14 +140,19 @@ def _check_regular_file(path: Path) -> None:
         raise DataError(f"CSV file {str(path)!r} is empty")
 
 
-def _first_line(path: Path) -> str:
-    """The header line, decoded (without a byte order mark)."""
+def _first_line(path: Path) -> tuple[str, bool]:
+    """The header line, decoded (without a byte order mark), and whether lines end with a lone
+    carriage return (old Mac files)."""
     with path.open("rb") as fh:
-        head = fh.readline(1 << 16)
+        head = fh.read(1 << 16)
     if head.startswith(_BOM):
         head = head[len(_BOM) :]
+    cr, lf = head.find(b"\r"), head.find(b"\n")
+    cr_only = cr >= 0 and (lf < 0 or lf > cr + 1)
+    end = cr if cr_only else lf
+    head = head if end < 0 else head[:end]
     try:
-        return head.decode("utf-8").rstrip("\r\n")
+        return head.decode("utf-8").rstrip("\r\n"), cr_only
     except UnicodeDecodeError as exc:
         raise _not_utf8(path, exc.reason, exc.start, 1) from None
 
@@ -239,9 +245,10 @@ class _LineCounter:
         self.line += len(fields)
 
 
-def _check_body(path: Path, delimiter: str, n_fields: int) -> bool:
+def _check_body(path: Path, delimiter: str, n_fields: int, count_lines: bool = True) -> bool:
     """One streaming pass: UTF-8, no NUL byte, each row as many fields as the header (unless a
-    cell is quoted; then the csv module checks). Returns whether a quote was seen."""
+    cell is quoted or ``count_lines`` is false; then the csv module checks). Returns whether a
+    quote was seen."""
     decoder = codecs.getincrementaldecoder("utf-8")()
     counter = _LineCounter(delimiter, n_fields, path.name)
     offset, quoted = 0, False
@@ -263,14 +270,14 @@ def _check_body(path: Path, delimiter: str, n_fields: int) -> bool:
                     "it is a binary file, not a CSV text file"
                 )
             quoted = quoted or b'"' in (chunk if counter.line else chunk.partition(b"\n")[2])
-            if not quoted:
+            if not quoted and count_lines:
                 counter.feed(chunk)
             offset += len(chunk)
     try:
         decoder.decode(b"", final=True)
     except UnicodeDecodeError as exc:
         raise _not_utf8(path, exc.reason, offset, counter.line + 1) from None
-    if not quoted:
+    if not quoted and count_lines:
         counter.finish()
     return quoted
 
