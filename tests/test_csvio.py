@@ -169,5 +169,5 @@ def test_old_mac_unix_and_windows_line_endings_read_the_same(tmp_path, reader, e
 def test_old_mac_line_endings_with_a_bad_cell_name_its_row(tmp_path, reader):
     with pytest.raises(DataError, match="column 'u' row 3 holds 'x', which is not a number"):
         _read(_write(tmp_path, "y,u\r1,2\r3,x\r"))
-    with pytest.raises(DataError, match="row 3 has 1 fields, fewer than the 2 of the header"):
+    with pytest.raises(DataError, match="line 3 has 1 fields, fewer than the 2 of the header"):
         _read(_write(tmp_path, "y,u\r1,2\r3\r", "short.csv"))

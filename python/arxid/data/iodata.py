@@ -323,7 +323,7 @@ class IOData:
         -------
         IOData
         """
-        table = CsvFile.open(path, delimiter)
+        table = CsvFile.open(path, delimiter, check=False)  # read() checks the whole file in the same pass
         # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
         # the raw header text is still accepted in output=/inputs=/extra=/time=.
         rename = table.rename
