@@ -171,3 +171,30 @@ def test_old_mac_line_endings_with_a_bad_cell_name_its_row(tmp_path, reader):
         _read(_write(tmp_path, "y,u\r1,2\r3,x\r"))
     with pytest.raises(DataError, match="line 3 has 1 fields, fewer than the 2 of the header"):
         _read(_write(tmp_path, "y,u\r1,2\r3\r", "short.csv"))
+
+
+def test_a_decimal_comma_is_named(tmp_path):
+    with pytest.raises(DataError, match=r"column 'u' row 2 holds '2,5', which is not a number; it has a decimal comma"):
+        _read(_write(tmp_path, "y;u\n1;2,5\n3;4\n"))
+    with pytest.raises(DataError, match=r"line 2 has 4 fields, more than the 2 of the header.*decimal comma \(1,5\)"):
+        _read(_write(tmp_path, "y,u\n1,5,2,5\n", "comma.csv"))
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (b"y,u\n", None),  # a header and no row: an IOData cannot be empty
+        (b"\xef\xbb\xbf", "no column"),
+        (b"y,u\n   \n", None),
+        ("y,u\n1,2\n".encode("utf-16"), "not a UTF-8 text CSV file"),
+    ],
+)
+def test_empty_and_header_only_files_are_refused_with_a_sentence(tmp_path, text, message):
+    with pytest.raises(DataError, match=message or "empty"):
+        _read(_write(tmp_path, text))
+
+
+def test_a_single_row_file_is_read(tmp_path):
+    p = _write(tmp_path, "y,u\r\n1.5,-2\r\n")
+    cols = CsvFile.open(p).read(["y", "u"])
+    assert cols["y"].tolist() == [1.5] and cols["u"].tolist() == [-2.0]
