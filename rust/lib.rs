@@ -2,6 +2,7 @@
 //! factorization, and fast free-run simulation. Pure Rust; the Python boundary lives in `py`.
 
 pub mod columns;
+pub mod csv_read;
 pub mod error;
 pub mod fit;
 pub mod iv;
@@ -15,6 +16,8 @@ pub mod sweep;
 
 #[cfg(feature = "python")]
 mod py;
+#[cfg(feature = "python")]
+mod py_csv;
 
 pub use error::{ArxError, Result};
 pub use fit::{fit, Fit};

@@ -1029,6 +1029,24 @@ pub fn predict(
     horizon: Option<usize>,
     initial: Initial,
 ) -> Vec<f64> {
+    let never = AtomicBool::new(false);
+    predict_cancellable(data, s, theta, horizon, initial, &never).unwrap_or_else(|_| vec![f64::NAN; data.y.len()])
+}
+
+/// As [`predict`], checking `cancel` between the filters of the free run and, in a k-step
+/// prediction (O(N k)), every few thousand multiply-adds.
+///
+/// # Errors
+/// `Interrupted` once `cancel` is set.
+pub fn predict_cancellable(
+    data: &Segments<'_>,
+    s: &PolyStructure,
+    theta: &[f64],
+    horizon: Option<usize>,
+    initial: Initial,
+    cancel: &AtomicBool,
+) -> Result<Vec<f64>> {
+    let stopped = || cancel.load(Ordering::Relaxed);
     let p = Polys::of(s, theta);
     let xs: Vec<Vec<f64>> = (0..s.m()).map(|i| data.delayed(i, s.nk[i])).collect();
     let mut out = vec![f64::NAN; data.y.len()];
@@ -1036,8 +1054,14 @@ pub fn predict(
         None => {
             let mut sim = vec![0.0; data.y.len()];
             for ((b, f), x) in p.b.iter().zip(&p.f).zip(&xs) {
+                if stopped() {
+                    return Err(ArxError::Interrupted);
+                }
                 let w = data.filter(b, &conv(&p.a, f), x);
                 sim.iter_mut().zip(&w).for_each(|(a, b)| *a += b);
+            }
+            if stopped() {
+                return Err(ArxError::Interrupted);
             }
             let rows = match initial {
                 Initial::Zero => data.rows(s.max_lag()),
@@ -1047,6 +1071,7 @@ pub fn predict(
         }
         Some(k) => {
             let ev = evaluate(data, s, &xs, &p, false, initial);
+            let every = (4096 / k.max(1)).max(1);
             let (lag, segments) = match &ev.initial {
                 None => (s.max_lag(), data.segments.to_vec()),
                 Some(init) => (0, init.segments.clone()),
@@ -1057,13 +1082,16 @@ pub fn predict(
             filter(&p.c, &conv(&p.a, &p.d), &impulse, &mut h);
             for (a, b) in segments {
                 for (t, o) in out.iter_mut().enumerate().take(b).skip((a + lag).min(b)) {
+                    if t % every == 0 && stopped() {
+                        return Err(ArxError::Interrupted);
+                    }
                     let e: f64 = (0..k.min(t - a + 1)).map(|j| h[j] * ev.eps[t - j]).sum();
                     *o = data.y[t] - e;
                 }
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// Adds to the free run `sim` the free response of each segment's initial state fitted to the

@@ -103,7 +103,7 @@ type Outcome<T> = std::thread::Result<Result<T, ArxError>>;
 /// The calling thread waits and polls for signals every [`SIGNAL_POLL`]: on Ctrl-C it sets
 /// `cancel`, which the core checks between blocks of work, and raises `KeyboardInterrupt` once
 /// the core has stopped.
-fn run<T: Send>(
+pub(crate) fn run<T: Send>(
     py: Python<'_>,
     n_threads: usize,
     f: impl FnOnce(&AtomicBool) -> Result<T, ArxError> + Send,
@@ -317,12 +317,10 @@ fn predict<'py>(
         )));
     }
     let linear_complete = s.output_terms.is_empty() && ys.iter().chain(us).all(|v| v.is_finite());
-    let out = run(py, 1, |_| {
-        Ok(match horizon {
-            // The k-step predictor of a linear structure is a filter: O(N (na + nb)) for any k.
-            Some(k) if k >= 2 && linear_complete => crate::kstep::predict_k(&d, &s, th, k, first_lag),
-            _ => crate::simulate::predict(&d, &s, th, horizon, first_lag),
-        })
+    let out = run(py, 1, |cancel| match horizon {
+        // The k-step predictor of a linear structure is a filter: O(N (na + nb)) for any k.
+        Some(k) if k >= 2 && linear_complete => Ok(crate::kstep::predict_k(&d, &s, th, k, first_lag)),
+        _ => crate::simulate::predict_cancellable(&d, &s, th, horizon, first_lag, cancel),
     })?;
     Ok(out.into_pyarray(py))
 }
@@ -724,7 +722,9 @@ fn simulate_structures<'py>(
         .map(|(i, s)| (0..s.n_params().min(th.shape()[1])).map(|j| th[[i, j]]).collect())
         .collect();
     let opts = SweepOptions { simulate_estimation: false, horizon, parallel: n_threads != 1, chunk: 64, top: None };
-    let scores = run(py, n_threads, |_| crate::sweep::simulate_structures(&d, &grid, thetas, first_lag, limit, &opts))?;
+    let scores = run(py, n_threads, |cancel| {
+        crate::sweep::simulate_structures_cancellable(&d, &grid, thetas, first_lag, limit, &opts, cancel)
+    })?;
     let rms: Vec<f64> = scores.iter().map(|s| s.rms).collect();
     let n: Vec<f64> = scores.iter().map(|s| s.n as f64).collect();
     let norm: Vec<f64> = scores.iter().map(|s| s.norm).collect();
@@ -870,7 +870,7 @@ fn pem_predict<'py>(
             s.n_params()
         )));
     }
-    let out = run(py, 1, |_| Ok(crate::pem::predict(&d, &s, th, horizon, initial)))?;
+    let out = run(py, 1, |cancel| crate::pem::predict_cancellable(&d, &s, th, horizon, initial, cancel))?;
     Ok(out.into_pyarray(py))
 }
 
@@ -929,6 +929,8 @@ mod core_module {
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
+    #[pymodule_export]
+    use crate::py_csv::csv_read;
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

@@ -5,6 +5,9 @@
 //! Output-derived effect terms are evaluated on the same outputs the AR part uses, so in free run
 //! `y^3` reads the simulated output, never the measured one.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::error::{ArxError, Result};
 use crate::structure::{Data, Structure};
 
 /// Sum of the input (FIR) part and effect inputs at time `t` plus the AR and output-term parts
@@ -50,7 +53,30 @@ fn inputs_finite(d: &Data, s: &Structure, t: usize) -> bool {
 /// `horizon = None` is free-run simulation; `Some(k)` the k-step-ahead prediction. Samples whose
 /// inputs are missing (NaN) predict NaN, and the simulation restarts from measured outputs after them.
 pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, first_lag: usize) -> Vec<f64> {
+    let never = AtomicBool::new(false);
+    predict_cancellable(d, s, theta, horizon, first_lag, &never).unwrap_or_else(|_| vec![f64::NAN; d.len()])
+}
+
+/// Samples (or k-step windows) between two looks at the cancel flag of [`predict_cancellable`].
+const CANCEL_EVERY: usize = 4096;
+
+/// As [`predict`], checking `cancel` every [`CANCEL_EVERY`] samples (a k-step prediction with a
+/// long horizon costs O(N k p) and may run for minutes).
+///
+/// # Errors
+/// `Interrupted` once `cancel` is set.
+pub fn predict_cancellable(
+    d: &Data,
+    s: &Structure,
+    theta: &[f64],
+    horizon: Option<usize>,
+    first_lag: usize,
+    cancel: &AtomicBool,
+) -> Result<Vec<f64>> {
     let n = d.len();
+    let stop = |t: usize, work: usize| {
+        t % (CANCEL_EVERY / work.clamp(1, CANCEL_EVERY)).max(1) == 0 && cancel.load(Ordering::Relaxed)
+    };
     let lag = first_lag.max(s.max_lag());
     let mut out = vec![f64::NAN; n];
     for (a, b) in d.segments() {
@@ -61,6 +87,9 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
         match horizon {
             Some(k) if k <= 1 => {
                 for (t, o) in out.iter_mut().enumerate().take(b).skip(start) {
+                    if stop(t, 1) {
+                        return Err(ArxError::Interrupted);
+                    }
                     *o = step(d, s, theta, t, &|i| d.y[t - i]);
                 }
             }
@@ -73,6 +102,9 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
                 let mut from_measurement = vec![true; b - a];
                 let reach = s.max_lag().max(1);
                 for t in start..b {
+                    if stop(t, 1) {
+                        return Err(ArxError::Interrupted);
+                    }
                     let v = {
                         let (sim_ref, meas) = (&sim, &from_measurement);
                         step(d, s, theta, t, &|i| if meas[t - i - a] { d.y[t - i] } else { sim_ref[t - i - a] })
@@ -90,6 +122,9 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
                 let k = k.min(b - start);
                 let mut local = vec![0.0f64; k];
                 for t in start..b {
+                    if stop(t, k) {
+                        return Err(ArxError::Interrupted);
+                    }
                     let t0 = (t + 1).saturating_sub(k).max(start);
                     for tau in t0..=t {
                         let v = {
@@ -114,7 +149,7 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// k-step-ahead prediction of a linear structure (no output terms) on complete data: the same

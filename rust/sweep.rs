@@ -1,7 +1,7 @@
 //! Exhaustive order sweep: one QR reduction of the largest regressor, then every structure solved
 //! from its columns of R at a cost independent of the number of samples, and simulated in parallel.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
@@ -445,6 +445,22 @@ pub fn simulate_structures(
     limit: Option<f64>,
     opts: &SweepOptions,
 ) -> Result<Vec<SimScore>> {
+    simulate_structures_cancellable(d, structures, thetas, first_lag, limit, opts, &AtomicBool::new(false))
+}
+
+/// As [`simulate_structures`], stopping between groups of structures once `cancel` is set.
+///
+/// # Errors
+/// As [`simulate_structures`]; `Interrupted` once `cancel` is set.
+pub fn simulate_structures_cancellable(
+    d: &Data,
+    structures: &[Structure],
+    thetas: Vec<Vec<f64>>,
+    first_lag: usize,
+    limit: Option<f64>,
+    opts: &SweepOptions,
+    cancel: &AtomicBool,
+) -> Result<Vec<SimScore>> {
     let env = envelope(structures)?;
     env.check(d.m)?;
     let mut out = Vec::with_capacity(structures.len());
@@ -471,7 +487,14 @@ pub fn simulate_structures(
     let opts = SweepOptions { simulate_estimation: false, ..*opts };
     let order = (0..structures.len()).filter(|&i| out[i].theta.iter().all(|v| v.is_finite())).collect();
     let mut scores = vec![NAN_SCORE; structures.len()];
-    for (i, _, sv) in simulate_all(d, Some(d), structures, &out, order, (&env, lag, limit), &opts, &|_| {}) {
+    let stop = |_: usize| {
+        if cancel.load(Ordering::Relaxed) {
+            // Unwinds out of the parallel loop; caught by the caller's `catch_unwind` (see py.rs).
+            std::panic::resume_unwind(Box::new(ArxError::Interrupted));
+        }
+    };
+    let opts = SweepOptions { chunk: 1, ..opts };
+    for (i, _, sv) in simulate_all(d, Some(d), structures, &out, order, (&env, lag, limit), &opts, &stop) {
         scores[i] = sv;
     }
     Ok(scores)

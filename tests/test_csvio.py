@@ -153,3 +153,48 @@ def test_semicolon_and_tab_delimiters_are_sniffed(tmp_path, reader):
     for sep in (";", "\t"):
         d = _read(_write(tmp_path, f"y{sep}u\n1{sep}2\n3{sep}4\n"))
         assert d.y.tolist() == [1, 3] and d.u[:, 0].tolist() == [2, 4]
+
+
+@pytest.mark.parametrize("eol", ["\r", "\n", "\r\n"])
+def test_old_mac_unix_and_windows_line_endings_read_the_same(tmp_path, reader, eol):
+    lines = ["t,y,u", "0,1.5,2", "0.1,,3", "0.2,nan,4e-3", "", "0.3,-7,5"]
+    for end in ("", eol):  # with and without a line ending after the last row
+        p = _write(tmp_path, eol.join(lines) + end)
+        d = arxid.IOData.from_csv(p, output="y", inputs=["u"], time="t")
+        np.testing.assert_array_equal(d.y, [1.5, np.nan, np.nan, -7])
+        np.testing.assert_array_equal(d.u[:, 0], [2, 3, 4e-3, 5])
+        assert d.ts == pytest.approx(0.1)
+
+
+def test_old_mac_line_endings_with_a_bad_cell_name_its_row(tmp_path, reader):
+    with pytest.raises(DataError, match="column 'u' row 3 holds 'x', which is not a number"):
+        _read(_write(tmp_path, "y,u\r1,2\r3,x\r"))
+    with pytest.raises(DataError, match="line 3 has 1 fields, fewer than the 2 of the header"):
+        _read(_write(tmp_path, "y,u\r1,2\r3\r", "short.csv"))
+
+
+def test_a_decimal_comma_is_named(tmp_path):
+    with pytest.raises(DataError, match=r"column 'u' row 2 holds '2,5', which is not a number; it has a decimal comma"):
+        _read(_write(tmp_path, "y;u\n1;2,5\n3;4\n"))
+    with pytest.raises(DataError, match=r"line 2 has 4 fields, more than the 2 of the header.*decimal comma \(1,5\)"):
+        _read(_write(tmp_path, "y,u\n1,5,2,5\n", "comma.csv"))
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (b"y,u\n", None),  # a header and no row: an IOData cannot be empty
+        (b"\xef\xbb\xbf", "no column"),
+        (b"y,u\n   \n", None),
+        ("y,u\n1,2\n".encode("utf-16"), "not a UTF-8 text CSV file"),
+    ],
+)
+def test_empty_and_header_only_files_are_refused_with_a_sentence(tmp_path, text, message):
+    with pytest.raises(DataError, match=message or "empty"):
+        _read(_write(tmp_path, text))
+
+
+def test_a_single_row_file_is_read(tmp_path):
+    p = _write(tmp_path, "y,u\r\n1.5,-2\r\n")
+    cols = CsvFile.open(p).read(["y", "u"])
+    assert cols["y"].tolist() == [1.5] and cols["u"].tolist() == [-2.0]

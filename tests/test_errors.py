@@ -294,3 +294,96 @@ def test_model_file_with_absurd_order_is_corrupt(data):
     d["nk"] = [2**70]
     with pytest.raises(DataError, match="corrupt model file.*too large"):
         arxid.ArxModel.from_json(json.dumps(d))
+
+
+@pytest.mark.parametrize(
+    ("ts", "match"),
+    [
+        (1e308, r"ts = 1e\+308 s is longer than a day"),
+        (86400.5, "longer than a day"),
+        (1e-12, "ts = 1e-12 s is below 1 ns"),
+        (5e-324, "below 1 ns"),
+    ],
+)
+def test_absurd_sampling_times_have_their_own_message(ts, match):
+    with pytest.raises(DataError, match=match):
+        arxid.IOData(np.zeros(10), np.zeros(10), ts=ts)
+    arxid.IOData(np.zeros(10), np.zeros(10), ts=86400.0)  # the bounds themselves are fine
+    arxid.IOData(np.zeros(10), np.zeros(10), ts=1e-9)
+
+
+def test_time_column_whose_steps_overflow_is_named(tmp_path):
+    p = tmp_path / "d.csv"
+    p.write_text("t,y,u\n-1e308,1,2\n1e308,2,3\n")
+    with pytest.raises(DataError, match="the steps of time column 't' overflow"):
+        arxid.IOData.from_csv(p, output="y", inputs=["u"], time="t")
+    p.write_text("t,y,u\n0,1,2\n1e6,2,3\n2e6,2,3\n")  # a time column in microseconds
+    with pytest.raises(DataError, match="longer than a day"):
+        arxid.IOData.from_csv(p, output="y", inputs=["u"], time="t")
+
+
+def test_model_file_with_an_absurd_sampling_time_names_it(data):
+    import json
+
+    d = json.loads(arxid.arx(data, 1, 2, 1).to_json())
+    d["ts"] = 1e308
+    with pytest.raises(DataError, match="corrupt model file: ts must be a sampling time in seconds"):
+        arxid.ArxModel.from_json(json.dumps(d))
+
+
+def _tampered(base: dict, rng: np.random.Generator) -> dict:
+    """``base`` with one or two values (anywhere in the tree) replaced by junk or removed."""
+    import json
+
+    junk = [None, -1, 0, 1e308, -1e308, float("nan"), float("inf"), 2**70, "x", [], {}, [[1]], True, 10**6, 3.5]
+    d = json.loads(json.dumps(base))
+    for _ in range(int(rng.integers(1, 3))):
+        paths, stack = [], [((), d)]
+        while stack:
+            path, node = stack.pop()
+            items = node.items() if isinstance(node, dict) else enumerate(node[:3]) if isinstance(node, list) else ()
+            for k, v in items:
+                paths.append(path + (k,))
+                stack.append((path + (k,), v))
+        path = paths[int(rng.integers(len(paths)))]
+        parent = d
+        for k in path[:-1]:
+            parent = parent[k]
+        if isinstance(parent, dict) and rng.random() < 0.15:
+            del parent[path[-1]]
+        else:
+            parent[path[-1]] = json.loads(json.dumps(junk[int(rng.integers(len(junk)))]))
+    return d
+
+
+@pytest.mark.parametrize("kind", ["arx", "oe", "bj"])
+def test_tampered_model_files_give_typed_errors(data, kind):
+    """Junk anywhere in a model file (a value replaced by null, inf, a huge int, a list, ...; a
+    field removed): loading either works or raises an ArxidError, never another exception."""
+    import json
+
+    fits = {
+        "arx": lambda: arxid.arx(data, 2, 2, 1),
+        "oe": lambda: arxid.oe(data, 2, 2, 1),
+        "bj": lambda: arxid.bj(data, 1, 1, 1, 1, 1, initial="estimate"),
+    }
+    model = fits[kind]()
+    cls = type(model)
+    base = json.loads(model.to_json())
+    rng = np.random.default_rng(26)
+    refused = 0
+    for _ in range(300):
+        try:
+            cls.from_json(json.dumps(_tampered(base, rng)))
+        except ArxidError:
+            refused += 1
+    assert refused > 100  # most tampering is caught when loading
+
+
+def test_model_file_with_an_infinite_integer_field_is_corrupt(data):
+    import json
+
+    d = json.loads(arxid.oe(data, 1, 1, 1).to_json())
+    d["first_lag"] = float("inf")
+    with pytest.raises(DataError, match="corrupt model file"):
+        arxid.PolynomialModel.from_json(json.dumps(d))

@@ -4,6 +4,7 @@ sweep of the same logs, merged and per log, also when a worker dies in the middl
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -159,3 +160,47 @@ def test_logs_on_demand_refuse_logs_that_changed_since_the_sweep(client, tmp_pat
     np.savez(paths[0], y=d.y, u=d.u, ts=d.ts)
     with pytest.raises(arxid.DataError, match="changed since the workers read them"):
         got.model(0)
+
+
+def test_a_worker_killed_mid_per_log_sweep_is_retried_and_every_log_is_swept(logs, client, tmp_path):
+    read = worker_killing_reader(str(tmp_path / "killed"))
+    got = arxid.sweep(logs, **GRID, validation=0.3, client=client, read=read, per_experiment=True, progress=False)
+    assert os.path.exists(tmp_path / "killed"), "no worker was killed"
+    assert got.failed == () and got.names == tuple(os.path.basename(p) for p in logs)
+    for path, table in zip(logs, got.tables):
+        _assert_equal(table, arxid.sweep(fleet.load_experiment(path), **GRID, validation=0.3, progress=False))
+
+
+def _broken_logs(logs, tmp_path):
+    """The fleet with a truncated copy of its second log and a corrupt (not numpy) third one."""
+    truncated, corrupt = tmp_path / "truncated.npz", tmp_path / "corrupt.npz"
+    data = Path(logs[1]).read_bytes()
+    truncated.write_bytes(data[: len(data) // 2])
+    corrupt.write_bytes(b"PK\x03\x04" + bytes(range(256)) * 8)
+    return [logs[0], str(truncated), str(corrupt), *logs[3:]]
+
+
+@pytest.mark.parametrize("on_cluster", [False, True])
+def test_corrupt_and_truncated_logs_are_named_while_the_others_are_swept(logs, client, tmp_path, on_cluster):
+    fleet_logs = _broken_logs(logs, tmp_path)
+    kw = {"client": client} if on_cluster else {}
+    got = arxid.sweep(fleet_logs, **GRID, validation=0.3, per_experiment=True, progress=False, **kw)
+    assert [name for name, _ in got.failed] == ["truncated.npz", "corrupt.npz"]
+    assert all("cannot read log" in reason for _, reason in got.failed), got.failed
+    assert got.names == tuple(os.path.basename(p) for p in [logs[0], *logs[3:]])
+    for path, table in zip([logs[0], *logs[3:]], got.tables):
+        _assert_equal(table, arxid.sweep(fleet.load_experiment(path), **GRID, validation=0.3, progress=False))
+    assert "2 log(s) could not be swept" in got.summary() and "truncated.npz: cannot read log" in got.summary()
+
+
+def test_a_fleet_whose_every_log_is_broken_is_an_error(logs, tmp_path):
+    fleet_logs = _broken_logs(logs, tmp_path)[1:3]
+    with pytest.raises(arxid.DataError, match="no log of the fleet could be swept; truncated.npz: cannot read log"):
+        arxid.sweep(fleet_logs, **GRID, validation=0.3, per_experiment=True, progress=False)
+
+
+def test_a_corrupt_log_in_a_merged_fleet_sweep_is_named(logs, client, tmp_path):
+    fleet_logs = _broken_logs(logs, tmp_path)
+    for kw in ({}, {"client": client}):
+        with pytest.raises(arxid.DataError, match="cannot read log 'truncated.npz'"):
+            arxid.sweep(fleet_logs, **GRID, validation=0.3, progress=False, **kw)

@@ -174,6 +174,69 @@ def test_ctrl_c_interrupts_a_long_output_error_fit_promptly():
     assert float(latency[0]) < 0.5, latency
 
 
+# Predictions and simulations that run for seconds in the core: a k-step prediction of a model with
+# an output-derived effect (k steps per sample), the free-run simulation of a high-order one, and
+# a k-step prediction of an output-error model with a long horizon. A timer sends SIGINT after
+# 1 s; each prints the seconds from the signal to the KeyboardInterrupt.
+_LONG_PREDICTIONS = textwrap.dedent(
+    """
+    import os, signal, sys, threading, time
+    import numpy as np
+    import arxid
+    which = sys.argv[1]
+    rng = np.random.default_rng(0)
+    if which == "arx k-step":
+        n = 100_000
+        u = rng.standard_normal(n)
+        y = np.zeros(n)
+        for t in range(2, n):
+            y[t] = 0.5 * y[t - 1] + u[t - 1] - 0.01 * y[t - 1] ** 3
+        d = arxid.IOData(y, u, ts=0.01)
+        m = arxid.arx(d, 2, 2, 1, effects=["y^3"])
+        call = lambda: m.predict(d, horizon=3000)
+    elif which == "arx simulate":
+        u = rng.standard_normal(2000)
+        y = np.convolve(u, [0, 1, 0.5])[:2000] + 0.01 * rng.standard_normal(2000)
+        m = arxid.arx(arxid.IOData(y, u, ts=0.01), 100, 100, 1, effects=["y^3"])
+        long_u = rng.standard_normal(5_000_000)
+        call = lambda: m.simulate(long_u)
+    else:
+        n = 400_000
+        u = rng.standard_normal(n)
+        y = np.convolve(u, [0, 1, 0.5])[:n] + 0.1 * rng.standard_normal(n)
+        m = arxid.oe(arxid.IOData(y[:5000], u[:5000], ts=0.01), 2, 2, 1)
+        d = arxid.IOData(y, u, ts=0.01)
+        call = lambda: m.predict(d, horizon=20_000)
+    sent = []
+    def interrupt():
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGINT)
+    threading.Timer(1.0, interrupt).start()
+    try:
+        call()
+        print("finished", flush=True)
+    except KeyboardInterrupt:
+        print("interrupted", time.monotonic() - sent[0], flush=True)
+    """
+)
+
+
+@pytest.mark.parametrize("which", ["arx k-step", "arx simulate", "oe k-step"])
+def test_ctrl_c_interrupts_a_long_prediction_or_simulation_promptly(which):
+    proc = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", _LONG_PREDICTIONS, which],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=_sigint_default,
+    )
+    word, *latency = proc.stdout.split()
+    assert word == "interrupted" and proc.returncode == 0, proc.stdout + proc.stderr
+    # The core looks at the flag every few thousand samples (milliseconds); without the checks
+    # these calls run on for 10 s or more after the signal. 0.5 s leaves room for a loaded machine.
+    assert float(latency[0]) < 0.5, latency
+
+
 def test_ctrl_c_stops_the_cli_with_exit_130(tmp_path):
     rng = np.random.default_rng(0)
     u = rng.standard_normal(60_000)

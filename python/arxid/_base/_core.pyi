@@ -1,5 +1,6 @@
 """Type stub of the Rust extension ``arxid._core`` (private: use the public ``arxid`` API)."""
 
+import os
 from collections.abc import Callable, Sequence
 from typing import Final, final
 
@@ -34,6 +35,7 @@ __all__ = [
     "pem_gradient",
     "pem_max_lag",
     "PemOutput",
+    "csv_read",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -248,3 +250,11 @@ def iv_sweep(
     chunk: int = 64,
     progress: Callable[[int], object] | None = None,
 ) -> tuple[SweepOutput, list[_F], int]: ...
+
+
+# (kind, line, offset, got, column, text): see rust/py_csv.rs
+_CsvProblem = tuple[str, int, int, int, int, str]
+
+def csv_read(
+    path: str | os.PathLike[str], delimiter: str, n_fields: int, wanted: Sequence[int]
+) -> tuple[list[_F] | None, bool, _CsvProblem | None]: ...

@@ -1,20 +1,16 @@
 """Reading measured signals from a CSV file: fast, and strict about what it accepts.
 
-The numbers are parsed by pandas' C reader when pandas is installed and by numpy's C reader
-(``numpy.loadtxt``) otherwise; only the columns asked for are converted. Before that, one streaming
-pass over the bytes (constant memory) checks what those readers would let through silently: text
-that is not UTF-8 (a byte order mark is fine), NUL bytes, repeated column names, and rows with fewer
-or more fields than the header. A file with quoted cells, cells neither reader takes (`` nan ``,
-``NULL``) or text in a column asked for goes through Python's :mod:`csv` module instead, which is
-slower and reports the row and column of a cell that is not a number.
+The Rust core reads the file (the ``csv`` crate splits records, ``fast-float2`` parses the numbers,
+without the GIL and interruptible with Ctrl-C): quoted fields, CR / LF / CRLF line endings and a
+byte order mark are fine. It refuses what would change the data silently: text that is not UTF-8,
+NUL bytes, and rows with fewer or more fields than the header. Python reads the header (signal
+names, units in brackets, repeated names) and words every problem: the line and column of a cell
+that is not a number, and a decimal comma by name.
 """
 
 from __future__ import annotations
 
-import codecs
 import csv
-import itertools
-import math
 import re
 import stat
 from collections.abc import Iterable
@@ -23,17 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .._base import _core
 from ..exceptions import DataError
 
 __all__ = ["CsvFile", "MISSING_MARKERS"]
 
-# Cells that mark a missing sample (NaN), in any letter case.
+# Cells that mark a missing sample (NaN), in any letter case (the Rust reader knows the same list).
 MISSING_MARKERS = ("", "nan", "na", "null")
-_NA_VALUES = sorted(
-    {"".join(c) for m in MISSING_MARKERS for c in itertools.product(*[(x.lower(), x.upper()) for x in m])}
-)
-_CHUNK = 1 << 20  # bytes per read of the checking pass
-_BOM = codecs.BOM_UTF8
+_CHUNK = 1 << 16  # bytes per read while looking for the end of the header line
+_BOM = b"\xef\xbb\xbf"
 _DELIMITERS = (",", ";", "\t", " ")
 
 
@@ -54,7 +48,7 @@ class CsvFile:
     rename : dict of str to str
         Raw header text to signal name (so ``output="vbat[V]"`` works too).
     quoted : bool
-        Whether a cell below the header is quoted (then only :mod:`csv` reads it correctly).
+        Whether a field below the header is quoted (``False`` when the body was not checked).
     """
 
     path: Path
@@ -65,7 +59,7 @@ class CsvFile:
     quoted: bool
 
     @classmethod
-    def open(cls, path: str | Path, delimiter: str | None = None) -> CsvFile:
+    def open(cls, path: str | Path, delimiter: str | None = None, check: bool = True) -> CsvFile:
         """Check a CSV file and read its header.
 
         Parameters
@@ -73,6 +67,9 @@ class CsvFile:
         path : str or Path
         delimiter : str, optional
             Column separator; when omitted, the most frequent of ``, ; tab space`` in the header.
+        check : bool
+            Check the whole file now (UTF-8, NUL bytes, fields per row); :meth:`read` checks it too,
+            so a caller that reads at once can skip this pass.
 
         Returns
         -------
@@ -90,10 +87,15 @@ class CsvFile:
         if delimiter is None:
             counts = [header_line.count(c) for c in _DELIMITERS]
             delimiter = _DELIMITERS[counts.index(max(counts))] if max(counts) else ","
+        if len(delimiter) != 1 or not delimiter.isascii() or delimiter in '\r\n"':
+            raise DataError(f"the delimiter must be one character other than a quote or line end, got {delimiter!r}")
         raw = [h.strip() for h in next(csv.reader([header_line], delimiter=delimiter))]
         names, units, rename = _clean_header(raw)
         _check_unique(names, raw, path.name)
-        quoted = _check_body(path, delimiter, len(raw))
+        table = cls(path, delimiter, tuple(names), units, rename, False)
+        if not check:
+            return table
+        _, quoted = table._read_columns([])
         return cls(path, delimiter, tuple(names), units, rename, quoted)
 
     def read(self, wanted: Iterable[str]) -> dict[str, np.ndarray]:
@@ -111,19 +113,70 @@ class CsvFile:
         Raises
         ------
         DataError
-            A name is not a column, or a cell of a wanted column is not a number.
+            A name is not a column, or the file breaks a rule of :meth:`open`, or a cell of a wanted
+            column is not a number.
         """
         wanted = list(dict.fromkeys(wanted))
         missing = [c for c in wanted if c not in self.names]
         if missing:
+            self._read_columns([])  # a broken file (binary, not UTF-8) is the problem to report first
             raise DataError(
                 f"{self.path.name} has no column(s) {missing}; available: {sorted(n for n in self.names if n)}"
             )
-        index = {name: self.names.index(name) for name in wanted}
-        table = None if self.quoted else _read_fast(self.path, self.delimiter, sorted(index.values()))
-        if table is None:
-            return _read_with_csv_module(self, index)
-        return {name: table[j] for name, j in index.items()}
+        columns, _ = self._read_columns([self.names.index(name) for name in wanted])
+        return dict(zip(wanted, columns, strict=True))
+
+    def _read_columns(self, positions: list[int]) -> tuple[list[np.ndarray], bool]:
+        """The columns at ``positions`` (all rows checked) and whether a field was quoted."""
+        columns, quoted, problem = _core.csv_read(self.path, self.delimiter, len(self.names), positions)
+        if problem is not None:
+            raise self._problem(*problem)
+        assert columns is not None
+        return columns, quoted
+
+    def _problem(self, kind: str, line: int, offset: int, got: int, column: int, text: str) -> DataError:
+        """The :class:`DataError` of a problem the Rust reader found (see ``rust/py_csv.rs``)."""
+        source = self.path.name
+        if kind == "not_utf8":
+            return _not_utf8(self.path, text, offset, line)
+        if kind == "nul":
+            return DataError(
+                f"{source} holds a NUL byte at byte {offset} (line {line}); it is a binary file, not a CSV text file"
+            )
+        if kind == "fields":
+            n_fields = len(self.names)
+            what = "fewer" if got < n_fields else "more"
+            where = "row" if _has_quotes(self.path) else "line"
+            hint = _decimal_comma_hint(self, got)
+            return DataError(
+                f"{source}: {where} {line} has {got} fields, {what} than the {n_fields} of the header; "
+                f"every row needs one cell per column (leave a cell empty for a missing sample){hint}"
+            )
+        if kind == "number":
+            name = self.names[column]
+            message = f"{source}: column {name!r} row {line} holds {text!r}, which is not a number"
+            if re.fullmatch(r"[+-]?\d*,\d+([eE][+-]?\d+)?", text):
+                message += (
+                    f"; it has a decimal comma: export the file with a decimal point "
+                    f"({text.replace(',', '.')!r}), for example with the English (US) number format"
+                )
+            return DataError(message)
+        if kind == "io":
+            return DataError(f"cannot read CSV file {str(self.path)!r}: {text}")
+        return DataError(f"{source}: line {line} cannot be read as CSV ({text}); export it again as CSV (UTF-8)")
+
+
+def _has_quotes(path: Path) -> bool:
+    """Whether the file holds a quote (only read to word an error)."""
+    with path.open("rb") as fh:
+        return any(b'"' in chunk for chunk in iter(lambda: fh.read(1 << 20), b""))
+
+
+def _decimal_comma_hint(table: CsvFile, got: int) -> str:
+    """A hint when a comma-separated file may write numbers with a decimal comma (``1,5``)."""
+    if table.delimiter == "," and got > len(table.names):
+        return "; if the numbers use a decimal comma (1,5), separate the columns with ';' and pass delimiter=';'"
+    return ""
 
 
 def _check_regular_file(path: Path) -> None:
@@ -140,13 +193,17 @@ def _check_regular_file(path: Path) -> None:
 
 
 def _first_line(path: Path) -> str:
-    """The header line, decoded (without a byte order mark)."""
+    """The header line, decoded (without a byte order mark); it ends at LF, CRLF or a lone CR."""
+    head = b""
     with path.open("rb") as fh:
-        head = fh.readline(1 << 16)
+        while (chunk := fh.read(_CHUNK)) and not re.search(rb"[\r\n]", head + chunk):
+            head += chunk
+        head += chunk
     if head.startswith(_BOM):
         head = head[len(_BOM) :]
+    head = re.split(rb"[\r\n]", head, maxsplit=1)[0]
     try:
-        return head.decode("utf-8").rstrip("\r\n")
+        return head.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise _not_utf8(path, exc.reason, exc.start, 1) from None
 
@@ -189,141 +246,3 @@ def _check_unique(names: list[str], raw: list[str], source: str) -> None:
                 "rename one of them in the header"
             )
         seen[name] = j
-
-
-class _LineCounter:
-    """Fields per line over a stream of chunks: delimiters between newlines, a line carried over
-    from one chunk to the next. Blank lines (empty, or a lone carriage return) are skipped."""
-
-    def __init__(self, delimiter: str, n_fields: int, source: str):
-        self.delim, self.n_fields, self.source = ord(delimiter), n_fields, source
-        self.line = 0  # lines completed so far (the header is line 1)
-        self.carry_fields, self.carry_len, self.last = 0, 0, 0
-
-    def feed(self, chunk: bytes) -> None:
-        buf = np.frombuffer(chunk, dtype=np.uint8)
-        marks = np.flatnonzero((buf == 10) | (buf == self.delim))  # newlines and delimiters, one scan
-        k = np.flatnonzero(buf[marks] == 10)
-        ends = marks[k]
-        fields = np.diff(k - np.arange(len(k)), prepend=0) + 1  # delimiters between newlines, plus one
-        lengths = np.diff(ends, prepend=-1)  # bytes of each line with its newline, in this chunk
-        if len(ends):
-            fields[0] += self.carry_fields
-            lengths[0] += self.carry_len
-            lf_cr = buf[ends - 1] == 13 if ends[0] > 0 else np.r_[self.last == 13, buf[ends[1:] - 1] == 13]
-            blank = (lengths == 1) | ((lengths == 2) & lf_cr)
-            self._check(fields, blank)
-            self.carry_fields = len(marks) - int(k[-1]) - 1
-            self.carry_len = len(chunk) - int(ends[-1]) - 1
-        else:
-            self.carry_fields += len(marks)
-            self.carry_len += len(chunk)
-        if len(chunk):
-            self.last = chunk[-1]
-
-    def finish(self) -> None:
-        if self.line and self.carry_len and not (self.carry_len == 1 and self.last == 13):
-            self._check(np.array([self.carry_fields + 1]), np.array([False]))
-
-    def _check(self, fields: np.ndarray, blank: np.ndarray) -> None:
-        first = 1 if self.line == 0 else 0  # the header line itself
-        bad = np.flatnonzero((fields[first:] != self.n_fields) & ~blank[first:])
-        if bad.size:
-            k = int(bad[0]) + first
-            line, got = self.line + k + 1, int(fields[k])
-            what = "fewer" if got < self.n_fields else "more"
-            raise DataError(
-                f"{self.source}: line {line} has {got} fields, {what} than the {self.n_fields} of the header; "
-                "every row needs one cell per column (leave a cell empty for a missing sample)"
-            )
-        self.line += len(fields)
-
-
-def _check_body(path: Path, delimiter: str, n_fields: int) -> bool:
-    """One streaming pass: UTF-8, no NUL byte, each row as many fields as the header (unless a
-    cell is quoted; then the csv module checks). Returns whether a quote was seen."""
-    decoder = codecs.getincrementaldecoder("utf-8")()
-    counter = _LineCounter(delimiter, n_fields, path.name)
-    offset, quoted = 0, False
-    with path.open("rb") as fh:
-        while chunk := fh.read(_CHUNK):
-            if offset == 0 and chunk.startswith(_BOM):
-                chunk, offset = chunk[len(_BOM) :], len(_BOM)
-            if not chunk.isascii() or decoder.getstate()[0]:  # (a character may straddle two chunks)
-                try:
-                    decoder.decode(chunk)
-                except UnicodeDecodeError as exc:
-                    line = counter.line + chunk.count(b"\n", 0, max(exc.start, 0)) + 1
-                    raise _not_utf8(path, exc.reason, offset + max(exc.start, 0), line) from None
-            if b"\x00" in chunk:
-                at = chunk.index(b"\x00")
-                line = counter.line + chunk.count(b"\n", 0, at) + 1
-                raise DataError(
-                    f"{path.name} holds a NUL byte at byte {offset + at} (line {line}); "
-                    "it is a binary file, not a CSV text file"
-                )
-            quoted = quoted or b'"' in (chunk if counter.line else chunk.partition(b"\n")[2])
-            if not quoted:
-                counter.feed(chunk)
-            offset += len(chunk)
-    try:
-        decoder.decode(b"", final=True)
-    except UnicodeDecodeError as exc:
-        raise _not_utf8(path, exc.reason, offset, counter.line + 1) from None
-    if not quoted:
-        counter.finish()
-    return quoted
-
-
-def _read_fast(path: Path, delimiter: str, columns: list[int]) -> dict[int, np.ndarray] | None:
-    """The columns (by position) with pandas or numpy's C reader; None when a cell is not a number
-    either reader takes (the caller then reads with the csv module, which says where)."""
-    try:
-        import pandas as pd
-    except ImportError:
-        pd = None
-    try:
-        if pd is not None:
-            frame = pd.read_csv(
-                path, sep=delimiter, header=None, skiprows=1, usecols=columns, dtype=np.float64, encoding="utf-8-sig",
-                keep_default_na=False, na_values=_NA_VALUES, index_col=False, engine="c", quoting=csv.QUOTE_NONE,
-            )  # fmt: skip
-            return {j: frame[j].to_numpy() for j in columns}
-        table = np.loadtxt(
-            path, delimiter=delimiter, skiprows=1, usecols=columns, comments=None, ndmin=2, encoding="utf-8-sig"
-        )
-    except (ValueError, TypeError):
-        return None
-    return {j: np.ascontiguousarray(table[:, k]) for k, j in enumerate(columns)}
-
-
-def _read_with_csv_module(table: CsvFile, index: dict[str, int]) -> dict[str, np.ndarray]:
-    """Python's csv module, cell by cell: quoted cells, markers with spaces, and a useful error for a
-    cell that is not a number (the row and column)."""
-    with table.path.open(newline="", encoding="utf-8-sig") as fh:
-        rows = csv.reader(fh, delimiter=table.delimiter)
-        next(rows)
-        values: dict[str, list[float]] = {name: [] for name in index}
-        n_fields = len(table.names)
-        for line, row in enumerate(rows, start=2):
-            if not row or (len(row) == 1 and not row[0].strip()):
-                continue
-            if len(row) != n_fields:
-                what = "fewer" if len(row) < n_fields else "more"
-                raise DataError(
-                    f"{table.path.name}: row {line} has {len(row)} fields, {what} than the {n_fields} of the header; "
-                    "every row needs one cell per column (leave a cell empty for a missing sample)"
-                )
-            for name, j in index.items():
-                values[name].append(_number(row[j], name, line, table.path.name))
-    return {name: np.array(v, dtype=np.float64) for name, v in values.items()}
-
-
-def _number(cell: str, name: str, line: int, source: str) -> float:
-    cell = cell.strip()
-    if cell.lower() in MISSING_MARKERS:
-        return math.nan
-    try:
-        return float(cell)
-    except ValueError:
-        raise DataError(f"{source}: column {name!r} row {line} holds {cell!r}, which is not a number") from None

@@ -86,6 +86,26 @@ def freeze_owned(arr: np.ndarray) -> np.ndarray:
     return arr
 
 
+#: Sampling times arxid accepts, in seconds: 1 ns to one day. Outside, the value is almost surely a
+#: wrong unit (milliseconds or microseconds read as seconds), and ``time`` effects would overflow.
+MIN_TS, MAX_TS = 1e-9, 86400.0
+
+
+def _check_sampling_time(ts: float) -> None:
+    """A :class:`DataError` of its own for an absurd sampling time (it would otherwise surface as an
+    overflow warning and "too few usable samples")."""
+    if ts < MIN_TS:
+        raise DataError(
+            f"ts = {ts:g} s is below 1 ns ({MIN_TS:g} s): no sampled data are that fast; "
+            "give the sampling time in seconds (for example ts=0.001 for 1 kHz)"
+        )
+    if ts > MAX_TS:
+        raise DataError(
+            f"ts = {ts:g} s is longer than a day ({MAX_TS:g} s); give the sampling time in seconds "
+            "(a time column in milliseconds or microseconds must be converted to seconds first)"
+        )
+
+
 def _sample_at(time: float, ts: float, n: int) -> int:
     """The first sample at or after ``time`` seconds, clamped to ``[0, n]``."""
     k = time / ts - 1e-9
@@ -157,6 +177,7 @@ class IOData:
             raise DataError(f"ts must be a number of seconds, got {self.ts!r}") from None
         if not math.isfinite(ts) or ts <= 0:
             raise DataError(f"ts must be a positive sampling time in seconds, got {self.ts!r}")
+        _check_sampling_time(ts)
         m = u.shape[1]
         names = tuple(self.input_names) if self.input_names else tuple(f"u{i + 1}" for i in range(m))
         if len(names) != m:
@@ -302,7 +323,7 @@ class IOData:
         -------
         IOData
         """
-        table = CsvFile.open(path, delimiter)
+        table = CsvFile.open(path, delimiter, check=False)  # read() checks the whole file in the same pass
         # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
         # the raw header text is still accepted in output=/inputs=/extra=/time=.
         rename = table.rename
@@ -391,9 +412,15 @@ class IOData:
             if not time:
                 raise DataError("give the sampling time ts=... or the name of a time column time=...")
             t = columns[time]
-            dt = np.diff(t)
-            if len(dt) == 0 or not np.all(np.isfinite(dt)):
+            with np.errstate(over="ignore", invalid="ignore"):
+                dt = np.diff(t)
+            if len(dt) == 0 or not np.all(np.isfinite(t)):
                 raise DataError(f"time column {time!r} must be finite and hold at least two samples")
+            if not np.all(np.isfinite(dt)):
+                raise DataError(
+                    f"the steps of time column {time!r} overflow (times from {t.min():g} to {t.max():g} s); "
+                    "give the time in seconds"
+                )
             ts = float(np.median(dt))
             if ts <= 0 or np.max(np.abs(dt - ts)) > 1e-6 * max(abs(ts), 1.0) + 1e-3 * ts:
                 raise DataError(

@@ -65,7 +65,9 @@ def load_experiment(source: Any, read: Any = None) -> IOData:
         return data
     path = os.fspath(source)
     if path.endswith(".npz"):
-        with np.load(path) as z:
+        # The file is opened here so that it is closed even when numpy cannot read it (a corrupt or
+        # truncated archive), not left to the garbage collector with the traceback.
+        with open(path, "rb") as fh, np.load(fh) as z:
             # Arrays read just now, held by nobody else: IOData takes them without a copy.
             return IOData(freeze_owned(z["y"]), freeze_owned(z["u"]), ts=float(z["ts"]))
     if path.endswith(".csv") and isinstance(read, dict):

@@ -36,7 +36,7 @@ from ..data.logs import (
     read_log,
     split_experiment,
 )
-from ..exceptions import DataError
+from ..exceptions import ArxidError, DataError
 
 __all__ = [
     "FleetSweep",
@@ -65,11 +65,15 @@ class FleetSweep:
         The logs (file names, or ``log 1``, ``log 2``, ...).
     chosen : tuple of str
         The best structure of each log (``select(sane=False)``; ``-`` when none qualified).
+    failed : tuple of (str, str)
+        The logs that could not be swept (a corrupt or truncated file, too few samples), each with
+        the reason; they are not in ``tables``, ``names`` or ``chosen``.
     """
 
     tables: tuple
     names: tuple
     chosen: tuple
+    failed: tuple = ()
 
     @property
     def counts(self) -> dict:
@@ -87,6 +91,9 @@ class FleetSweep:
         lines = [f"{n} logs swept separately; chosen structure:"]
         for name, k in self.counts.items():
             lines.append(f"  {name}: {k} of {n} logs ({100 * k / n:.0f} %)")
+        if self.failed:
+            lines.append(f"{len(self.failed)} log(s) could not be swept:")
+            lines += [f"  {name}: {reason}" for name, reason in self.failed]
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -121,6 +128,15 @@ def sweep_one(source: Any, read: Any, validation: Any, sweep: Callable, options:
     return sweep(data, validation=validation, **options)
 
 
+def _sweep_or_reason(source: Any, name: str, read: Any, validation: Any, sweep: Callable, options: dict) -> Any:
+    """The sweep of one log, or the sentence of the :class:`ArxidError` that stopped it (a log that
+    cannot be read or swept is reported, and the others complete)."""
+    try:
+        return sweep(read_log(source, read, name), validation=validation, **options)
+    except ArxidError as exc:
+        return str(exc)
+
+
 def sweep_each(
     sources: Sequence[Any], client: Any, read: Any, validation: Any, sweep: Callable, options: dict
 ) -> FleetSweep:
@@ -141,14 +157,26 @@ def sweep_each(
     -------
     FleetSweep
     """
+    names = [log_name(s, i) for i, s in enumerate(sources)]
     if client is None:
-        tables = [sweep_one(s, read, validation, sweep, options) for s in sources]
+        outcomes = [
+            _sweep_or_reason(s, n, read, validation, sweep, options) for s, n in zip(sources, names, strict=True)
+        ]
     else:
+        # A worker lost mid-sweep (killed, out of memory) is not an error here: the scheduler runs
+        # its tasks again on the other workers (distributed's allowed-failures), with the same result.
         opts = {**options, "progress": False, "n_threads": 1}
-        futures = [client.submit(sweep_one, s, read, validation, sweep, opts, pure=False) for s in sources]
-        tables = client.gather(futures)
-    names = tuple(log_name(s, i) for i, s in enumerate(sources))
-    return FleetSweep(tuple(tables), names, tuple(_choice(t) for t in tables))
+        futures = [
+            client.submit(_sweep_or_reason, s, n, read, validation, sweep, opts, pure=False)
+            for s, n in zip(sources, names, strict=True)
+        ]
+        outcomes = client.gather(futures)
+    failed = tuple((n, o) for n, o in zip(names, outcomes, strict=True) if isinstance(o, str))
+    if len(failed) == len(names) and names:
+        raise DataError(f"no log of the fleet could be swept; {failed[0][0]}: {failed[0][1]}")
+    done = [(n, o) for n, o in zip(names, outcomes, strict=True) if not isinstance(o, str)]
+    tables = tuple(o for _, o in done)
+    return FleetSweep(tables, tuple(n for n, _ in done), tuple(_choice(t) for t in tables), failed)
 
 
 def check_validation(validation: Any) -> float | None:

@@ -43,12 +43,22 @@ from typing import Any
 import numpy as np
 
 from .._base.limits import MAX_ORDER
-from ..data.iodata import IOData
+from ..data.iodata import MAX_TS, MIN_TS, IOData
 from ..exceptions import ArxidError, DataError
 from .effects import compile_effects
 from .fitted_layout import FittedLayout
 
-__all__ = ["FORMAT", "VERSION", "MAX_FILE_BYTES", "read_text", "parse", "validate", "model_content", "model_of"]
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "MAX_FILE_BYTES",
+    "read_text",
+    "parse",
+    "validate",
+    "model_content",
+    "model_of",
+    "write_atomically",
+]
 
 FORMAT = "arxid.ArxModel"
 VERSION = 1
@@ -100,6 +110,60 @@ def read_text(path: Any) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise DataError(f"corrupt model file: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+def write_atomically(path: Any, text: str) -> None:
+    """Write ``text`` to ``path`` so that the file is either the old one or the whole new one, even
+    when the process is killed mid-write.
+
+    The bytes go to an unnamed temporary file in the same folder (Linux ``O_TMPFILE``; a hidden
+    ``.name.*.tmp`` file elsewhere), which is flushed to disk, given a name and moved over ``path``
+    with :func:`os.replace` (atomic on POSIX and Windows).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    text : str
+        Its new content (UTF-8).
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"a model file path must be a str or path, got {type(path).__name__}")
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    data = text.encode("utf-8")
+    tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    try:
+        fd, named = _temporary(folder, tmp)
+        try:
+            for start in range(0, len(data), 1 << 16):
+                os.write(fd, data[start : start + (1 << 16)])
+            os.fsync(fd)
+            if not named:  # linkat(AT_SYMLINK_FOLLOW) through /proc names the unnamed file
+                fds = os.open("/proc/self/fd", os.O_RDONLY | os.O_DIRECTORY)
+                try:
+                    os.link(str(fd), tmp, src_dir_fd=fds, follow_symlinks=True)
+                finally:
+                    os.close(fds)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except OSError as exc:
+        if os.path.lexists(tmp):
+            os.unlink(tmp)
+        raise DataError(f"cannot write model file {path!r}: {exc.strerror or exc}") from None
+
+
+def _temporary(folder: str, tmp: str) -> tuple[int, bool]:
+    """A file descriptor to write the new content to, and whether it already has the name ``tmp``
+    (an ``O_TMPFILE`` file has no name until it is linked, so a kill leaves nothing behind)."""
+    flag = getattr(os, "O_TMPFILE", 0)
+    if flag and os.path.exists("/proc/self/fd"):
+        try:
+            return os.open(folder, flag | os.O_WRONLY, 0o666), False
+        except OSError:
+            pass  # a file system without O_TMPFILE support: a named temporary instead
+    return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), True
 
 
 def parse(text: Any) -> dict:
@@ -266,8 +330,8 @@ def _check(d: Any) -> None:
     na = _int("na", d["na"])
     nb, nk = _list("nb", d["nb"], _int, m), _list("nk", d["nk"], _int, m)
     _list("effects", d["effects"], _str)
-    if _number("ts", d["ts"]) <= 0:
-        raise _Corrupt("ts", f"must be a positive sampling time in seconds, got {d['ts']!r}")
+    if not MIN_TS <= _number("ts", d["ts"]) <= MAX_TS:
+        raise _Corrupt("ts", f"must be a sampling time in seconds from {MIN_TS:g} to {MAX_TS:g}, got {d['ts']!r}")
     _str("output_name", d["output_name"])
     _str("output_unit", d.get("output_unit", ""))
     _list("input_units", d.get("input_units", [""] * m), _str, m)

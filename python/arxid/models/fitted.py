@@ -13,6 +13,7 @@ from .._base import metrics
 from .._base.limits import check_order
 from ..data.iodata import IOData
 from ..exceptions import DataError
+from .files import write_atomically
 
 __all__ = ["FittedModel"]
 
@@ -208,6 +209,5 @@ class FittedModel:
         """
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
-            with open(path, "w") as fh:
-                fh.write(text)
+            write_atomically(path, text)
         return text

@@ -12,6 +12,7 @@ import numpy as np
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from .derived_inputs import DerivedInput
+from .files import read_text
 from .filter_runs import check_initial
 
 __all__ = ["FORMAT", "VERSION", "arx_content", "model_content", "model_from_json", "model_of"]
@@ -130,14 +131,12 @@ def model_from_json(cls: Callable[..., Any], text_or_path: str) -> Any:
     """
     text = text_or_path
     if not (isinstance(text, str) and text.lstrip().startswith("{")):
-        try:
-            with open(text_or_path) as fh:
-                text = fh.read()
-        except OSError as exc:
-            raise DataError(f"cannot read model file {text_or_path!r}: {exc}") from None
+        text = read_text(text_or_path)  # a regular file of bounded size, UTF-8
     try:
-        return model_of(cls, json.loads(text))
-    except (ValueError, KeyError, TypeError) as exc:
+        return model_of(cls, json.loads(text.removeprefix("\ufeff")))
+    except RecursionError:
+        raise DataError("corrupt model file: the JSON is nested too deeply") from None
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError, OverflowError) as exc:
         if isinstance(exc, DataError):
             raise
         raise DataError(f"corrupt model file: {exc}; write models with PolynomialModel.to_json()") from None

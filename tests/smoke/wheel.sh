@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# `make wheel`: build the abi3 wheel for manylinux2014 (glibc 2.17: Ubuntu 20.04, Debian 11, RHEL 8
+# and later) and the sdist into dist/, check the wheel's tag, and install it in a fresh venv without
+# Rust to import it and fit a model. Every tool (maturin, ziglang, auditwheel: the `release` extra)
+# lives in a temporary venv, removed at the end; no other venv is touched.
+#   tests/smoke/wheel.sh            # from the repository root
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/arxid-wheel.XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+py=${PYTHON:-python3}
+unset VIRTUAL_ENV  # make exports the dev venv's; maturin must not build for (or into) it
+
+# The release extra, read from pyproject.toml (the one list); pip's vendored tomli before Python 3.11.
+release=$("$py" -c 'exec("try:\n import tomllib\nexcept ImportError:\n from pip._vendor import tomli as tomllib")
+print(" ".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["release"]))')
+echo "installing the release tools into a temporary venv: $release"
+"$py" -m venv "$tmp/tools"
+"$tmp/tools/bin/python" -m pip install -q --disable-pip-version-check $release
+
+echo "building the wheel (maturin --zig, manylinux2014, release) and the sdist -> dist/"
+rm -rf dist
+{ PATH="$tmp/tools/bin:$PATH" "$tmp/tools/bin/maturin" build --release --zig --compatibility manylinux2014 --out dist \
+    && "$tmp/tools/bin/maturin" sdist --out dist; } > "$tmp/build.log" 2>&1 || { cat "$tmp/build.log"; exit 1; }
+wheel=$(ls dist/*.whl)
+"$tmp/tools/bin/python" -m auditwheel show "$wheel"
+case "$(basename "$wheel")" in
+    *-abi3-*manylinux2014_x86_64*.whl | *-abi3-*manylinux_2_17_x86_64*.whl) echo "tag ok: $(basename "$wheel")" ;;
+    *) echo "wrong tag: $(basename "$wheel") is not an abi3 manylinux2014 (manylinux_2_17) wheel" >&2; exit 1 ;;
+esac
+
+echo "installing it in a fresh venv without cargo on PATH, then importing it and fitting a model"
+"$py" -m venv "$tmp/smoke"
+"$tmp/smoke/bin/python" -m pip install -q --disable-pip-version-check "$wheel"
+cd "$tmp"
+env -i HOME="$HOME" PATH="$tmp/smoke/bin:/usr/bin:/bin" LANG=C.UTF-8 "$tmp/smoke/bin/python" -c '
+import shutil, numpy as np, arxid
+assert shutil.which("cargo") is None and shutil.which("rustc") is None, "Rust is on PATH"
+rng = np.random.default_rng(0)
+u = rng.standard_normal(500)
+y = np.convolve(u, [0.0, 0.5, 0.25])[:500]
+m = arxid.arx(arxid.IOData(y, u, ts=0.01), 1, 2, 1)
+assert np.allclose(m.parameters_, [0.0, 0.5, 0.25], atol=1e-9), m.parameters_
+print("smoke ok: arxid", arxid.__version__, "from", arxid.__file__)
+'
+ls -1 "$OLDPWD/dist"
