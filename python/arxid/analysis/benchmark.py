@@ -293,7 +293,9 @@ def benchmark_sweep(
             )
 
     def run() -> Any:
-        return sweep(est, validation=val, progress=False, expect="stable", simulate_estimation=False, **g)
+        return sweep(
+            est, g["na"], g["nb"], g["nk"], validation=val, progress=False, expect="stable", simulate_estimation=False
+        )
 
     run()  # thread pool and imports outside the timing
     t_sweep, res = _median_seconds(run, repeat)
