@@ -291,8 +291,11 @@ fn two_stage_fits(
         error: r.error,
         stage: 1,
     };
-    let mut out: Vec<StructureResult> =
-        if parallel { stage1.into_par_iter().map(stage_one).collect() } else { stage1.into_iter().map(stage_one).collect() };
+    let mut out: Vec<StructureResult> = if parallel {
+        stage1.into_par_iter().map(stage_one).collect()
+    } else {
+        stage1.into_iter().map(stage_one).collect()
+    };
     let fit_one = |&i: &usize| {
         heartbeat();
         fit_exact(f, &structures[i])

@@ -94,7 +94,8 @@ impl SweepColumns {
             };
         }
         if p_max > 0 {
-            let copy = |(row, r): (&mut [f64], &crate::sweep::StructureResult)| row[..r.theta.len()].copy_from_slice(&r.theta);
+            let copy =
+                |(row, r): (&mut [f64], &crate::sweep::StructureResult)| row[..r.theta.len()].copy_from_slice(&r.theta);
             if parallel {
                 theta.par_chunks_mut(p_max).zip(res.par_iter()).for_each(copy);
             } else {
