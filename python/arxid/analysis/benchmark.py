@@ -15,12 +15,11 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy.signal import lfilter
 
 from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import DataError
-from ..selection.baseline import ArxGrid, arxstruc, free_run_rms
+from ..selection import baseline
 from ..selection.search import DEFAULT_GRID, sweep
 from .pipeline import analyse
 
@@ -61,6 +60,8 @@ def synthetic_records(n_samples: int, n_inputs: int = 1, seed: int = 0) -> tuple
     >>> est.n_samples, est.n_inputs
     (1000, 2)
     """
+    from scipy.signal import lfilter  # here: the command line starts without scipy.signal
+
     out = []
     a = [1.0, -1.5, 0.7]
     for s in (seed, seed + 1):
@@ -188,7 +189,7 @@ def _median_seconds(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
     return statistics.median(times), out
 
 
-def _numpy_reference(est: IOData, val: IOData, grid: ArxGrid, res: Any, limit: int, seed: int) -> tuple:
+def _numpy_reference(est: IOData, val: IOData, grid: baseline.ArxGrid, res: Any, limit: int, seed: int) -> tuple:
     """Seconds of the numpy reference on every structure of ``res`` (extrapolated from at most
     ``limit`` ranked and ``limit`` simulated ones), structures timed, and the agreement."""
     rng = np.random.default_rng(seed)
@@ -207,7 +208,7 @@ def _numpy_reference(est: IOData, val: IOData, grid: ArxGrid, res: Any, limit: i
     ranked = pick(np.arange(n))
     sample = structures(ranked)
     t = time.perf_counter()
-    _, losses = arxstruc(g, gv, grid, sample)
+    _, losses = baseline.arxstruc(g, gv, grid, sample)
     t_rank = time.perf_counter() - t
     ours = np.asarray(res.rms_val_one_step)[ranked] ** 2
     ref = losses / (val.n_samples - grid.lag)
@@ -215,10 +216,10 @@ def _numpy_reference(est: IOData, val: IOData, grid: ArxGrid, res: Any, limit: i
     sim_all = np.flatnonzero(np.asarray(res.stage) == 2) if len(res.stage) else np.arange(n)
     sim = pick(sim_all)
     sim_structures = structures(sim)
-    thetas, _ = arxstruc(g, gv, grid, sim_structures)
+    thetas, _ = baseline.arxstruc(g, gv, grid, sim_structures)
     t = time.perf_counter()
     for theta, s in zip(thetas, sim_structures):
-        free_run_rms(theta, s, val.y, uv, grid.lag)
+        baseline.free_run_rms(theta, s, val.y, uv, grid.lag)
     t_sim = time.perf_counter() - t
     seconds = t_gram + t_rank * n / max(len(ranked), 1) + t_sim * len(sim_all) / max(len(sim), 1)
     timed = max(len(ranked), len(sim))
@@ -277,7 +278,7 @@ def benchmark_sweep(
         raise DataError("repeat and baseline_structures must be at least 1")
     g = {k: [int(v) for v in (grid or {}).get(k, DEFAULT_GRID[k])] for k in ("na", "nb", "nk")}
     m = est.n_inputs
-    env = ArxGrid(
+    env = baseline.ArxGrid(
         na_max=max(g["na"]),
         span=max(g["nk"]) + max(g["nb"]),
         lag=max(max(g["na"]), max(g["nk"]) + max(g["nb"]) - 1, 1),

@@ -16,8 +16,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
-from scipy.signal import lfilter, lfiltic
 
 from .._base.metrics import rms
 from ..data.iodata import IOData
@@ -147,6 +145,8 @@ def arxstruc(g: np.ndarray, gv: np.ndarray, grid: ArxGrid, structures: Sequence[
     losses : ndarray of shape (n_structures,)
         Sum of squared one-step prediction errors on the validation rows.
     """
+    from scipy.linalg import cho_factor, cho_solve  # here: importing arxid does not import scipy.linalg
+
     q = g.shape[0] - 1
     thetas, out = [], np.empty(len(structures))
     for i, s in enumerate(structures):
@@ -178,6 +178,8 @@ def free_run_rms(theta: np.ndarray, s: Structure, y: np.ndarray, u: np.ndarray, 
     float
         The RMS of ``y - ŷ`` from ``lag`` on (inf when the run overflows).
     """
+    from scipy.signal import lfilter, lfiltic  # here: scipy.signal takes seconds to import
+
     na, nb, nk = s
     a = np.concatenate([[1.0], theta[:na]])
     x, off = np.zeros(len(y)), na
