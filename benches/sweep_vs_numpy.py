@@ -6,7 +6,7 @@ validation samples, every structure fitted and simulated (free run) on the valid
 (a) naive: per structure, build the regressor with numpy, numpy.linalg.lstsq, simulate with
     scipy.signal.lfilter (timed on an evenly spaced subset of structures and extrapolated);
 (b) vectorised numpy: one Gram matrix of [Phi_max | y], a Cholesky solve per structure, lfilter
-    simulation (all structures).
+    simulation (all structures): ``arxid.selection.baseline``, which ``arxid bench`` uses too.
 
 Also: the fit part alone against one Gram pass, peak memory, and scaling in N.
 ``expect="stable"``: the plant is known to be stable, so arxid skips its integrator test (five
@@ -23,14 +23,15 @@ import argparse
 import os
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
 from scipy.signal import lfilter, lfiltic
 
 import arxid
 from _timing import median_time
 from arxid._base import _core
+from arxid.selection.baseline import ArxGrid, numpy_sweep
 
 NA, NB, NK = range(1, 11), range(1, 11), range(0, 11)
+_GRID = ArxGrid(na_max=max(NA), span=max(NK) + max(NB), lag=max(max(NA), max(NK) + max(NB) - 1), n_inputs=1)
 
 
 def make_data(n: int, seed: int):
@@ -72,25 +73,17 @@ def naive(y, u, yv, uv, structures, lag):
 
 
 def envelope(y, u, lag):
-    phi, yy = regressor(y, u, max(NA), max(NK) + max(NB), 0, lag)
-    return np.column_stack([phi, yy])
+    return _GRID.matrix(y, u.reshape(-1, 1))
 
 
 def gram_pass(y, u, lag):
-    a = envelope(y, u, lag)
-    return a.T @ a
+    return _GRID.gram(y, u.reshape(-1, 1))
 
 
 def vectorised(y, u, yv, uv, structures, lag):
-    g = gram_pass(y, u, lag)
-    q = g.shape[0] - 1
-    out = []
-    for na, nb, nk in structures:
-        cols = list(range(na)) + [max(NA) + nk + j for j in range(nb)]
-        c = cho_factor(g[np.ix_(cols, cols)])
-        theta = cho_solve(c, g[cols, q])
-        out.append(simulate(theta, na, nb, nk, yv, uv, lag))
-    return out
+    """arxid's shared numpy reference (`arxid.selection.baseline`): Gram + Cholesky + lfilter."""
+    est, val = arxid.IOData(y, u, ts=0.01), arxid.IOData(yv, uv, ts=0.01)
+    return list(numpy_sweep(est, val, [(a, (b,), (k,)) for a, b, k in structures]).rms_free_run)
 
 
 _PEAK_CHILD = r"""

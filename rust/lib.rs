@@ -13,6 +13,7 @@ pub mod qr;
 pub mod simulate;
 pub mod structure;
 pub mod sweep;
+pub mod sweep_columns;
 
 #[cfg(feature = "python")]
 mod py;

@@ -68,7 +68,7 @@ impl<'a> Factors<'a> {
 /// Dot product with four partial sums: the additions of one sum no longer wait for each other
 /// (the serial chain of a plain loop is four times longer), in a fixed order (deterministic).
 /// Plain multiply and add: `mul_add` is a library call where the build does not assume FMA.
-#[inline]
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
@@ -88,6 +88,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// `‖R[:, cols] θ − R[:, q−1]‖²` for an upper-triangular column-major R, and the residual itself.
+#[inline(always)]
 fn residual(r: &[f64], q: usize, cols: &[usize], theta: &[f64], res: &mut [f64]) -> f64 {
     res.copy_from_slice(&r[(q - 1) * q..q * q]);
     for (&j, &t) in cols.iter().zip(theta) {
@@ -115,6 +116,7 @@ impl SharedCholesky {
 
     /// Extends the factor to `cols`, keeping the rows of the common prefix. False when a pivot is
     /// too small for the normal equations (the factor is then valid up to that column only).
+    #[inline(always)]
     fn factor(&mut self, f: &Factors, cols: &[usize]) -> bool {
         let keep = self.cols.iter().zip(cols).take(self.valid).take_while(|(a, b)| a == b).count();
         self.cols.clear();
@@ -143,6 +145,7 @@ impl SharedCholesky {
     }
 
     /// Solves $L L^\top x = b$ in place (k = `b.len()`).
+    #[inline(always)]
     fn solve(&self, b: &mut [f64]) {
         let (k, w) = (b.len(), self.kmax);
         for i in 0..k {
@@ -152,6 +155,7 @@ impl SharedCholesky {
     }
 
     /// Solves $L^\top x = b$ in place.
+    #[inline(always)]
     fn back(&self, b: &mut [f64]) {
         let (k, w) = (b.len(), self.kmax);
         // Column by column (rows of L are contiguous): each step is an axpy, not a serial sum.
@@ -175,6 +179,7 @@ struct Scratch {
 }
 
 /// One structure through the shared factor, or through QR when the factor refuses it.
+#[inline(always)]
 fn one(f: &Factors, w: &mut Scratch) -> OneStep {
     let q = f.q;
     let Scratch { chol, res, grad, step, cols } = w;
@@ -203,6 +208,52 @@ fn one(f: &Factors, w: &mut Scratch) -> OneStep {
     };
     let rss_val = f.r_val.map_or(f64::NAN, |rv| residual(rv, q, cols, &theta, res));
     OneStep { theta, rss_est, rss_val, error: None }
+}
+
+/// One task of structures (visited in `chunk`'s order, sharing factor rows) with its own scratch.
+#[inline(always)]
+fn task(f: &Factors, env: &Structure, structures: &[Structure], chunk: &[usize], kmax: usize) -> Vec<(usize, OneStep)> {
+    let mut w = Scratch {
+        chol: SharedCholesky::new(kmax),
+        res: vec![0.0; f.q],
+        grad: Vec::new(),
+        step: Vec::new(),
+        cols: Vec::new(),
+    };
+    chunk
+        .iter()
+        .map(|&i| {
+            columns_into(env, &structures[i], &mut w.cols);
+            (i, one(f, &mut w))
+        })
+        .collect()
+}
+
+/// [`task`] in 256-bit vectors. No fused multiply-add is enabled, so every number is the one the
+/// 128-bit build computes (the four partial sums of [`dot`] and each axpy element keep their
+/// operations and order; only more of them run per instruction).
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx2")]
+unsafe fn task_avx2(
+    f: &Factors,
+    env: &Structure,
+    structures: &[Structure],
+    chunk: &[usize],
+    kmax: usize,
+) -> Vec<(usize, OneStep)> {
+    task(f, env, structures, chunk, kmax)
+}
+
+/// Whether [`task_avx2`] can run on this CPU.
+fn wide_vectors() -> bool {
+    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+    {
+        std::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "x86")))]
+    {
+        false
+    }
 }
 
 /// Orders (na, then per input the delay and the order) in which neighbours share most columns.
@@ -260,22 +311,15 @@ pub fn one_step_all(
     }
     let kmax = structures.iter().map(Structure::n_params).max().unwrap_or(0);
     let order = column_order(structures);
+    let wide = wide_vectors();
     let run = |chunk: &[usize]| -> Vec<(usize, OneStep)> {
         heartbeat();
-        let mut w = Scratch {
-            chol: SharedCholesky::new(kmax),
-            res: vec![0.0; f.q],
-            grad: Vec::new(),
-            step: Vec::new(),
-            cols: Vec::new(),
-        };
-        chunk
-            .iter()
-            .map(|&i| {
-                columns_into(env, &structures[i], &mut w.cols);
-                (i, one(f, &mut w))
-            })
-            .collect()
+        if wide {
+            // SAFETY: `wide_vectors` found the CPU features the function is compiled for.
+            #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+            return unsafe { task_avx2(f, env, structures, chunk, kmax) };
+        }
+        task(f, env, structures, chunk, kmax)
     };
     let parts: Vec<Vec<(usize, OneStep)>> =
         if parallel { order.par_chunks(TASK).map(run).collect() } else { order.chunks(TASK).map(run).collect() };
@@ -346,6 +390,14 @@ mod tests {
             assert!((a.rss_est - rss).abs() <= 1e-10 * rss, "{s:?}");
             assert!((a.rss_val - rss).abs() <= 1e-10 * rss, "{s:?}");
             assert_eq!(a.theta, b.theta);
+        }
+        // The 256-bit path gives every number of the 128-bit one, to the bit.
+        let kmax = grid.iter().map(Structure::n_params).max().unwrap();
+        let all: Vec<usize> = (0..grid.len()).collect();
+        for (i, r) in task(&f, &env, &grid, &all, kmax) {
+            assert_eq!(r.theta, got[i].theta);
+            assert_eq!(r.rss_est.to_bits(), got[i].rss_est.to_bits());
+            assert_eq!(r.rss_val.to_bits(), got[i].rss_val.to_bits());
         }
         // u2 copied into u1: ARX(1,[1,1],[1,1]) reads the same column twice.
         let mut u2 = u.clone();

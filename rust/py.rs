@@ -18,6 +18,7 @@ use crate::columns::envelope;
 use crate::error::ArxError;
 use crate::structure::{Data, OutputKind, OutputTerm, Structure};
 use crate::sweep::{clamp_threads, effective_threads, SweepOptions};
+use crate::sweep_columns::{envelope_rows, release, structures_of_rows, SweepColumns};
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
@@ -203,21 +204,6 @@ fn parse_rows(py: Python<'_>, raw: &[i64], m: usize, terms: &[OutputTerm]) -> Py
         .collect()
 }
 
-/// The rows that decide a grid's envelope: the largest `na` and, per input column, the smallest
-/// delay and the largest last lag among the rows that use the input. The envelope of these rows is
-/// the envelope of the grid, without building a structure per row (a million-row grid).
-fn envelope_rows(raw: &[i64], m: usize) -> Vec<i64> {
-    let width = 1 + 2 * m;
-    let rows = || raw.chunks(width);
-    let mut picked: Vec<&[i64]> = rows().max_by_key(|r| r[0]).into_iter().collect();
-    for i in 0..m {
-        let used = move |r: &&[i64]| r[1 + i] > 0;
-        picked.extend(rows().filter(used).min_by_key(|r| r[1 + m + i]));
-        picked.extend(rows().filter(used).max_by_key(|r| r[1 + m + i] + r[1 + i]));
-    }
-    picked.concat()
-}
-
 /// `(na, (nb per input column), (nk per input column))` of a structure, as Python tuples.
 fn orders_tuple<'py>(py: Python<'py>, s: &Structure) -> PyResult<Bound<'py, PyTuple>> {
     (s.na, PyTuple::new(py, s.nb.iter().copied())?, PyTuple::new(py, s.nk.iter().copied())?).into_pyobject(py)
@@ -398,7 +384,8 @@ fn sweep<'py>(
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
     let terms = parse_output_terms(output_terms)?;
-    let grid = parse_grid(py, &structures, m, &terms)?;
+    let raw = layout_rows(&structures, m)?;
+    let n_structures = structures.shape()[0];
     let val_slices = match (&yv, &uv) {
         (Some(yv), Some(uv)) => Some(slices(yv, uv)?),
         _ => None,
@@ -412,14 +399,16 @@ fn sweep<'py>(
     // Python's callback still hears about every `chunk` structures.
     let opts = SweepOptions { simulate_estimation, horizon, parallel: n_threads != 1, chunk: 1, top };
     let (chunk, reported) = (chunk.max(1), AtomicUsize::new(0));
-    let swept = run(py, n_threads, |cancel| {
+    let (columns, env) = run(py, n_threads, |cancel| {
+        // Parsed, swept and turned into columns with the GIL released, on the sweep's threads.
+        let grid = structures_of_rows(raw, m, &terms, opts.parallel)?;
         let report = |done: usize| {
             if cancel.load(Ordering::Relaxed) {
                 // Unwinds out of the sweep's parallel loop to `run`, which raises KeyboardInterrupt.
                 std::panic::resume_unwind(Box::new(ArxError::Interrupted));
             }
             let before = reported.fetch_max(done, Ordering::Relaxed);
-            if done / chunk > before / chunk || done == grid.len() {
+            if done / chunk > before / chunk || done == n_structures {
                 if let Some(cb) = &progress {
                     Python::attach(|py| {
                         let _ = cb.call1(py, (done,));
@@ -427,60 +416,57 @@ fn sweep<'py>(
                 }
             }
         };
-        crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report)
+        let swept = crate::sweep::sweep(&d, vd.as_ref(), &grid, &opts, &report)?;
+        let env = envelope(&grid)?;
+        release(grid, opts.parallel);
+        Ok((SweepColumns::new(swept, opts.parallel), env))
     })?;
-    sweep_output(py, swept, &grid)
+    columns_output(py, columns, &env)
+}
+
+/// The rows of a grid's layout, checked: `1 + 2·m` non-negative integers each.
+fn layout_rows<'a>(structures: &'a PyReadonlyArray2<'_, i64>, m: usize) -> PyResult<&'a [i64]> {
+    let shape = structures.shape();
+    if shape[1] != 1 + 2 * m {
+        return Err(OrderError::new_err(format!("structures need 1 + 2·{m} columns, got {}", shape[1])));
+    }
+    let raw = structures.as_slice()?;
+    if raw.iter().any(|&v| v < 0) {
+        return Err(OrderError::new_err("orders must be non-negative"));
+    }
+    Ok(raw)
 }
 
 /// The Python view of a sweep's results (grid order).
 fn sweep_output(py: Python<'_>, swept: crate::sweep::Swept, grid: &[Structure]) -> PyResult<SweepOutput> {
-    let crate::sweep::Swept { results: res, n_est, n_val, r_est } = swept;
     // The same envelope the sweep built (it succeeded, so this cannot fail).
     let env = envelope(grid).map_err(|e| to_pyerr(py, e))?;
-    let s = res.len();
-    let pmax = res.iter().map(|r| r.theta.len()).max().unwrap_or(0);
-    let mut theta = vec![f64::NAN; s * pmax];
-    let mut cols: [Vec<f64>; 8] = Default::default();
-    let mut diverged_est = Vec::with_capacity(s);
-    let mut diverged_val = Vec::with_capacity(s);
-    let mut errors: Vec<Option<String>> = Vec::with_capacity(s);
-    let mut stage = Vec::with_capacity(s);
-    for (i, r) in res.into_iter().enumerate() {
-        stage.push(r.stage);
-        theta[i * pmax..i * pmax + r.theta.len()].copy_from_slice(&r.theta);
-        cols[0].push(r.rss_est);
-        cols[1].push(r.rss_val);
-        cols[2].push(r.sim_est.rms);
-        cols[3].push(r.sim_val.rms);
-        cols[4].push(r.sim_est.n as f64);
-        cols[5].push(r.sim_val.n as f64);
-        cols[6].push(r.sim_est.norm);
-        cols[7].push(r.sim_val.norm);
-        diverged_est.push(r.sim_est.diverged);
-        diverged_val.push(r.sim_val.diverged);
-        errors.push(r.error.map(|e| e.to_string()));
-    }
-    let [rss_est, rss_val, rms_sim_est, rms_sim_val, n_sim_est, n_sim_val, norm_sim_est, norm_sim_val] =
-        cols.map(|c| c.into_pyarray(py).unbind());
+    columns_output(py, SweepColumns::new(swept, false), &env)
+}
+
+/// [`SweepOutput`] of a sweep's columns: the vectors become numpy arrays without a copy.
+fn columns_output(py: Python<'_>, c: SweepColumns, env: &Structure) -> PyResult<SweepOutput> {
+    let s = c.stage.len();
+    let arr = |v: Vec<f64>| v.into_pyarray(py).unbind();
     Ok(SweepOutput {
-        theta: PyArray1::from_vec(py, theta).reshape([s, pmax])?.unbind(),
-        rss_est,
-        rss_val,
-        rms_sim_est,
-        rms_sim_val,
-        n_sim_est,
-        n_sim_val,
-        norm_sim_est,
-        norm_sim_val,
-        diverged_est: PyArray1::from_vec(py, diverged_est).unbind(),
-        diverged_val: PyArray1::from_vec(py, diverged_val).unbind(),
-        errors,
-        n_est,
-        n_val,
+        theta: PyArray1::from_vec(py, c.theta).reshape([s, c.p_max])?.unbind(),
+        rss_est: arr(c.rss_est),
+        rss_val: arr(c.rss_val),
+        rms_sim_est: arr(c.rms_sim_est),
+        rms_sim_val: arr(c.rms_sim_val),
+        n_sim_est: arr(c.n_sim_est),
+        n_sim_val: arr(c.n_sim_val),
+        norm_sim_est: arr(c.norm_sim_est),
+        norm_sim_val: arr(c.norm_sim_val),
+        diverged_est: PyArray1::from_vec(py, c.diverged_est).unbind(),
+        diverged_val: PyArray1::from_vec(py, c.diverged_val).unbind(),
+        errors: c.errors,
+        n_est: c.n_est,
+        n_val: c.n_val,
         first_lag: env.max_lag(),
-        envelope: orders_tuple(py, &env)?.unbind(),
-        stage: PyArray1::from_vec(py, stage).unbind(),
-        r_est: factor_array(py, r_est)?.unbind(),
+        envelope: orders_tuple(py, env)?.unbind(),
+        stage: PyArray1::from_vec(py, c.stage).unbind(),
+        r_est: factor_array(py, c.r_est)?.unbind(),
     })
 }
 

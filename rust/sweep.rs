@@ -194,9 +194,7 @@ pub(crate) fn factor_grid(
     };
     let env = envelope(structures)?;
     env.check(est.m)?;
-    for s in structures {
-        s.check(est.m)?;
-    }
+    check_all(structures, est.m, parallel)?;
     let first_lag = env.max_lag();
     let q = env.n_params() + 1;
     let bound = est.max_rows(first_lag);
@@ -222,6 +220,15 @@ pub(crate) fn factor_grid(
         None => (None, 0),
     };
     Ok(GridFactors { env, first_lag, q, r_est, n_est, r_val, n_val })
+}
+
+/// Checks every structure against `m` inputs; the error is the first structure's in grid order,
+/// however many threads look.
+fn check_all(structures: &[Structure], m: usize, parallel: bool) -> Result<()> {
+    if parallel && structures.par_iter().all(|s| s.check(m).is_ok()) {
+        return Ok(());
+    }
+    structures.iter().try_for_each(|s| s.check(m))
 }
 
 pub(crate) const NAN_SCORE: SimScore =
@@ -267,22 +274,29 @@ fn two_stage_fits(
             f64::INFINITY
         }
     };
+    // The `top` smallest keys, ties to the lower index: a total order, so selecting them (linear
+    // time) gives the same set as sorting every structure would.
+    let keys: Vec<f64> = stage1.iter().map(key).collect();
     let mut ranked: Vec<usize> = (0..structures.len()).collect();
-    ranked.sort_by(|&i, &j| key(&stage1[i]).total_cmp(&key(&stage1[j])).then(i.cmp(&j)));
+    if top > 0 && top < ranked.len() {
+        ranked.select_nth_unstable_by(top - 1, |&i, &j| keys[i].total_cmp(&keys[j]).then(i.cmp(&j)));
+    }
     ranked.truncate(top);
     ranked.sort_unstable();
-    let mut out: Vec<StructureResult> = stage1
-        .into_iter()
-        .map(|r| StructureResult {
-            theta: r.theta,
-            rss_est: r.rss_est,
-            rss_val: r.rss_val,
-            sim_est: NAN_SCORE,
-            sim_val: NAN_SCORE,
-            error: r.error,
-            stage: 1,
-        })
-        .collect();
+    let stage_one = |r: OneStep| StructureResult {
+        theta: r.theta,
+        rss_est: r.rss_est,
+        rss_val: r.rss_val,
+        sim_est: NAN_SCORE,
+        sim_val: NAN_SCORE,
+        error: r.error,
+        stage: 1,
+    };
+    let mut out: Vec<StructureResult> = if parallel {
+        stage1.into_par_iter().map(stage_one).collect()
+    } else {
+        stage1.into_iter().map(stage_one).collect()
+    };
     let fit_one = |&i: &usize| {
         heartbeat();
         fit_exact(f, &structures[i])

@@ -27,6 +27,7 @@ from ..models.arx_model import arx
 from ..models.spec import MODEL_FORMS, parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import DEFAULT_GRID, sweep
+from .benchmark import add_bench_command
 from .flight_log import flight_log_data, is_flight_log
 from .npz_data import read_npz
 from .pipeline import DEFAULT_SPLIT, Analysis, analyse, choose
@@ -47,7 +48,6 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
 
 
-# ---------------------------------------------------------------------------------------- data
 def _names(text: str | None) -> list[str]:
     return [s.strip() for s in (text or "").split(",") if s.strip()]
 
@@ -505,7 +505,6 @@ def _write_demo_flight(args) -> int:
     return EXIT_OK
 
 
-# ---------------------------------------------------------------------------------------- parser
 _EXAMPLES = {
     "fit": "example:\n  arxid fit flight.csv --output roll --inputs roll_torque --ts 0.002 --orders 2,1,8 --split 0.7\n"
     "  arxid fit flight.csv --output roll --inputs roll_torque --extra vbat --ts 0.002 --orders 2,1,8 "
@@ -567,6 +566,7 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(func=cmd_sweep)
     _add_analysis_commands(sub, kw)
+    add_bench_command(sub, kw, load=_load, grid=_grid)
     return root
 
 
@@ -649,7 +649,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
-            raise UsageError("arxid: choose a command: fit, sweep, diagnose, report or demo (see arxid --help)")
+            raise UsageError("arxid: choose a command: fit, sweep, diagnose, report, demo or bench (see arxid --help)")
         for name in ("horizon", "max_steps", "top"):
             v = getattr(args, name, None)
             if v is not None and v < 1:
