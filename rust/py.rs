@@ -19,6 +19,9 @@ use crate::error::ArxError;
 use crate::structure::{Data, OutputKind, OutputTerm, Structure};
 use crate::sweep::{clamp_threads, effective_threads, SweepOptions};
 
+#[path = "py_srivc.rs"]
+mod py_srivc;
+
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
 pyo3::import_exception!(arxid.exceptions, OrderError);
@@ -916,6 +919,8 @@ fn pem_max_lag(py: Python<'_>, orders: PolyOrders) -> PyResult<usize> {
 
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
+    #[pymodule_export]
+    use super::py_srivc::srivc_filter;
     #[pymodule_export]
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,

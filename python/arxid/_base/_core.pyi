@@ -33,6 +33,7 @@ __all__ = [
     "pem_gradient",
     "pem_max_lag",
     "PemOutput",
+    "srivc_filter",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -231,3 +232,6 @@ def simulate_structures(
     limit: float | None = None,
 ) -> tuple[_F, _F, _F, _F, _B]: ...
 def fma_limit(n_vectors: int, n_threads: int = 0) -> float: ...
+def srivc_filter(
+    signal: _F, segments: Sequence[tuple[int, int]], phi: _F, prev: _F, cur: _F, next: _F, shift: int = 0
+) -> _F: ...
