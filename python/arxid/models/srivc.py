@@ -239,7 +239,8 @@ def srivc(
     # The first step has no model output yet: least squares on the filtered data (ζ = φ).
     theta, gram, err = _ls_start(y, u, tsw, den, n_zeros, dw, segments)
     converged, it = False, 1
-    for it in range(2, max_iterations + 1):
+    while it < max_iterations:
+        it += 1
         den, nums = _unpack(theta, n, n_zeros)
         new, gram, err = _iv_step(y, u, tsw, den, nums, n_zeros, dw, segments)
         if not np.all(np.isfinite(new)):

@@ -82,10 +82,12 @@ def _delays(delay: Any, m: int) -> list[float] | None:
     return [float(v) for v in vals]
 
 
-def _fit(data: IOData, n: int, nz: list[int], delays: list[float], common: bool, **kw: Any) -> SrivcFit:
+def _fit(
+    data: IOData, n: int, nz: list[int], delays: list[float], common: bool, den0: Any = None, **kw: Any
+) -> SrivcFit:
     y, u, seg = data.y, data.u, scored_segments(data)
-    whole = int(min(delays) // data.ts)
-    den0 = start_denominator(data, n, whole)
+    if den0 is None:
+        den0 = start_denominator(data, n, int(min(delays) // data.ts))
     if common or data.n_inputs == 1:
         return srivc(y, u, data.ts, den0, nz, delays, seg, **kw)
     return _independent(data, n, nz, delays, seg, den0, **kw)
@@ -98,7 +100,8 @@ def _independent(data, n, nz, delays, seg, den0, max_iterations=50, tolerance=1e
     fits: list[SrivcFit | None] = [None] * m
     dens, nums = [den0] * m, [np.zeros(k + 1) for k in nz]
     it, converged, last = 0, False, None
-    for it in range(1, max_iterations + 1):
+    while it < max_iterations:
+        it += 1
         for i in range(m):
             _, parts = output_error(data.y, data.u, data.ts, dens, nums, delays, seg)
             rest = data.y - sum(p for j, p in enumerate(parts) if j != i)
@@ -120,8 +123,13 @@ def _independent(data, n, nz, delays, seg, den0, max_iterations=50, tolerance=1e
 
 
 def _loss(fit: SrivcFit) -> float:
-    e = fit.error[np.isfinite(fit.error)]
-    return float(np.mean(e**2)) if e.size else math.inf
+    """Mean squared output error; inf for a model whose simulation diverged."""
+    if np.isinf(fit.error).any():
+        return math.inf
+    with np.errstate(all="ignore"):
+        e = fit.error[np.isfinite(fit.error)]
+        v = float(np.mean(e**2)) if e.size else math.inf
+    return v if math.isfinite(v) else math.inf
 
 
 def search_delay(
@@ -152,22 +160,27 @@ def search_delay(
     ts, m = data.ts, data.n_inputs
     top = 20 if max_delay is None else max(int(max_delay / ts), 0)
     results: dict[float, SrivcFit] = {}
+    coarse = {**kw, "max_iterations": min(kw.get("max_iterations", 50), 8)}
+    warm: list[Any] = [None]
 
-    def loss(tau: float) -> float:
+    def loss(tau: float, options: dict) -> float:
         if tau not in results:
             try:
-                results[tau] = _fit(data, n, nz, [tau] * m, common, **kw)
+                with np.errstate(all="ignore"):  # a delay far from the true one may diverge: its loss is inf
+                    results[tau] = _fit(data, n, nz, [tau] * m, common, warm[0], **options)
             except ArxidError:
                 return math.inf
         return _loss(results[tau])
 
-    best = min(range(top + 1), key=lambda k: loss(k * ts))
+    best = min(range(top + 1), key=lambda k: loss(k * ts, coarse))
+    warm[0] = results[best * ts].dens[0] if best * ts in results else None
+    results.clear()  # refitted to full convergence below
     lo, hi = max(best - 1, 0) * ts, (best + 1) * ts
     if max_delay is not None:
         hi = min(hi, max_delay)
     c, d = hi - _GOLD * (hi - lo), lo + _GOLD * (hi - lo)
-    while hi - lo > 1e-4 * ts:
-        if loss(c) < loss(d):
+    while hi - lo > 1e-3 * ts:
+        if loss(c, kw) < loss(d, kw):
             hi, d = d, c
             c = hi - _GOLD * (hi - lo)
         else:
