@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_tfest import record
 
 import arxid
 from arxid.exceptions import DataError, OrderError
 from arxid.models.process_models import parse_process
+from test_tfest import record
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -83,22 +83,27 @@ def _delays(delay: Any, m: int) -> list[float] | None:
 
 
 def _fit(
-    data: IOData, n: int, nz: list[int], delays: list[float], common: bool, den0: Any = None, **kw: Any
+    data: IOData, ns: list[int], nz: list[int], delays: list[float], common: bool, den0: Any = None, **kw: Any
 ) -> SrivcFit:
     y, u, seg = data.y, data.u, scored_segments(data)
-    if den0 is None:
-        den0 = start_denominator(data, n, int(min(delays) // data.ts))
     if common or data.n_inputs == 1:
+        if den0 is None:
+            den0 = start_denominator(data, ns[0], int(min(delays) // data.ts))
         return srivc(y, u, data.ts, den0, nz, delays, seg, **kw)
-    return _independent(data, n, nz, delays, seg, den0, **kw)
+    if den0 is None:
+        den0 = [
+            start_denominator(data.with_signals(u=data.u[:, [i]], input_names=[name]), ns[i], int(delays[i] // data.ts))
+            for i, name in enumerate(data.input_names)
+        ]
+    return _independent(data, nz, delays, seg, list(den0), **kw)
 
 
-def _independent(data, n, nz, delays, seg, den0, max_iterations=50, tolerance=1e-8) -> SrivcFit:
+def _independent(data, nz, delays, seg, dens, max_iterations=50, tolerance=1e-8) -> SrivcFit:
     """One denominator per input: each input's model refitted (SISO SRIVC) against the output minus
     the other inputs' simulated contributions, until the parameters settle (backfitting)."""
     m = data.n_inputs
     fits: list[SrivcFit | None] = [None] * m
-    dens, nums = [den0] * m, [np.zeros(k + 1) for k in nz]
+    nums = [np.zeros(k + 1) for k in nz]
     it, converged, last = 0, False, None
     while it < max_iterations:
         it += 1
@@ -133,7 +138,7 @@ def _loss(fit: SrivcFit) -> float:
 
 
 def search_delay(
-    data: IOData, n: int, nz: list[int], common: bool, max_delay: float | None = None, **kw: Any
+    data: IOData, ns: list[int], nz: list[int], common: bool, max_delay: float | None = None, **kw: Any
 ) -> tuple[float, SrivcFit]:
     """The dead time (one for all inputs) that minimises the output-error loss: whole samples
     0 .. ``max_delay`` first, then a golden-section search over ±1 sample around the best.
@@ -141,8 +146,8 @@ def search_delay(
     Parameters
     ----------
     data : IOData
-    n : int
-        Poles.
+    ns : list of int
+        Poles per input (all equal with a common denominator).
     nz : list of int
         Zeros per input.
     common : bool
@@ -167,13 +172,15 @@ def search_delay(
         if tau not in results:
             try:
                 with np.errstate(all="ignore"):  # a delay far from the true one may diverge: its loss is inf
-                    results[tau] = _fit(data, n, nz, [tau] * m, common, warm[0], **options)
+                    results[tau] = _fit(data, ns, nz, [tau] * m, common, warm[0], **options)
             except ArxidError:
                 return math.inf
         return _loss(results[tau])
 
     best = min(range(top + 1), key=lambda k: loss(k * ts, coarse))
-    warm[0] = results[best * ts].dens[0] if best * ts in results else None
+    if best * ts in results:
+        dens = results[best * ts].dens
+        warm[0] = dens[0] if common or m == 1 else dens
     results.clear()  # refitted to full convergence below
     lo, hi = max(best - 1, 0) * ts, (best + 1) * ts
     if max_delay is not None:
@@ -192,7 +199,7 @@ def search_delay(
 
 def tfest(
     data: IOData,
-    n_poles: int,
+    n_poles: int | Sequence[int],
     n_zeros: int | Sequence[int] | None = None,
     delay: float | Sequence[float] | str | None = None,
     *,
@@ -209,8 +216,8 @@ def tfest(
     data : IOData
         Estimation data, the inputs held constant between samples (zero-order hold). Several
         experiments and NaN gaps: the filters restart from rest in each run of finite samples.
-    n_poles : int
-        Poles of each transfer function (>= 1).
+    n_poles : int or sequence of int
+        Poles of each transfer function (>= 1); one per input with ``denominator="independent"``.
     n_zeros : int or sequence of int, optional
         Zeros per input, fewer than the poles (default ``n_poles - 1``).
     delay : float, sequence of float or "estimate", optional
@@ -265,37 +272,39 @@ def tfest(
         raise DataError(
             f"tfest needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
         )
-    n = check_order("n_poles", n_poles)
-    if n < 1:
-        raise OrderError("n_poles must be >= 1: a continuous transfer function needs at least one pole")
     m = data.n_inputs
-    nz = _per_input("n_zeros", n - 1 if n_zeros is None else n_zeros, m)
-    if any(k >= n for k in nz):
+    ns = _per_input("n_poles", n_poles, m)
+    if min(ns) < 1:
+        raise OrderError("n_poles must be >= 1: a continuous transfer function needs at least one pole")
+    nz = _per_input("n_zeros", [k - 1 for k in ns] if n_zeros is None else n_zeros, m)
+    if any(z >= k for z, k in zip(nz, ns)):
         raise OrderError(
-            f"n_zeros {nz} must be below n_poles = {n}: tfest fits strictly proper models (no direct feedthrough)"
+            f"n_zeros {nz} must be below n_poles {ns}: tfest fits strictly proper models (no direct feedthrough)"
         )
     if denominator not in ("common", "independent"):
         raise ArxidError(f"denominator must be 'common' or 'independent', got {denominator!r}")
-    common = denominator == "common"
+    common = denominator == "common" or m == 1
+    if common and len(set(ns)) > 1:
+        raise OrderError(f"a common denominator has one number of poles, got {ns}; or use denominator='independent'")
     if not scored_segments(data):
         raise DataError("the data have no sample where the output and every input are finite")
     kw = {"max_iterations": check_order("max_iterations", max_iterations), "tolerance": float(tolerance)}
     delays = _delays(delay, m)
     if delays is None:
-        tau, fit = search_delay(data, n, nz, common, max_delay, **kw)
+        tau, fit = search_delay(data, ns, nz, common, max_delay, **kw)
         delays = [tau] * m
     else:
-        fit = _fit(data, n, nz, delays, common, **kw)
-    return _model(data, fit, n, nz, delays, common, estimated_delay=delay == "estimate")
+        fit = _fit(data, ns, nz, delays, common, **kw)
+    return _model(data, fit, ns, nz, delays, common, estimated_delay=delay == "estimate")
 
 
-def _model(data, fit: SrivcFit, n, nz, delays, common, estimated_delay: bool) -> ContinuousTransferFunction:
+def _model(data, fit: SrivcFit, ns, nz, delays, common, estimated_delay: bool) -> ContinuousTransferFunction:
     m = data.n_inputs
     names: list[str] = []
     tags = [""] if m == 1 else [f"({a})" for a in data.input_names]
     blocks = [0] if common else list(range(m))
     for i in blocks:
-        names += [f"a{j}{tags[i] if not common else ''}" for j in range(1, n + 1)]
+        names += [f"a{j}{tags[i] if not common else ''}" for j in range(1, ns[i] + 1)]
         if not common:
             names += [f"b{j}{tags[i]}" for j in range(nz[i] + 1)]
     if common:
@@ -307,8 +316,8 @@ def _model(data, fit: SrivcFit, n, nz, delays, common, estimated_delay: bool) ->
         at, ds, bs = 0, [], []
         for i in range(m):
             if common and i == 0 or not common:
-                den = np.concatenate([[1.0], theta[at : at + n]])
-                at += n
+                den = np.concatenate([[1.0], theta[at : at + ns[i]]])
+                at += ns[i]
             if not common:
                 bs.append(theta[at : at + nz[i] + 1])
                 at += nz[i] + 1
@@ -325,8 +334,9 @@ def _model(data, fit: SrivcFit, n, nz, delays, common, estimated_delay: bool) ->
         else np.concatenate([np.concatenate([d[1:], b]) for d, b in zip(dens, nums)])
     )
     how = "SRIVC" + (", dead time searched" if estimated_delay else "")
-    label = "tf" if m == 1 else ("tf" if common else "tf-independent")
+    label = "tf" if common else "tf-independent"
     zeros = nz[0] if len(set(nz)) == 1 else list(nz)
+    n = ns[0] if len(set(ns)) == 1 else list(ns)
     return ContinuousTransferFunction.fitted(
         data,
         theta,
