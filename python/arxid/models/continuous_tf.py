@@ -56,7 +56,9 @@ class ContinuousTransferFunction(PolynomialModel):
     ``parameters_`` and ``covariance_`` are those of the exact discrete equivalent (an OE model, see
     the module docstring); ``continuous_parameters_``, ``continuous_covariance_`` and
     ``parameter_names_`` are the estimated ones, :meth:`parameter_dict` pairs them with their
-    standard deviations. Information criteria count the continuous parameters.
+    standard deviations. ``n_params`` and the information criteria count the discrete equivalent's
+    parameters (what the shared checks index ``covariance_`` by); the continuous model has
+    ``len(continuous_parameters_)``.
 
     Examples
     --------
@@ -150,12 +152,6 @@ class ContinuousTransferFunction(PolynomialModel):
         return self
 
     # ------------------------------------------------------------------ what was estimated
-    @property
-    def n_params(self) -> int:
-        """Number of estimated continuous parameters (what the information criteria count)."""
-        self.check_fitted()
-        return len(self.continuous_parameters_)
-
     @property
     def den_(self) -> np.ndarray:
         """Denominator of the first input (descending powers of s, monic for tfest)."""
