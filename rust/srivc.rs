@@ -70,21 +70,19 @@ pub fn state_filter(
             return Err(ArxError::ShapeMismatch { what: "segment end".into(), expected: len, got: b });
         }
         x.iter_mut().for_each(|v| *v = 0.0);
-        let v = |k: usize| if k >= a + shift && k < b + shift { signal[k - shift] } else { 0.0 };
-        for k in a..b {
-            out[k * n..(k + 1) * n].copy_from_slice(&x);
-            let vp = if k > a { v(k - 1) } else { 0.0 };
-            let vc = v(k);
+        // v(k) = signal(k − shift) inside the segment's shifted range, 0 before it (at rest).
+        let v = |k: usize| if k >= a + shift { signal[k - shift] } else { 0.0 };
+        let (mut vp, mut vc) = (0.0, if a < b { v(a) } else { 0.0 });
+        for (k, row_out) in out[a * n..b * n].chunks_exact_mut(n).enumerate() {
+            let k = a + k;
+            row_out.copy_from_slice(&x);
             let vn = if k + 1 < b { v(k + 1) } else { vc };
-            for i in 0..n {
-                let row = &f.phi[i * n..(i + 1) * n];
-                let mut s = f.prev[i] * vp + f.cur[i] * vc + f.next[i] * vn;
-                for j in 0..n {
-                    s += row[j] * x[j];
-                }
-                nx[i] = s;
+            for (i, (nxi, row)) in nx.iter_mut().zip(f.phi.chunks_exact(n)).enumerate() {
+                let s: f64 = row.iter().zip(x.iter()).map(|(p, xj)| p * xj).sum();
+                *nxi = s + f.prev[i] * vp + f.cur[i] * vc + f.next[i] * vn;
             }
             std::mem::swap(&mut x, &mut nx);
+            (vp, vc) = (vc, vn);
             done += 1;
             if done % POLL == 0 && cancel.load(Ordering::Relaxed) {
                 return Err(ArxError::Interrupted);

@@ -28,7 +28,7 @@ def test_specs_read_tf_and_process_forms():
     tf = parse_model_spec("tf:2,1")
     assert (tf.kind, tf.orders, tf.name) == ("tf", (2, 1), "tf(2,1)")
     proc = parse_model_spec("proc: p2du")
-    assert (proc.kind, proc.process, proc.name) == ("proc", "", "P2DU") or proc.name == "P2DU"
+    assert (proc.kind, proc.orders, proc.process, proc.name) == ("proc", (), "P2DU", "P2DU")
     assert "SRIVC" in tf.method and "refinement" in proc.method
 
 
@@ -77,7 +77,8 @@ def test_cli_and_report_accept_continuous_models(records, tmp_path, capsys):
     base = [paths[0], "--output", "y", "--inputs", "u", "--ts", "0.05", "--validation", paths[1], "--max-steps", "1"]
     assert main(["diagnose", *base, "--model", "proc:P2DU", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["model"]["structure"] == "P2DU" if "structure" in out["model"] else "P2DU" in json.dumps(out)
+    assert out["comparison"]["models"][0]["name"] == "P2DU"
+    assert out["comparison"]["models"][0]["fit_percent"] > 85
     report = tmp_path / "r.html"
     assert main(["report", *base, "--model", "tf:2,0", "-o", str(report)]) == 0
     html = report.read_text()

@@ -157,26 +157,39 @@ def output_error(
     return y - np.sum(parts, axis=0), parts
 
 
+def _rows(segments: list) -> np.ndarray:
+    """Indices of the samples inside the segments (the rows of the IV equations)."""
+    return np.concatenate([np.arange(a, b) for a, b in segments]) if segments else np.zeros(0, dtype=int)
+
+
+def _regressors(out_states: np.ndarray, in_states: list, n: int, n_zeros: Sequence[int]) -> np.ndarray:
+    """``[−x^(n−1), ..., −x, u1^(m1), ..., u1, u2^(m2), ...]`` on the given rows."""
+    cols = n + sum(m + 1 for m in n_zeros)
+    phi = np.empty((out_states.shape[0], cols))
+    phi[:, :n] = -out_states[:, n - 1 :: -1][:, :n]
+    at = n
+    for st, m in zip(in_states, n_zeros):
+        phi[:, at : at + m + 1] = st[:, m::-1]
+        at += m + 1
+    return phi
+
+
 def _iv_step(
     y: np.ndarray, u: np.ndarray, ts: float, den: np.ndarray, nums: list, n_zeros: Sequence[int], delays, segments
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One refined IV step for a common denominator: (theta, Σζζᵀ, output error of the model given)."""
     n = len(den) - 1
+    # An unstable iterate would give unbounded instruments: its mirror image filters and simulates.
     filt = _stable(den)
-    # An unstable iterate would give unbounded instruments: its mirror image simulates instead.
-    err, _ = output_error(y, u, ts, [filt] * u.shape[1], nums, delays, segments)
-    xhat = y - err
-    yf = _smooth_states(y, filt, ts, segments)
-    xf = _smooth_states(xhat, filt, ts, segments)
-    ucols = []
-    for i in range(u.shape[1]):
-        st = _input_states(u[:, i], filt, ts, delays[i], segments)
-        ucols += [st[:, j] for j in range(n_zeros[i], -1, -1)]
-    phi = np.column_stack([-yf[:, n - 1 :: -1][:, :n], *ucols]) if ucols else -yf[:, n - 1 :: -1]
-    zeta = np.column_stack([-xf[:, n - 1 :: -1][:, :n], *ucols]) if ucols else -xf[:, n - 1 :: -1]
-    rows = np.isfinite(phi).all(axis=1) & np.isfinite(zeta).all(axis=1) & np.isfinite(yf[:, n])
-    zt = zeta[rows]
-    lhs, rhs = zt.T @ phi[rows], zt.T @ yf[rows, n]
+    ust = [_input_states(u[:, i], filt, ts, delays[i], segments) for i in range(u.shape[1])]
+    xhat = sum(st[:, : len(b)] @ np.asarray(b, dtype=float)[::-1] for st, b in zip(ust, nums))
+    err = y - xhat
+    rows = _rows(segments)
+    yf = _smooth_states(y, filt, ts, segments)[rows]
+    xf = _smooth_states(xhat, filt, ts, segments)[rows]
+    ur = [st[rows] for st in ust]
+    phi, zeta = _regressors(yf, ur, n, n_zeros), _regressors(xf, ur, n, n_zeros)
+    lhs, rhs = zeta.T @ phi, zeta.T @ yf[:, n]
     try:
         theta = np.linalg.solve(lhs, rhs)
     except np.linalg.LinAlgError:
@@ -184,7 +197,7 @@ def _iv_step(
             "the instrumental-variable equations are singular: the input does not excite the model's orders; "
             "lower the number of poles or zeros, or use richer data"
         ) from None
-    return theta, zt.T @ zt, err
+    return theta, zeta.T @ zeta, err
 
 
 def _unpack(theta: np.ndarray, n: int, n_zeros: Sequence[int]) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -270,15 +283,9 @@ def _ls_start(y, u, ts, den, n_zeros, delays, segments):
     instruments (the model output is not known yet)."""
     n = len(den) - 1
     filt = _stable(den)
-    yf = _smooth_states(y, filt, ts, segments)
-    ucols = []
-    for i in range(u.shape[1]):
-        st = _input_states(u[:, i], filt, ts, delays[i], segments)
-        ucols += [st[:, j] for j in range(n_zeros[i], -1, -1)]
-    phi = np.column_stack([-yf[:, n - 1 :: -1][:, :n], *ucols])
-    rows = np.isfinite(phi).all(axis=1) & np.isfinite(yf[:, n])
-    try:
-        theta, *_ = np.linalg.lstsq(phi[rows], yf[rows, n], rcond=None)
-    except np.linalg.LinAlgError:  # pragma: no cover - lstsq does not fail on finite rows
-        raise IdentifiabilityError("the filtered data cannot determine the parameters") from None
-    return theta, phi[rows].T @ phi[rows], None
+    rows = _rows(segments)
+    yf = _smooth_states(y, filt, ts, segments)[rows]
+    ur = [_input_states(u[:, i], filt, ts, delays[i], segments)[rows] for i in range(u.shape[1])]
+    phi = _regressors(yf, ur, n, n_zeros)
+    theta, *_ = np.linalg.lstsq(phi, yf[:, n], rcond=None)
+    return theta, phi.T @ phi, None
