@@ -78,6 +78,8 @@ class ContinuousTransferFunction(PolynomialModel):
     continuous_parameters_: np.ndarray
     continuous_covariance_: np.ndarray
     parameter_names_: list[str]
+    structure_: str
+    method_: str
 
     @classmethod
     def fitted(

@@ -106,17 +106,17 @@ class ProcessStructure:
         -------
         lower, upper : list of float
         """
-        lo, hi = [], []
+        pairs = []
         for n in self.parameter_names:
             if n in ("K", "Tz"):
-                lo.append(-math.inf), hi.append(math.inf)
+                pairs.append((-math.inf, math.inf))
             elif n == "Td":
-                lo.append(0.0), hi.append(max_delay)
+                pairs.append((0.0, max_delay))
             elif n == "Zeta":
-                lo.append(1e-6), hi.append(math.inf)
+                pairs.append((1e-6, math.inf))
             else:
-                lo.append(1e-6 * ts), hi.append(math.inf)
-        return lo, hi
+                pairs.append((1e-6 * ts, math.inf))
+        return [p[0] for p in pairs], [p[1] for p in pairs]
 
 
 def parse_process(text: str) -> ProcessStructure:

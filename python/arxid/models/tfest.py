@@ -265,7 +265,7 @@ def tfest(
     >>> a, b = arxid.models.continuous.c2d([3.0], [1.0, 1.5], 0.1, dead_time=0.23)
     >>> y = lfilter(b, a, u)
     >>> m = arxid.tfest(arxid.IOData(y, u, ts=0.1), 1, 0, delay="estimate")
-    >>> round(m.dead_time_, 4), np.round(m.den_, 4), np.round(m.num_, 4)
+    >>> round(m.dead_time_, 3), np.round(m.den_, 3), np.round(m.num_, 3)
     (0.23, array([1. , 1.5]), array([3.]))
     """
     if not isinstance(data, IOData):
