@@ -57,6 +57,9 @@ class SrivcFit:
     converged : bool
     error : ndarray of shape (n_samples,)
         Output error ``y − x̂`` (NaN outside the segments).
+    reflected : bool
+        The iterations ended at unstable poles, reflected into the left half-plane (the
+        structure likely does not fit the data).
     """
 
     dens: list[np.ndarray]
@@ -66,6 +69,7 @@ class SrivcFit:
     iterations: int
     converged: bool
     error: np.ndarray
+    reflected: bool = False
 
 
 def pole_scale(den: np.ndarray, ts: float) -> float:
@@ -267,6 +271,11 @@ def srivc(
             converged = True
             break
     den, nums = _unpack(theta, n, n_zeros)
+    roots = np.roots(den)
+    reflected = bool(np.any(roots.real > 1e-3 * np.abs(roots).max(initial=0.0)))
+    if reflected:  # the model the last step filtered and simulated with (a pole near 0 stays as it is)
+        den = _stable(den)
+        theta = np.concatenate([den[1:], theta[n:]])
     err, _ = output_error(y, u, tsw, [den] * u.shape[1], nums, dw, segments)
     ok = np.isfinite(err)
     sigma2 = float(np.sum(err[ok] ** 2) / max(ok.sum() - len(theta), 1))
@@ -275,7 +284,7 @@ def srivc(
     theta = theta * scale
     cov = cov * np.outer(scale, scale)
     den, nums = _unpack(theta, n, n_zeros)
-    return SrivcFit([den] * u.shape[1], nums, cov, theta, it, converged, err)
+    return SrivcFit([den] * u.shape[1], nums, cov, theta, it, converged, err, reflected)
 
 
 def _ls_start(y, u, ts, den, n_zeros, delays, segments):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from .._base.limits import check_order
 from ..data.iodata import IOData
-from ..exceptions import ArxidError, DataError, OrderError
+from ..exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from .arx_model import arx
 from .continuous_tf import ContinuousTransferFunction, scored_segments
 from .srivc import SrivcFit, output_error, srivc
@@ -124,7 +125,7 @@ def _independent(data, nz, delays, seg, dens, max_iterations=50, tolerance=1e-8)
         cov[at : at + b.shape[0], at : at + b.shape[0]] = b
         at += b.shape[0]
     err, _ = output_error(data.y, data.u, data.ts, dens, nums, delays, seg)
-    return SrivcFit(dens, nums, cov, theta, it, converged, err)
+    return SrivcFit(dens, nums, cov, theta, it, converged, err, any(f.reflected for f in fits if f is not None))
 
 
 def _loss(fit: SrivcFit) -> float:
@@ -295,6 +296,21 @@ def tfest(
         delays = [tau] * m
     else:
         fit = _fit(data, ns, nz, delays, common, **kw)
+    if fit.reflected:
+        warnings.warn(
+            f"tfest: the iterations ended at unstable poles, which were reflected into the left half-plane; "
+            f"{ns} pole(s) and {nz} zero(s) may not describe these data: try other orders (a zero, one pole more "
+            f"or less) and compare them on validation data",
+            ArxidWarning,
+            stacklevel=2,
+        )
+    if not fit.converged:
+        warnings.warn(
+            f"tfest: the parameters still changed after {fit.iterations} iterations (max_iterations); the estimate "
+            f"may not be final: raise max_iterations, or check the orders on validation data",
+            ArxidWarning,
+            stacklevel=2,
+        )
     return _model(data, fit, ns, nz, delays, common, estimated_delay=delay == "estimate")
 
 
