@@ -34,5 +34,5 @@ pub(super) fn srivc_filter<'py>(
     let s = signal.as_slice()?;
     let len = s.len();
     let out = run(py, 1, |cancel| state_filter(s, &segments, &f, shift, cancel))?;
-    Ok(PyArray1::from_vec(py, out).reshape([len, n])?)
+    PyArray1::from_vec(py, out).reshape([len, n])
 }
