@@ -114,6 +114,23 @@ mod tests {
     }
 
     #[test]
+    fn first_order_hold_taps_filter_a_ramp_exactly() {
+        // 1/(s + a) driven by v(t) = t, linear between samples: x(t) = t/a − (1 − e^{−at})/a².
+        let (a, ts): (f64, f64) = (1.5, 0.2);
+        let phi = (-a * ts).exp();
+        let gamma = (1.0 - phi) / a;
+        let lam = (ts / a - (1.0 - phi) / (a * a)) / ts;
+        let f = StateFilter::new(1, vec![phi], vec![0.0], vec![gamma - lam], vec![lam]).unwrap();
+        let ramp: Vec<f64> = (0..40).map(|k| k as f64 * ts).collect();
+        let out = state_filter(&ramp, &[(0, 40)], &f, 0, &AtomicBool::new(false)).unwrap();
+        for (k, v) in out.iter().enumerate() {
+            let t = k as f64 * ts;
+            let exact = t / a - (1.0 - (-a * t).exp()) / (a * a);
+            assert!((v - exact).abs() < 1e-13, "{k}: {v} vs {exact}");
+        }
+    }
+
+    #[test]
     fn segments_restart_from_rest_and_shift_stays_inside() {
         let u = vec![1.0; 20];
         let f = first_order(1.0, 0.5);
