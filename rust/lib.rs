@@ -11,6 +11,7 @@ pub mod one_step;
 pub mod pem;
 pub mod qr;
 pub mod simulate;
+pub mod srivc;
 pub mod structure;
 pub mod sweep;
 pub mod sweep_columns;

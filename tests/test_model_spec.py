@@ -44,7 +44,9 @@ def test_model_specs_read_matlab_argument_order(text, kind, orders, name):
         ("bj:2,1", r"bj takes 5 non-negative integers NB,NC,ND,NF,NK \(nb, nc, nd, nf, nk\), e.g. bj:2,1,1,2,3"),
         ("oe:2,-2,3", r"oe takes 3 non-negative integers NB,NF,NK"),
         ("oe:2;2;3", r"oe takes 3 non-negative integers NB,NF,NK"),
-        ("tf:2,2", r"write one of arx:NA,NB,NK, oe:NB,NF,NK, armax:NA,NB,NC,NK, bj:NB,NC,ND,NF,NK"),
+        ("ss:2,2", r"write one of arx:NA,NB,NK, oe:NB,NF,NK, armax:NA,NB,NC,NK, bj:NB,NC,ND,NF,NK"),
+        ("tf:2,2", r"tf takes NP >= 1 poles and NZ < NP zeros"),
+        ("proc:P4D", r"cannot read the model 'proc:P4D': cannot read the process model 'P4D'"),
         ("oe223", r"write one of"),
     ],
 )

@@ -13,7 +13,8 @@ The map (one subpackage per layer, top to bottom; docs/architecture.md has the r
 * :mod:`arxid.checks` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`,
   :func:`frequency_check`, confidence bands; :mod:`arxid.fleet` — many logs, Dask;
 * :mod:`arxid.models` — :func:`arx`, :class:`ArxModel`, :class:`PolynomialModel`, :func:`oe`,
-  :func:`armax`, :func:`bj`, :func:`polyest`, :func:`delayest`, effects, conversion, model files;
+  :func:`armax`, :func:`bj`, :func:`polyest`, :func:`delayest`, continuous-time models
+  (:func:`tfest`, :func:`procest`), effects, conversion, model files;
 * :mod:`arxid.quadrotor` — mixer, motor, thrust, set membership, the simulators (``arxid.datasets``);
   :mod:`arxid.plots`;
 * :mod:`arxid.data` — :class:`IOData`, CSV, logs; ``arxid._base`` — the compiled core and the metrics.
@@ -45,6 +46,8 @@ from .models.arx_model import ArxModel, arx
 from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
 from .models.polynomial import PolynomialModel
+from .models.process_models import procest
+from .models.tfest import tfest
 from .selection.refine import RefinedSweep, refine
 from .selection.search import DEFAULT_GRID, SweepResult, sweep
 
@@ -63,6 +66,8 @@ __all__ = [
     "bj",
     "polyest",
     "delayest",
+    "tfest",
+    "procest",
     "refine",
     "RefinedSweep",
     "compare",

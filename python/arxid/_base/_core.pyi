@@ -36,6 +36,7 @@ __all__ = [
     "pem_max_lag",
     "PemOutput",
     "csv_read",
+    "srivc_filter",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -258,3 +259,7 @@ _CsvProblem = tuple[str, int, int, int, int, str]
 def csv_read(
     path: str | os.PathLike[str], delimiter: str, n_fields: int, wanted: Sequence[int]
 ) -> tuple[list[_F] | None, bool, _CsvProblem | None]: ...
+
+def srivc_filter(
+    signal: _F, segments: Sequence[tuple[int, int]], phi: _F, prev: _F, cur: _F, next: _F, shift: int = 0
+) -> _F: ...

@@ -418,7 +418,7 @@ def _given_model(
     if isinstance(model, str):
         spec = parse_model_spec(model)
         fitted = spec.fit(est)
-        how = "least squares" if spec.kind == "arx" else "prediction-error minimisation"
+        how = spec.method
         return cast(ArxModel, fitted), Choice(
             fitted.structure_name(), None, f"the structure was given and fitted by {how} on the estimation data"
         )

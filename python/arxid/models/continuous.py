@@ -25,6 +25,9 @@ A discrete model ``H(z) = z^-d β(z^-1) / A(z^-1)`` (``A`` of order n, ``β`` wi
 
 Every returned model samples back to the discrete one (with its dead time) to rounding error;
 anything else raises :class:`~arxid.exceptions.ConversionError` saying why and what to try.
+
+The other way, :func:`c2d` samples a continuous model with a zero-order hold exactly, a fractional
+dead time included (the same modified z-transform, from :func:`zoh_matrices`).
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ import numpy as np
 
 from ..exceptions import ConversionError
 
-__all__ = ["METHODS", "ContinuousModel", "d2c"]
+__all__ = ["METHODS", "ContinuousModel", "d2c", "c2d", "zoh_matrices", "split_delay"]
 
 METHODS = ("zoh", "tustin", "matched")
 
@@ -282,6 +285,113 @@ def _clean(num: np.ndarray, ts: float) -> np.ndarray:
     while k < len(num) - 1 and size[k] <= tol:
         k += 1
     return num[k:]
+
+
+# ------------------------------------------------------------------------------------ sampling
+def split_delay(dead_time: float, ts: float) -> tuple[int, float]:
+    """A dead time τ as whole samples ℓ and a fraction δ: τ = ℓ·ts + δ with 0 <= δ < ts.
+
+    Parameters
+    ----------
+    dead_time : float
+        Seconds, >= 0.
+    ts : float
+        Sampling time in seconds.
+
+    Returns
+    -------
+    whole : int
+    fraction : float
+        Seconds.
+    """
+    whole = int(np.floor(dead_time / ts + 1e-9))
+    fraction = max(dead_time - whole * ts, 0.0)
+    return whole, (0.0 if fraction < 1e-9 * ts else fraction)
+
+
+def zoh_matrices(ac: np.ndarray, bc: np.ndarray, ts: float, fraction: float = 0.0) -> tuple[np.ndarray, ...]:
+    """Exact zero-order-hold discretisation with a fractional input delay δ (0 <= δ < ts):
+    ``x(k+1) = Φ x(k) + Γ0 v(k) + Γ1 v(k−1)`` with ``Γ0 = ∫_0^{ts−δ} e^{As} ds B`` and
+    ``Γ1 = e^{A(ts−δ)} ∫_0^δ e^{As} ds B`` (the modified z-transform).
+
+    Parameters
+    ----------
+    ac : ndarray of shape (n, n)
+    bc : ndarray of shape (n,)
+    ts : float
+        Sampling time in seconds.
+    fraction : float
+        δ in seconds.
+
+    Returns
+    -------
+    phi, gamma0, gamma1 : ndarray
+    """
+    prop = _Propagator(np.asarray(ac, dtype=float))
+    e_rest, m_rest = prop(ts - fraction)
+    _, m_delta = prop(fraction)
+    phi = prop(ts)[0]
+    bc = np.asarray(bc, dtype=float)
+    return phi, m_rest @ bc, e_rest @ (m_delta @ bc)
+
+
+def controllable_form(den: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Ac, Bc`` of ``1 / den(s)`` (den monic, descending powers) in controllable canonical form,
+    whose states are the output and its first n − 1 derivatives."""
+    den = np.asarray(den, dtype=float)
+    n = len(den) - 1
+    ac = np.zeros((n, n))
+    ac[: n - 1, 1:] = np.eye(n - 1)
+    ac[n - 1, :] = -den[1:][::-1]
+    bc = np.zeros(n)
+    bc[n - 1] = 1.0
+    return ac, bc
+
+
+def c2d(num: np.ndarray, den: np.ndarray, ts: float, dead_time: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold sampling of ``num(s) / den(s) · e^{-s·dead_time}`` (strictly proper), exact,
+    fractional dead time included; the inverse of :func:`d2c` with ``method="zoh"``.
+
+    Parameters
+    ----------
+    num, den : array_like
+        Descending powers of s, ``len(num) < len(den)``.
+    ts : float
+        Sampling time in seconds.
+    dead_time : float
+        Input delay in seconds, >= 0.
+
+    Returns
+    -------
+    a : ndarray
+        ``[1, a1, ..., an]`` in powers of z⁻¹.
+    b : ndarray
+        Numerator in powers of z⁻¹: ``ℓ + 1`` leading zeros (ℓ whole samples of delay), then n + 1
+        coefficients (the last is zero when the delay is a whole number of samples).
+
+    Raises
+    ------
+    ConversionError
+        When the model is not strictly proper.
+    """
+    num = np.atleast_1d(np.asarray(num, dtype=float))
+    den = np.atleast_1d(np.asarray(den, dtype=float))
+    n = len(den) - 1
+    if n < 1 or len(num) > n:
+        raise ConversionError(f"c2d needs a strictly proper model (fewer zeros than poles), got num {num}, den {den}")
+    num, den = num / den[0], den / den[0]
+    whole, fraction = split_delay(float(dead_time), ts)
+    ac, bc = controllable_form(den)
+    c = np.zeros(n)
+    c[: len(num)] = num[::-1]
+    phi, g0, g1 = zoh_matrices(ac, bc, ts, fraction)
+    a = np.real(np.poly(phi))
+    b = np.zeros(whole + n + 2)
+    for shift, g in ((1, g0), (2, g1)):
+        # C (zI − Φ)^-1 Γ = [det(zI − Φ + Γ C) − det(zI − Φ)] / det(zI − Φ) (matrix determinant lemma).
+        part = np.real(np.poly(phi - np.outer(g, c))) - a
+        b[whole + shift : whole + shift + n] += part[1:]
+    return a, b
 
 
 # ---------------------------------------------------------------------------------------- tustin

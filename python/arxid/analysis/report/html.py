@@ -277,6 +277,10 @@ def _parameter_table(model: Any) -> list[Raw]:
     standard errors."""
     if not isinstance(model, PolynomialModel):
         return []
+    continuous = getattr(model, "parameter_dict", None)  # a continuous-time model: its own parameters
+    if continuous is not None:
+        rows = [[k, _num(v), _num(e, 3), _num(abs(v) / e, 3) if e > 0 else "-"] for k, (v, e) in continuous().items()]
+        return [_table(["parameter", "value", "standard error", "|value| / s.e."], rows)]
     se = model.standard_errors_
     rows = [
         [label, _num(v), _num(e, 3), _num(abs(v) / e, 3) if e > 0 else "-"]
