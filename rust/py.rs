@@ -910,6 +910,7 @@ mod py_iv;
 mod core_module {
     #[pymodule_export]
     use super::py_iv::iv_sweep;
+    #[pymodule_export]
     use super::py_srivc::srivc_filter;
     #[pymodule_export]
     use super::{
