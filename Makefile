@@ -77,6 +77,7 @@ bench: develop
 	$(PY) benches/sweep_miso.py
 	$(PY) benches/fleet.py
 	$(PY) benches/csv_read.py
+	$(PY) benches/analyse_scale.py
 
 # The wheel (abi3: one file for CPython >= 3.10) and the sdist, in dist/. The wheel is built from the
 # tree with the same profile and features as `make develop`, so after `make test` it only repackages

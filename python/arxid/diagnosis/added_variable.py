@@ -76,16 +76,25 @@ class AddedVariableTest:
         float
             In [0, 1]; NaN when the block is zero or already explained by the model.
         """
-        norms = np.linalg.norm(z, axis=0)
+        b, zz, ze = self._cross(z)
+        norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         if not (norms > 0).any() or self.rss0 <= 0:
             return math.nan
-        z = z[:, norms > 0] / norms[norms > 0]
-        zr = z - self.q @ (self.q.T @ z)
-        if np.linalg.norm(zr) < 1e-7:
-            return math.nan
-        v = zr.T @ self.e
-        coef = np.linalg.lstsq(zr.T @ zr, v, rcond=1e-10)[0]
+        k = norms > 0
+        g = (zz - b.T @ b)[np.ix_(k, k)] / np.outer(norms[k], norms[k])
+        if np.trace(g) < 1e-10:  # (nearly) explained by the model: the exact residual decides
+            z = z[:, k] / norms[k]
+            zr = z - self.q @ (self.q.T @ z)
+            if np.linalg.norm(zr) < 1e-7:
+                return math.nan
+            g = zr.T @ zr
+        v = ze[k] / norms[k]
+        coef = np.linalg.lstsq(g, v, rcond=1e-10)[0]
         return float(min(max(v @ coef, 0.0), self.rss0) / self.rss0)
+
+    def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q'z, z'z and z'e: all a test needs of the n rows (z'e = z̃'e, as Q'e = 0)."""
+        return self.q.T @ z, z.T @ z, z.T @ self.e
 
     def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
         """Test the columns ``z`` (rows aligned with ``phi``).
@@ -103,10 +112,14 @@ class AddedVariableTest:
         """
         from scipy import stats
 
-        norms = np.linalg.norm(z, axis=0)
+        b, zz, ze = self._cross(z)
+        norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         keep = norms > 0
         if not keep.any():
             return None, "the candidate is zero on these data"
+        fast = self._from_cross(b, zz, ze, keep, norms)
+        if fast is not None:
+            return fast, ""
         z = z[:, keep] / norms[keep]
         zr = z - self.q @ (self.q.T @ z)
         rn = np.linalg.norm(zr, axis=0)
@@ -125,6 +138,33 @@ class AddedVariableTest:
         rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
         f = (drss / q) / (rss1 / dof)
         return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
+
+
+    def _from_cross(
+        self, b: np.ndarray, zz: np.ndarray, ze: np.ndarray, keep: np.ndarray, norms: np.ndarray
+    ) -> AddedVariableResult | None:
+        """The test from the cross-products when the block is well conditioned beside the model's
+        regressors (None otherwise: the QR of the stripped block decides which columns count)."""
+        from scipy import stats
+
+        nk = norms[keep]
+        g = (zz - b.T @ b)[np.ix_(keep, keep)] / np.outer(nk, nk)
+        rn = np.sqrt(np.maximum(np.diag(g), 0.0))
+        if rn.min() <= 1e-4:
+            return None
+        gs = g / np.outer(rn, rn)
+        if np.linalg.eigvalsh(gs).min() <= 1e-8:
+            return None
+        q = g.shape[0]
+        dof = self.n - self.p - q
+        if dof < 1 or self.rss0 <= 0:
+            return None
+        v = ze[keep] / nk
+        drss = min(float(v @ np.linalg.solve(g, v)), self.rss0)
+        drss = max(drss, 0.0)
+        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
+        f = (drss / q) / (rss1 / dof)
+        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q)
 
 
 def holm(p: np.ndarray) -> np.ndarray:

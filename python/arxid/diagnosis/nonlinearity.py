@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.nested import nested_fits
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -180,9 +181,10 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
         return identity
     past, now = np.column_stack([r[p] for p in prev]), r[keep]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
+    rss_all, coefs = nested_fits(past, now)  # every order from one QR
     for p in range(1, MAX_NOISE_ORDER + 1):
-        c, *_ = np.linalg.lstsq(past[:, :p], now, rcond=None)
-        ic = math.log(max(float(np.mean((now - past[:, :p] @ c) ** 2)), 1e-300)) + 2.0 * p / len(now)
+        c = coefs[p]
+        ic = math.log(max(float(rss_all[p]) / len(now), 1e-300)) + 2.0 * p / len(now)
         if ic < best_ic:
             best_ic, a = ic, c
     if a.size == 0:

@@ -1,0 +1,60 @@
+"""Nested least-squares fits from one factorization: the fits of y on the first p columns of X for
+every p at once (AR orders chosen by an information criterion), in one pass over the data.
+
+One QR of ``[X | y]`` (n × (P + 1), Householder, as ``numpy.linalg.lstsq`` is accurate) gives, with
+``r`` its last column, the residual sum of squares of the fit on the first p columns as
+``Σ_{i ≥ p} r_i²`` and its coefficients by a p × p triangular solve. Linear in n; the P separate
+``lstsq`` calls it replaces each read the whole matrix again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["nested_fits"]
+
+
+def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Residual sums of squares and coefficients of y on the first p columns of ``x``, p = 0..P.
+
+    Parameters
+    ----------
+    x : ndarray of shape (n, P)
+    y : ndarray of shape (n,)
+
+    Returns
+    -------
+    rss : ndarray of shape (P + 1,)
+        ``rss[p]`` = min ‖y − x[:, :p] a‖².
+    coef : list of ndarray
+        ``coef[p]`` of shape (p,); a fit whose leading columns are (nearly) dependent is solved by
+        ``numpy.linalg.lstsq`` instead.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> x = rng.standard_normal((200, 3)); y = x @ [1.0, 0.5, 0.0] + 0.1 * rng.standard_normal(200)
+    >>> rss, coef = nested_fits(x, y)
+    >>> bool(np.isclose(rss[2], np.sum((y - x[:, :2] @ coef[2]) ** 2)))
+    True
+    """
+    n, big_p = x.shape
+    if n <= big_p:  # fewer rows than columns: each fit on its own
+        coef = [np.linalg.lstsq(x[:, :p], y, rcond=None)[0] for p in range(big_p + 1)]
+        rss = np.array([float(np.sum((y - x[:, :p] @ c) ** 2)) for p, c in enumerate(coef)])
+        return rss, coef
+    r = np.linalg.qr(np.column_stack([x, y]), mode="r")
+    last = r[:, big_p]
+    tail = np.cumsum((last**2)[::-1])[::-1]  # tail[p] = Σ_{i ≥ p} r_i²
+    rss = np.array([float(tail[p]) for p in range(big_p + 1)])
+    diag = np.abs(np.diag(r)[:big_p])
+    coef = [np.zeros(0)]
+    for p in range(1, big_p + 1):
+        if diag[:p].min() <= 1e-12 * max(diag[:p].max(), 1e-300):
+            c = np.linalg.lstsq(x[:, :p], y, rcond=None)[0]
+            rss[p] = float(np.sum((y - x[:, :p] @ c) ** 2))
+        else:
+            c = np.linalg.solve(np.triu(r[:p, :p]), last[:p])
+        coef.append(c)
+    return rss, coef
