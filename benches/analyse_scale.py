@@ -42,8 +42,9 @@ GIB = 2**30
 
 def make_record(n: int, seed: int):
     """One flight of ``n`` samples: battery-scaled second-order plant, vbat and a decoy logged."""
-    import arxid
     from scipy.signal import lfilter
+
+    import arxid
 
     rng = np.random.default_rng(seed)
     u = np.sign(rng.standard_normal(n)) * 0.5 + 0.5 * rng.standard_normal(n)

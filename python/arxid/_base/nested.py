@@ -1,10 +1,12 @@
 """Nested least-squares fits from one factorization: the fits of y on the first p columns of X for
 every p at once (AR orders chosen by an information criterion), in one pass over the data.
 
-One QR of ``[X | y]`` (n × (P + 1), Householder, as ``numpy.linalg.lstsq`` is accurate) gives, with
+The triangular factor R of ``[X | y]`` (n × (P + 1)) gives, with
 ``r`` its last column, the residual sum of squares of the fit on the first p columns as
-``Σ_{i ≥ p} r_i²`` and its coefficients by a p × p triangular solve. Linear in n; the P separate
-``lstsq`` calls it replaces each read the whole matrix again.
+``Σ_{i ≥ p} r_i²`` and its coefficients by a p × p triangular solve. R is the Cholesky factor of
+the cross-product matrix (one pass over the data) when that is well conditioned, else the R of a
+Householder QR (as accurate as ``numpy.linalg.lstsq``). Linear in n; the P separate ``lstsq``
+calls it replaces each read the whole matrix again.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarr
         coef = [np.linalg.lstsq(x[:, :p], y, rcond=None)[0] for p in range(big_p + 1)]
         rss = np.array([float(np.sum((y - x[:, :p] @ c) ** 2)) for p, c in enumerate(coef)])
         return rss, coef
-    r = np.linalg.qr(np.column_stack([x, y]), mode="r")
+    r = _triangular_factor(x, y)
     last = r[:, big_p]
     tail = np.cumsum((last**2)[::-1])[::-1]  # tail[p] = Σ_{i ≥ p} r_i²
     rss = np.array([float(tail[p]) for p in range(big_p + 1)])
@@ -58,3 +60,19 @@ def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarr
             c = np.linalg.solve(np.triu(r[:p, :p]), last[:p])
         coef.append(c)
     return rss, coef
+
+
+def _triangular_factor(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """R with R'R = [x y]'[x y]: Cholesky of the Gram matrix when its scaled condition number is
+    below 1e8 (so R keeps at least eight digits), else Householder QR."""
+    g = np.empty((x.shape[1] + 1, x.shape[1] + 1))
+    g[:-1, :-1] = x.T @ x
+    g[:-1, -1] = g[-1, :-1] = x.T @ y
+    g[-1, -1] = y @ y
+    d = np.sqrt(np.diag(g))
+    if np.all(d > 0) and np.all(np.isfinite(g)):
+        gs = g / np.outer(d, d)
+        w = np.linalg.eigvalsh(gs)
+        if w.min() > 1e-8 * w.max():
+            return np.linalg.cholesky(gs).T * d
+    return np.linalg.qr(np.column_stack([x, y]), mode="r")

@@ -54,18 +54,23 @@ def _correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray, segments) -> np
     out = np.zeros(len(lags))
     if den == 0:
         return out
-    for i, k in enumerate(lags):
-        s = 0.0
-        for lo, hi in segments:
-            n = hi - lo
+    lags = np.asarray(lags)
+    for lo, hi in segments:
+        n = hi - lo
+        if n * len(lags) > 1 << 18:  # long: every lag at once by FFT, n log n
+            size = 1 << int(2 * n - 1).bit_length()
+            c = np.fft.irfft(np.fft.rfft(av[lo:hi], size) * np.conj(np.fft.rfft(bv[lo:hi], size)), size)
+            inside = np.abs(lags) < n
+            out[inside] += c[lags[inside] % size]
+            continue
+        for i, k in enumerate(lags):
             if abs(k) >= n:
                 continue
             if k >= 0:
-                s += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
+                out[i] += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
             else:
-                s += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
-        out[i] = s / den
-    return out
+                out[i] += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
+    return out / den
 
 
 def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:

@@ -139,7 +139,6 @@ class AddedVariableTest:
         f = (drss / q) / (rss1 / dof)
         return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
 
-
     def _from_cross(
         self, b: np.ndarray, zz: np.ndarray, ze: np.ndarray, keep: np.ndarray, norms: np.ndarray
     ) -> AddedVariableResult | None:

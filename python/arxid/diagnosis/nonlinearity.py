@@ -130,13 +130,28 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     first = max(model.first_lag_, max_lag(model.na_, layout), deepest)
     phi, y, rows = regressor_matrix(data, model.na_, layout, first)
     linear = [x[rows - lag] for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
-    blocks = [(name, lag, _features(x, rows, lag, changes_sign(x))) for name, x, lags in plan for lag in lags]
-    ok = np.isfinite(np.column_stack(linear + [b for _, _, b in blocks])).all(axis=1) if blocks else None
-    if ok is None or ok.sum() <= phi.shape[1] + len(linear) + 10:
+    # The feature blocks are built one at a time (first for the rows where all exist, then to test):
+    # all of them at once would hold tens of copies of a long record.
+    specs = [(name, x, lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
+    if not specs:
         return ()
-    whiten = _prewhitening(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok], rows[ok])
-    base = AddedVariableTest(*whiten(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok]))
-    tested = [(name, lag, res) for name, lag, b in blocks if (res := base.test(whiten(b[ok])[0])[0]) is not None]
+    ok = np.ones(len(rows), dtype=bool)
+    for col in linear:
+        ok &= np.isfinite(col)
+    for _, x, lag, signed in specs:
+        ok &= np.isfinite(_features(x, rows, lag, signed)).all(axis=1)
+    if ok.sum() <= phi.shape[1] + len(linear) + 10:
+        return ()
+    design = np.column_stack([phi, *linear, np.ones(len(rows))])[ok]
+    del linear
+    whiten = _prewhitening(design, y[ok], rows[ok])
+    base = AddedVariableTest(*whiten(design, y[ok]))
+    del design
+    tested = [
+        (name, lag, res)
+        for name, x, lag, signed in specs
+        if (res := base.test(whiten(_features(x, rows, lag, signed)[ok])[0])[0]) is not None
+    ]
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))

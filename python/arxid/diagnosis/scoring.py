@@ -18,7 +18,7 @@ from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects, format_threshold
-from ..models.regressors import max_lag, regressor_matrix, regressor_names
+from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
@@ -55,7 +55,10 @@ class Scoring:
                 f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
             )
         self.proj0 = AddedVariableTest(self.phi0, self.y0)
-        self.single_z: dict[str, np.ndarray] = {}
+        # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
+        # are formed from a few of them): holding every candidate's columns would cost a copy of
+        # the record per candidate.
+        self.single_z = _Rebuilt()
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
         scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
@@ -69,6 +72,11 @@ class Scoring:
 
     def _columns(self, c: Candidate, lay) -> tuple[np.ndarray, np.ndarray]:
         names = regressor_names(self.data.output_name, c.na, lay)
+        new = [i for i, nm in enumerate(names) if nm not in self.base_names]
+        if max_lag(c.na, lay) <= self.lag:  # only the new columns, on the model's rows
+            z = regressor_columns(self.data, c.na, lay, self.rows0, new)
+            if np.isfinite(z).all():
+                return z, self.rows0
         phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
         new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         return phi[:, new], rows
@@ -91,7 +99,7 @@ class Scoring:
             self.notes[c.label] = why
             return None
         if proj is self.proj0:
-            self.single_z[c.label] = z
+            self.single_z.keep(c.label, lambda: self._columns(c, lay)[0])
         return scored_entry(c, res)
 
     def _threshold_columns(self, op: str, signal: str, c: float) -> tuple[Candidate, np.ndarray]:
@@ -129,7 +137,7 @@ class Scoring:
         if res is None:
             self.notes[group[0].label] = why
             return None
-        self.single_z[cand.label] = z
+        self.single_z.keep(cand.label, lambda: self._threshold_columns(op, signal, c)[1])
         self.notes[cand.label] = f"threshold scanned over {n} quantiles of |{signal}| (p-value x {n})"
         scored = scored_entry(cand, res)
         scored["p"] = min(1.0, scored["p"] * n)
@@ -233,6 +241,16 @@ class Scoring:
                 pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
                 out.append(scored_entry(pc, res))
         return out
+
+
+class _Rebuilt(dict):
+    """A dict of label -> columns whose values are rebuilt from a stored recipe on each access."""
+
+    def keep(self, label: str, build) -> None:
+        super().__setitem__(label, build)
+
+    def __getitem__(self, label: str) -> np.ndarray:
+        return super().__getitem__(label)()
 
 
 def scored_entry(c: Candidate, res: AddedVariableResult) -> dict:
