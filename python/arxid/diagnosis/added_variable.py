@@ -56,10 +56,44 @@ class AddedVariableTest:
     def __init__(self, phi: np.ndarray, y: np.ndarray):
         scale = np.linalg.norm(phi, axis=0)
         scale[scale == 0] = 1.0
-        self.q, _ = np.linalg.qr(phi / scale)
-        self.e = y - self.q @ (self.q.T @ y)
-        self.rss0 = float(self.e @ self.e)
         self.n, self.p = phi.shape
+        self._phi, self._scale, self._q = phi, scale, None
+        # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
+        # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
+        # the residual is refined once. Otherwise Householder QR, as accurate as it gets.
+        self._r = self._cholesky(phi, scale)
+        if self._r is None:
+            self.e = y - self.q @ (self.q.T @ y)
+        else:
+            self.e = y - phi @ self._solve(phi.T @ y)
+            self.e = self.e - phi @ self._solve(phi.T @ self.e)
+        self.rss0 = float(self.e @ self.e)
+
+    @staticmethod
+    def _cholesky(phi: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
+        if phi.shape[1] == 0 or phi.shape[0] <= phi.shape[1]:
+            return None
+        g = (phi.T @ phi) / np.outer(scale, scale)
+        if not np.isfinite(g).all():
+            return None
+        w = np.linalg.eigvalsh(g)
+        if w.min() <= 1e-10 * w.max():
+            return None
+        return np.linalg.cholesky(g).T
+
+    def _solve(self, v: np.ndarray) -> np.ndarray:
+        """θ with R'R (θ scale) = v / scale: least-squares coefficients from Φ'v."""
+        assert self._r is not None
+        from scipy.linalg import cho_solve
+
+        return cho_solve((self._r, False), v / self._scale) / self._scale
+
+    @property
+    def q(self) -> np.ndarray:
+        """Orthonormal basis of the regressors' span (n × p; formed only when a test needs it)."""
+        if self._q is None:
+            self._q = np.linalg.qr(self._phi / self._scale)[0]
+        return self._q
 
     def share(self, z: np.ndarray) -> float:
         """ΔRSS / RSS₀ of the columns ``z`` alone, without the F-test: a fast score for scans.
@@ -94,7 +128,13 @@ class AddedVariableTest:
 
     def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q'z, z'z and z'e: all a test needs of the n rows (z'e = z̃'e, as Q'e = 0)."""
-        return self.q.T @ z, z.T @ z, z.T @ self.e
+        if self._r is None:
+            b = self.q.T @ z
+        else:
+            from scipy.linalg import solve_triangular
+
+            b = solve_triangular(self._r, (self._phi.T @ z) / self._scale[:, None], trans="T")
+        return b, z.T @ z, z.T @ self.e
 
     def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
         """Test the columns ``z`` (rows aligned with ``phi``).

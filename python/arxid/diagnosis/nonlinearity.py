@@ -208,7 +208,12 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
 
     def whiten(z: np.ndarray, yy: np.ndarray | None = None):
         def f(v: np.ndarray) -> np.ndarray:
-            return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
+            if v.ndim == 1:
+                return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
+            out = np.empty((len(use), v.shape[1]))
+            for i in range(v.shape[1]):  # column by column: temporaries of one column only
+                out[:, i] = f(v[:, i])
+            return out
 
         return f(z), (None if yy is None else f(yy))
 
