@@ -58,15 +58,20 @@ class AddedVariableTest:
         scale[scale == 0] = 1.0
         self.n, self.p = phi.shape
         self._phi, self._scale, self._q = phi, scale, None
+        self._keep: np.ndarray | None = None  # the independent columns (None: all)
         # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
         # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
         # the residual is refined once. Otherwise Householder QR, as accurate as it gets.
         self._r = self._cholesky(phi, scale)
-        if self._r is None:
-            self.e = y - self.q @ (self.q.T @ y)
-        else:
+        if self._r is not None:
             self.e = y - phi @ self._solve(phi.T @ y)
             self.e = self.e - phi @ self._solve(phi.T @ self.e)
+        else:  # ill-conditioned: R of [Φ | y] by Householder QR in blocks of rows (no n × p copy)
+            self._keep, self._r, theta = _independent(_blocked_r(phi, scale, y), phi.shape[1])
+            if self._r is not None:
+                self.e = y - phi @ (theta / scale)
+            else:
+                self.e = y - self.q @ (self.q.T @ y)
         self.rss0 = float(self.e @ self.e)
 
     @staticmethod
@@ -133,7 +138,8 @@ class AddedVariableTest:
         else:
             from scipy.linalg import solve_triangular
 
-            b = solve_triangular(self._r, (self._phi.T @ z) / self._scale[:, None], trans="T")
+            pz = (self._phi.T @ z) / self._scale[:, None]
+            b = solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
         return b, z.T @ z, z.T @ self.e
 
     def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
@@ -204,6 +210,46 @@ class AddedVariableTest:
         rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
         f = (drss / q) / (rss1 / dof)
         return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q)
+
+
+#: Rows per block of the blocked QR.
+_BLOCK = 65536
+
+
+def _blocked_r(phi: np.ndarray, scale: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """R with R'R = [Φ/scale | y]'[Φ/scale | y]: Householder QR of blocks of rows, then of their R's
+    stacked (as accurate as one QR; each block copied once)."""
+    rs = []
+    for lo in range(0, phi.shape[0], _BLOCK):
+        block = np.column_stack([phi[lo : lo + _BLOCK] / scale, y[lo : lo + _BLOCK]])
+        rs.append(np.linalg.qr(block, mode="r"))
+    return rs[0] if len(rs) == 1 else np.linalg.qr(np.vstack(rs), mode="r")
+
+
+def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """From R of [Φ | y] (p + 1 columns): the independent columns of Φ (None: all), the R of those
+    columns and the least-squares coefficients of y on them (zero on the others); R None when Φ has
+    no independent column or too few rows."""
+    from scipy.linalg import qr, solve_triangular
+
+    theta = np.zeros(p)
+    if p == 0 or r.shape[0] <= p:
+        return None, None, theta
+    d = np.abs(np.diag(r)[:p])
+    if d.min() > 1e-12 * d.max():
+        theta[:] = solve_triangular(r[:p, :p], r[:p, p])
+        return None, r[:p, :p], theta
+    # Exactly dependent columns (a lag listed twice, ...): keep a largest independent set, the
+    # span of Φ unchanged; R of the kept columns and y from the small factor.
+    _, rp, piv = qr(r[:p, :p], pivoting=True, mode="economic")
+    dp = np.abs(np.diag(rp))
+    k = int(np.sum(dp > 1e-12 * dp.max())) if dp.max() > 0 else 0
+    if k == 0:
+        return None, None, theta
+    keep = np.sort(piv[:k])
+    r2 = np.linalg.qr(r[:, np.append(keep, p)], mode="r")
+    theta[keep] = solve_triangular(r2[:k, :k], r2[:k, k])
+    return keep, r2[:k, :k], theta
 
 
 def holm(p: np.ndarray) -> np.ndarray:

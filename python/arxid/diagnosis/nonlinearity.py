@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._base.nested import nested_fits
+from .._base.nested import least_squares, nested_fits
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -129,22 +129,29 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     deepest = max((max(lags) for _, _, lags in plan if lags), default=0) + LINEAR_CONTEXT
     first = max(model.first_lag_, max_lag(model.na_, layout), deepest)
     phi, y, rows = regressor_matrix(data, model.na_, layout, first)
-    linear = [x[rows - lag] for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
-    # The feature blocks are built one at a time (first for the rows where all exist, then to test):
-    # all of them at once would hold tens of copies of a long record.
+    lin_specs = [(x, lag) for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
+    # The columns are built one at a time into one design matrix (and the feature blocks again when
+    # tested): lists of them, stacked, would hold several copies of a long record at once.
     specs = [(name, x, lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
     if not specs:
         return ()
     ok = np.ones(len(rows), dtype=bool)
-    for col in linear:
-        ok &= np.isfinite(col)
+    for x, lag in lin_specs:
+        ok &= np.isfinite(x[rows - lag])
     for _, x, lag, signed in specs:
         ok &= np.isfinite(_features(x, rows, lag, signed)).all(axis=1)
-    if ok.sum() <= phi.shape[1] + len(linear) + 10:
+    if ok.sum() <= phi.shape[1] + len(lin_specs) + 10:
         return ()
-    design = np.column_stack([phi, *linear, np.ones(len(rows))])[ok]
-    del linear
-    whiten = _prewhitening(design, y[ok], rows[ok])
+    p = phi.shape[1]
+    design = np.empty((int(ok.sum()), p + len(lin_specs) + 1))
+    for i in range(p):
+        design[:, i] = phi[ok, i]
+    del phi
+    kept = rows[ok]
+    for j, (x, lag) in enumerate(lin_specs):
+        design[:, p + j] = x[kept - lag]
+    design[:, -1] = 1.0
+    whiten = _prewhitening(design, y[ok], kept)
     base = AddedVariableTest(*whiten(design, y[ok]))
     del design
     tested = [
@@ -189,8 +196,7 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
     def identity(z: np.ndarray, yy: np.ndarray | None = None):
         return z, yy
 
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    r = y - x @ coef
+    r = y - x @ least_squares(x, y)
     keep, prev = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return identity

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import re
+import weakref
 
 import numpy as np
 
@@ -47,7 +48,7 @@ class Scoring:
                 self.notes[c.label] = str(exc)
                 continue
             lag = max(lag, max_lag(c.na, lay))
-            self.prepared.append((c, lay))
+            self.prepared.append(c)  # its layout (a copy of the inputs) is compiled again when scored
         self.lag = lag
         self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
         if len(self.rows0) <= self.phi0.shape[1] + 2:
@@ -58,10 +59,10 @@ class Scoring:
         # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
         # are formed from a few of them): holding every candidate's columns would cost a copy of
         # the record per candidate.
-        self.single_z = _Rebuilt()
+        self.single_z = _Rebuilt(self)
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
-        scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
+        scored = [s for s in (self._score(c, layout_for(c, self.model, self.data)[1]) for c in self.prepared) if s]
         scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
         scored = self._one_direction_term(scored)
         if "const" not in self.model.effects and n_pairs > 0:
@@ -99,7 +100,7 @@ class Scoring:
             self.notes[c.label] = why
             return None
         if proj is self.proj0:
-            self.single_z.keep(c.label, lambda: self._columns(c, lay)[0])
+            self.single_z.keep(c.label, ("candidate", c))
         return scored_entry(c, res)
 
     def _threshold_columns(self, op: str, signal: str, c: float) -> tuple[Candidate, np.ndarray]:
@@ -137,7 +138,7 @@ class Scoring:
         if res is None:
             self.notes[group[0].label] = why
             return None
-        self.single_z.keep(cand.label, lambda: self._threshold_columns(op, signal, c)[1])
+        self.single_z.keep(cand.label, ("threshold", op, signal, c))
         self.notes[cand.label] = f"threshold scanned over {n} quantiles of |{signal}| (p-value x {n})"
         scored = scored_entry(cand, res)
         scored["p"] = min(1.0, scored["p"] * n)
@@ -244,13 +245,24 @@ class Scoring:
 
 
 class _Rebuilt(dict):
-    """A dict of label -> columns whose values are rebuilt from a stored recipe on each access."""
+    """A dict of label -> columns on the model's rows, rebuilt from a stored recipe on each access:
+    ``("candidate", c)`` or ``("threshold", op, signal, c)``. The scoring is held weakly, so the
+    recipes make no reference cycle that would keep the scoring's arrays alive."""
 
-    def keep(self, label: str, build) -> None:
-        super().__setitem__(label, build)
+    def __init__(self, scoring: Scoring):
+        super().__init__()
+        self._scoring = weakref.ref(scoring)
+
+    def keep(self, label: str, recipe: tuple) -> None:
+        super().__setitem__(label, recipe)
 
     def __getitem__(self, label: str) -> np.ndarray:
-        return super().__getitem__(label)()
+        recipe, sc = super().__getitem__(label), self._scoring()
+        assert sc is not None
+        if recipe[0] == "candidate":
+            c = recipe[1]
+            return sc._columns(c, layout_for(c, sc.model, sc.data)[1])[0]
+        return sc._threshold_columns(*recipe[1:])[1]
 
 
 def scored_entry(c: Candidate, res: AddedVariableResult) -> dict:
