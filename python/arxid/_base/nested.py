@@ -75,7 +75,7 @@ def _triangular_factor(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         w = np.linalg.eigvalsh(gs)
         if w.min() > 1e-8 * w.max():
             return np.linalg.cholesky(gs).T * d
-    return np.linalg.qr(np.column_stack([x, y]), mode="r")
+    return np.asarray(np.linalg.qr(np.column_stack([x, y]), mode="r"))
 
 
 def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -57,7 +57,8 @@ class AddedVariableTest:
         scale = np.linalg.norm(phi, axis=0)
         scale[scale == 0] = 1.0
         self.n, self.p = phi.shape
-        self._phi, self._scale, self._q = phi, scale, None
+        self._phi, self._scale = phi, scale
+        self._q: np.ndarray | None = None
         self._keep: np.ndarray | None = None  # the independent columns (None: all)
         # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
         # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
@@ -222,8 +223,8 @@ def _blocked_r(phi: np.ndarray, scale: np.ndarray, y: np.ndarray) -> np.ndarray:
     rs = []
     for lo in range(0, phi.shape[0], _BLOCK):
         block = np.column_stack([phi[lo : lo + _BLOCK] / scale, y[lo : lo + _BLOCK]])
-        rs.append(np.linalg.qr(block, mode="r"))
-    return rs[0] if len(rs) == 1 else np.linalg.qr(np.vstack(rs), mode="r")
+        rs.append(np.asarray(np.linalg.qr(block, mode="r")))
+    return rs[0] if len(rs) == 1 else np.asarray(np.linalg.qr(np.vstack(rs), mode="r"))
 
 
 def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
@@ -247,7 +248,7 @@ def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray |
     if k == 0:
         return None, None, theta
     keep = np.sort(piv[:k])
-    r2 = np.linalg.qr(r[:, np.append(keep, p)], mode="r")
+    r2 = np.asarray(np.linalg.qr(r[:, np.append(keep, p)], mode="r"))
     theta[keep] = solve_triangular(r2[:k, :k], r2[:k, k])
     return keep, r2[:k, :k], theta
 

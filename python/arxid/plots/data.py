@@ -91,9 +91,9 @@ def thin(t: np.ndarray, *ys: np.ndarray, max_points: int = 4000) -> tuple[np.nda
     out_t = np.repeat(np.asarray(t)[::k], 2)
     out = []
     for y in ys:
-        block = np.full(m * k, np.nan)
-        block[:n] = np.asarray(y, dtype=float)
-        block = block.reshape(m, k)
+        flat = np.full(m * k, np.nan)
+        flat[:n] = np.asarray(y, dtype=float)
+        block = flat.reshape(m, k)
         empty = np.isnan(block).all(axis=1)
         lo = np.where(empty, np.nan, np.where(np.isnan(block), np.inf, block).min(axis=1))
         hi = np.where(empty, np.nan, np.where(np.isnan(block), -np.inf, block).max(axis=1))
