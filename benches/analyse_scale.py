@@ -20,6 +20,11 @@ validation; ``--quick``: 20k, 200k, 2M) it prints:
   data-building peak; the output says which was used;
 - the missing effect found (it should be the battery, ``u1*vbat``).
 
+``--blas-threads K`` runs each subprocess with K BLAS threads (``OPENBLAS_NUM_THREADS``,
+``OMP_NUM_THREADS``, ``MKL_NUM_THREADS``): on a machine whose cores are busy with other work, a
+threaded BLAS spends milliseconds waking its threads for each small product, which can swamp the
+analysis' many small matrix operations; the sweep's own threads are not affected.
+
 With ``--profile`` each subprocess also prints the top entries of a cProfile of ``analyse``
 (cumulative time), which slows it down.
 
@@ -131,6 +136,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="N = 20k, 200k, 2M")
     ap.add_argument("--profile", action="store_true", help="also print a cProfile of analyse per N")
     ap.add_argument("--sizes", type=str, default="", help="comma-separated total sample counts")
+    ap.add_argument("--blas-threads", type=int, default=0, help="BLAS threads of each run (default: BLAS's own)")
     ap.add_argument("--child", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -139,14 +145,19 @@ def main() -> None:
     sizes = [20_000, 200_000, 2_000_000] if args.quick else [40_000, 400_000, 4_000_000]
     if args.sizes:
         sizes = [int(float(s)) for s in args.sizes.split(",")]
+    env = dict(os.environ)
+    if args.blas_threads > 0:
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            env[var] = str(args.blas_threads)
+    blas = f"{args.blas_threads} BLAS thread(s)" if args.blas_threads > 0 else "BLAS threads as set"
     print(
         "arxid analyse at scale: battery-scaled second-order plant + decoy, estimation = validation size, "
-        f"defaults, {os.cpu_count()} cores; each N in its own process"
+        f"defaults, {os.cpu_count()} cores, {blas}; each N in its own process"
     )
     rows = []
     for n in sizes:
         cmd = [sys.executable, __file__, "--child", str(n)] + (["--profile"] if args.profile else [])
-        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
         line = next((s for s in done.stdout.splitlines() if s.startswith("RESULT ")), None)
         if line is None:
             print(f"  N={n:,}: the run failed\n{done.stderr[-3000:]}")
