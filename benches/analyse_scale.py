@@ -25,6 +25,9 @@ validation; ``--quick``: 20k, 200k, 2M) it prints:
 threaded BLAS spends milliseconds waking its threads for each small product, which can swamp the
 analysis' many small matrix operations; the sweep's own threads are not affected.
 
+With ``--report`` each subprocess also renders the HTML report of the analysis
+(``arxid.report.render_html``) and prints its time and size (the size has a cap independent of N).
+
 With ``--profile`` each subprocess also prints the top entries of a cProfile of ``analyse``
 (cumulative time), which slows it down.
 
@@ -81,7 +84,7 @@ def _reset_peak() -> bool:
         return False
 
 
-def child(n_total: int, profile: bool) -> None:
+def child(n_total: int, profile: bool, report: bool = False) -> None:
     """Run in a subprocess: build the data, time analyse (memory measured) and the sweep."""
     import gc
     import resource
@@ -114,6 +117,12 @@ def child(n_total: int, profile: bool) -> None:
         "structure": a.model.structure_name(),
         "stages": a.timings,
     }
+    if report:
+        from arxid.analysis.report import render_html
+
+        t = time.perf_counter()
+        page = render_html(a)
+        out["report_s"], out["report_bytes"] = time.perf_counter() - t, len(page.encode())
     if profile:
         import cProfile
         import io
@@ -136,11 +145,12 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="N = 20k, 200k, 2M")
     ap.add_argument("--profile", action="store_true", help="also print a cProfile of analyse per N")
     ap.add_argument("--sizes", type=str, default="", help="comma-separated total sample counts")
+    ap.add_argument("--report", action="store_true", help="also time the HTML report and give its size")
     ap.add_argument("--blas-threads", type=int, default=0, help="BLAS threads of each run (default: BLAS's own)")
     ap.add_argument("--child", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(args.child, args.profile)
+        child(args.child, args.profile, args.report)
         return
     sizes = [20_000, 200_000, 2_000_000] if args.quick else [40_000, 400_000, 4_000_000]
     if args.sizes:
@@ -157,6 +167,7 @@ def main() -> None:
     rows = []
     for n in sizes:
         cmd = [sys.executable, __file__, "--child", str(n)] + (["--profile"] if args.profile else [])
+        cmd += ["--report"] if args.report else []
         done = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
         line = next((s for s in done.stdout.splitlines() if s.startswith("RESULT ")), None)
         if line is None:
@@ -173,6 +184,9 @@ def main() -> None:
             f"  {r['n']:>10,} {r['analyse']:8.2f}s {r['sweep']:7.3f}s {r['analyse'] / r['sweep']:6.0f}x "
             f"{r['added_gib']:8.3f}GiB {r['data_gib']:6.3f}G  {r['missing']} ({r['structure']})"
         )
+    for r in rows:
+        if "report_bytes" in r:
+            print(f"  HTML report at {r['n']:,}: {r['report_s']:.1f} s to render, {r['report_bytes'] / 1e6:.2f} MB")
     for r in rows:
         stages = ", ".join(f"{k} {v:.2f} s" for k, v in r["stages"].items())
         print(f"  stages at {r['n']:,}: {stages}")
