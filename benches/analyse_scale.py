@@ -175,6 +175,11 @@ def main() -> None:
             continue
         r = json.loads(line[len("RESULT ") :])
         rows.append(r)
+        print(
+            f"  done N={n:,}: analyse {r['analyse']:.2f} s, sweep {r['sweep']:.3f} s, "
+            f"memory added {r['added_gib']:.3f} GiB",
+            flush=True,
+        )
         if args.profile:
             print(f"\n--- profile of analyse at N={n:,} ---\n{r['profile']}")
     print()
