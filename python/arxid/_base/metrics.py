@@ -272,12 +272,22 @@ def rolling_rms(e: _ArrayLike, window: int) -> np.ndarray:
     the window's samples exist."""
     x = np.asarray(e, dtype=float)
     ok = np.isfinite(x)
-    ker = np.ones(max(int(window), 1))
-    s = np.convolve(np.where(ok, x * x, 0.0), ker, mode="same")
-    c = np.convolve(ok.astype(float), ker, mode="same")
+    w = max(int(window), 1)
+    n = len(x)
+    if w > n:  # the window outgrows the record: numpy's "same" convolution (short, rare)
+        ker = np.ones(w)
+        s = np.convolve(np.where(ok, x * x, 0.0), ker, mode="same")
+        c = np.convolve(ok.astype(float), ker, mode="same")
+    else:  # sums over [i - w//2, i + (w-1)//2] by cumulative sums: linear in n
+        lo = np.clip(np.arange(n) - w // 2, 0, n)
+        hi = np.clip(np.arange(n) + (w - 1) // 2 + 1, 0, n)
+        cs = np.concatenate([[0.0], np.cumsum(np.where(ok, x * x, 0.0))])
+        cc = np.concatenate([[0], np.cumsum(ok)])
+        s = np.maximum(cs[hi] - cs[lo], 0.0)
+        c = (cc[hi] - cc[lo]).astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.sqrt(s / c)
-    out[c < max(1, len(ker) // 2)] = np.nan
+    out[c < max(1, w // 2)] = np.nan
     return out
 
 

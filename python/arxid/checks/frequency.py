@@ -252,6 +252,10 @@ def _finite_runs(mask: np.ndarray, segments: list[tuple[int, int]], length: int)
     return out
 
 
+#: Welch segments whose spectra are computed together (bounds the memory of a long record's spectra).
+_CHUNK = 64
+
+
 def spectra(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment_length: int):
     """Welch cross-spectral matrix of ``signals`` over ``runs``, averaged by segment count.
 
@@ -279,10 +283,16 @@ def spectra(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment
     total, count, freq = None, 0, None
     step = segment_length // 2
     for a, b in runs:
-        x = signals[:, a:b]
         k = 1 + (b - a - segment_length) // step
-        freq, s = csd(x[:, None, :], x[None, :, :], fs=1.0 / ts, nperseg=segment_length, noverlap=step, axis=-1)
-        total = s * k if total is None else total + s * k
+        # In chunks of at most _CHUNK segments (the cross-spectra of every pair of signals and
+        # segment would hold several copies of a long record at once); each chunk's mean weighted
+        # by its segments is the mean over all of them.
+        for first in range(0, k, _CHUNK):
+            kc = min(_CHUNK, k - first)
+            lo = a + first * step
+            x = signals[:, lo : lo + (kc - 1) * step + segment_length]
+            freq, s = csd(x[:, None, :], x[None, :, :], fs=1.0 / ts, nperseg=segment_length, noverlap=step, axis=-1)
+            total = s * kc if total is None else total + s * kc
         count += k
     assert total is not None and freq is not None
     return freq, np.moveaxis(total / count, -1, 0), count

@@ -20,6 +20,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none, require_pandas, text_table
+from .._base.nested import nested_fits
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_model
@@ -53,18 +54,23 @@ def _correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray, segments) -> np
     out = np.zeros(len(lags))
     if den == 0:
         return out
-    for i, k in enumerate(lags):
-        s = 0.0
-        for lo, hi in segments:
-            n = hi - lo
+    lags = np.asarray(lags)
+    for lo, hi in segments:
+        n = hi - lo
+        if n * len(lags) > 1 << 18:  # long: every lag at once by FFT, n log n
+            size = 1 << int(2 * n - 1).bit_length()
+            c = np.fft.irfft(np.fft.rfft(av[lo:hi], size) * np.conj(np.fft.rfft(bv[lo:hi], size)), size)
+            inside = np.abs(lags) < n
+            out[inside] += c[lags[inside] % size]
+            continue
+        for i, k in enumerate(lags):
             if abs(k) >= n:
                 continue
             if k >= 0:
-                s += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
+                out[i] += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
             else:
-                s += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
-        out[i] = s / den
-    return out
+                out[i] += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
+    return out / den
 
 
 def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
@@ -87,9 +93,10 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     if m <= 2 * max_order + 2:
         return x
     best_aic, best = math.log(max(metrics.mean_square(lagged[:, 0]), 1e-300)), (0, np.zeros(0))
+    rss_all, coefs = nested_fits(lagged[:, 1:], lagged[:, 0])  # every order from one QR
+    del lagged
     for p in range(1, max_order + 1):
-        a, *_ = np.linalg.lstsq(lagged[:, 1 : p + 1], lagged[:, 0], rcond=None)
-        rss = metrics.mean_square(lagged[:, 0] - lagged[:, 1 : p + 1] @ a)
+        a, rss = coefs[p], float(rss_all[p]) / m
         aic = math.log(max(rss, 1e-300)) + 2.0 * p / m
         if aic < best_aic:
             best_aic, best = aic, (p, a)
@@ -121,7 +128,15 @@ def _block_means(x: np.ndarray, segments, block: int) -> np.ndarray:
 
 def _autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
     """Biased sample autocorrelation of a centred series at lags 0..max_lag."""
-    full = np.correlate(x, x, mode="full")[len(x) - 1 : len(x) + max_lag]
+    n = len(x)
+    if n * (max_lag + 1) <= 1 << 16:  # short: the direct sums
+        full = np.correlate(x, x, mode="full")[n - 1 : n + max_lag]
+    else:  # by FFT, n log n (the lags reach half the series in the low-frequency test)
+        size = 1 << int(2 * n - 1).bit_length()
+        f = np.fft.rfft(x, size)
+        full = np.fft.irfft(f * np.conj(f), size)[: max_lag + 1]
+        if len(full) < max_lag + 1:
+            full = np.concatenate([full, np.zeros(max_lag + 1 - len(full))])
     return full / full[0] if full[0] > 0 else np.zeros(max_lag + 1)
 
 

@@ -56,10 +56,50 @@ class AddedVariableTest:
     def __init__(self, phi: np.ndarray, y: np.ndarray):
         scale = np.linalg.norm(phi, axis=0)
         scale[scale == 0] = 1.0
-        self.q, _ = np.linalg.qr(phi / scale)
-        self.e = y - self.q @ (self.q.T @ y)
-        self.rss0 = float(self.e @ self.e)
         self.n, self.p = phi.shape
+        self._phi, self._scale = phi, scale
+        self._q: np.ndarray | None = None
+        self._keep: np.ndarray | None = None  # the independent columns (None: all)
+        # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
+        # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
+        # the residual is refined once. Otherwise Householder QR, as accurate as it gets.
+        self._r = self._cholesky(phi, scale)
+        if self._r is not None:
+            self.e = y - phi @ self._solve(phi.T @ y)
+            self.e = self.e - phi @ self._solve(phi.T @ self.e)
+        else:  # ill-conditioned: R of [Φ | y] by Householder QR in blocks of rows (no n × p copy)
+            self._keep, self._r, theta = _independent(_blocked_r(phi, scale, y), phi.shape[1])
+            if self._r is not None:
+                self.e = y - phi @ (theta / scale)
+            else:
+                self.e = y - self.q @ (self.q.T @ y)
+        self.rss0 = float(self.e @ self.e)
+
+    @staticmethod
+    def _cholesky(phi: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
+        if phi.shape[1] == 0 or phi.shape[0] <= phi.shape[1]:
+            return None
+        g = (phi.T @ phi) / np.outer(scale, scale)
+        if not np.isfinite(g).all():
+            return None
+        w = np.linalg.eigvalsh(g)
+        if w.min() <= 1e-10 * w.max():
+            return None
+        return np.linalg.cholesky(g).T
+
+    def _solve(self, v: np.ndarray) -> np.ndarray:
+        """θ with R'R (θ scale) = v / scale: least-squares coefficients from Φ'v."""
+        assert self._r is not None
+        from scipy.linalg import cho_solve
+
+        return cho_solve((self._r, False), v / self._scale) / self._scale
+
+    @property
+    def q(self) -> np.ndarray:
+        """Orthonormal basis of the regressors' span (n × p; formed only when a test needs it)."""
+        if self._q is None:
+            self._q = np.linalg.qr(self._phi / self._scale)[0]
+        return self._q
 
     def share(self, z: np.ndarray) -> float:
         """ΔRSS / RSS₀ of the columns ``z`` alone, without the F-test: a fast score for scans.
@@ -76,16 +116,32 @@ class AddedVariableTest:
         float
             In [0, 1]; NaN when the block is zero or already explained by the model.
         """
-        norms = np.linalg.norm(z, axis=0)
+        b, zz, ze = self._cross(z)
+        norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         if not (norms > 0).any() or self.rss0 <= 0:
             return math.nan
-        z = z[:, norms > 0] / norms[norms > 0]
-        zr = z - self.q @ (self.q.T @ z)
-        if np.linalg.norm(zr) < 1e-7:
-            return math.nan
-        v = zr.T @ self.e
-        coef = np.linalg.lstsq(zr.T @ zr, v, rcond=1e-10)[0]
+        k = norms > 0
+        g = (zz - b.T @ b)[np.ix_(k, k)] / np.outer(norms[k], norms[k])
+        if np.trace(g) < 1e-10:  # (nearly) explained by the model: the exact residual decides
+            z = z[:, k] / norms[k]
+            zr = z - self.q @ (self.q.T @ z)
+            if np.linalg.norm(zr) < 1e-7:
+                return math.nan
+            g = zr.T @ zr
+        v = ze[k] / norms[k]
+        coef = np.linalg.lstsq(g, v, rcond=1e-10)[0]
         return float(min(max(v @ coef, 0.0), self.rss0) / self.rss0)
+
+    def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q'z, z'z and z'e: all a test needs of the n rows (z'e = z̃'e, as Q'e = 0)."""
+        if self._r is None:
+            b = self.q.T @ z
+        else:
+            from scipy.linalg import solve_triangular
+
+            pz = (self._phi.T @ z) / self._scale[:, None]
+            b = solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
+        return b, z.T @ z, z.T @ self.e
 
     def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
         """Test the columns ``z`` (rows aligned with ``phi``).
@@ -103,10 +159,14 @@ class AddedVariableTest:
         """
         from scipy import stats
 
-        norms = np.linalg.norm(z, axis=0)
+        b, zz, ze = self._cross(z)
+        norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         keep = norms > 0
         if not keep.any():
             return None, "the candidate is zero on these data"
+        fast = self._from_cross(b, zz, ze, keep, norms)
+        if fast is not None:
+            return fast, ""
         z = z[:, keep] / norms[keep]
         zr = z - self.q @ (self.q.T @ z)
         rn = np.linalg.norm(zr, axis=0)
@@ -125,6 +185,72 @@ class AddedVariableTest:
         rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
         f = (drss / q) / (rss1 / dof)
         return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
+
+    def _from_cross(
+        self, b: np.ndarray, zz: np.ndarray, ze: np.ndarray, keep: np.ndarray, norms: np.ndarray
+    ) -> AddedVariableResult | None:
+        """The test from the cross-products when the block is well conditioned beside the model's
+        regressors (None otherwise: the QR of the stripped block decides which columns count)."""
+        from scipy import stats
+
+        nk = norms[keep]
+        g = (zz - b.T @ b)[np.ix_(keep, keep)] / np.outer(nk, nk)
+        rn = np.sqrt(np.maximum(np.diag(g), 0.0))
+        if rn.min() <= 1e-4:
+            return None
+        gs = g / np.outer(rn, rn)
+        if np.linalg.eigvalsh(gs).min() <= 1e-8:
+            return None
+        q = g.shape[0]
+        dof = self.n - self.p - q
+        if dof < 1 or self.rss0 <= 0:
+            return None
+        v = ze[keep] / nk
+        drss = min(float(v @ np.linalg.solve(g, v)), self.rss0)
+        drss = max(drss, 0.0)
+        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
+        f = (drss / q) / (rss1 / dof)
+        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q)
+
+
+#: Rows per block of the blocked QR.
+_BLOCK = 65536
+
+
+def _blocked_r(phi: np.ndarray, scale: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """R with R'R = [Φ/scale | y]'[Φ/scale | y]: Householder QR of blocks of rows, then of their R's
+    stacked (as accurate as one QR; each block copied once)."""
+    rs = []
+    for lo in range(0, phi.shape[0], _BLOCK):
+        block = np.column_stack([phi[lo : lo + _BLOCK] / scale, y[lo : lo + _BLOCK]])
+        rs.append(np.asarray(np.linalg.qr(block, mode="r")))
+    return rs[0] if len(rs) == 1 else np.asarray(np.linalg.qr(np.vstack(rs), mode="r"))
+
+
+def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """From R of [Φ | y] (p + 1 columns): the independent columns of Φ (None: all), the R of those
+    columns and the least-squares coefficients of y on them (zero on the others); R None when Φ has
+    no independent column or too few rows."""
+    from scipy.linalg import qr, solve_triangular
+
+    theta = np.zeros(p)
+    if p == 0 or r.shape[0] <= p:
+        return None, None, theta
+    d = np.abs(np.diag(r)[:p])
+    if d.min() > 1e-12 * d.max():
+        theta[:] = solve_triangular(r[:p, :p], r[:p, p])
+        return None, r[:p, :p], theta
+    # Exactly dependent columns (a lag listed twice, ...): keep a largest independent set, the
+    # span of Φ unchanged; R of the kept columns and y from the small factor.
+    _, rp, piv = qr(r[:p, :p], pivoting=True, mode="economic")
+    dp = np.abs(np.diag(rp))
+    k = int(np.sum(dp > 1e-12 * dp.max())) if dp.max() > 0 else 0
+    if k == 0:
+        return None, None, theta
+    keep = np.sort(piv[:k])
+    r2 = np.asarray(np.linalg.qr(r[:, np.append(keep, p)], mode="r"))
+    theta[keep] = solve_triangular(r2[:k, :k], r2[:k, k])
+    return keep, r2[:k, :k], theta
 
 
 def holm(p: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.nested import least_squares, nested_fits
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -128,14 +129,36 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     deepest = max((max(lags) for _, _, lags in plan if lags), default=0) + LINEAR_CONTEXT
     first = max(model.first_lag_, max_lag(model.na_, layout), deepest)
     phi, y, rows = regressor_matrix(data, model.na_, layout, first)
-    linear = [x[rows - lag] for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
-    blocks = [(name, lag, _features(x, rows, lag, changes_sign(x))) for name, x, lags in plan for lag in lags]
-    ok = np.isfinite(np.column_stack(linear + [b for _, _, b in blocks])).all(axis=1) if blocks else None
-    if ok is None or ok.sum() <= phi.shape[1] + len(linear) + 10:
+    lin_specs = [(x, lag) for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
+    # The columns are built one at a time into one design matrix (and the feature blocks again when
+    # tested): lists of them, stacked, would hold several copies of a long record at once.
+    specs = [(name, x, lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
+    if not specs:
         return ()
-    whiten = _prewhitening(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok], rows[ok])
-    base = AddedVariableTest(*whiten(np.column_stack([phi, *linear, np.ones(len(rows))])[ok], y[ok]))
-    tested = [(name, lag, res) for name, lag, b in blocks if (res := base.test(whiten(b[ok])[0])[0]) is not None]
+    ok = np.ones(len(rows), dtype=bool)
+    for x, lag in lin_specs:
+        ok &= np.isfinite(x[rows - lag])
+    for _, x, lag, signed in specs:
+        ok &= np.isfinite(_features(x, rows, lag, signed)).all(axis=1)
+    if ok.sum() <= phi.shape[1] + len(lin_specs) + 10:
+        return ()
+    p = phi.shape[1]
+    design = np.empty((int(ok.sum()), p + len(lin_specs) + 1))
+    for i in range(p):
+        design[:, i] = phi[ok, i]
+    del phi
+    kept = rows[ok]
+    for j, (x, lag) in enumerate(lin_specs):
+        design[:, p + j] = x[kept - lag]
+    design[:, -1] = 1.0
+    whiten = _prewhitening(design, y[ok], kept)
+    base = AddedVariableTest(*whiten(design, y[ok]))
+    del design
+    tested = [
+        (name, lag, res)
+        for name, x, lag, signed in specs
+        if (res := base.test(whiten(_features(x, rows, lag, signed)[ok])[0])[0]) is not None
+    ]
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))
@@ -173,16 +196,16 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
     def identity(z: np.ndarray, yy: np.ndarray | None = None):
         return z, yy
 
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    r = y - x @ coef
+    r = y - x @ least_squares(x, y)
     keep, prev = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return identity
     past, now = np.column_stack([r[p] for p in prev]), r[keep]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
+    rss_all, coefs = nested_fits(past, now)  # every order from one QR
     for p in range(1, MAX_NOISE_ORDER + 1):
-        c, *_ = np.linalg.lstsq(past[:, :p], now, rcond=None)
-        ic = math.log(max(float(np.mean((now - past[:, :p] @ c) ** 2)), 1e-300)) + 2.0 * p / len(now)
+        c = coefs[p]
+        ic = math.log(max(float(rss_all[p]) / len(now), 1e-300)) + 2.0 * p / len(now)
         if ic < best_ic:
             best_ic, a = ic, c
     if a.size == 0:
@@ -191,7 +214,12 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
 
     def whiten(z: np.ndarray, yy: np.ndarray | None = None):
         def f(v: np.ndarray) -> np.ndarray:
-            return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
+            if v.ndim == 1:
+                return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
+            out = np.empty((len(use), v.shape[1]))
+            for i in range(v.shape[1]):  # column by column: temporaries of one column only
+                out[:, i] = f(v[:, i])
+            return out
 
         return f(z), (None if yy is None else f(yy))
 

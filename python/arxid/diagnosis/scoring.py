@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import re
+import weakref
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects, format_threshold
-from ..models.regressors import max_lag, regressor_matrix, regressor_names
+from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
@@ -47,7 +48,7 @@ class Scoring:
                 self.notes[c.label] = str(exc)
                 continue
             lag = max(lag, max_lag(c.na, lay))
-            self.prepared.append((c, lay))
+            self.prepared.append(c)  # its layout (a copy of the inputs) is compiled again when scored
         self.lag = lag
         self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
         if len(self.rows0) <= self.phi0.shape[1] + 2:
@@ -55,10 +56,13 @@ class Scoring:
                 f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
             )
         self.proj0 = AddedVariableTest(self.phi0, self.y0)
-        self.single_z: dict[str, np.ndarray] = {}
+        # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
+        # are formed from a few of them): holding every candidate's columns would cost a copy of
+        # the record per candidate.
+        self.single_z = _Rebuilt(self)
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
-        scored = [s for s in (self._score(c, lay) for c, lay in self.prepared) if s is not None]
+        scored = [s for s in (self._score(c, layout_for(c, self.model, self.data)[1]) for c in self.prepared) if s]
         scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
         scored = self._one_direction_term(scored)
         if "const" not in self.model.effects and n_pairs > 0:
@@ -69,6 +73,11 @@ class Scoring:
 
     def _columns(self, c: Candidate, lay) -> tuple[np.ndarray, np.ndarray]:
         names = regressor_names(self.data.output_name, c.na, lay)
+        new = [i for i, nm in enumerate(names) if nm not in self.base_names]
+        if max_lag(c.na, lay) <= self.lag:  # only the new columns, on the model's rows
+            z = regressor_columns(self.data, c.na, lay, self.rows0, new)
+            if np.isfinite(z).all():
+                return z, self.rows0
         phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
         new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         return phi[:, new], rows
@@ -91,7 +100,7 @@ class Scoring:
             self.notes[c.label] = why
             return None
         if proj is self.proj0:
-            self.single_z[c.label] = z
+            self.single_z.keep(c.label, ("candidate", c))
         return scored_entry(c, res)
 
     def _threshold_columns(self, op: str, signal: str, c: float) -> tuple[Candidate, np.ndarray]:
@@ -129,7 +138,7 @@ class Scoring:
         if res is None:
             self.notes[group[0].label] = why
             return None
-        self.single_z[cand.label] = z
+        self.single_z.keep(cand.label, ("threshold", op, signal, c))
         self.notes[cand.label] = f"threshold scanned over {n} quantiles of |{signal}| (p-value x {n})"
         scored = scored_entry(cand, res)
         scored["p"] = min(1.0, scored["p"] * n)
@@ -233,6 +242,27 @@ class Scoring:
                 pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
                 out.append(scored_entry(pc, res))
         return out
+
+
+class _Rebuilt(dict):
+    """A dict of label -> columns on the model's rows, rebuilt from a stored recipe on each access:
+    ``("candidate", c)`` or ``("threshold", op, signal, c)``. The scoring is held weakly, so the
+    recipes make no reference cycle that would keep the scoring's arrays alive."""
+
+    def __init__(self, scoring: Scoring):
+        super().__init__()
+        self._scoring = weakref.ref(scoring)
+
+    def keep(self, label: str, recipe: tuple) -> None:
+        super().__setitem__(label, recipe)
+
+    def __getitem__(self, label: str) -> np.ndarray:
+        recipe, sc = super().__getitem__(label), self._scoring()
+        assert sc is not None
+        if recipe[0] == "candidate":
+            c = recipe[1]
+            return sc._columns(c, layout_for(c, sc.model, sc.data)[1])[0]
+        return sc._threshold_columns(*recipe[1:])[1]
 
 
 def scored_entry(c: Candidate, res: AddedVariableResult) -> dict:

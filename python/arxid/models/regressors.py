@@ -15,7 +15,7 @@ from .._base import _core
 from ..data.iodata import IOData
 from .effects import EffectLayout
 
-__all__ = ["regressor_names", "regressor_matrix", "max_lag", "row_bound"]
+__all__ = ["regressor_names", "regressor_matrix", "regressor_columns", "max_lag", "row_bound"]
 
 
 def _lag(k: int) -> str:
@@ -112,19 +112,73 @@ def regressor_matrix(
         Sample index of each row.
     """
     y = data.y
-    u = layout.u
     lag = max(first_lag, max_lag(na, layout))
     rows = np.concatenate(
         [np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]
     ).astype(int)
+    cols = _columns(data, na, layout, rows, None, signs)
+    phi = np.column_stack(cols) if cols else np.zeros((len(rows), 0))
+    ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
+    if ok.all():  # no row touches a missing sample: no copies
+        return phi, y[rows], rows
+    return phi[ok], y[rows][ok], rows[ok]
+
+
+def regressor_columns(
+    data: IOData, na: int, layout: EffectLayout, rows: np.ndarray, which: Sequence[int]
+) -> np.ndarray:
+    """The columns ``which`` of the regressor matrix on the sample rows ``rows``, without building
+    the others (NaN kept: the caller decides which rows count).
+
+    Parameters
+    ----------
+    data : IOData
+    na : int
+        Output order.
+    layout : EffectLayout
+        Input orders and delays with the effects.
+    rows : ndarray of int
+        Sample index of each row (each at least the model's largest lag into its experiment).
+    which : sequence of int
+        Column indices, in the order of :func:`regressor_names`.
+
+    Returns
+    -------
+    ndarray of shape (len(rows), len(which))
+    """
+    cols = _columns(data, na, layout, rows, set(which), True)
+    index = sorted(set(which))
+    out = np.empty((len(rows), len(which)))
+    for i, w in enumerate(which):
+        out[:, i] = cols[index.index(w)]
+    return out
+
+
+def _columns(
+    data: IOData, na: int, layout: EffectLayout, rows: np.ndarray, which: set[int] | None, signs: bool
+) -> list[np.ndarray]:
+    """The regressor columns at ``rows`` in parameter order (only those in ``which`` when given)."""
+    y = data.y
+    u = layout.u
     cols = []
     s = -1.0 if signs else 1.0
+    at = -1
+
+    def wanted() -> bool:
+        nonlocal at
+        at += 1
+        return which is None or at in which
+
     for i in range(1, na + 1):
-        cols.append(s * y[rows - i])
+        if wanted():
+            cols.append(s * y[rows - i])
     for j, (b, k) in enumerate(zip(layout.nb, layout.nk, strict=True)):
         for lag_j in range(b):
-            cols.append(u[rows - k - lag_j, j])
+            if wanted():
+                cols.append(u[rows - k - lag_j, j])
     for kind, power, mult in layout.output_terms:
+        if not wanted():
+            continue
         y1 = y[rows - 1]
         if kind == "pow":
             g = y1**power
@@ -137,9 +191,7 @@ def regressor_matrix(
         if mult >= 0:
             g = g * u[rows - 1, mult]
         cols.append(g)
-    phi = np.column_stack(cols) if cols else np.zeros((len(rows), 0))
-    ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
-    return phi[ok], y[rows][ok], rows[ok]
+    return cols
 
 
 def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:

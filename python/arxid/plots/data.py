@@ -84,15 +84,16 @@ def thin(t: np.ndarray, *ys: np.ndarray, max_points: int = 4000) -> tuple[np.nda
         ``t`` and each of ``ys`` thinned the same way.
     """
     n = len(t)
-    k = max(1, n // max(max_points // 2, 1))
+    k = max(1, -(-n // max(max_points // 2, 1)))  # samples per bucket, so at most max_points kept
     if k == 1:
         return (t,) + tuple(ys)
-    m = n // k
-    idx = np.arange(m * k).reshape(m, k)
-    out_t = np.repeat(t[idx[:, 0]], 2)
+    m = -(-n // k)  # the last bucket may be partial (padded with NaN): its peaks are kept too
+    out_t = np.repeat(np.asarray(t)[::k], 2)
     out = []
     for y in ys:
-        block = np.asarray(y, dtype=float)[: m * k].reshape(m, k)
+        flat = np.full(m * k, np.nan)
+        flat[:n] = np.asarray(y, dtype=float)
+        block = flat.reshape(m, k)
         empty = np.isnan(block).all(axis=1)
         lo = np.where(empty, np.nan, np.where(np.isnan(block), np.inf, block).min(axis=1))
         hi = np.where(empty, np.nan, np.where(np.isnan(block), -np.inf, block).max(axis=1))

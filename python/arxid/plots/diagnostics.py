@@ -47,8 +47,15 @@ def _envelope(ax: Any, t: np.ndarray, y: np.ndarray, color: str, label: str, lw:
 
 
 def _band(ax: Any, t: np.ndarray, band: Any, color: str, sl: slice = slice(None)) -> None:
-    if band is not None:
-        ax.fill_between(t[sl], band.lower[sl], band.upper[sl], color=color, alpha=0.25, lw=0)
+    """The band shaded; for a long record per pixel-sized bucket from its lowest lower to its
+    highest upper bound (the band drawn never narrower than the computed one)."""
+    if band is None:
+        return
+    tt, lower, upper = t[sl], band.lower[sl], band.upper[sl]
+    if len(tt) > LONG_RECORD:
+        tt, lo2, hi2 = thin(tt, lower, upper, max_points=1200)
+        tt, lower, upper = tt[0::2], lo2[0::2], hi2[1::2]
+    ax.fill_between(tt, lower, upper, color=color, alpha=0.25, lw=0)
 
 
 def _zoom_slice(cmp: Any, zoom: tuple[float, float] | None) -> slice | None:
