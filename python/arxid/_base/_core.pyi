@@ -252,14 +252,12 @@ def iv_sweep(
     progress: Callable[[int], object] | None = None,
 ) -> tuple[SweepOutput, list[_F], int]: ...
 
-
 # (kind, line, offset, got, column, text): see rust/py_csv.rs
 _CsvProblem = tuple[str, int, int, int, int, str]
 
 def csv_read(
     path: str | os.PathLike[str], delimiter: str, n_fields: int, wanted: Sequence[int]
 ) -> tuple[list[_F] | None, bool, _CsvProblem | None]: ...
-
 def srivc_filter(
     signal: _F, segments: Sequence[tuple[int, int]], phi: _F, prev: _F, cur: _F, next: _F, shift: int = 0
 ) -> _F: ...
