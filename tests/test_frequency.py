@@ -171,3 +171,47 @@ def test_band_arguments_are_checked(arx221):
         step_band(model, 10, level=99)
     with pytest.raises(ArxidError, match="n_draws"):
         step_band(model, 10, method="monte-carlo", n_draws=2)
+
+
+def _polynomial_models():
+    """OE (two inputs), BJ and ARMAX fits of a plant with input denominators."""
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal((4000, 2))
+    y = lfilter([0, 0.5, 0.2], [1, -1.2, 0.5], u[:, 0]) + lfilter([0, 0, 0.3], [1, -0.6], u[:, 1])
+    y += 0.05 * lfilter([1, 0.4], [1, -0.5], rng.standard_normal(4000))
+    d2 = arxid.IOData(y, u, ts=0.02)
+    d1 = arxid.IOData(y, u[:, 0], ts=0.02)
+    return [
+        arxid.oe(d2, [2, 1], [2, 1], [1, 2]),
+        arxid.bj(d1, 2, 1, 1, 2, 1),
+        arxid.armax(d1, 2, 2, 1, 1),
+    ]
+
+
+@pytest.mark.parametrize("index", range(3))
+def test_frequency_response_of_polynomial_models_is_b_over_a_f(index):
+    """The response is B_i/(A F_i) of the model's own polynomials (scipy's freqz), and its standard
+    deviation is the first-order one from a finite-difference Jacobian over all of θ."""
+    from scipy.signal import freqz
+
+    model = _polynomial_models()[index]
+    freq = np.array([0.05, 0.5, 2.0, 7.0, 20.0])
+    w = 2 * np.pi * freq * model.ts
+    for i in range(len(model.nb_)):
+        g, sd = frequency_response(model, freq, i)
+        num, den = model.input_transfer(i)
+        np.testing.assert_allclose(g, freqz(num, den, worN=w)[1], rtol=1e-12, atol=1e-14)
+        theta, jac = model.parameters_.copy(), np.empty((len(freq), model.n_params), dtype=complex)
+        for k in range(model.n_params):
+            h = 1e-7 * max(1.0, abs(theta[k]))
+            model.parameters_ = theta.copy()
+            model.parameters_[k] += h
+            up = freqz(*model.input_transfer(i), worN=w)[1]
+            model.parameters_[k] -= 2 * h
+            down = freqz(*model.input_transfer(i), worN=w)[1]
+            jac[:, k] = (up - down) / (2 * h)
+        model.parameters_ = theta
+        cov = model.covariance_
+        var = np.einsum("fi,ij,fj->f", jac.real, cov, jac.real) + np.einsum("fi,ij,fj->f", jac.imag, cov, jac.imag)
+        ref = np.sqrt(var)
+        np.testing.assert_allclose(sd, ref, rtol=1e-5)

@@ -53,6 +53,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_model
 from ..models.arx_model import ArxModel
+from ..models.polynomial import PolynomialModel
 
 __all__ = [
     "ResponseBand",
@@ -304,11 +305,12 @@ def free_run_band(
 
 
 def frequency_response(model: ArxModel, frequency: np.ndarray, input: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Frequency response B(e^{-jω})/A(e^{-jω}) of ``input`` and its first-order standard deviation.
+    """Frequency response B(e^{-jω})/(A(e^{-jω}) F(e^{-jω})) of ``input`` and its first-order standard
+    deviation (F = 1 for ARX and ARMAX models).
 
     Parameters
     ----------
-    model : ArxModel
+    model : ArxModel or PolynomialModel
     frequency : ndarray of shape (n,)
         Frequencies in Hz (ω = 2π f ts).
     input : int
@@ -324,20 +326,29 @@ def frequency_response(model: ArxModel, frequency: np.ndarray, input: int = 0) -
     model = check_model(model)
     f = np.asarray(frequency, dtype=float)
     zinv = np.exp(-2j * np.pi * f * model.ts)
-    na, p = model.na_, model.n_params
-    a = model.a
-    powers = zinv[:, None] ** np.arange(max(na, 1) + 1)[None, :]
-    big_a = powers[:, : na + 1] @ a
-    b = model.b[input]
-    start = na + int(sum(model.nb_[:input]))
-    nk, nb = model.nk_[input], model.nb_[input]
+    na, nk, nb = model.na_, model.nk_[input], model.nb_[input]
+    powers_a = zinv[:, None] ** np.arange(1, na + 1)[None, :]
+    big_a = 1.0 + powers_a @ model.a[1:]
     bpow = zinv[:, None] ** np.arange(nk, nk + nb)[None, :]
-    big_b = bpow @ b[nk:]
-    g = big_b / big_a
-    grad = np.zeros((len(f), p), dtype=complex)
-    if na:
-        grad[:, :na] = -(g / big_a)[:, None] * powers[:, 1 : na + 1]
-    grad[:, start : start + nb] = bpow / big_a[:, None]
+    big_b = bpow @ model.b[input][nk:]
+    f_coefs, f_start = _input_denominator(model, input)
+    powers_f = zinv[:, None] ** np.arange(1, len(f_coefs))[None, :]
+    big_f = 1.0 + powers_f @ f_coefs[1:]
+    g = big_b / (big_a * big_f)
+    grad = np.zeros((len(f), model.n_params), dtype=complex)
+    grad[:, :na] = -(g / big_a)[:, None] * powers_a
+    b_start = na + int(sum(model.nb_[:input]))
+    grad[:, b_start : b_start + nb] = bpow / (big_a * big_f)[:, None]
+    grad[:, f_start : f_start + len(f_coefs) - 1] = -(g / big_f)[:, None] * powers_f
     cov = np.asarray(model.covariance_, dtype=float)
     var = np.einsum("fi,ij,fj->f", grad.real, cov, grad.real) + np.einsum("fi,ij,fj->f", grad.imag, cov, grad.imag)
     return g, np.sqrt(np.maximum(var, 0.0))
+
+
+def _input_denominator(model: ArxModel, input: int) -> tuple[np.ndarray, int]:
+    """F_i of an OE or BJ model (``[1.0]`` for ARX and ARMAX) and where its parameters start in θ
+    (``getpvec`` order: A, B per input, C, D, F per input)."""
+    if not isinstance(model, PolynomialModel) or not model.nf_[input]:
+        return np.ones(1), 0
+    start = model.na_ + int(sum(model.nb_)) + model.nc_ + model.nd_ + int(sum(model.nf_[:input]))
+    return model.f[input], start
