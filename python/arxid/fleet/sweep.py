@@ -250,7 +250,8 @@ class DaskEngine:
         r_est, n_est, r_val, n_val, peak_est, peak_val = self.factors(layout)
         out, simulate = _core.sweep_factors(r_est, n_est, layout, self.terms, r_val=r_val, n_val=n_val, top=top)
         result = FleetOutput.from_core(out)
-        fitted = np.array([i for i in simulate if out.errors[i] is None], dtype=int)
+        errors = out.errors  # one conversion: each attribute read converts the whole list
+        fitted = np.array([i for i in simulate if errors[i] is None], dtype=int)
         peaks = {"est": peak_est} if simulate_estimation else {}
         peaks.update({"val": peak_val} if r_val is not None else {})
         common = {"first_lag": out.first_lag, "horizon": horizon, "terms": self.terms, "columns": self.columns}
