@@ -1,6 +1,8 @@
 """Measured data: :class:`IOData` (validated float64 samples, experiments, NaN gaps, names, units,
 sample time), the CSV reader behind :meth:`IOData.from_csv`, and logs read and merged into one
-IOData with one experiment per log (:func:`load_experiment`, :func:`merge_logs`)."""
+IOData with one experiment per log (:func:`load_experiment`, :func:`merge_logs`), PX4 flight logs
+(:meth:`IOData.from_ulog`, module ``ulog``), and the checks of sample arrays and sampling times
+(module ``samples``)."""
 
 from .iodata import IOData
 from .logs import load_experiment, merge_logs

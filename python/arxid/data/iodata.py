@@ -12,98 +12,9 @@ import numpy as np
 
 from ..exceptions import DataError
 from .csvio import CsvFile
+from .samples import as_float_samples, check_sampling_time, freeze_owned
 
 __all__ = ["IOData"]
-
-
-def _as_float(name: str, values, ndim: int) -> np.ndarray:
-    if values is None:
-        raise DataError(f"{name} is None; pass a list or numpy array of numbers")
-    if isinstance(values, np.ma.MaskedArray):
-        # A masked sample is a missing one: NaN, as everywhere in arxid (the mask would be lost).
-        if values.dtype.kind not in "biuf":
-            raise DataError(f"{name} is a masked array of {values.dtype}; it must hold numbers")
-        values = np.ma.filled(values.astype(np.float64), np.nan)
-    try:
-        arr = np.asarray(values)
-    except Exception as exc:  # ragged lists and the like
-        raise DataError(
-            f"{name} could not be read as a numeric array ({exc}); pass a list or numpy array of numbers"
-        ) from None
-    if arr.dtype == object or arr.dtype.kind in "USV":
-        raise DataError(
-            f"{name} has dtype {arr.dtype}; it must hold numbers (convert it with numpy.asarray(..., dtype=float))"
-        )
-    if arr.dtype.kind == "c":
-        raise DataError(f"{name} is complex; arxid identifies real-valued signals")
-    if arr.dtype.kind == "b":
-        arr = arr.astype(np.float64)
-    if not _frozen_float(arr):
-        arr = np.array(arr, dtype=np.float64, copy=True, order="C")
-    if ndim == 1 and arr.ndim == 2 and 1 in arr.shape:
-        arr = arr.reshape(-1)
-    if ndim == 2 and arr.ndim == 1:
-        arr = arr.reshape(-1, 1)
-    if arr.ndim != ndim:
-        shape = "(n_samples,)" if ndim == 1 else "(n_samples, n_inputs)"
-        raise DataError(f"{name} has shape {arr.shape}; expected {shape}")
-    if np.isinf(arr).any():
-        idx = int(np.argwhere(np.isinf(arr))[0][0])
-        raise DataError(f"{name} holds an infinite value at sample {idx}; mark missing samples with NaN instead")
-    return arr
-
-
-def _frozen_float(arr: np.ndarray) -> bool:
-    """Whether ``arr`` can be shared rather than copied: C-ordered float64 that neither it nor any
-    array it views can write (an IOData's own samples, a slice of them, a read-only memory map)."""
-    if arr.dtype != np.float64 or not arr.flags.c_contiguous:
-        return False
-    a: Any = arr
-    while isinstance(a, np.ndarray):
-        if a.flags.writeable:
-            return False
-        a = a.base
-    return True
-
-
-def freeze_owned(arr: np.ndarray) -> np.ndarray:
-    """An array nobody else holds (made or read just now) made read-only, with the buffers it views,
-    so that IOData takes it without a copy.
-
-    Parameters
-    ----------
-    arr : ndarray
-
-    Returns
-    -------
-    ndarray
-        ``arr`` itself.
-    """
-    a: Any = arr
-    while isinstance(a, np.ndarray):
-        a.setflags(write=False)
-        a = a.base
-    return arr
-
-
-#: Sampling times arxid accepts, in seconds: 1 ns to one day. Outside, the value is almost surely a
-#: wrong unit (milliseconds or microseconds read as seconds), and ``time`` effects would overflow.
-MIN_TS, MAX_TS = 1e-9, 86400.0
-
-
-def _check_sampling_time(ts: float) -> None:
-    """A :class:`DataError` of its own for an absurd sampling time (it would otherwise surface as an
-    overflow warning and "too few usable samples")."""
-    if ts < MIN_TS:
-        raise DataError(
-            f"ts = {ts:g} s is below 1 ns ({MIN_TS:g} s): no sampled data are that fast; "
-            "give the sampling time in seconds (for example ts=0.001 for 1 kHz)"
-        )
-    if ts > MAX_TS:
-        raise DataError(
-            f"ts = {ts:g} s is longer than a day ({MAX_TS:g} s); give the sampling time in seconds "
-            "(a time column in milliseconds or microseconds must be converted to seconds first)"
-        )
 
 
 def _sample_at(time: float, ts: float, n: int) -> int:
@@ -161,8 +72,8 @@ class IOData:
 
     def __post_init__(self):
         self._check_optional_fields()
-        y = _as_float("y (output)", self.y, 1)
-        u = _as_float("u (inputs)", self.u, 2)
+        y = as_float_samples("y (output)", self.y, 1)
+        u = as_float_samples("u (inputs)", self.u, 2)
         n = y.shape[0]
         if n == 0:
             raise DataError("the data are empty (0 samples); pass at least a few hundred samples")
@@ -177,7 +88,7 @@ class IOData:
             raise DataError(f"ts must be a number of seconds, got {self.ts!r}") from None
         if not math.isfinite(ts) or ts <= 0:
             raise DataError(f"ts must be a positive sampling time in seconds, got {self.ts!r}")
-        _check_sampling_time(ts)
+        check_sampling_time(ts)
         m = u.shape[1]
         names = tuple(self.input_names) if self.input_names else tuple(f"u{i + 1}" for i in range(m))
         if len(names) != m:
@@ -187,7 +98,7 @@ class IOData:
             raise DataError(f"{len(units)} input units given for {m} inputs")
         extra = {}
         for k, v in dict(self.extra).items():
-            arr = _as_float(f"extra signal {k!r}", v, 1)
+            arr = as_float_samples(f"extra signal {k!r}", v, 1)
             if arr.shape[0] != n:
                 raise DataError(f"extra signal {k!r} has {arr.shape[0]} samples but the data have {n}")
             extra[str(k)] = arr

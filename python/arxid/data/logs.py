@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import ArxidError, DataError
-from .iodata import IOData, freeze_owned
+from .iodata import IOData
+from .samples import freeze_owned
 
 __all__ = [
     "LogSignals",

@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 
 from .._base.limits import MAX_ORDER
-from ..data.iodata import MAX_TS, MIN_TS, IOData
+from ..data.iodata import IOData
+from ..data.samples import MAX_TS, MIN_TS
 from ..exceptions import ArxidError, DataError
 from .effects import compile_effects
 from .fitted_layout import FittedLayout
