@@ -74,6 +74,9 @@ class AddedVariableTest:
             else:
                 self.e = y - self.q @ (self.q.T @ y)
         self.rss0 = float(self.e @ self.e)
+        # Noise-free data a model fits exactly leave a residual at rounding level: testing columns
+        # against it would find effects in rounding noise (and its F-ratio can divide by zero).
+        self.exact = self.rss0 <= _ROUNDING**2 * float(y @ y)
 
     @staticmethod
     def _cholesky(phi: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
@@ -116,6 +119,8 @@ class AddedVariableTest:
         float
             In [0, 1]; NaN when the block is zero or already explained by the model.
         """
+        if self.exact:
+            return math.nan
         b, zz, ze = self._cross(z)
         norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         if not (norms > 0).any() or self.rss0 <= 0:
@@ -159,6 +164,8 @@ class AddedVariableTest:
         """
         from scipy import stats
 
+        if self.exact:
+            return None, "the model reproduces the output to rounding: nothing is left to explain"
         b, zz, ze = self._cross(z)
         norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         keep = norms > 0
@@ -212,6 +219,9 @@ class AddedVariableTest:
         f = (drss / q) / (rss1 / dof)
         return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q)
 
+
+#: Residual RMS, relative to the output's, below which a fit is exact (rounding, not noise).
+_ROUNDING = 1e-10
 
 #: Rows per block of the blocked QR.
 _BLOCK = 65536
