@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["nested_fits", "least_squares"]
+__all__ = ["nested_fits", "least_squares", "blocked_r", "BLOCK_ROWS"]
+
+#: Rows per block of the blocked QR (:func:`blocked_r`).
+BLOCK_ROWS = 65536
 
 
 def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -82,8 +85,9 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Coefficients of the least-squares fit of ``y`` on the columns of ``x``, with no copy of ``x``.
 
     From the Cholesky factor of the scaled Gram matrix when it is well conditioned (scaled
-    condition number below 1e5; one refinement step from the residual), else
-    ``numpy.linalg.lstsq`` (which copies ``x`` and handles any rank).
+    condition number below 1e5; one refinement step from the residual), else from the R of a
+    blocked Householder QR (:func:`blocked_r`; any rank, the minimum-norm solution as
+    ``numpy.linalg.lstsq`` gives).
 
     Parameters
     ----------
@@ -115,4 +119,44 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:
                 coef = cho_solve(c, (x.T @ y) / d) / d
                 coef += cho_solve(c, (x.T @ (y - x @ coef)) / d) / d
                 return coef
-    return np.linalg.lstsq(x, y, rcond=None)[0]
+    if n <= p:
+        return np.linalg.lstsq(x, y, rcond=None)[0]
+    # Ill-conditioned: the small system R θ = r of the blocked QR has the same least-squares
+    # solutions as the tall one (X = QR with Q orthonormal), the minimum-norm one included.
+    r = blocked_r(x, y)
+    return np.linalg.lstsq(np.triu(r[:p, :p]), r[:p, p], rcond=None)[0]
+
+
+def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:
+    """R with R'R = [x/scale | y]'[x/scale | y]: Householder QR of blocks of rows, then of their R's
+    stacked (as accurate as one QR of the whole matrix; each block copied once, no n × p copy).
+
+    Parameters
+    ----------
+    x : ndarray of shape (n, p)
+    y : ndarray of shape (n,), optional
+        A last column (left out when None).
+    scale : ndarray of shape (p,), optional
+        Column divisors of ``x`` (default 1).
+
+    Returns
+    -------
+    ndarray of shape (min(n, k), k)
+        Upper triangular; k = p + 1 with ``y``, else p.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(2).standard_normal((300_000, 3))
+    >>> r = blocked_r(x)
+    >>> bool(np.allclose(r.T @ r, x.T @ x))
+    True
+    """
+    rs = []
+    for lo in range(0, x.shape[0], BLOCK_ROWS):
+        part = x[lo : lo + BLOCK_ROWS] if scale is None else x[lo : lo + BLOCK_ROWS] / scale
+        block = part if y is None else np.column_stack([part, y[lo : lo + BLOCK_ROWS]])
+        rs.append(np.asarray(np.linalg.qr(block, mode="r")))
+    if not rs:
+        return np.zeros((0, x.shape[1] + (y is not None)))
+    return rs[0] if len(rs) == 1 else np.asarray(np.linalg.qr(np.vstack(rs), mode="r"))

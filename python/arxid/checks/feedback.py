@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._base.formatting import json_safe
+from .._base.nested import blocked_r
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
@@ -95,12 +96,25 @@ class FeedbackTest:
         return json.dumps(json_safe(fields), allow_nan=False)  # NaN (no conclusion) becomes null
 
 
+def _nested_rss(y: np.ndarray, p_small: int, x: np.ndarray) -> tuple[float, float]:
+    """Residual sums of squares of y on the first ``p_small`` columns of ``x`` and on all of them,
+    from one blocked QR of [x | y] (the tail of R's last column); lstsq when x is rank deficient."""
+    p = x.shape[1]
+    if x.shape[0] > p:
+        r = blocked_r(x, y)
+        d = np.abs(np.diag(r)[:p])
+        if d.min() > 1e-12 * d.max():
+            return float(np.sum(r[p_small : p + 1, p] ** 2)), float(r[p, p] ** 2)
+    fits = [np.linalg.lstsq(x[:, :k], y, rcond=None)[0] for k in (p_small, p)]
+    small, big = (float(np.sum((y - x[:, : len(c)] @ c) ** 2)) for c in fits)
+    return small, big
+
+
 def _f_test(y, x_small, x_big) -> tuple[float, float, int, int]:
     """F statistic and p-value of the columns of ``x_big`` beyond ``x_small``."""
     from scipy import stats
 
-    rss_small = float(np.sum((y - x_small @ np.linalg.lstsq(x_small, y, rcond=None)[0]) ** 2))
-    rss_big = float(np.sum((y - x_big @ np.linalg.lstsq(x_big, y, rcond=None)[0]) ** 2))
+    rss_small, rss_big = _nested_rss(y, x_small.shape[1], x_big)
     q = x_big.shape[1] - x_small.shape[1]
     dof = x_big.shape[0] - x_big.shape[1]
     if rss_big <= 0 or dof <= 0:

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.nested import blocked_r
+
 __all__ = ["AddedVariableTest", "AddedVariableResult", "holm"]
 
 
@@ -68,7 +70,7 @@ class AddedVariableTest:
             self.e = y - phi @ self._solve(phi.T @ y)
             self.e = self.e - phi @ self._solve(phi.T @ self.e)
         else:  # ill-conditioned: R of [Φ | y] by Householder QR in blocks of rows (no n × p copy)
-            self._keep, self._r, theta = _independent(_blocked_r(phi, scale, y), phi.shape[1])
+            self._keep, self._r, theta = _independent(blocked_r(phi, y, scale), phi.shape[1])
             if self._r is not None:
                 self.e = y - phi @ (theta / scale)
             else:
@@ -222,20 +224,6 @@ class AddedVariableTest:
 
 #: Residual RMS, relative to the output's, below which a fit is exact (rounding, not noise).
 _ROUNDING = 1e-10
-
-#: Rows per block of the blocked QR.
-_BLOCK = 65536
-
-
-def _blocked_r(phi: np.ndarray, scale: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """R with R'R = [Φ/scale | y]'[Φ/scale | y]: Householder QR of blocks of rows, then of their R's
-    stacked (as accurate as one QR; each block copied once)."""
-    rs = []
-    for lo in range(0, phi.shape[0], _BLOCK):
-        block = np.column_stack([phi[lo : lo + _BLOCK] / scale, y[lo : lo + _BLOCK]])
-        rs.append(np.asarray(np.linalg.qr(block, mode="r")))
-    return rs[0] if len(rs) == 1 else np.asarray(np.linalg.qr(np.vstack(rs), mode="r"))
-
 
 def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
     """From R of [Φ | y] (p + 1 columns): the independent columns of Φ (None: all), the R of those
