@@ -36,6 +36,7 @@ from ..checks import prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
+from ..models.envelope import EnvelopeFactor
 from ..selection.parsimony import diebold_mariano
 from ..selection.sanity import step_sanity
 
@@ -152,6 +153,25 @@ class _Search:
         na, nb, nk = orders
         return ArxModel(na=na, nb=nb, nk=nk, effects=model.effects).fit(self.data, first_lag=first_lag)
 
+    def fit_all(self, model: ArxModel, structures: list[Orders], first_lag: int) -> list[ArxModel | None]:
+        """Each structure with the model's effects, fitted on the same rows (None where it cannot be):
+        from one factor of their envelope (:mod:`arxid.models.envelope`) when the data have no
+        gaps, else one by one."""
+        try:
+            env: EnvelopeFactor | None = EnvelopeFactor(self.data, model.effects, structures, first_lag)
+        except ArxidError:
+            env = None
+        if env is not None and env.first_lag != first_lag:
+            env = None
+        out: list[ArxModel | None] = []
+        for i, (na, nb, nk) in enumerate(structures):
+            try:
+                m = ArxModel(na=na, nb=nb, nk=nk, effects=model.effects)
+                out.append(m.fit_in(env, i) if env is not None else self.fit(model, (na, nb, nk), first_lag))
+            except ArxidError:
+                out.append(None)
+        return out
+
     def errors(self, model: ArxModel) -> np.ndarray:
         _, err, diverged = prediction_error(model, self.validation, self.horizon, self.initial)
         return np.full_like(err, np.inf) if diverged else err
@@ -210,16 +230,15 @@ def rechoose_structure(
         orders = (current.na_, tuple(current.nb_), tuple(current.nk_))
         cands = _neighbours(orders)
         first_lag = max([current.first_lag_, _lag(orders, terms)] + [_lag(o, terms) for o in cands])
-        try:  # the current structure on the same rows as its neighbours
-            base = current if first_lag == current.first_lag_ else search.fit(current, orders, first_lag)
-        except ArxidError:
+        models = search.fit_all(current, [orders, *cands], first_lag)
+        # the current structure on the same rows as its neighbours
+        base = current if first_lag == current.first_lag_ else models[0]
+        if base is None:
             break
         err_base = search.errors(base)
         fitted = []
-        for o in cands:
-            try:
-                m = search.fit(current, o, first_lag)
-            except ArxidError:
+        for m in models[1:]:
+            if m is None:
                 continue
             err = search.errors(m)
             fitted.append((_rms(err), m, err))

@@ -18,6 +18,7 @@ from . import arx_text, convert
 from . import files as modelfile
 from .arx_solver import check_excitation, check_rows, check_size, per_input, solve, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
+from .envelope import EnvelopeFactor
 from .fitted import FittedModel
 from .fitted_layout import FittedLayout
 from .many_logs import FactorSource, logs_fitting
@@ -152,6 +153,31 @@ class ArxModel(FittedModel):
         names = regressor_names(sig.output_name, na, layout)
         res = solve_factor(r, n_rows, usable, na, layout, names)
         self._store(sig, (na, nb, nk), layout, names, 0, res, fit_percent=logs.fit_percent)
+        return self
+
+    def fit_in(self, envelope: EnvelopeFactor, i: int) -> ArxModel:
+        """Fit as structure ``i`` of ``envelope``, from its shared factor (the model's orders and
+        effects are the structure's): the fit on the envelope's rows without another pass over the data.
+
+        Parameters
+        ----------
+        envelope : EnvelopeFactor
+            The factor of the structures' envelope (:mod:`arxid.models.envelope`).
+        i : int
+            Which of its structures this model is.
+
+        Returns
+        -------
+        ArxModel
+            ``self``, fitted with ``first_lag_`` the envelope's first row.
+        """
+        na, nb, nk = envelope.structures[i]
+        if (self.na, tuple(np.atleast_1d(self.nb)), tuple(np.atleast_1d(self.nk))) != (na, nb, nk) or tuple(
+            self.effects
+        ) != tuple(envelope.effects):
+            raise ArxidError(f"{self.structure_name()} is not structure {i} of the envelope")
+        layout, names, res = envelope.solve(i)
+        self._store(envelope.data, (na, nb, nk), layout, names, envelope.first_lag, res)
         return self
 
     def _store(
