@@ -341,6 +341,27 @@ def test_where_it_fails_correct_model_has_no_significant_operating_point():
     assert fa.rms == pytest.approx(0.2 / math.sqrt(1 - 0.64), rel=0.1)
 
 
+def test_where_it_fails_kruskal_wallis_from_one_sort_matches_scipy():
+    """The operating-point test ranks the squared residual once for every signal: its Kruskal-Wallis
+    p-value equals scipy.stats.kruskal on the groups, with ties (midranks, tie correction)."""
+    from scipy import stats
+
+    from arxid.checks.failures import _kruskal_sorted
+
+    rng = np.random.default_rng(11)
+    for trial in range(12):
+        n, k = int(rng.integers(60, 4000)), int(rng.integers(2, 9))
+        v = rng.standard_normal(n) ** 2
+        if trial % 3 == 0:
+            v = np.round(v, 1)  # many ties
+        g = rng.integers(0, k, n)
+        v[g == 1] *= 1.0 + 0.1 * trial
+        order = np.argsort(v, kind="stable")
+        ours = _kruskal_sorted(v[order], g[order], k)
+        ref = stats.kruskal(*[v[g == i] for i in range(k) if np.any(g == i)]).pvalue
+        assert ours == pytest.approx(ref, rel=1e-9, abs=1e-14)
+
+
 def test_where_it_fails_errors():
     d = first_order()
     m = arxid.arx(d, 1, 1, 1)

@@ -270,40 +270,70 @@ class FailureAnalysis:
         return plot_failures(self, ax=ax)
 
 
-def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int) -> SignalBins | None:
+def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int, e_order: np.ndarray) -> SignalBins | None:
+    """The residual ``e`` binned by the quantiles of ``x``; ``e_order`` sorts e² over its finite
+    samples (shared by every signal: the Kruskal–Wallis ranks need no sort per signal)."""
     from scipy import stats
 
     ok = np.isfinite(x) & np.isfinite(e)
-    x, e = x[ok], e[ok]
-    if len(x) < 4 * n_bins:
+    xs, es = x[ok], e[ok]
+    if len(xs) < 4 * n_bins:
         return None
-    values = np.unique(x)
-    if len(values) < 2:
+    # The quantile edges (a partition, linear in n) are all distinct for a signal with more than
+    # n_bins values; only a signal with few values needs its values sorted.
+    edges = np.quantile(xs, np.linspace(0, 1, n_bins + 1))
+    values = np.unique(xs) if len(np.unique(edges)) <= n_bins else None
+    if values is not None and len(values) < 2:
         return None
-    if len(values) <= n_bins:
+    idx = np.zeros(len(x), dtype=np.intp)
+    if values is not None and len(values) <= n_bins:
         mids = (values[1:] + values[:-1]) / 2
         edges = np.concatenate([[values[0]], mids, [values[-1]]])
-        idx = np.searchsorted(values, x)
+        idx[ok] = np.searchsorted(values, xs)
     else:
-        edges = np.unique(np.quantile(x, np.linspace(0, 1, n_bins + 1)))
-        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+        edges = np.unique(edges)
+        idx[ok] = np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
     nb = len(edges) - 1
-    groups = [e[idx == i] for i in range(nb)]
+    groups = [es[idx[ok] == i] for i in range(nb)]
     counts = np.array([len(g) for g in groups])
     rms = np.array([metrics.rms(g) for g in groups])
     mean = np.array([np.mean(g) if len(g) else np.nan for g in groups])
-    overall = metrics.rms(e)
+    overall = metrics.rms(es)
     used = [g for g in groups if len(g) >= 2]
     if len(used) < 2 or overall == 0:
         return None
     sq = [g**2 for g in used]
-    p_kw = float(stats.kruskal(*sq).pvalue) if np.ptp(np.concatenate(sq)) > 0 else 1.0
+    if np.ptp(np.concatenate(sq)) <= 0:
+        p_kw = 1.0
+    elif len(used) == int(np.count_nonzero(counts)):  # every sample in a used group: shared ranks
+        sub = e_order[ok[e_order]]
+        p_kw = _kruskal_sorted(e[sub] ** 2, idx[sub], nb)
+    else:
+        p_kw = float(stats.kruskal(*sq).pvalue)
     p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
     p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
     p_an = 1.0 if not math.isfinite(p_an) else p_an
     p = min(1.0, 2 * min(p_kw, p_an))
     centers = (edges[1:] + edges[:-1]) / 2
     return SignalBins(name, edges, centers, rms, mean, counts, float(np.nanmax(rms) / overall), p)
+
+
+def _kruskal_sorted(v: np.ndarray, group: np.ndarray, n_groups: int) -> float:
+    """Kruskal–Wallis p-value of values ``v`` given in ascending order with their groups (as
+    ``scipy.stats.kruskal`` on the groups: midranks for ties, tie-corrected H, χ² with k − 1
+    degrees of freedom); linear in n once sorted."""
+    from scipy import stats
+
+    n = len(v)
+    starts = np.flatnonzero(np.r_[True, v[1:] != v[:-1]])
+    ties = np.diff(np.r_[starts, n]).astype(float)
+    ranks = np.repeat(starts + (ties + 1.0) / 2.0, ties.astype(np.intp))
+    sums = np.bincount(group, weights=ranks, minlength=n_groups)
+    sizes = np.bincount(group, minlength=n_groups).astype(float)
+    have = sizes > 0
+    h = 12.0 / (n * (n + 1.0)) * float(np.sum(sums[have] ** 2 / sizes[have])) - 3.0 * (n + 1.0)
+    h /= 1.0 - float(np.sum(ties**3 - ties)) / (float(n) ** 3 - n)
+    return float(stats.chi2.sf(h, int(np.count_nonzero(have)) - 1))
 
 
 def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int) -> float:
@@ -418,7 +448,9 @@ def where_it_fails(
     signals.append((data.output_name, y1))
     signals.append((f"d{data.output_name}", dy1))
     signals += [(k, np.asarray(v, dtype=float)) for k, v in data.extra.items()]
-    bins = [b for b in (_bin_signal(name, x, res, n_bins) for name, x in signals) if b is not None]
+    finite = np.flatnonzero(np.isfinite(res))
+    e_order = finite[np.argsort(res[finite] ** 2, kind="stable")]
+    bins = [b for b in (_bin_signal(name, x, res, n_bins, e_order) for name, x in signals) if b is not None]
     bins.sort(key=lambda b: (b.p_value, -b.ratio))
     return FailureAnalysis(
         t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()
