@@ -15,10 +15,11 @@ import weakref
 
 import numpy as np
 
+from .._base.nested import least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
-from ..models.effects import compile_effects, format_threshold
+from ..models.effects import compile_effects, factor_series, format_threshold, parse_effect
 from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
@@ -60,6 +61,7 @@ class Scoring:
         # are formed from a few of them): holding every candidate's columns would cost a copy of
         # the record per candidate.
         self.single_z = _Rebuilt(self)
+        self._threshold_lags: dict[tuple[str, str], tuple[int, int]] = {}
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
         scored = [s for s in (self._score(c, layout_for(c, self.model, self.data)[1]) for c in self.prepared) if s]
@@ -108,9 +110,14 @@ class Scoring:
         effect's series (the scan tries some forty thresholds, so no regressor matrix is rebuilt)."""
         label = f"{op}({signal},{format_threshold(c)})"
         cand = Candidate(label, (label,), self.model.na_, self.model.nb_, self.model.nk_, "effect")
-        lay = compile_effects((label,), self.data, self.model.nb_, self.model.nk_)
-        col, b, k = lay.u[:, -1], lay.nb[-1], lay.nk[-1]
-        z = np.column_stack([col[self.rows0 - k - j] for j in range(b)]) if b else np.zeros((len(self.rows0), 0))
+        if (op, signal) not in self._threshold_lags:  # the lags do not depend on the threshold
+            lay = compile_effects((label,), self.data, self.model.nb_, self.model.nk_)
+            self._threshold_lags[op, signal] = (lay.nb[-1], lay.nk[-1])
+        b, k = self._threshold_lags[op, signal]
+        col = factor_series(parse_effect(label, self.data).factors[0], self.data)
+        z = np.empty((len(self.rows0), b))
+        for j in range(b):
+            z[:, j] = col[self.rows0 - k - j]
         return cand, z
 
     def _scan(self, signal: str, group: list[Candidate]) -> dict | None:
@@ -160,7 +167,7 @@ class Scoring:
             base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
             own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
             z = self.single_z[label]
-            coef = np.linalg.lstsq(np.column_stack([self.phi0, z]), self.y0, rcond=None)[0]
+            coef = least_squares(np.column_stack([self.phi0, z]), self.y0)
             negative = float(np.sum(coef[own]))
             positive = negative + float(np.sum(coef[self.phi0.shape[1] :]))
             drop.add(f"abs({sig})" if positive * negative >= 0 else label)
@@ -179,8 +186,8 @@ class Scoring:
             cols = regressor_names(self.data.output_name, cand.na, lay)
             phi, y, _ = regressor_matrix(self.data, cand.na, lay, self.lag)
             keep = [j for j, nm in enumerate(cols) if not nm.startswith(f"{names[idx]}(")]
-            coef = np.linalg.lstsq(phi[:, keep], y, rcond=None)[0]
-            rss[op] = float(np.sum((y - phi[:, keep] @ coef) ** 2))
+            x = phi[:, keep]
+            rss[op] = float(np.sum((y - x @ least_squares(x, y)) ** 2))
         return min(rss, key=lambda k: rss[k])
 
     def masked_pairs(self, scored: list[dict], alpha: float, n_partners: int = 3) -> list[dict]:

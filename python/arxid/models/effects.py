@@ -49,6 +49,7 @@ __all__ = [
     "EffectLayout",
     "compile_effects",
     "format_threshold",
+    "factor_series",
     "effect_names",
     "effect_series",
 ]
@@ -217,6 +218,25 @@ def _input_index(name: str, data: IOData) -> int | None:
         if 0 <= i < data.n_inputs:
             return i
     return None
+
+
+def factor_series(f: Factor, data: IOData) -> np.ndarray:
+    """The samples of one factor of an effect on ``data`` (``dz(u1,0.3)`` of ``u1``), without the
+    range checks and the layout of :func:`compile_effects` (a threshold scan evaluates dozens).
+
+    Parameters
+    ----------
+    f : Factor
+        A factor of a parsed effect (:func:`parse_effect`).
+    data : IOData
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+        The same numbers as the effect's column in the layout when it has this one factor.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
 
 
 def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
