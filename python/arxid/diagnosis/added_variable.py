@@ -225,6 +225,7 @@ class AddedVariableTest:
 #: Residual RMS, relative to the output's, below which a fit is exact (rounding, not noise).
 _ROUNDING = 1e-10
 
+
 def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
     """From R of [Φ | y] (p + 1 columns): the independent columns of Φ (None: all), the R of those
     columns and the least-squares coefficients of y on them (zero on the others); R None when Φ has

@@ -8,6 +8,7 @@ Labels are effects (``u1^2``), pairs (``sign(dy)+const``), structure changes (``
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -16,11 +17,12 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, OrderError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects, parse_effect
+from ..models.envelope import EnvelopeFactor
 from ..models.polynomial import PolynomialModel
 from .candidates import auto_candidates, candidate_input_names
 from .polynomial import refit_structure, refit_with_effects
 
-__all__ = ["Candidate", "candidate_list", "layout_for", "refit", "refit_and_validate"]
+__all__ = ["Candidate", "Refits", "candidate_list", "layout_for", "refit", "refit_and_validate"]
 
 #: A structure change of a polynomial model (one more pole of A or F, one more zero, another delay).
 _POLY_CHANGE = re.compile(r"(na|nb|nf|nk)(\([^)]+\))?[+-]1")
@@ -128,8 +130,12 @@ def refit(model: ArxModel, data: IOData, c) -> ArxModel:
             label = c.label if isinstance(c, Candidate) else c.effect
             return cast(ArxModel, refit_structure(model, data, label, candidate_input_names(data)))
         return cast(ArxModel, refit_with_effects(model, data, c.effects))
-    effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
-    return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=effects).fit(data, first_lag=model.first_lag_)
+    return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(model, c)).fit(data, first_lag=model.first_lag_)
+
+
+def _with(model: ArxModel, c) -> tuple[str, ...]:
+    """The effects of ``model`` refitted with candidate ``c``: the model's first."""
+    return tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
 
 
 def refit_and_validate(
@@ -139,3 +145,60 @@ def refit_and_validate(
     ``initial`` conditions, see :func:`arxid.checks.prediction_error`)."""
     fitted = refit(model, data, c)
     return fitted, error_rms(fitted, validation, horizon, initial)
+
+
+class Refits:
+    """The model refitted with each of several candidates and validated.
+
+    Candidates that keep the model's regression rows are fitted from one factor of their envelope
+    (:mod:`arxid.models.envelope`: one pass over the data for all of them, the same fits to
+    rounding); the others, a polynomial model's, and all of them on data with gaps, one by one.
+
+    Parameters
+    ----------
+    model : ArxModel
+        The model being diagnosed.
+    data : IOData
+        Estimation data.
+    cands : sequence of Candidate
+        The candidates that will be refitted.
+    """
+
+    def __init__(self, model: ArxModel, data: IOData, cands: Sequence[Candidate]):
+        self.model, self.data = model, data
+        self.index: dict[str, int] = {}
+        self.envelope: EnvelopeFactor | None = None
+        if isinstance(model, PolynomialModel):
+            return
+        specs = []
+        for c in cands:
+            if c.kind in ("effect", "pair", "dynamics") and c.label not in self.index:
+                self.index[c.label] = len(specs)
+                specs.append((c.na, c.nb, c.nk, _with(model, c)))
+        if len(specs) > 1:
+            try:
+                self.envelope = EnvelopeFactor(data, specs, model.first_lag_)
+            except ArxidError:  # gaps in the data, or an effect that cannot be compiled: one by one
+                self.envelope = None
+
+    def validated(self, c, validation: IOData, horizon: int | None, initial: str = "zero") -> tuple[ArxModel, float]:
+        """As :func:`refit_and_validate`, from the envelope's factor when ``c`` is in it.
+
+        Parameters
+        ----------
+        c : Candidate
+        validation : IOData
+        horizon : int or None
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        (ArxModel, float)
+            The refitted model and its validation error.
+        """
+        i = self.index.get(getattr(c, "label", ""))
+        env = self.envelope
+        if env is None or i is None or not env.has(i):
+            return refit_and_validate(self.model, self.data, validation, c, horizon, initial)
+        fitted = ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(self.model, c)).fit_in(env, i)
+        return fitted, error_rms(fitted, validation, horizon, initial)

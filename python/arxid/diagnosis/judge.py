@@ -13,7 +13,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
-from .extension import Candidate, refit_and_validate
+from .extension import Candidate, Refits, refit_and_validate
 from .result import Suspect
 
 __all__ = ["Judge", "demote_pairs", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
@@ -45,6 +45,7 @@ class Judge:
         self.model, self.data, self.validation = model, data, validation
         self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
         self.initial = initial
+        self.refits = Refits(model, data, ())
 
     def _improvement(self, after: float) -> float:
         if math.isfinite(after) and math.isfinite(self.base_rms) and self.base_rms > 0:
@@ -60,6 +61,7 @@ class Judge:
             if n_refit is None
             else set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
         )
+        self.refits = Refits(self.model, self.data, [scored[i]["c"] for i in sorted(chosen)])
         return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
@@ -67,9 +69,7 @@ class Judge:
         after, fitted = math.nan, None
         if refit:
             try:
-                fitted, after = refit_and_validate(
-                    self.model, self.data, self.validation, c, self.horizon, self.initial
-                )
+                fitted, after = self.refits.validated(c, self.validation, self.horizon, self.initial)
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:

@@ -158,16 +158,16 @@ class _Search:
         from one factor of their envelope (:mod:`arxid.models.envelope`) when the data have no
         gaps, else one by one."""
         try:
-            env: EnvelopeFactor | None = EnvelopeFactor(self.data, model.effects, structures, first_lag)
+            specs = [(na, nb, nk, model.effects) for na, nb, nk in structures]
+            env: EnvelopeFactor | None = EnvelopeFactor(self.data, specs, first_lag)
         except ArxidError:
-            env = None
-        if env is not None and env.first_lag != first_lag:
             env = None
         out: list[ArxModel | None] = []
         for i, (na, nb, nk) in enumerate(structures):
             try:
                 m = ArxModel(na=na, nb=nb, nk=nk, effects=model.effects)
-                out.append(m.fit_in(env, i) if env is not None else self.fit(model, (na, nb, nk), first_lag))
+                factored = env is not None and env.has(i) and env.first_lag == first_lag
+                out.append(m.fit_in(env, i) if factored else self.fit(model, (na, nb, nk), first_lag))
             except ArxidError:
                 out.append(None)
         return out

@@ -171,10 +171,9 @@ class ArxModel(FittedModel):
         ArxModel
             ``self``, fitted with ``first_lag_`` the envelope's first row.
         """
-        na, nb, nk = envelope.structures[i]
-        if (self.na, tuple(np.atleast_1d(self.nb)), tuple(np.atleast_1d(self.nk))) != (na, nb, nk) or tuple(
-            self.effects
-        ) != tuple(envelope.effects):
+        na, nb, nk, effects = envelope.structures[i]
+        mine = (self.na, tuple(np.atleast_1d(self.nb)), tuple(np.atleast_1d(self.nk)), tuple(self.effects))
+        if mine != (na, nb, nk, effects):
             raise ArxidError(f"{self.structure_name()} is not structure {i} of the envelope")
         layout, names, res = envelope.solve(i)
         self._store(envelope.data, (na, nb, nk), layout, names, envelope.first_lag, res)

@@ -1,8 +1,9 @@
 """Fits of many structures on the same rows from one factorization of their envelope.
 
-Structures that share their effects and their regression rows (a neighbourhood of orders searched
-around a model) are all sub-structures of one envelope: the largest na, and per layout column the
-earliest delay and the latest lag. The Rust core reduces the envelope's regressors ``[Φ | y]`` to
+Structures fitted on the same regression rows (a neighbourhood of orders searched around a model, or
+the model with each of its candidate effects) are all sub-structures of one envelope: the largest
+na, the union of their columns (inputs and effects), and per column the earliest delay and the
+latest lag. The Rust core reduces the envelope's regressors ``[Φ | y]`` to
 their triangular factor R in one pass over the data; each structure's least-squares fit is then a
 small QR of its columns of R (``fit_from_factor``), with the same parameters, loss and (Φ'Φ)⁻¹ as
 its own fit on those rows, to rounding. A neighbourhood of 26 structures costs one pass over the
@@ -12,6 +13,7 @@ data instead of 26.
 from __future__ import annotations
 
 import types
+from collections import Counter
 from collections.abc import Sequence
 
 import numpy as np
@@ -19,65 +21,82 @@ import numpy as np
 from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
-from .effects import EffectLayout, compile_effects
+from .effects import EffectLayout, compile_effects, effect_names
 from .regressors import max_lag, regressor_names
 
 __all__ = ["EnvelopeFactor"]
 
-Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
+#: (na, nb, nk, effects) of one structure, nb and nk one per input.
+Spec = tuple[int, Sequence[int], Sequence[int], Sequence[str]]
 
 
 class EnvelopeFactor:
-    """The triangular factor of the envelope of ``structures`` (all with ``effects``) on ``data``.
+    """The triangular factor of the envelope of ``structures`` on ``data``.
 
     Parameters
     ----------
     data : IOData
         Estimation data without missing samples (structures on data with gaps keep their own rows:
         fit them one by one).
-    effects : sequence of str
-        The effects every structure has.
-    structures : sequence of (na, nb, nk)
-        The structures to fit; nb and nk one per input.
+    structures : sequence of (na, nb, nk, effects)
+        The structures to fit; nb and nk one per input. Their effects may differ (the envelope holds
+        the union of their columns) but their output terms may not.
     first_lag : int
         Start the regression rows at least this far into each experiment (as ``ArxModel.fit``).
 
     Attributes
     ----------
     first_lag : int
-        The first regression row of every experiment (the envelope's largest lag): each structure
-        is fitted on the rows from there on.
+        The first regression row of every experiment: the one most structures start on (at least
+        ``first_lag``). A structure whose own fit starts elsewhere, or whose output terms differ
+        from the first structure's, is left out of the envelope (:meth:`has` is False).
 
     Raises
     ------
     ArxidError
-        When the data have missing samples or the structures add output terms (their rows differ).
+        When the data have missing samples.
     """
 
-    def __init__(self, data: IOData, effects: Sequence[str], structures: Sequence[Orders], first_lag: int = 0):
+    def __init__(self, data: IOData, structures: Sequence[Spec], first_lag: int = 0):
         if not structures:
             raise ArxidError("an envelope needs at least one structure")
-        self.data, self.effects = data, tuple(effects)
-        self.structures = [(int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk)) for na, nb, nk in structures]
-        self.layouts = [compile_effects(self.effects, data, nb, nk) for _, nb, nk in structures]
-        first = self.layouts[0]
-        if not (np.isfinite(data.y).all() and np.isfinite(first.u).all()):
+        self.data = data
+        self.structures = [
+            (int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk), effect_names(eff))
+            for na, nb, nk, eff in structures
+        ]
+        self.layouts = [compile_effects(eff, data, nb, nk) for _, nb, nk, eff in self.structures]
+        rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
+        self.first_lag = Counter(rows).most_common(1)[0][0]
+        terms = self.layouts[0].output_terms
+        self.inside = [r == self.first_lag and lay.output_terms == terms for r, lay in zip(rows, self.layouts)]
+        used = [lay for lay, ok in zip(self.layouts, self.inside) if ok]
+        self.labels, u = _union_columns(used)
+        if not (np.isfinite(data.y).all() and np.isfinite(u).all()):
             raise ArxidError("the envelope's fits need data without missing samples")
-        self.na = [int(na) for na, _, _ in structures]
-        self.columns = [_column_orders(lay) for lay in self.layouts]
-        lag = max(max_lag(na, lay) for na, lay in zip(self.na, self.layouts))
-        self.first_lag = max(lag, int(first_lag))
-        # Later first rows than the structures need: output lags up to there in the envelope (its
-        # rows start at its largest lag; the structures do not read those columns).
-        self.envelope = _envelope(max(max(self.na), self.first_lag if self.first_lag > lag else 0), self.columns)
+        self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
+        na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
+        lag = max(max_lag(na, lay) for (na, *_), lay, ok in zip(self.structures, self.layouts, self.inside) if ok)
+        # Rows that start later than the structures need: output lags up to there in the envelope
+        # (its rows start at its largest lag; the structures do not read those columns).
+        na_env = max(na_env, self.first_lag if self.first_lag > lag else 0)
+        self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
         grid = np.array([[self.envelope[0], *self.envelope[1], *self.envelope[2]]], dtype=np.int64)
-        self.r, self.n_rows = _core.grid_factor(
-            np.require(data.y, requirements=["C", "A"]),
-            first.u,
-            list(data.experiment_starts),
-            grid,
-            list(first.output_terms),
-        )
+        y = np.require(data.y, requirements=["C", "A"])
+        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, list(terms))
+
+    def has(self, i: int) -> bool:
+        """Whether structure ``i`` is fitted from the factor (on its own rows).
+
+        Parameters
+        ----------
+        i : int
+
+        Returns
+        -------
+        bool
+        """
+        return self.inside[i]
 
     def solve(self, i: int) -> tuple[EffectLayout, list[str], types.SimpleNamespace]:
         """The fit of structure ``i`` from the factor.
@@ -94,17 +113,61 @@ class EnvelopeFactor:
         names : list of str
             Its regressor names.
         result : namespace
-            ``theta``, ``rss``, ``n_rows``, ``n_skipped`` and ``inv_gram``, as the core's fit gives them.
+            ``theta``, ``rss``, ``n_rows``, ``n_skipped`` and ``inv_gram``, as the core's fit gives them,
+            in the structure's own parameter order.
+
+        Raises
+        ------
+        ArxidError
+            When the structure is not in the envelope (see :meth:`has`).
         """
-        layout, na = self.layouts[i], self.na[i]
+        if not self.inside[i]:
+            raise ArxidError(f"structure {i} is fitted on other rows than the envelope's")
+        layout, na = self.layouts[i], self.structures[i][0]
         nb, nk = self.columns[i]
         out = _core.fit_from_factor(self.r, self.n_rows, self.envelope, (na, nb, nk), list(layout.output_terms))
-        res = types.SimpleNamespace(theta=out.theta, rss=out.rss, n_rows=out.n_rows, n_skipped=0, inv_gram=out.inv_gram)
+        own = _own_order(na, layout, self.labels)
+        theta = np.empty(len(own))
+        theta[own] = np.asarray(out.theta)
+        inv = np.empty((len(own), len(own)))
+        inv[np.ix_(own, own)] = np.asarray(out.inv_gram)
+        res = types.SimpleNamespace(theta=theta, rss=out.rss, n_rows=out.n_rows, n_skipped=0, inv_gram=inv)
         return layout, regressor_names(self.data.output_name, na, layout), res
 
 
-def _column_orders(layout: EffectLayout) -> tuple[list[int], list[int]]:
-    return [int(b) for b in layout.nb], [int(k) for k in layout.nk]
+def _union_columns(layouts: list[EffectLayout]) -> tuple[list[str], np.ndarray]:
+    """The distinct layout columns of the structures (by label, in order of first appearance) and
+    their samples side by side."""
+    labels: list[str] = []
+    cols = []
+    for lay in layouts:
+        for j, label in enumerate(lay.column_labels):
+            if label not in labels:
+                labels.append(label)
+                cols.append(lay.u[:, j])
+    return labels, np.ascontiguousarray(np.column_stack(cols))
+
+
+def _column_orders(layout: EffectLayout, labels: list[str]) -> tuple[list[int], list[int]]:
+    """(nb, nk) of a structure per envelope column: its own, or no lag where it has no such column."""
+    own = dict(zip(layout.column_labels, zip(layout.nb, layout.nk)))
+    nb = [int(own[label][0]) if label in own else 0 for label in labels]
+    nk = [int(own[label][1]) if label in own else 0 for label in labels]
+    return nb, nk
+
+
+def _own_order(na: int, layout: EffectLayout, labels: list[str]) -> np.ndarray:
+    """For each parameter of a structure as the envelope orders them (output lags, the envelope's
+    columns in its order, output terms), its position in the structure's own order."""
+    starts = na + np.concatenate([[0], np.cumsum(layout.nb)]).astype(int)
+    at = {label: j for j, label in enumerate(layout.column_labels)}
+    order = list(range(na))
+    for label in labels:
+        j = at.get(label)
+        if j is not None:
+            order += list(range(starts[j], starts[j] + layout.nb[j]))
+    order += list(range(int(starts[-1]), int(starts[-1]) + len(layout.effect_of_term)))
+    return np.array(order, dtype=np.intp)
 
 
 def _envelope(na: int, columns: list[tuple[list[int], list[int]]]) -> tuple[int, list[int], list[int]]:
