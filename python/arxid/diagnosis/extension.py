@@ -170,7 +170,7 @@ class Refits:
         self.envelope: EnvelopeFactor | None = None
         if isinstance(model, PolynomialModel):
             return
-        specs = []
+        specs: list[tuple] = []
         for c in cands:
             if c.kind in ("effect", "pair", "dynamics") and c.label not in self.index:
                 self.index[c.label] = len(specs)

@@ -166,8 +166,10 @@ class _Search:
         for i, (na, nb, nk) in enumerate(structures):
             try:
                 m = ArxModel(na=na, nb=nb, nk=nk, effects=model.effects)
-                factored = env is not None and env.has(i) and env.first_lag == first_lag
-                out.append(m.fit_in(env, i) if factored else self.fit(model, (na, nb, nk), first_lag))
+                if env is not None and env.has(i) and env.first_lag == first_lag:
+                    out.append(m.fit_in(env, i))
+                else:
+                    out.append(self.fit(model, (na, nb, nk), first_lag))
             except ArxidError:
                 out.append(None)
         return out
