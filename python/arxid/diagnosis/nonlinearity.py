@@ -87,12 +87,22 @@ def _plan(model: ArxModel, data: IOData) -> list[tuple[str, np.ndarray, tuple[in
     return plan
 
 
-def _features(x: np.ndarray, rows: np.ndarray, lag: int, signed: bool) -> np.ndarray:
+def _standardised(x: np.ndarray) -> np.ndarray:
     finite = x[np.isfinite(x)]
-    s = (x - finite.mean()) / (finite.std() or 1.0)
-    v, dv = s[rows - lag], s[rows - lag] - s[rows - lag - 1]
-    cols = [v**2, v**3, np.sign(dv)] + ([np.abs(v), np.sign(v)] if signed else [])
-    return np.column_stack(cols)
+    return (x - finite.mean()) / (finite.std() or 1.0)
+
+
+def _features(s: np.ndarray, rows: np.ndarray, lag: int, signed: bool) -> np.ndarray:
+    """The nonlinear functions of the standardised signal ``s`` at ``lag`` on ``rows``, one column each."""
+    v = s[rows - lag]
+    out = np.empty((len(rows), 5 if signed else 3))
+    np.power(v, 2, out=out[:, 0])
+    np.power(v, 3, out=out[:, 1])
+    np.sign(v - s[rows - lag - 1], out=out[:, 2])
+    if signed:
+        np.abs(v, out=out[:, 3])
+        np.sign(v, out=out[:, 4])
+    return out
 
 
 def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> tuple[NonlinearDependence, ...]:
@@ -132,14 +142,15 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     lin_specs = [(x, lag) for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
     # The columns are built one at a time into one design matrix (and the feature blocks again when
     # tested): lists of them, stacked, would hold several copies of a long record at once.
-    specs = [(name, x, lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
+    standard = {name: _standardised(x) for name, x, lags in plan if lags}
+    specs = [(name, standard[name], lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
     if not specs:
         return ()
     ok = np.ones(len(rows), dtype=bool)
     for x, lag in lin_specs:
         ok &= np.isfinite(x[rows - lag])
-    for _, x, lag, signed in specs:
-        ok &= np.isfinite(_features(x, rows, lag, signed)).all(axis=1)
+    for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
+        ok &= np.isfinite(x[rows - lag]) & np.isfinite(x[rows - lag - 1])
     if ok.sum() <= phi.shape[1] + len(lin_specs) + 10:
         return ()
     p = phi.shape[1]
