@@ -160,6 +160,8 @@ def diagnose(
         suspects = judge.simplest_first(suspects, simple_explanations)
     suspects += _unscored(notes, cands, suspects)
     suspects = sorted((replace(s, physics=physics(s.effect, data)) for s in suspects), key=_rank_key)
+    del scoring, judge  # their regressors and refit factors: not held while the dependence test builds its own
+    dependence = () if polynomial else _dependence(model, data, alpha)
     return Diagnosis(
         model,
         data,
@@ -174,7 +176,7 @@ def diagnose(
         min_improvement,
         len(scored),
         same,
-        () if polynomial else _dependence(model, data, alpha),
+        dependence,
         base.disturbance,
     )
 

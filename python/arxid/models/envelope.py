@@ -13,6 +13,7 @@ data instead of 26.
 from __future__ import annotations
 
 import types
+from dataclasses import replace
 from collections import Counter
 from collections.abc import Sequence
 
@@ -65,13 +66,25 @@ class EnvelopeFactor:
             (int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk), effect_names(eff))
             for na, nb, nk, eff in structures
         ]
-        self.layouts = [compile_effects(eff, data, nb, nk) for _, nb, nk, eff in self.structures]
+        # Each layout is kept without its samples, each distinct column's samples once.
+        self.layouts, samples = [], {}
+        for _, nb, nk, eff in self.structures:
+            lay = compile_effects(eff, data, nb, nk)
+            for j, label in enumerate(lay.column_labels):
+                if label not in samples:  # a copy: a view would hold the whole layout
+                    samples[label] = lay.u[:, j].copy()
+            self.layouts.append(replace(lay, u=lay.u[:0]))
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
         terms = self.layouts[0].output_terms
         self.inside = [r == self.first_lag and lay.output_terms == terms for r, lay in zip(rows, self.layouts)]
-        used = [lay for lay, ok in zip(self.layouts, self.inside) if ok]
-        self.labels, u = _union_columns(used)
+        self.labels = list(
+            dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in lay.column_labels)
+        )
+        u = np.empty((data.n_samples, len(self.labels)))
+        for j, label in enumerate(self.labels):
+            u[:, j] = samples.pop(label)
+        del samples
         if not (np.isfinite(data.y).all() and np.isfinite(u).all()):
             raise ArxidError("the envelope's fits need data without missing samples")
         self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
@@ -109,7 +122,7 @@ class EnvelopeFactor:
         Returns
         -------
         layout : EffectLayout
-            The structure's own layout.
+            The structure's own layout, without its samples.
         names : list of str
             Its regressor names.
         result : namespace
@@ -133,19 +146,6 @@ class EnvelopeFactor:
         inv[np.ix_(own, own)] = np.asarray(out.inv_gram)
         res = types.SimpleNamespace(theta=theta, rss=out.rss, n_rows=out.n_rows, n_skipped=0, inv_gram=inv)
         return layout, regressor_names(self.data.output_name, na, layout), res
-
-
-def _union_columns(layouts: list[EffectLayout]) -> tuple[list[str], np.ndarray]:
-    """The distinct layout columns of the structures (by label, in order of first appearance) and
-    their samples side by side."""
-    labels: list[str] = []
-    cols = []
-    for lay in layouts:
-        for j, label in enumerate(lay.column_labels):
-            if label not in labels:
-                labels.append(label)
-                cols.append(lay.u[:, j])
-    return labels, np.ascontiguousarray(np.column_stack(cols))
 
 
 def _column_orders(layout: EffectLayout, labels: list[str]) -> tuple[list[int], list[int]]:
