@@ -13,9 +13,9 @@ data instead of 26.
 from __future__ import annotations
 
 import types
-from dataclasses import replace
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
