@@ -7,7 +7,7 @@ reference the core must match.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
@@ -116,8 +116,10 @@ def regressor_matrix(
     rows = np.concatenate(
         [np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]
     ).astype(int)
-    cols = _columns(data, na, layout, rows, None, signs)
-    phi = np.column_stack(cols) if cols else np.zeros((len(rows), 0))
+    # Each column written straight into Φ: a list of columns stacked at the end would hold Φ twice.
+    phi = np.empty((len(rows), len(regressor_names(data.output_name, na, layout))))
+    for j, col in enumerate(_columns(data, na, layout, rows, None, signs)):
+        phi[:, j] = col
     ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
     if ok.all():  # no row touches a missing sample: no copies
         return phi, y[rows], rows
@@ -146,7 +148,7 @@ def regressor_columns(
     -------
     ndarray of shape (len(rows), len(which))
     """
-    cols = _columns(data, na, layout, rows, set(which), True)
+    cols = list(_columns(data, na, layout, rows, set(which), True))
     index = sorted(set(which))
     out = np.empty((len(rows), len(which)))
     for i, w in enumerate(which):
@@ -156,11 +158,11 @@ def regressor_columns(
 
 def _columns(
     data: IOData, na: int, layout: EffectLayout, rows: np.ndarray, which: set[int] | None, signs: bool
-) -> list[np.ndarray]:
-    """The regressor columns at ``rows`` in parameter order (only those in ``which`` when given)."""
+) -> Iterator[np.ndarray]:
+    """The regressor columns at ``rows`` in parameter order (only those in ``which`` when given),
+    one at a time."""
     y = data.y
     u = layout.u
-    cols = []
     s = -1.0 if signs else 1.0
     at = -1
 
@@ -171,11 +173,11 @@ def _columns(
 
     for i in range(1, na + 1):
         if wanted():
-            cols.append(s * y[rows - i])
+            yield s * y[rows - i]
     for j, (b, k) in enumerate(zip(layout.nb, layout.nk, strict=True)):
         for lag_j in range(b):
             if wanted():
-                cols.append(u[rows - k - lag_j, j])
+                yield u[rows - k - lag_j, j]
     for kind, power, mult in layout.output_terms:
         if not wanted():
             continue
@@ -190,8 +192,7 @@ def _columns(
             g = np.sign(y1 - y[rows - 2])
         if mult >= 0:
             g = g * u[rows - 1, mult]
-        cols.append(g)
-    return cols
+        yield g
 
 
 def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:
