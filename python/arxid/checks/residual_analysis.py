@@ -93,7 +93,9 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     rows = np.concatenate(starts) if starts else np.zeros(0, dtype=int)
     if rows.size == 0:
         return x
-    lagged = np.column_stack([x[rows - k] for k in range(max_order + 1)])
+    lagged = np.empty((len(rows), max_order + 1))
+    for k in range(max_order + 1):
+        lagged[:, k] = x[rows - k]
     ok = np.all(np.isfinite(lagged), axis=1)
     rows, lagged = rows[ok], lagged[ok]
     m = len(rows)

@@ -211,7 +211,9 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
     keep, prev = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return identity
-    past, now = np.column_stack([r[p] for p in prev]), r[keep]
+    past, now = np.empty((len(keep), len(prev))), r[keep]
+    for j, p in enumerate(prev):
+        past[:, j] = r[p]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
     rss_all, coefs = nested_fits(past, now)  # every order from one QR
     for p in range(1, MAX_NOISE_ORDER + 1):

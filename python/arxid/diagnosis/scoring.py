@@ -180,14 +180,14 @@ class Scoring:
         if not 0 <= idx < len(names):
             return "dz"
         rss = {}
-        for op in ("dz", "sat"):
-            cand, _ = self._threshold_columns(op, signal, c)
-            _, lay = layout_for(cand, self.model, self.data)
-            cols = regressor_names(self.data.output_name, cand.na, lay)
-            phi, y, _ = regressor_matrix(self.data, cand.na, lay, self.lag)
-            keep = [j for j, nm in enumerate(cols) if not nm.startswith(f"{names[idx]}(")]
-            x = phi[:, keep]
-            rss[op] = float(np.sum((y - x @ least_squares(x, y)) ** 2))
+        base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
+        keep = [j for j, nm in enumerate(base) if not nm.startswith(f"{names[idx]}(")]
+        for op in ("dz", "sat"):  # the model's regressors without the input's own, and the shape's
+            z = self._threshold_columns(op, signal, c)[1]
+            x = np.empty((len(self.rows0), len(keep) + z.shape[1]))
+            x[:, : len(keep)] = self.phi0[:, keep]
+            x[:, len(keep) :] = z
+            rss[op] = float(np.sum((self.y0 - x @ least_squares(x, self.y0)) ** 2))
         return min(rss, key=lambda k: rss[k])
 
     def masked_pairs(self, scored: list[dict], alpha: float, n_partners: int = 3) -> list[dict]:
