@@ -212,8 +212,8 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return identity
     past, now = np.empty((len(keep), len(prev))), r[keep]
-    for j, p in enumerate(prev):
-        past[:, j] = r[p]
+    for j, at in enumerate(prev):
+        past[:, j] = r[at]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
     rss_all, coefs = nested_fits(past, now)  # every order from one QR
     for p in range(1, MAX_NOISE_ORDER + 1):
