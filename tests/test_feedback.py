@@ -86,3 +86,32 @@ def test_analyse_and_report_say_what_feedback_means():
     open_loop = pi_loop(0, 2000, closed=False)
     notes = feedback_notes(arxid.feedback(open_loop), open_loop)
     assert len(notes) == 1 and "open-loop" in notes[0]
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_f_statistic_matches_two_least_squares_fits(closed):
+    """The statistic from one blocked factor equals the textbook F-test of two numpy lstsq fits on
+    the lagged matrix (gaps and two experiments included)."""
+    from scipy import stats
+
+    from arxid.models.lagged import lagged_columns
+
+    d = arxid.IOData.merge([pi_loop(3, 70_000, closed=closed), pi_loop(4, 3000, closed=closed)])
+    y = d.y.copy()
+    y[900:930] = np.nan
+    d = arxid.IOData(y, d.u, d.ts, experiment_starts=d.experiment_starts)
+    order, lead = 4, 3
+    result = arxid.feedback(d, order=order, lead=lead)
+    u = d.u[:, 0]
+    past = [(y, k) for k in range(1, order + 1)] + [(u, k) for k in range(1, order + 1)]
+    later = [(u, -k) for k in range(0, lead + 1)]
+    mat, _ = lagged_columns([(y, 0), *past, *later], d.segments, order, lead)
+    rss = [
+        float(np.sum((mat[:, 0] - x @ np.linalg.lstsq(x, mat[:, 0], rcond=None)[0]) ** 2))
+        for x in (mat[:, 1 : 1 + len(past)], mat[:, 1:])
+    ]
+    q, dof = len(later), mat.shape[0] - (mat.shape[1] - 1)
+    f = (rss[0] - rss[1]) / q / (rss[1] / dof)
+    assert result.n_rows == mat.shape[0]
+    assert result.statistic[d.input_names[0]] == pytest.approx(f, rel=1e-7)
+    assert result.p_values[d.input_names[0]] == pytest.approx(stats.f.sf(f, q, dof), rel=1e-6, abs=1e-300)

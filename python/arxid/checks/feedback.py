@@ -22,11 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._base.formatting import json_safe
-from .._base.nested import blocked_r
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
-from ..models.lagged import lagged_columns
+from ..models.lagged import lagged_factor
 
 __all__ = ["FeedbackTest", "feedback"]
 
@@ -96,27 +95,29 @@ class FeedbackTest:
         return json.dumps(json_safe(fields), allow_nan=False)  # NaN (no conclusion) becomes null
 
 
-def _nested_rss(y: np.ndarray, p_small: int, x: np.ndarray) -> tuple[float, float]:
-    """Residual sums of squares of y on the first ``p_small`` columns of ``x`` and on all of them,
-    from one blocked QR of [x | y] (the tail of R's last column); lstsq when x is rank deficient."""
-    p = x.shape[1]
-    if x.shape[0] > p:
-        r = blocked_r(x, y)
-        d = np.abs(np.diag(r)[:p])
-        if d.min() > 1e-12 * d.max():
-            return float(np.sum(r[p_small : p + 1, p] ** 2)), float(r[p, p] ** 2)
-    fits = [np.linalg.lstsq(x[:, :k], y, rcond=None)[0] for k in (p_small, p)]
-    small, big = (float(np.sum((y - x[:, : len(c)] @ c) ** 2)) for c in fits)
-    return small, big
+def _nested_rss(r: np.ndarray, p_small: int) -> tuple[float, float]:
+    """Residual sums of squares of the last column on the first ``p_small`` columns and on all the
+    others, from the factor R of the matrix (the tail of R's last column; least squares on R when
+    the columns are dependent: the same residuals as on the matrix itself)."""
+    p = r.shape[1] - 1
+    d = np.abs(np.diag(r)[:p])
+    if d.min() > 1e-12 * d.max():
+        return float(np.sum(r[p_small : p + 1, p] ** 2)), float(r[p, p] ** 2)
+    out = []
+    for k in (p_small, p):
+        c = np.linalg.lstsq(r[:, :k], r[:, p], rcond=None)[0]
+        out.append(float(np.sum((r[:, p] - r[:, :k] @ c) ** 2)))
+    return out[0], out[1]
 
 
-def _f_test(y, x_small, x_big) -> tuple[float, float, int, int]:
-    """F statistic and p-value of the columns of ``x_big`` beyond ``x_small``."""
+def _f_test(r: np.ndarray, n_rows: int, p_small: int) -> tuple[float, float, int, int]:
+    """F statistic and p-value of the columns of R beyond the first ``p_small`` (output last)."""
     from scipy import stats
 
-    rss_small, rss_big = _nested_rss(y, x_small.shape[1], x_big)
-    q = x_big.shape[1] - x_small.shape[1]
-    dof = x_big.shape[0] - x_big.shape[1]
+    p = r.shape[1] - 1
+    rss_small, rss_big = _nested_rss(r, p_small)
+    q = p - p_small
+    dof = n_rows - p
     if rss_big <= 0 or dof <= 0:
         return math.nan, math.nan, q, dof
     f = max(rss_small - rss_big, 0.0) / q / (rss_big / dof)
@@ -187,14 +188,14 @@ def feedback(
     n_rows = 0
     for i, name in enumerate(data.input_names):
         later = [(data.u[:, i], -k) for k in range(1 - first, lead + 1)]
-        mat, _rows = lagged_columns([(y, 0), *past, *later], data.segments, order, lead)
-        n_rows = mat.shape[0]
-        if n_rows < 3 * mat.shape[1]:
+        r, n_rows = lagged_factor([*past, *later, (y, 0)], data.segments, order, lead)
+        n_columns = len(past) + len(later) + 1
+        if n_rows < 3 * n_columns:
             raise DataError(
-                f"the feedback test needs at least {3 * mat.shape[1]} usable samples (order {order}, "
+                f"the feedback test needs at least {3 * n_columns} usable samples (order {order}, "
                 f"lead {lead}), the data have {n_rows}; give longer data or a lower order"
             )
-        f, p, _q, _dof = _f_test(mat[:, 0], mat[:, 1 : 1 + len(past)], mat[:, 1:])
+        f, p, _q, _dof = _f_test(r, n_rows, len(past))
         p_values[name], stats_[name] = p, f
     finite = [p for p in p_values.values() if math.isfinite(p)]
     p_value = min(1.0, min(finite) * len(finite)) if finite else math.nan

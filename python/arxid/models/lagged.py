@@ -8,7 +8,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["lagged_columns", "filter_segments"]
+__all__ = ["lagged_columns", "lagged_factor", "filter_segments"]
+
+#: Rows per block of :func:`lagged_factor`.
+_BLOCK = 65536
 
 
 def lagged_columns(
@@ -39,6 +42,42 @@ def lagged_columns(
         mat[:, j] = signal[rows - lag]
     keep = np.all(np.isfinite(mat), axis=1)
     return mat[keep], rows[keep]
+
+
+def lagged_factor(
+    columns: Sequence[tuple[np.ndarray, int]], segments: Sequence[tuple[int, int]], back: int, ahead: int = 0
+) -> tuple[np.ndarray, int]:
+    """The triangular factor R (R'R = M'M) of the matrix M of :func:`lagged_columns`, built and reduced
+    by Householder QR one block of rows at a time: M is never held whole (a high-order model on a
+    long record has dozens of columns).
+
+    Parameters
+    ----------
+    columns, segments, back, ahead
+        As in :func:`lagged_columns`.
+
+    Returns
+    -------
+    r : ndarray of shape (min(n_rows, n_columns), n_columns)
+    n_rows : int
+        Rows of M (those touching a missing sample left out).
+    """
+    parts = [np.arange(a + back, b - ahead) for a, b in segments if b - ahead > a + back]
+    rows = np.concatenate(parts) if parts else np.zeros(0, dtype=int)
+    factors, n_rows = [], 0
+    for lo in range(0, len(rows), _BLOCK):
+        at = rows[lo : lo + _BLOCK]
+        mat = np.empty((len(at), len(columns)))
+        for j, (signal, lag) in enumerate(columns):
+            mat[:, j] = signal[at - lag]
+        mat = mat[np.all(np.isfinite(mat), axis=1)]
+        n_rows += len(mat)
+        if len(mat):
+            factors.append(np.asarray(np.linalg.qr(mat, mode="r")))
+    if not factors:
+        return np.zeros((0, len(columns))), 0
+    r = factors[0] if len(factors) == 1 else np.asarray(np.linalg.qr(np.vstack(factors), mode="r"))
+    return r, n_rows
 
 
 def filter_segments(num: np.ndarray, den: np.ndarray, x: np.ndarray, segments: Sequence[tuple[int, int]]) -> np.ndarray:
