@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["nested_fits", "least_squares", "blocked_r", "BLOCK_ROWS"]
+__all__ = ["nested_fits", "nested_from_factor", "least_squares", "blocked_r", "column_norms", "BLOCK_ROWS"]
 
 #: Rows per block of the blocked QR (:func:`blocked_r`).
 BLOCK_ROWS = 65536
@@ -49,7 +49,26 @@ def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarr
         coef = [np.linalg.lstsq(x[:, :p], y, rcond=None)[0] for p in range(big_p + 1)]
         rss = np.array([float(np.sum((y - x[:, :p] @ c) ** 2)) for p, c in enumerate(coef)])
         return rss, coef
-    r = _triangular_factor(x, y)
+    return nested_from_factor(_triangular_factor(x, y))
+
+
+def nested_from_factor(r: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """:func:`nested_fits` from the triangular factor R of ``[X | y]`` ((P + 1) × (P + 1)), for
+    callers that reduce a long record to R block by block.
+
+    Parameters
+    ----------
+    r : ndarray of shape (P + 1, P + 1)
+        Upper triangular, R'R = [X y]'[X y].
+
+    Returns
+    -------
+    rss : ndarray of shape (P + 1,)
+    coef : list of ndarray
+        As :func:`nested_fits`; fits on (nearly) dependent leading columns by least squares on R
+        (the same residuals as on X).
+    """
+    big_p = r.shape[1] - 1
     last = r[:, big_p]
     tail = np.cumsum((last**2)[::-1])[::-1]  # tail[p] = Σ_{i ≥ p} r_i²
     rss = np.array([float(tail[p]) for p in range(big_p + 1)])
@@ -57,8 +76,8 @@ def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarr
     coef = [np.zeros(0)]
     for p in range(1, big_p + 1):
         if diag[:p].min() <= 1e-12 * max(diag[:p].max(), 1e-300):
-            c = np.linalg.lstsq(x[:, :p], y, rcond=None)[0]
-            rss[p] = float(np.sum((y - x[:, :p] @ c) ** 2))
+            c = np.linalg.lstsq(r[:, :p], last, rcond=None)[0]
+            rss[p] = float(np.sum((last - r[:, :p] @ c) ** 2))
         else:
             c = np.linalg.solve(np.triu(r[:p, :p]), last[:p])
         coef.append(c)
@@ -110,7 +129,7 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
     n, p = x.shape
     if p and n > p:
-        d = np.linalg.norm(x, axis=0)
+        d = column_norms(x)
         if np.all(d > 0) and np.all(np.isfinite(d)):
             g = (x.T @ x) / np.outer(d, d)
             w = np.linalg.eigvalsh(g)
@@ -125,6 +144,26 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     # solutions as the tall one (X = QR with Q orthonormal), the minimum-norm one included.
     r = blocked_r(x, y)
     return np.linalg.lstsq(np.triu(r[:p, :p]), r[:p, p], rcond=None)[0]
+
+
+def column_norms(x: np.ndarray) -> np.ndarray:
+    """The 2-norm of each column of ``x`` without a squared copy of ``x`` (``numpy.linalg.norm``
+    with ``axis=0`` makes one: as large as the regressors themselves).
+
+    Parameters
+    ----------
+    x : ndarray of shape (n, p)
+
+    Returns
+    -------
+    ndarray of shape (p,)
+
+    Examples
+    --------
+    >>> column_norms(np.array([[3.0, 0.0], [4.0, 1.0]])).tolist()
+    [5.0, 1.0]
+    """
+    return np.sqrt(np.einsum("ij,ij->j", x, x))
 
 
 def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._base.nested import blocked_r
+from .._base.nested import blocked_r, column_norms
 
 __all__ = ["AddedVariableTest", "AddedVariableResult", "holm"]
 
@@ -56,7 +56,7 @@ class AddedVariableTest:
     """
 
     def __init__(self, phi: np.ndarray, y: np.ndarray):
-        scale = np.linalg.norm(phi, axis=0)
+        scale = column_norms(phi)
         scale[scale == 0] = 1.0
         self.n, self.p = phi.shape
         self._phi, self._scale = phi, scale

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._base.nested import least_squares, nested_fits
+from .._base.nested import BLOCK_ROWS, least_squares, nested_from_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -163,7 +163,7 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
         design[:, p + j] = x[kept - lag]
     design[:, -1] = 1.0
     whiten = _prewhitening(design, y[ok], kept)
-    base = AddedVariableTest(*whiten(design, y[ok]))
+    base = AddedVariableTest(*whiten(design, y[ok], inplace=True))  # the design is not needed again
     del design
     tested = [
         (name, lag, res)
@@ -188,15 +188,27 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
 
 def _previous_rows(rows: np.ndarray, order: int) -> tuple[np.ndarray, list[np.ndarray]]:
     """The positions in ``rows`` (ascending sample numbers) whose ``order`` previous samples are rows
-    too, and for each lag j = 1..order the positions of those previous samples."""
+    too, and for each lag j = 1..order the positions of those previous samples (32-bit where they
+    fit: a long record's ten lags would otherwise weigh as much as its regressors)."""
     have = np.ones(len(rows), dtype=bool)
-    at = []
-    for j in range(1, order + 1):
+    for j in range(1, order + 1):  # one lag at a time: no position array is kept for this pass
         pos = np.searchsorted(rows, rows - j)
         have &= (pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == rows - j)
-        at.append(pos)
     use = np.flatnonzero(have)
-    return use, [pos[use] for pos in at]
+    index = np.int32 if len(rows) < 2**31 else np.int64
+    return use, [np.searchsorted(rows, rows[use] - j).astype(index) for j in range(1, order + 1)]
+
+
+def _lagged_factor(r: np.ndarray, keep: np.ndarray, prev: list[np.ndarray]) -> np.ndarray:
+    """R of [r(t−1) … r(t−P) | r(t)] over the rows ``keep``, reduced one block of rows at a time."""
+    parts = []
+    for lo in range(0, len(keep), BLOCK_ROWS):
+        block = np.empty((len(keep[lo : lo + BLOCK_ROWS]), len(prev) + 1))
+        for j, at in enumerate(prev):
+            block[:, j] = r[at[lo : lo + BLOCK_ROWS]]
+        block[:, -1] = r[keep[lo : lo + BLOCK_ROWS]]
+        parts.append(np.asarray(np.linalg.qr(block, mode="r")))
+    return parts[0] if len(parts) == 1 else np.asarray(np.linalg.qr(np.vstack(parts), mode="r"))
 
 
 def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
@@ -204,18 +216,16 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
     ``(A(q) z, A(q) y)`` on the rows whose previous samples are rows too, A the AR model of the
     least-squares remainder (order by AIC up to ``MAX_NOISE_ORDER``; identity for a white one)."""
 
-    def identity(z: np.ndarray, yy: np.ndarray | None = None):
+    def identity(z: np.ndarray, yy: np.ndarray | None = None, inplace: bool = False):
         return z, yy
 
     r = y - x @ least_squares(x, y)
     keep, prev = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return identity
-    past, now = np.empty((len(keep), len(prev))), r[keep]
-    for j, at in enumerate(prev):
-        past[:, j] = r[at]
+    now = r[keep]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
-    rss_all, coefs = nested_fits(past, now)  # every order from one QR
+    rss_all, coefs = nested_from_factor(_lagged_factor(r, keep, prev))  # every order from one factor
     for p in range(1, MAX_NOISE_ORDER + 1):
         c = coefs[p]
         ic = math.log(max(float(rss_all[p]) / len(now), 1e-300)) + 2.0 * p / len(now)
@@ -225,14 +235,16 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
         return identity
     use, prev = _previous_rows(rows, a.size)
 
-    def whiten(z: np.ndarray, yy: np.ndarray | None = None):
+    def whiten(z: np.ndarray, yy: np.ndarray | None = None, inplace: bool = False):
         def f(v: np.ndarray) -> np.ndarray:
             if v.ndim == 1:
                 return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
-            out = np.empty((len(use), v.shape[1]))
-            for i in range(v.shape[1]):  # column by column: temporaries of one column only
-                out[:, i] = f(v[:, i])
-            return out
+            # Column by column (temporaries of one column only); in place, the filtered rows
+            # overwrite the first ones of each column once the whole column has been read.
+            out = v if inplace else np.empty((len(use), v.shape[1]))
+            for i in range(v.shape[1]):
+                out[: len(use), i] = f(v[:, i])
+            return out[: len(use)]
 
         return f(z), (None if yy is None else f(yy))
 

@@ -73,7 +73,7 @@ class EnvelopeFactor:
             for j, label in enumerate(lay.column_labels):
                 if label not in samples:  # a copy: a view would hold the whole layout
                     samples[label] = lay.u[:, j].copy()
-            self.layouts.append(replace(lay, u=lay.u[:0]))
+            self.layouts.append(replace(lay, u=np.empty((0, lay.u.shape[1]))))  # not a view: it holds the samples
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
         terms = self.layouts[0].output_terms
