@@ -32,7 +32,7 @@ from .._base.nested import BLOCK_ROWS, least_squares, nested_from_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
-from ..models.regressors import max_lag, regressor_matrix
+from ..models.regressors import max_lag, regression_rows, regressor_names, write_regressors
 from .added_variable import AddedVariableTest, holm
 from .candidates import changes_sign
 
@@ -138,37 +138,22 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     plan = _plan(model, data)
     deepest = max((max(lags) for _, _, lags in plan if lags), default=0) + LINEAR_CONTEXT
     first = max(model.first_lag_, max_lag(model.na_, layout), deepest)
-    phi, y, rows = regressor_matrix(data, model.na_, layout, first)
     lin_specs = [(x, lag) for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
-    # The columns are built one at a time into one design matrix (and the feature blocks again when
-    # tested): lists of them, stacked, would hold several copies of a long record at once.
     standard = {name: _standardised(x) for name, x, lags in plan if lags}
     specs = [(name, standard[name], lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
     if not specs:
         return ()
-    ok = np.ones(len(rows), dtype=bool)
-    for x, lag in lin_specs:
-        ok &= np.isfinite(x[rows - lag])
-    for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
-        ok &= np.isfinite(x[rows - lag]) & np.isfinite(x[rows - lag - 1])
-    if ok.sum() <= phi.shape[1] + len(lin_specs) + 10:
+    built = _design(data, model.na_, layout, first, lin_specs, specs)
+    if built is None:
         return ()
-    p = phi.shape[1]
-    design = np.empty((int(ok.sum()), p + len(lin_specs) + 1))
-    for i in range(p):
-        design[:, i] = phi[ok, i]
-    del phi
-    kept = rows[ok]
-    for j, (x, lag) in enumerate(lin_specs):
-        design[:, p + j] = x[kept - lag]
-    design[:, -1] = 1.0
-    whiten = _prewhitening(design, y[ok], kept)
-    base = AddedVariableTest(*whiten(design, y[ok], inplace=True))  # the design is not needed again
+    design, y_kept, kept = built
+    whiten = _prewhitening(design, y_kept, kept)
+    base = AddedVariableTest(*whiten(design, y_kept, inplace=True))  # the design is not needed again
     del design
     tested = [
         (name, lag, res)
         for name, x, lag, signed in specs
-        if (res := base.test(whiten(_features(x, rows, lag, signed)[ok])[0])[0]) is not None
+        if (res := base.test(whiten(_features(x, kept, lag, signed))[0])[0]) is not None
     ]
     if not tested:
         return ()
@@ -184,6 +169,27 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
         for name, hits in found.items()
     ]
     return tuple(sorted(out, key=lambda d: d.p_value))
+
+
+def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: list) -> tuple | None:
+    """The model's regressors, the plain lags of the tested signals and a constant, written into one
+    array (the columns one at a time: stacked lists would hold several copies of a long record), on
+    the rows where every tested feature exists too; None when too few rows are left."""
+    rows = regression_rows(data, first)
+    p = len(regressor_names(data.output_name, na, layout))
+    design = np.empty((len(rows), p + len(lin_specs) + 1))
+    write_regressors(design, data, na, layout, rows)
+    for j, (x, lag) in enumerate(lin_specs):
+        design[:, p + j] = x[rows - lag]
+    design[:, -1] = 1.0
+    ok = np.isfinite(design).all(axis=1) & np.isfinite(data.y[rows])
+    for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
+        ok &= np.isfinite(x[rows - lag]) & np.isfinite(x[rows - lag - 1])
+    if ok.sum() <= design.shape[1] + 9:
+        return None
+    if not ok.all():
+        design = design[ok]
+    return design, data.y[rows][ok], rows[ok]
 
 
 def _previous_rows(rows: np.ndarray, order: int) -> tuple[np.ndarray, list[np.ndarray]]:

@@ -15,7 +15,15 @@ from .._base import _core
 from ..data.iodata import IOData
 from .effects import EffectLayout
 
-__all__ = ["regressor_names", "regressor_matrix", "regressor_columns", "max_lag", "row_bound"]
+__all__ = [
+    "regression_rows",
+    "write_regressors",
+    "regressor_names",
+    "regressor_matrix",
+    "regressor_columns",
+    "max_lag",
+    "row_bound",
+]
 
 
 def _lag(k: int) -> str:
@@ -112,18 +120,48 @@ def regressor_matrix(
         Sample index of each row.
     """
     y = data.y
-    lag = max(first_lag, max_lag(na, layout))
-    rows = np.concatenate(
-        [np.arange(a + lag, b) for a, b in data.segments if b > a + lag] or [np.zeros(0, int)]
-    ).astype(int)
-    # Each column written straight into Φ: a list of columns stacked at the end would hold Φ twice.
+    rows = regression_rows(data, max(first_lag, max_lag(na, layout)))
     phi = np.empty((len(rows), len(regressor_names(data.output_name, na, layout))))
-    for j, col in enumerate(_columns(data, na, layout, rows, None, signs)):
-        phi[:, j] = col
+    write_regressors(phi, data, na, layout, rows, signs)
     ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
     if ok.all():  # no row touches a missing sample: no copies
         return phi, y[rows], rows
     return phi[ok], y[rows][ok], rows[ok]
+
+
+def regression_rows(data: IOData, lag: int) -> np.ndarray:
+    """The samples from ``lag`` on in each experiment (missing samples not yet left out).
+
+    Parameters
+    ----------
+    data : IOData
+    lag : int
+        First row of each experiment.
+
+    Returns
+    -------
+    ndarray of int
+    """
+    parts = [np.arange(a + lag, b) for a, b in data.segments if b > a + lag]
+    return np.concatenate(parts or [np.zeros(0, int)]).astype(int)
+
+
+def write_regressors(
+    out: np.ndarray, data: IOData, na: int, layout: EffectLayout, rows: np.ndarray, signs: bool = True
+) -> None:
+    """Write the regressors at ``rows`` into the first columns of ``out``, one column at a time (a
+    list of columns stacked at the end would hold the matrix twice).
+
+    Parameters
+    ----------
+    out : ndarray of shape (len(rows), >= n_params)
+    data, na, layout, signs
+        As in :func:`regressor_matrix`.
+    rows : ndarray of int
+        Sample index of each row (each at least the model's largest lag into its experiment).
+    """
+    for j, col in enumerate(_columns(data, na, layout, rows, None, signs)):
+        out[:, j] = col
 
 
 def regressor_columns(
