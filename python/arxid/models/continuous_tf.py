@@ -169,8 +169,14 @@ class ContinuousTransferFunction(PolynomialModel):
         """Dead time of the first input in seconds."""
         return self.delays_[0]
 
-    def parameter_dict(self) -> dict[str, tuple[float, float]]:
+    def parameter_dict(self, input: int | str | None = None) -> dict[str, tuple[float, float]]:
         """Each estimated parameter's name, value and standard deviation.
+
+        Parameters
+        ----------
+        input : int or str, optional
+            Only this input's parameters (and those all inputs share, such as a common
+            denominator), named without the input's tag (``"K"`` rather than ``"K(u1)"``).
 
         Returns
         -------
@@ -179,7 +185,11 @@ class ContinuousTransferFunction(PolynomialModel):
         """
         self.check_fitted()
         sd = np.sqrt(np.clip(np.diag(self.continuous_covariance_), 0.0, None))
-        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names_, self.continuous_parameters_, sd)}
+        out = {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names_, self.continuous_parameters_, sd)}
+        if input is None:
+            return out
+        tag = f"({self.input_names_[self._input_index(input)]})"
+        return {n.removesuffix(tag): v for n, v in out.items() if n.endswith(tag) or not n.endswith(")")}
 
     def continuous_poles(self, input: int = 0) -> np.ndarray:
         """Poles in rad/s of ``input``'s transfer function.
