@@ -175,7 +175,7 @@ class ContinuousTransferFunction(PolynomialModel):
         Parameters
         ----------
         input : int or str, optional
-            Only this input's parameters (and those all inputs share, such as a common
+            Only this input's (by index or name) parameters (and those all inputs share, such as a common
             denominator), named without the input's tag (``"K"`` rather than ``"K(u1)"``).
 
         Returns
@@ -188,7 +188,8 @@ class ContinuousTransferFunction(PolynomialModel):
         out = {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names_, self.continuous_parameters_, sd)}
         if input is None:
             return out
-        tag = f"({self.input_names_[self._input_index(input)]})"
+        names = list(self.input_names_)
+        tag = f"({names[names.index(input) if input in names else self._input_index(input)]})"
         return {n.removesuffix(tag): v for n, v in out.items() if n.endswith(tag) or not n.endswith(")")}
 
     def continuous_poles(self, input: int = 0) -> np.ndarray:

@@ -113,7 +113,9 @@ class ProcessStructure:
         -------
         lower, upper : list of float
         """
-        lower = [0.0 if n in ("Td", "Zeta") or n.startswith("T") and n != "Tz" else -math.inf for n in self.parameter_names]
+        lower = [
+            0.0 if n in ("Td", "Zeta") or n.startswith("T") and n != "Tz" else -math.inf for n in self.parameter_names
+        ]
         upper = [max_delay if n == "Td" else math.inf for n in self.parameter_names]
         return lower, upper
 
@@ -301,7 +303,14 @@ def procest(
     u = np.ascontiguousarray(data.u, dtype=float)
     y = np.ascontiguousarray(data.y, dtype=float)
     x, jtj, resid, iterations, evaluations, converged, on_bound = _core.procest_refine(
-        y, u, seg, data.ts, specs, np.asarray(x0, dtype=float), lower, upper,
+        y,
+        u,
+        seg,
+        data.ts,
+        specs,
+        np.asarray(x0, dtype=float),
+        lower,
+        upper,
         max_iterations=check_order("max_iterations", max_iterations),
     )
     sigma2 = float(resid @ resid / max(resid.size - len(names), 1))
@@ -333,7 +342,8 @@ def procest(
     model.evaluations_ = int(evaluations)
     if model.parameters_on_bound_:
         warnings.warn(
-            f"procest: {', '.join(model.parameters_on_bound_)} ended on a bound ({_limits(names, lower, upper, on_bound)}): "
+            f"procest: {', '.join(model.parameters_on_bound_)} ended on a bound "
+            f"({_limits(names, lower, upper, on_bound)}): "
             "the best model inside the bounds is there; widen them (bounds=..., max_delay=...) or try another "
             "structure",
             ArxidWarning,

@@ -22,9 +22,10 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from .arx_model import arx
 from .continuous_tf import ContinuousTransferFunction, scored_segments
-from .srivc import SrivcFit, input_states, segment_rows, output_error, srivc
+from .srivc import SrivcFit, input_states, output_error, segment_rows, srivc
 
 __all__ = ["tfest", "start_denominator", "search_delay"]
+
 
 def start_denominator(data: IOData, n_poles: int, whole_delay: int = 0) -> np.ndarray:
     """The first filter: the poles of ARX(n, n, ℓ + 1) mapped by ``s = ln(z) / ts`` (poles on the
@@ -179,6 +180,25 @@ def _extrapolated(history: list[list[float]], which: list[int], ceiling: float, 
     return out
 
 
+def _search_one(loss: Any, cur: list[float], i: int, ts: float, top: int | None, ceiling: float) -> float:
+    """Input ``i``'s dead time minimising ``loss`` with the others at ``cur``: the best whole sample
+    0 .. ``top`` (when given), then Brent's bounded search over ±1 sample around it."""
+    from scipy.optimize import minimize_scalar
+
+    def at(tau: float) -> list[float]:
+        return [tau if j == i else t for j, t in enumerate(cur)]
+
+    best = cur[i] if top is None else ts * min(range(top + 1), key=lambda k: loss(at(k * ts)))
+    lo, hi = max(best - ts, 0.0), min(best + ts, ceiling)
+    tried = {best: loss(at(best))}
+    if hi > lo:
+        res = minimize_scalar(
+            lambda t: loss(at(float(t))), bounds=(lo, hi), method="bounded", options={"xatol": 1e-4 * ts}
+        )
+        tried[float(res.x)] = loss(at(float(res.x)))
+    return min(tried, key=lambda t: tried[t])
+
+
 def search_delay(
     data: IOData,
     ns: list[int],
@@ -221,8 +241,6 @@ def search_delay(
         Seconds, one per input.
     fit : SrivcFit
     """
-    from scipy.optimize import minimize_scalar
-
     ts, m = data.ts, data.n_inputs
     given = [None] * m if delays is None else list(delays)
     which = [i for i, d in enumerate(given) if d is None]
@@ -245,20 +263,7 @@ def search_delay(
         loss = _numerator_loss(data, dens, nz, seg)
         before = list(cur)
         for i in which:
-
-            def at(tau: float, i: int = i) -> list[float]:
-                return [tau if j == i else t for j, t in enumerate(cur)]
-
-            if rnd < 2:
-                cur[i] = ts * min(range(top + 1), key=lambda k: loss(at(k * ts)))
-            lo, hi = max(cur[i] - ts, 0.0), min(cur[i] + ts, ceiling)
-            tried = {cur[i]: loss(cur)}
-            if hi > lo:
-                res = minimize_scalar(
-                    lambda t: loss(at(float(t))), bounds=(lo, hi), method="bounded", options={"xatol": 1e-4 * ts}
-                )
-                tried[float(res.x)] = loss(at(float(res.x)))
-            cur[i] = min(tried, key=lambda t: tried[t])
+            cur[i] = _search_one(loss, cur, i, ts, top if rnd < 2 else None, ceiling)
         history.append(list(cur))
         if len(history) == 3 and rnd >= 2:
             cur = _extrapolated(history, which, ceiling, ts)
