@@ -56,9 +56,10 @@ class ContinuousTransferFunction(PolynomialModel):
     ``parameters_`` and ``covariance_`` are those of the exact discrete equivalent (an OE model, see
     the module docstring); ``continuous_parameters_``, ``continuous_covariance_`` and
     ``parameter_names_`` are the estimated ones, :meth:`parameter_dict` pairs them with their
-    standard deviations. ``n_params`` and the information criteria count the discrete equivalent's
-    parameters (what the shared checks index ``covariance_`` by); the continuous model has
-    ``len(continuous_parameters_)``.
+    standard deviations. :func:`arxid.procest` adds ``parameters_on_bound_`` (names of the
+    parameters that ended on a bound) and ``evaluations_`` (simulations run by its refinement).
+    ``n_params`` and the information criteria count the discrete equivalent's parameters (what the
+    shared checks index ``covariance_`` by); the continuous model has ``len(continuous_parameters_)``.
 
     Examples
     --------
@@ -78,6 +79,9 @@ class ContinuousTransferFunction(PolynomialModel):
     continuous_parameters_: np.ndarray
     continuous_covariance_: np.ndarray
     parameter_names_: list[str]
+    #: procest only: the parameters that ended on a bound, and the simulations its refinement ran.
+    parameters_on_bound_: list[str]
+    evaluations_: int
     structure_: str
     method_: str
 

@@ -211,9 +211,9 @@ def _bounds(
     for one."""
     lo, hi = [], []
     for st in sts:
-        a, b = st.bounds(ts, top)
-        lo += a
-        hi += b
+        st_lo, st_hi = st.bounds(ts, top)
+        lo += st_lo
+        hi += st_hi
     lower, upper = np.array(lo, dtype=float), np.array(hi, dtype=float)
     for key, pair in (bounds or {}).items():
         hits = [j for j, n in enumerate(names) if n == key or n.split("(")[0] == key]
@@ -340,10 +340,12 @@ def procest(
     )
     model.parameters_on_bound_ = [n for n, b in zip(names, on_bound) if b]
     model.evaluations_ = int(evaluations)
-    if model.parameters_on_bound_:
+    # No dead time (Td = 0) is an ordinary answer, not a sign of a bound in the way.
+    said = [b and not (n.split("(")[0] == "Td" and v == 0.0) for n, v, b in zip(names, x, on_bound)]
+    if any(said):
         warnings.warn(
-            f"procest: {', '.join(model.parameters_on_bound_)} ended on a bound "
-            f"({_limits(names, lower, upper, on_bound)}): "
+            f"procest: {', '.join(n for n, b in zip(names, said) if b)} ended on a bound "
+            f"({_limits(names, lower, upper, said)}): "
             "the best model inside the bounds is there; widen them (bounds=..., max_delay=...) or try another "
             "structure",
             ArxidWarning,
