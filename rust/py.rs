@@ -20,10 +20,10 @@ use crate::structure::{Data, OutputKind, OutputTerm, Structure};
 use crate::sweep::{clamp_threads, effective_threads, SweepOptions};
 use crate::sweep_columns::{envelope_rows, release, structures_of_rows, SweepColumns};
 
-#[path = "py_srivc.rs"]
-mod py_srivc;
 #[path = "py_procest.rs"]
 mod py_procest;
+#[path = "py_srivc.rs"]
+mod py_srivc;
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
@@ -913,9 +913,9 @@ mod core_module {
     #[pymodule_export]
     use super::py_iv::iv_sweep;
     #[pymodule_export]
-    use super::py_srivc::srivc_filter;
-    #[pymodule_export]
     use super::py_procest::{procest_refine, procest_simulate};
+    #[pymodule_export]
+    use super::py_srivc::srivc_filter;
     #[pymodule_export]
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,

@@ -164,3 +164,36 @@ def test_one_structure_string_for_every_input():
     np.testing.assert_allclose(m.continuous_parameters_, [2.0, 1.0, 0.12, 3.0, 0.5, 0.335], rtol=1e-4)
     with pytest.raises(OrderError, match="one per input"):
         arxid.procest(data, ["P1D"] * 3)
+
+
+def test_gaps_and_experiments_and_bad_bounds():
+    """P1D (K = 2, Tp1 = 3 s, Td = 0.47 s), 10 % noise, with a NaN gap in the output: the core
+    simulates each run from rest, K and Tp1 within 3 %, Td within 0.1 sample; empty bounds are
+    refused with the parameter named."""
+    data, _ = record([2.0], [3.0, 1.0], 0.1, 2000, 10, tau=0.47, seed=3)
+    y = data.y.copy()
+    y[900:940] = np.nan
+    gapped = arxid.IOData(y, data.u, ts=0.1)
+    p = arxid.procest(gapped, "P1D").parameter_dict()
+    assert p["K"][0] == pytest.approx(2.0, rel=0.03) and p["Tp1"][0] == pytest.approx(3.0, rel=0.03)
+    assert p["Td"][0] == pytest.approx(0.47, abs=0.01)
+    with pytest.raises(arxid.ArxidError, match="Tp1 has no admissible value"):
+        arxid.procest(data, "P1D", bounds={"Tp1": (5.0, 1.0)})
+    with pytest.raises(arxid.ArxidError, match="no parameter 'Tw'"):
+        arxid.procest(data, "P1D", bounds={"Tw": (0.0, 1.0)})
+
+
+def test_core_errors_are_typed():
+    """Wrong parameter counts, impossible structures and mismatched lengths come back as arxid
+    errors, not panics."""
+    u = np.ones((50, 1))
+    with pytest.raises(arxid.DataError, match="parameters"):
+        _core.procest_simulate(u, [(0, 50)], 0.1, [(1, False, False, False, True)], np.ones(2))
+    with pytest.raises(OrderError, match="1, 2 or 3 poles"):
+        _core.procest_simulate(u, [(0, 50)], 0.1, [(4, False, False, False, False)], np.ones(5))
+    with pytest.raises(OrderError, match="underdamped"):
+        _core.procest_simulate(u, [(0, 50)], 0.1, [(1, False, True, False, False)], np.ones(3))
+    with pytest.raises(arxid.DataError, match="rows"):
+        _core.procest_refine(
+            np.zeros(40), u, [(0, 40)], 0.1, [(1, False, False, False, False)], np.ones(2), np.zeros(2), np.ones(2)
+        )

@@ -224,6 +224,12 @@ def _bounds(
         except (TypeError, ValueError):
             raise ArxidError(f"bounds[{key!r}] must be a pair (lower, upper), got {pair!r}") from None
         lower[hits], upper[hits] = np.maximum(lower[hits], a), np.minimum(upper[hits], b)
+    for n, a, b in zip(names, lower, upper):
+        if not a <= b:
+            raise ArxidError(
+                f"bounds: {n} has no admissible value ({a:g} to {b:g}); give a lower bound below the upper one "
+                "(time constants, Tw and Zeta above 0, Td from 0 to max_delay)"
+            )
     return lower, upper
 
 
