@@ -5,6 +5,11 @@ process models of several inputs fitted jointly. Data simulated with an exact ze
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -197,3 +202,44 @@ def test_core_errors_are_typed():
         _core.procest_refine(
             np.zeros(40), u, [(0, 40)], 0.1, [(1, False, False, False, False)], np.ones(2), np.zeros(2), np.ones(2)
         )
+
+
+_LONG_REFINEMENT = textwrap.dedent(
+    """
+    import os, signal, threading, time
+    import numpy as np
+    from arxid._base import _core
+    n = 3_000_000
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.standard_normal((n // 10, 1))).repeat(10, axis=0)
+    y = rng.standard_normal(n)
+    spec = [(3, True, True, False, True)]  # P3DUZ: 6 parameters
+    x0 = np.array([1.0, 0.5, 0.5, 1.0, 0.1, 0.05])
+    lo, hi = np.array([-np.inf, 0, 0, 0, -np.inf, 0]), np.array([np.inf] * 5 + [1.0])
+    sent = []
+    def interrupt():
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGINT)
+    threading.Timer(1.0, interrupt).start()
+    try:
+        _core.procest_refine(y, u, [(0, n)], 0.01, spec, x0, lo, hi, max_iterations=10_000)
+        print("finished", flush=True)
+    except KeyboardInterrupt:
+        print("interrupted", time.monotonic() - sent[0], flush=True)
+    """
+)
+
+
+def test_ctrl_c_stops_the_core_refinement_promptly():
+    """A refinement on 3 million samples (each simulation tens of milliseconds) interrupted after
+    1 s: KeyboardInterrupt within 0.5 s (the core looks at the flag before every simulation)."""
+    proc = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", _LONG_REFINEMENT],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    word, *latency = proc.stdout.split()
+    assert word == "interrupted" and proc.returncode == 0, proc.stdout + proc.stderr
+    assert float(latency[0]) < 0.5, latency
