@@ -243,3 +243,11 @@ def test_ctrl_c_stops_the_core_refinement_promptly():
     word, *latency = proc.stdout.split()
     assert word == "interrupted" and proc.returncode == 0, proc.stdout + proc.stderr
     assert float(latency[0]) < 0.5, latency
+
+
+def test_an_iteration_cap_is_said():
+    """max_iterations=1 stops the refinement before it settles: the model says so and warns."""
+    data, _ = record([1.5], [0.25, 0.3, 1.0], 0.05, 1500, 10, tau=0.23, seed=2)
+    with pytest.warns(ArxidWarning, match="max_iterations"):
+        m = arxid.procest(data, "P2DU", max_iterations=1)
+    assert not m.converged_ and m.iterations_ == 1

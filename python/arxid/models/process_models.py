@@ -346,6 +346,13 @@ def procest(
     )
     model.parameters_on_bound_ = [n for n, b in zip(names, on_bound) if b]
     model.evaluations_ = int(evaluations)
+    if not converged:
+        warnings.warn(
+            f"procest: the refinement was still improving after {iterations} iterations (max_iterations); the "
+            "estimate may not be final: raise max_iterations, or check the structure on validation data",
+            ArxidWarning,
+            stacklevel=2,
+        )
     # No dead time (Td = 0) is an ordinary answer, not a sign of a bound in the way.
     said = [b and not (n.split("(")[0] == "Td" and v == 0.0) for n, v, b in zip(names, x, on_bound)]
     if any(said):
