@@ -9,6 +9,7 @@ pub mod iv;
 pub mod kstep;
 pub mod one_step;
 pub mod pem;
+pub mod procest;
 pub mod qr;
 pub mod simulate;
 pub mod srivc;

@@ -3,12 +3,20 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use super::{run, to_pyerr};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::AtomicBool;
+
+use super::{from_panic, run, to_pyerr};
 use crate::srivc::{state_filter, StateFilter};
+
+/// Below this many state updates (samples × order) the filter runs on the calling thread without
+/// the GIL: a worker thread, its pool and the Ctrl-C polling cost more than the filtering (about a
+/// millisecond), and so short a run ends before a Ctrl-C would be noticed anyway.
+const INLINE_WORK: usize = 1 << 18;
 
 /// States (filtered signal and its derivatives, shape (len, n)) of `signal` shifted by `shift`
 /// samples through the discretised filter `phi` (n × n) with input taps `prev`, `cur`, `next`, from
-/// rest in each segment; NaN outside the segments. Runs without the GIL; Ctrl-C stops it.
+/// rest in each segment; NaN outside the segments. Runs without the GIL; Ctrl-C stops a long one.
 #[pyfunction]
 #[pyo3(signature = (signal, segments, phi, prev, cur, next, shift = 0))]
 #[allow(clippy::too_many_arguments)]
@@ -33,6 +41,14 @@ pub(super) fn srivc_filter<'py>(
     .map_err(|e| to_pyerr(py, e))?;
     let s = signal.as_slice()?;
     let len = s.len();
-    let out = run(py, 1, |cancel| state_filter(s, &segments, &f, shift, cancel))?;
+    let out = if len * n < INLINE_WORK {
+        let never = AtomicBool::new(false);
+        match py.detach(|| catch_unwind(AssertUnwindSafe(|| state_filter(s, &segments, &f, shift, &never)))) {
+            Ok(r) => r.map_err(|e| to_pyerr(py, e))?,
+            Err(panic) => return Err(from_panic(py, panic)),
+        }
+    } else {
+        run(py, 1, |cancel| state_filter(s, &segments, &f, shift, cancel))?
+    };
     PyArray1::from_vec(py, out).reshape([len, n])
 }

@@ -92,9 +92,6 @@ def test_structure_strings():
 
 
 def test_procest_errors():
-    data, _ = record([1.0], [1.0, 1.0], 0.1, 300, 5)
-    two = arxid.IOData(data.y, np.column_stack([data.u, data.u[::-1]]), ts=0.1)
-    with pytest.raises(DataError, match="one input"):
-        arxid.procest(two, "P1D")
+    # Several inputs are fitted now (one process model per input, tests/test_procest_core.py).
     with pytest.raises(DataError, match="IOData"):
         arxid.procest(np.zeros(3), "P1")

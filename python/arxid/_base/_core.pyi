@@ -37,6 +37,8 @@ __all__ = [
     "PemOutput",
     "csv_read",
     "srivc_filter",
+    "procest_refine",
+    "procest_simulate",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -261,3 +263,20 @@ def csv_read(
 def srivc_filter(
     signal: _F, segments: Sequence[tuple[int, int]], phi: _F, prev: _F, cur: _F, next: _F, shift: int = 0
 ) -> _F: ...
+
+_Process = tuple[int, bool, bool, bool, bool]
+
+def procest_simulate(
+    u: _F, segments: Sequence[tuple[int, int]], ts: float, structures: Sequence[_Process], x: _F
+) -> _F: ...
+def procest_refine(
+    y: _F,
+    u: _F,
+    segments: Sequence[tuple[int, int]],
+    ts: float,
+    structures: Sequence[_Process],
+    x0: _F,
+    lower: _F,
+    upper: _F,
+    max_iterations: int = 100,
+) -> tuple[_F, _F, _F, int, int, bool, list[bool]]: ...

@@ -56,9 +56,10 @@ class ContinuousTransferFunction(PolynomialModel):
     ``parameters_`` and ``covariance_`` are those of the exact discrete equivalent (an OE model, see
     the module docstring); ``continuous_parameters_``, ``continuous_covariance_`` and
     ``parameter_names_`` are the estimated ones, :meth:`parameter_dict` pairs them with their
-    standard deviations. ``n_params`` and the information criteria count the discrete equivalent's
-    parameters (what the shared checks index ``covariance_`` by); the continuous model has
-    ``len(continuous_parameters_)``.
+    standard deviations. :func:`arxid.procest` adds ``parameters_on_bound_`` (names of the
+    parameters that ended on a bound) and ``evaluations_`` (simulations run by its refinement).
+    ``n_params`` and the information criteria count the discrete equivalent's parameters (what the
+    shared checks index ``covariance_`` by); the continuous model has ``len(continuous_parameters_)``.
 
     Examples
     --------
@@ -78,6 +79,9 @@ class ContinuousTransferFunction(PolynomialModel):
     continuous_parameters_: np.ndarray
     continuous_covariance_: np.ndarray
     parameter_names_: list[str]
+    #: procest only: the parameters that ended on a bound, and the simulations its refinement ran.
+    parameters_on_bound_: list[str]
+    evaluations_: int
     structure_: str
     method_: str
 
@@ -169,8 +173,14 @@ class ContinuousTransferFunction(PolynomialModel):
         """Dead time of the first input in seconds."""
         return self.delays_[0]
 
-    def parameter_dict(self) -> dict[str, tuple[float, float]]:
+    def parameter_dict(self, input: int | str | None = None) -> dict[str, tuple[float, float]]:
         """Each estimated parameter's name, value and standard deviation.
+
+        Parameters
+        ----------
+        input : int or str, optional
+            Only this input's (by index or name) parameters (and those all inputs share, such as a common
+            denominator), named without the input's tag (``"K"`` rather than ``"K(u1)"``).
 
         Returns
         -------
@@ -179,7 +189,12 @@ class ContinuousTransferFunction(PolynomialModel):
         """
         self.check_fitted()
         sd = np.sqrt(np.clip(np.diag(self.continuous_covariance_), 0.0, None))
-        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names_, self.continuous_parameters_, sd)}
+        out = {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names_, self.continuous_parameters_, sd)}
+        if input is None:
+            return out
+        names = list(self.input_names_)
+        tag = f"({names[names.index(input) if input in names else self._input_index(input)]})"
+        return {n.removesuffix(tag): v for n, v in out.items() if n.endswith(tag) or not n.endswith(")")}
 
     def continuous_poles(self, input: int = 0) -> np.ndarray:
         """Poles in rad/s of ``input``'s transfer function.

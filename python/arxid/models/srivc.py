@@ -36,7 +36,7 @@ from .._base import _core
 from ..exceptions import ConvergenceError, IdentifiabilityError
 from .continuous import controllable_form, split_delay, zoh_matrices
 
-__all__ = ["SrivcFit", "srivc", "output_error", "pole_scale"]
+__all__ = ["SrivcFit", "srivc", "output_error", "pole_scale", "input_states", "segment_rows"]
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,7 @@ def _states(signal: np.ndarray, segments: list, phi, prev, cur, nxt, shift: int 
     )
 
 
-def _input_states(u: np.ndarray, den: np.ndarray, ts: float, delay: float, segments: list) -> np.ndarray:
+def input_states(u: np.ndarray, den: np.ndarray, ts: float, delay: float, segments: list) -> np.ndarray:
     """The input held between samples and delayed by ``delay``, through ``1/den``: its filtered
     value and first n − 1 derivatives at the sampling instants."""
     whole, fraction = split_delay(delay, ts)
@@ -156,12 +156,12 @@ def output_error(
     parts = []
     for i in range(u.shape[1]):
         den = np.asarray(dens[i], dtype=float)
-        st = _input_states(u[:, i], den / den[0], ts, delays[i], segments)
+        st = input_states(u[:, i], den / den[0], ts, delays[i], segments)
         parts.append(st[:, : len(nums[i])] @ (np.asarray(nums[i], dtype=float)[::-1] / den[0]))
     return y - np.sum(parts, axis=0), parts
 
 
-def _rows(segments: list) -> np.ndarray:
+def segment_rows(segments: list) -> np.ndarray:
     """Indices of the samples inside the segments (the rows of the IV equations)."""
     return np.concatenate([np.arange(a, b) for a, b in segments]) if segments else np.zeros(0, dtype=int)
 
@@ -185,10 +185,10 @@ def _iv_step(
     n = len(den) - 1
     # An unstable iterate would give unbounded instruments: its mirror image filters and simulates.
     filt = _stable(den)
-    ust = [_input_states(u[:, i], filt, ts, delays[i], segments) for i in range(u.shape[1])]
+    ust = [input_states(u[:, i], filt, ts, delays[i], segments) for i in range(u.shape[1])]
     xhat = sum(st[:, : len(b)] @ np.asarray(b, dtype=float)[::-1] for st, b in zip(ust, nums))
     err = y - xhat
-    rows = _rows(segments)
+    rows = segment_rows(segments)
     yf = _smooth_states(y, filt, ts, segments)[rows]
     xf = _smooth_states(xhat, filt, ts, segments)[rows]
     ur = [st[rows] for st in ust]
@@ -292,9 +292,9 @@ def _ls_start(y, u, ts, den, n_zeros, delays, segments):
     instruments (the model output is not known yet)."""
     n = len(den) - 1
     filt = _stable(den)
-    rows = _rows(segments)
+    rows = segment_rows(segments)
     yf = _smooth_states(y, filt, ts, segments)[rows]
-    ur = [_input_states(u[:, i], filt, ts, delays[i], segments)[rows] for i in range(u.shape[1])]
+    ur = [input_states(u[:, i], filt, ts, delays[i], segments)[rows] for i in range(u.shape[1])]
     phi = _regressors(yf, ur, n, n_zeros)
     theta, *_ = np.linalg.lstsq(phi, yf[:, n], rcond=None)
     return theta, phi.T @ phi, None
