@@ -46,6 +46,23 @@ class Judge:
         self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
         self.initial = initial
 
+    def refit(self, model: ArxModel, c: Candidate, initial: str) -> tuple[ArxModel, float]:
+        """``model`` refitted with candidate ``c`` and its validation error at the judge's horizon
+        from the ``initial`` conditions: the one place the judge refits (a fleet's judge refits where
+        the logs are, :mod:`arxid.diagnosis.fleet_judge`).
+
+        Parameters
+        ----------
+        model : ArxModel
+        c : Candidate
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        tuple of (ArxModel, float)
+        """
+        return refit_and_validate(model, self.data, self.validation, c, self.horizon, initial)
+
     def _improvement(self, after: float) -> float:
         if math.isfinite(after) and math.isfinite(self.base_rms) and self.base_rms > 0:
             return 1.0 - after / self.base_rms
@@ -67,9 +84,7 @@ class Judge:
         after, fitted = math.nan, None
         if refit:
             try:
-                fitted, after = refit_and_validate(
-                    self.model, self.data, self.validation, c, self.horizon, self.initial
-                )
+                fitted, after = self.refit(self.model, c, self.initial)
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:
@@ -128,7 +143,7 @@ class Judge:
                 m = self.model
                 try:
                     c = Candidate(name, (name,), m.na_, m.nb_, m.nk_, "effect")
-                    after = refit_and_validate(m, self.data, self.validation, c, self.horizon)[1]
+                    after = self.refit(m, c, "zero")[1]
                 except ArxidError:
                     after = math.nan
             if math.isfinite(after):
@@ -183,7 +198,7 @@ class Judge:
         nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
         both = Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
         try:
-            after = refit_and_validate(m, self.data, self.validation, both, self.horizon, self.initial)[1]
+            after = self.refit(m, both, self.initial)[1]
         except ArxidError:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
@@ -198,7 +213,7 @@ class Judge:
         if top.model is not None:
             try:
                 c = Candidate(s.effect, s.effects, s.na, s.nb, s.nk, s.kind)
-                after = refit_and_validate(top.model, self.data, self.validation, c, self.horizon, self.initial)[1]
+                after = self.refit(top.model, c, self.initial)[1]
             except ArxidError:
                 pass
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
