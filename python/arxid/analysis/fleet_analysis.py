@@ -23,16 +23,16 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from ..diagnosis.candidates import physics
 from ..diagnosis.fleet_diagnose import FleetDiagnosis, diagnose_fleet
+from ..diagnosis.fleet_refit import FleetRefits
 from ..diagnosis.ladder import Ladder, LadderStep, next_rung
 from ..diagnosis.result import Diagnosis
 from ..exceptions import ArxidError, OrderError
 from ..fleet.cluster import WorkerLogs
-from ..fleet.refit import FleetRefits
 from ..models.arx_model import ArxModel
 from ..models.polynomial import check_initial
 from ..selection.search import SweepResult, sweep
@@ -113,10 +113,11 @@ class FleetAnalysis:
         dict
         """
         out = self.diagnosis.to_dict(self.ladder)
+        g = self.grid
         out.update(
             {
                 "choice": self.choice.to_dict(),
-                "grid": None if self.grid is None else {k: list(v) for k, v in self.grid.items()},
+                "grid": None if g is None else {"na": list(g["na"]), "nb": list(g["nb"]), "nk": list(g["nk"])},
                 "logs": list(self.logs),
                 "fleet": self.fleet.to_dict(),
                 "notes": list(self.notes),
@@ -206,7 +207,7 @@ def _structure(
         model = refits.fit(int(na), nbs, nks, ())
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
     g = grid_of(grid)
-    res = sweep(list(sources), client=logs.client, validation=logs.validation, **options, **g)
+    res = sweep(cast(Any, list(sources)), client=logs.client, validation=logs.validation, **options, **g)
     model, choice = choose(res)
     return res, model, choice, g
 
@@ -319,7 +320,7 @@ def analyse_fleet(
     measure = res.horizon if res is not None else horizon
     ladder, first = fleet_ladder(model, on_workers, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
-    notes = (FLEET_ANALYSIS_NOTE,)
+    notes: tuple[str, ...] = (FLEET_ANALYSIS_NOTE,)
     if res is not None and res.integrating:
         notes += (f"The sweep found an integrating plant ({res.integrating_reason}).",)
     if not math.isfinite(first.diagnosis.rms_sim_val):

@@ -5,7 +5,7 @@ needs the samples done where the logs are.
 * Candidate scoring (step 2) from the shares' triangular factors (:mod:`~.fleet_scoring`).
 * Refits (steps 3 to 5) from the shares' factors of each refit's regressors, and validation errors
   (free run or k steps ahead) simulated on each share's own logs, pooled from their sums
-  (:mod:`arxid.fleet.refit`; a free run is not a statistic of the regressors).
+  (:mod:`~.fleet_refit`; a free run is not a statistic of the regressors).
 * The judging rules themselves are the in-process ones: :class:`~.judge.Judge` with its refits
   done on the fleet (:class:`FleetJudge`), :func:`~.judge.demote_pairs`, Holm's correction and the
   ranking of :func:`~.suspects.finish_suspects`.
@@ -33,13 +33,13 @@ import numpy as np
 from .._base.formatting import finite_or_none
 from ..exceptions import ArxidError, DataError
 from ..fleet.cluster import WorkerLogs
-from ..fleet.refit import FleetRefits
 from ..models.arguments import check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
 from .added_variable import holm
 from .candidates import auto_candidates, output_integrates
 from .extension import Candidate, candidate_list
+from .fleet_refit import FleetRefits
 from .fleet_scoring import FleetStatistics, combine_statistics, share_statistics
 from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
 from .result import Diagnosis
@@ -311,6 +311,7 @@ def diagnose_fleet(
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
     refits = FleetRefits(logs)
     est, val = logs.on_demand()
+    assert val is not None  # checked above
     base = _baseline(refits, model, horizon, initial)
     cands, auto = _candidates(logs, model, candidates)
     stats = fleet_statistics(logs, model, cands)

@@ -26,11 +26,11 @@ import numpy as np
 from .._base import _core, metrics
 from ..checks.comparison import prediction_error
 from ..data.iodata import IOData
+from ..fleet import cluster
 from ..models.arx_model import ArxModel
 from ..models.arx_solver import solve_factor
 from ..models.effects import compile_effects
 from ..models.regressors import max_lag, regressor_matrix, regressor_names, row_bound
-from . import cluster
 
 __all__ = ["FleetRefits", "PooledScore", "aligned", "share_refit_factor", "share_scores"]
 
@@ -128,9 +128,9 @@ def aligned(d: IOData) -> IOData:
 
     if ok(d.y) and ok(d.u) and all(ok(v) for v in d.extra.values()):
         return d
-    req = ["C", "A"]
-    extra = {k: np.require(v, np.float64, req) for k, v in d.extra.items()}
-    return dataclasses.replace(d, y=np.require(d.y, np.float64, req), u=np.require(d.u, np.float64, req), extra=extra)
+    extra = {k: np.require(v, np.float64, ["C", "A"]) for k, v in d.extra.items()}
+    y, u = np.require(d.y, np.float64, ["C", "A"]), np.require(d.u, np.float64, ["C", "A"])
+    return dataclasses.replace(d, y=y, u=u, extra=extra)
 
 
 @dataclass(frozen=True)
