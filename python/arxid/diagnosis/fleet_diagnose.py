@@ -41,7 +41,7 @@ from .candidates import auto_candidates, output_integrates
 from .extension import Candidate, candidate_list
 from .fleet_refit import FleetRefits
 from .fleet_scoring import FleetStatistics, combine_statistics, share_statistics
-from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
+from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs, refit_indices
 from .result import Diagnosis
 from .suspects import INTEGRATING_HORIZON, finish_suspects
 
@@ -72,6 +72,33 @@ class FleetJudge(Judge):
     def __init__(self, refits: FleetRefits, model: ArxModel, data: Any, validation: Any, *args: Any):
         super().__init__(model, data, validation, *args)
         self.refits = refits
+        self._done: dict[tuple, Any] = {}
+
+    def _key(self, model: ArxModel, c: Any, initial: str) -> tuple:
+        effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
+        return (id(model), c.na, tuple(c.nb), tuple(c.nk), effects, model.first_lag_, initial)
+
+    def suspects(self, scored: list[dict], notes: dict[str, str], alpha: float, n_refit: int | None) -> list:
+        """:meth:`Judge.suspects`, with the refits it makes done together first (two round trips for
+        all of them instead of two for each).
+
+        Parameters
+        ----------
+        scored : list of dict
+        notes : dict of str to str
+        alpha : float
+        n_refit : int or None
+
+        Returns
+        -------
+        list of Suspect
+        """
+        chosen = [scored[i]["c"] for i in sorted(refit_indices(scored, alpha, n_refit))]
+        keys = [self._key(self.model, c, self.initial) for c in chosen]
+        structures = [(c.na, c.nb, c.nk, k[4], self.model.first_lag_) for c, k in zip(chosen, keys)]
+        spec = ("val", self.horizon, self.initial)
+        self._done.update(zip(keys, self.refits.fit_many(structures, [spec])))
+        return super().suspects(scored, notes, alpha, n_refit)
 
     def refit(self, model: ArxModel, c: Any, initial: str) -> tuple[ArxModel, float]:
         """``model`` refitted with ``c`` on every log, and its pooled validation error.
@@ -86,9 +113,16 @@ class FleetJudge(Judge):
         -------
         tuple of (ArxModel, float)
         """
-        effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
-        fitted = self.refits.fit(c.na, c.nb, c.nk, effects, model.first_lag_)
-        return fitted, self.refits.error(fitted, self.horizon, initial)
+        key = self._key(model, c, initial)
+        out = self._done.pop(key, None)
+        if out is None:
+            out = self.refits.fit_many(
+                [(c.na, c.nb, c.nk, key[4], model.first_lag_)], [("val", self.horizon, initial)]
+            )[0]
+        if isinstance(out, ArxidError):
+            raise out
+        fitted, (score,) = out
+        return fitted, score.rms
 
 
 @dataclass(frozen=True)

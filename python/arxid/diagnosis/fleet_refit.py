@@ -26,6 +26,7 @@ import numpy as np
 from .._base import _core, metrics
 from ..checks.comparison import prediction_error
 from ..data.iodata import IOData
+from ..exceptions import ArxidError
 from ..fleet import cluster
 from ..models.arx_model import ArxModel
 from ..models.arx_solver import solve_factor
@@ -59,6 +60,41 @@ def share_refit_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: tup
     r = _factor(np.column_stack([phi, y]))
     lag = max(first_lag, max_lag(na, layout))
     return r, len(rows), row_bound(data, lag), replace(layout, u=layout.u[:0]), data.n_samples
+
+
+def share_refit_factors(share: tuple, structures: Sequence[tuple]) -> list[tuple]:
+    """:func:`share_refit_factor` of several refits in one task.
+
+    Parameters
+    ----------
+    share : tuple
+    structures : sequence of (na, nb, nk, effects, first_lag)
+
+    Returns
+    -------
+    list of tuple
+    """
+    return [share_refit_factor(share, *s) for s in structures]
+
+
+def _combine_refits(a: list, b: list) -> list:
+    return [_combine_refit(x, y) for x, y in zip(a, b, strict=True)]
+
+
+def share_scores_many(share: tuple, models: Sequence[Any], specs: Sequence[tuple]) -> list[list[tuple]]:
+    """:func:`share_scores` of several models in one task.
+
+    Parameters
+    ----------
+    share : tuple
+    models : sequence of ArxModel
+    specs : sequence of (part, horizon, initial)
+
+    Returns
+    -------
+    list of list of tuple
+    """
+    return [share_scores(share, m, specs) for m in models]
 
 
 def _factor(a: np.ndarray) -> np.ndarray:
@@ -201,15 +237,82 @@ class FleetRefits:
         ArxModel
             Without ``data_``; ``fit_percent_`` is the one-step fit over every log.
         """
-        futures = self.logs.each(share_refit_factor, na, tuple(nb), tuple(nk), tuple(effects), first_lag)
-        r, n_rows, usable, layout, _ = cluster.reduce_tree(self.logs.client, futures, _combine_refit)
+        return self.fit_scored(na, nb, nk, effects, first_lag)[0]
+
+    def fit_scored(
+        self, na: int, nb: tuple, nk: tuple, effects: Sequence[str], first_lag: int = 0, specs: Sequence[tuple] = ()
+    ) -> tuple[ArxModel, list[PooledScore]]:
+        """:meth:`fit`, and the fitted model's scores for ``specs``.
+
+        Parameters
+        ----------
+        na : int
+        nb, nk : tuple of int
+        effects : sequence of str
+        first_lag : int
+        specs : sequence of (part, horizon, initial)
+            See :func:`share_scores`.
+
+        Returns
+        -------
+        tuple of (ArxModel, list of PooledScore)
+
+        Raises
+        ------
+        ArxidError
+            When the model cannot be fitted (too few rows, collinear regressors).
+        """
+        out = self.fit_many([(na, tuple(nb), tuple(nk), tuple(effects), first_lag)], specs)[0]
+        if isinstance(out, ArxidError):
+            raise out
+        return out
+
+    def fit_many(self, structures: Sequence[tuple], specs: Sequence[tuple] = ()) -> list[Any]:
+        """Several refits in two round trips: the factors of all, then the scores of all.
+
+        Parameters
+        ----------
+        structures : sequence of (na, nb, nk, effects, first_lag)
+        specs : sequence of (part, horizon, initial)
+            Scores wanted besides the one-step fit percent on the estimation parts.
+
+        Returns
+        -------
+        list
+            Per structure ``(ArxModel, [PooledScore per spec])``, or the ArxidError its fit raised.
+        """
+        structures = [(na, tuple(nb), tuple(nk), tuple(e), lag) for na, nb, nk, e, lag in structures]
+        futures = self.logs.each(share_refit_factors, structures)
+        combined = cluster.reduce_tree(self.logs.client, futures, _combine_refits)
         sig = self.logs.signals
-        names = regressor_names(sig.output_name, na, layout)
-        res = solve_factor(r, n_rows, usable, na, layout, names)
-        model = ArxModel(na=na, nb=list(nb), nk=list(nk), effects=list(effects))
-        # The one solve of a fit from factors, as ArxModel.fit with client= stores it (first_lag kept).
-        model._store(sig, (na, tuple(nb), tuple(nk)), layout, names, first_lag, res, fit_percent=self.one_step_fit)
-        return model
+        models: list[Any] = []
+        for (na, nb, nk, effects, lag), (r, n_rows, usable, layout, _) in zip(structures, combined, strict=True):
+            names = regressor_names(sig.output_name, na, layout)
+            try:
+                res = solve_factor(r, n_rows, usable, na, layout, names)
+            except ArxidError as exc:
+                models.append(exc)
+                continue
+            model = ArxModel(na=na, nb=list(nb), nk=list(nk), effects=list(effects))
+            # The one solve of a fit from factors, as ArxModel.fit with client= stores it (first_lag
+            # kept); the one-step fit percent comes with the scores below.
+            model._store(sig, (na, nb, nk), layout, names, lag, res, fit_percent=lambda m: math.nan)
+            models.append(model)
+        fitted = [m for m in models if isinstance(m, ArxModel)]
+        wanted = [("est", 1, "zero"), *specs]
+        outs = self.logs.client.gather(self.logs.each(share_scores_many, fitted, wanted)) if fitted else []
+        scores = iter(
+            [[PooledScore.of([o[i][j] for o in outs]) for j in range(len(wanted))] for i in range(len(fitted))]
+        )
+        result: list[Any] = []
+        for m in models:
+            if isinstance(m, ArxModel):
+                pooled = next(scores)
+                m.fit_percent_ = pooled[0].fit
+                result.append((m, pooled[1:]))
+            else:
+                result.append(m)
+        return result
 
     def one_step_fit(self, model: ArxModel) -> float:
         """The model's one-step fit percent on the estimation parts of every log.

@@ -16,7 +16,7 @@ from ..models.polynomial import PolynomialModel
 from .extension import Candidate, refit_and_validate
 from .result import Suspect
 
-__all__ = ["Judge", "demote_pairs", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
+__all__ = ["Judge", "demote_pairs", "refit_indices", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
 
 #: Validation errors within this share of the lowest count as a tie between suspects of a
 #: polynomial model (the one adding fewer parameters is then the best).
@@ -71,12 +71,7 @@ class Judge:
     def suspects(self, scored: list[dict], notes: dict[str, str], alpha: float, n_refit: int | None) -> list[Suspect]:
         """Every candidate that passes the corrected test is refitted (only those can be significant),
         and the best ``n_refit`` by p-value so the table shows their effect (all when None)."""
-        order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
-        chosen = (
-            set(range(len(scored)))
-            if n_refit is None
-            else set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
-        )
+        chosen = refit_indices(scored, alpha, n_refit)
         return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
@@ -221,6 +216,26 @@ class Judge:
         return replace(
             s, significant=False, note=f"explained by {top.effect}: no gain once it is added", explained_by=top.effect
         )
+
+
+def refit_indices(scored: list[dict], alpha: float, n_refit: int | None) -> set[int]:
+    """Which scored candidates :meth:`Judge.suspects` refits: those passing the corrected test and
+    the best ``n_refit`` by p-value (all when None).
+
+    Parameters
+    ----------
+    scored : list of dict
+    alpha : float
+    n_refit : int or None
+
+    Returns
+    -------
+    set of int
+    """
+    if n_refit is None:
+        return set(range(len(scored)))
+    order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
+    return set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
 
 
 def demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspect]:
