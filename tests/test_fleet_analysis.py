@@ -18,7 +18,7 @@ from scipy.signal import lfilter
 import arxid
 from arxid.data.logs import merged_parts
 from arxid.diagnosis.extension import candidate_list
-from arxid.diagnosis.fleet_diagnose import diagnose_fleet
+from arxid.diagnosis.fleet_diagnose import diagnose_fleet, diagnose_logs
 from arxid.diagnosis.fleet_refit import FleetRefits
 from arxid.diagnosis.scoring import Scoring
 from arxid.exceptions import ArxidError
@@ -116,6 +116,11 @@ def test_per_log_test_is_the_in_process_test_on_that_log(dask_client):
         assert _close(ev.score, top["score"]) and _close(ev.f_statistic, top["f"])
         assert np.isclose(ev.p_value, top["p"], rtol=1e-8, atol=1e-250)
     assert fd.logs_with_effect == tuple(with_effect)
+    # the same from the list of logs and an in-process model of the merged estimation parts
+    est, _ = merged_parts(logs, None, 0.3)
+    again = diagnose_logs(arxid.arx(est, 2, 2, 1), logs, dask_client, candidates=CANDIDATES)
+    assert [s.effect for s in again.diagnosis.suspects] == [s.effect for s in fd.diagnosis.suspects]
+    assert again.logs_with_effect == fd.logs_with_effect
 
 
 def test_fleet_analysis_refuses_what_it_cannot_do(dask_client):

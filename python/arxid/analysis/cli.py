@@ -568,8 +568,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_sweep)
     _add_analysis_commands(sub, kw)
     add_bench_command(sub, kw, load=_load, grid=_grid)
-    fleet = dict(load_data=load_data, names=_names, units=parse_units, orders=_parse_orders, grid=_grid)
-    fleet.update(order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
+    fleet: dict[str, Any] = dict(load_data=load_data, names=_names, units=parse_units, orders=_parse_orders)
+    fleet.update(grid=_grid, order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
     add_fleet_command(sub, kw, {**fleet, "usage_error": UsageError})
     return root
 

@@ -16,7 +16,7 @@ import contextlib
 import functools
 import glob
 import logging
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 from ..exceptions import ArxidError
@@ -78,7 +78,7 @@ def _client(scheduler: str | None, workers: int) -> Iterator[Any]:
         yield client
 
 
-def _run(args: argparse.Namespace, helpers: dict[str, Callable]) -> int:
+def _run(args: argparse.Namespace, helpers: dict[str, Any]) -> int:
     split = DEFAULT_SPLIT if args.split is None else args.split
     if not 0 < split < 1:
         raise helpers["usage_error"](f"--split {split} must be a fraction between 0 and 1, e.g. {DEFAULT_SPLIT}")
@@ -109,7 +109,7 @@ def _run(args: argparse.Namespace, helpers: dict[str, Callable]) -> int:
     return 0
 
 
-def add_fleet_command(sub: Any, kw: dict[str, Any], helpers: dict[str, Callable]) -> None:
+def add_fleet_command(sub: Any, kw: dict[str, Any], helpers: dict[str, Any]) -> None:
     """Add ``arxid fleet`` to the command line's subparsers.
 
     Parameters

@@ -45,7 +45,7 @@ from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs, refit_indices
 from .result import Diagnosis
 from .suspects import INTEGRATING_HORIZON, finish_suspects
 
-__all__ = ["FleetDiagnosis", "FleetJudge", "LogEvidence", "diagnose_fleet", "FLEET_NOTES"]
+__all__ = ["FleetDiagnosis", "FleetJudge", "LogEvidence", "diagnose_fleet", "diagnose_logs", "FLEET_NOTES"]
 
 #: What the diagnosis of a fleet leaves out (see the module's docstring).
 FLEET_NOTES = (
@@ -360,6 +360,33 @@ def diagnose_fleet(
         min_improvement, len(scored), False,
     )  # fmt: skip
     return FleetDiagnosis(d, _evidence(stats, d, logs.names, alpha))
+
+
+def diagnose_logs(
+    model: ArxModel, logs: Sequence[Any], client: Any, *, split: float = 0.7, read: Any = None, **kwargs: Any
+) -> FleetDiagnosis:
+    """:func:`diagnose_fleet` of a list of logs: the workers of ``client`` read them (``read`` as in
+    :func:`arxid.data.logs.load_experiment`) and hold out the last ``1 - split`` of each for validation.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted ARX model (for example ``arxid.arx(logs, 2, 2, 1, client=client)``).
+    logs : sequence of IOData or file paths
+    client : dask.distributed.Client
+    split : float
+        Estimation share of each log.
+    read : dict or callable, optional
+    **kwargs
+        As in :func:`diagnose_fleet`.
+
+    Returns
+    -------
+    FleetDiagnosis
+    """
+    if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
+        raise ArxidError(f"split must be the estimation fraction of each log between 0 and 1, got {split!r}")
+    return diagnose_fleet(model, WorkerLogs(client, logs, read, 1.0 - float(split)), **kwargs)
 
 
 def _evidence(stats: FleetStatistics, d: Diagnosis, names: Sequence[str], alpha: float) -> tuple[LogEvidence, ...]:
