@@ -155,3 +155,13 @@ def test_cli_fleet_names_the_logs(dask_client, tmp_path, capsys):
     assert np.isclose(out["suspects"][0]["score"], local.suspects[0].score, rtol=REL)
     assert np.isclose(out["ladder"][1]["rms_sim_val"], local.suspects[0].rms_sim_val_after, rtol=REL)
     assert main(["fleet", str(tmp_path / "nothing*.npz"), "--output", "y", "--inputs", "u", "--orders", "2,2,1"]) == 2
+
+
+def test_fleet_analysis_with_automatic_candidates(dask_client):
+    """``candidates="auto"`` on a fleet (the union of what each worker's logs suggest, no threshold
+    scans) finds the battery and names the logs with it."""
+    logs, with_effect = _fleet(6, "battery", n_logs=4)
+    fleet = arxid.analyse(logs, client=dask_client, orders=(2, 2, 1), max_steps=1)
+    assert fleet.missing_effect == "u1*vbat"
+    assert fleet.logs_with_effect == tuple(with_effect)
+    assert any("threshold scan" in s.note for s in fleet.diagnosis.suspects)  # said, not silently dropped

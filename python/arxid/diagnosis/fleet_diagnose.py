@@ -292,9 +292,7 @@ def fleet_statistics(logs: WorkerLogs, model: ArxModel, cands: list[Candidate]) 
     FleetStatistics
     """
     outs = logs.client.gather(logs.each(share_statistics, model, cands, "const" not in model.effects))
-    # WorkerLogs puts log j in share j mod (number of shares), in order.
-    k, n = len(logs.shares), len(logs.names)
-    order = [j for i in range(k) for j in range(i, n, k)]
+    order = [j for group in logs.groups for j in group]
     return combine_statistics(model, cands, outs, order, logs.signals)
 
 
