@@ -237,20 +237,25 @@ def fleet_ladder(
     d = first.diagnosis
     ladder = Ladder(d.validation, d.horizon, initial)
 
-    def measured(m: ArxModel, added: str) -> LadderStep:
-        score = refits.scores(m, [("val", d.horizon, initial)])[0]
+    def measured(m: ArxModel, added: str, base: Diagnosis) -> LadderStep:
+        # A diagnosis of ``m`` at the ladder's measure has measured it already (one round trip less).
+        if base.model is m and base.horizon == ladder.horizon:
+            rms, fit = base.rms_sim_val, base.fit_val
+        else:
+            score = refits.scores(m, [("val", ladder.horizon, initial)])[0]
+            rms, fit = score.rms, score.fit
         text = physics(added, logs.head) if added else ""
-        return LadderStep(added, m, tuple(m.effects), m.structure_name(), score.rms, score.fit, d.horizon, text)
+        return LadderStep(added, m, tuple(m.effects), m.structure_name(), rms, fit, ladder.horizon, text)
 
-    ladder.steps.append(measured(model, ""))
+    ladder.steps.append(measured(model, "", d))
     ladder.diagnoses.append(d)
     for _ in range(int(max_steps)):
         rung = next_rung(d)
         if rung is None or rung.model is None:
             break
         model = rung.model
-        ladder.steps.append(measured(model, rung.effect))
         d = diagnose_fleet(model, logs, horizon=d.horizon, initial=initial, **diagnose_kwargs).diagnosis
+        ladder.steps.append(measured(model, rung.effect, d))
         ladder.diagnoses.append(d)
     return ladder, first
 
