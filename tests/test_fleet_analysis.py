@@ -74,7 +74,9 @@ def _assert_same(fleet, local) -> None:
     assert _close(fleet.diagnosis.fit_val, local.diagnosis.fit_val)
 
 
-@pytest.mark.parametrize(("seed", "effect", "expected"), [(0, "battery", "u1*vbat"), (1, "cubic", "u1^3")])
+@pytest.mark.parametrize(
+    ("seed", "effect", "expected"), [(0, "battery", "u1*vbat"), (1, "cubic", "u1^3"), (7, "battery", "u1*vbat")]
+)
 def test_fleet_analysis_matches_in_process_and_names_the_logs(dask_client, seed, effect, expected):
     logs, with_effect = _fleet(seed, effect)
     est, val = merged_parts(logs, None, 0.3)
