@@ -146,15 +146,17 @@ def test_cli_fleet_names_the_logs(dask_client, tmp_path, capsys):
     for i, d in enumerate(logs):
         np.savez(tmp_path / f"flight{i}.npz", y=d.y, u=d.u[:, 0], vbat=d.extra["vbat"], decoy=d.extra["decoy"])
     argv = ["fleet", str(tmp_path / "flight*.npz"), "--output", "y", "--inputs", "u", "--extra", "vbat,decoy"]
-    argv += ["--ts", "0.001", "--orders", "2,2,1", "--candidates", "u*vbat,vbat,const", "--max-steps", "1"]
+    argv += ["--ts", "0.001", "--orders", "2,2,1", "--candidates", "u*vbat,vbat,const,dz(u,0.3)", "--max-steps", "1"]
     assert main([*argv, "--scheduler", dask_client.scheduler.address, "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     named = [f"flight{int(n.split()[1]) - 1}.npz" for n in with_effect]
     assert out["fleet"]["logs_with_effect"] == named
     assert out["suspects"][0]["effect"] == "u*vbat" and out["suspects"][0]["significant"]
     est, val = merged_parts(logs, None, 0.3)
-    local = arxid.diagnose(arxid.arx(est, 2, 2, 1), est, val, candidates=["u1*vbat", "vbat", "const"])
+    local = arxid.diagnose(arxid.arx(est, 2, 2, 1), est, val, candidates=["u1*vbat", "vbat", "const", "dz(u1,0.3)"])
     assert np.isclose(out["suspects"][0]["score"], local.suspects[0].score, rtol=REL)
+    assert np.isclose(out["suspects"][0]["p_value"], local.suspects[0].p_value, rtol=1e-8, atol=1e-250)
+    assert "dz(u,0.3)" in [s["effect"] for s in out["suspects"]]  # the threshold's comma kept
     assert np.isclose(out["ladder"][1]["rms_sim_val"], local.suspects[0].rms_sim_val_after, rtol=REL)
     assert main(["fleet", str(tmp_path / "nothing*.npz"), "--output", "y", "--inputs", "u", "--orders", "2,2,1"]) == 2
 

@@ -16,6 +16,7 @@ import contextlib
 import functools
 import glob
 import logging
+import re
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -96,8 +97,8 @@ def _run(args: argparse.Namespace, helpers: dict[str, Any]) -> int:
     grid = helpers["grid"](args)
     kw: dict[str, Any] = dict(orders=orders, grid=grid, horizon=args.horizon, expect=args.expect)
     kw.update(max_steps=args.max_steps, initial=args.initial)
-    if args.candidates:
-        kw["candidates"] = names(args.candidates)
+    if args.candidates:  # commas inside parentheses belong to a threshold: dz(u1,0.2)
+        kw["candidates"] = [c.strip() for c in re.split(r",(?![^()]*\))", args.candidates) if c.strip()]
     logs = expand_logs(args.logs)
     with _client(args.scheduler, args.workers) as client:
         a: FleetAnalysis = analyse_fleet(logs, client, split=split, read=read, **kw)
@@ -143,7 +144,12 @@ def add_fleet_command(sub: Any, kw: dict[str, Any], helpers: dict[str, Any]) -> 
         "--split", type=float, metavar="F", help=f"estimation fraction of each log (default {DEFAULT_SPLIT})"
     )
     helpers["order_args"](p)
-    p.add_argument("--candidates", metavar="E[,F]", default="", help="candidate effects (default: auto)")
+    p.add_argument(
+        "--candidates",
+        metavar="E[,F]",
+        default="",
+        help="candidates, e.g. 'u1*vbat,dz(u1,0.2),na+1' (default: auto)",
+    )
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--max-steps", type=int, default=3, metavar="N", help="largest number of ladder steps (default 3)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
