@@ -169,3 +169,15 @@ def test_fleet_analysis_with_automatic_candidates(dask_client):
     assert fleet.missing_effect == "u1*vbat"
     assert fleet.logs_with_effect == tuple(with_effect)
     assert any("threshold scan" in s.note for s in fleet.diagnosis.suspects)  # said, not silently dropped
+
+
+@pytest.mark.parametrize("options", [{"initial": "estimate"}, {"horizon": 5}])
+def test_fleet_analysis_other_error_measures(dask_client, options):
+    """Estimated initial conditions and k-step errors are pooled from the workers as well."""
+    logs, with_effect = _fleet(11, "battery", n_logs=4)
+    est, val = merged_parts(logs, None, 0.3)
+    local = arxid.analyse(est, val, orders=(2, 2, 1), candidates=CANDIDATES, max_steps=1, **options)
+    fleet = arxid.analyse(logs, client=dask_client, orders=(2, 2, 1), candidates=CANDIDATES, max_steps=1, **options)
+    _assert_same(fleet, local)
+    assert fleet.horizon == local.horizon == options.get("horizon")
+    assert fleet.logs_with_effect == tuple(with_effect)
