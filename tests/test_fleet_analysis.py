@@ -181,3 +181,18 @@ def test_fleet_analysis_other_error_measures(dask_client, options):
     _assert_same(fleet, local)
     assert fleet.horizon == local.horizon == options.get("horizon")
     assert fleet.logs_with_effect == tuple(with_effect)
+
+
+def test_fleet_analysis_with_missing_samples(dask_client):
+    """Two missing output samples in one log: a candidate reaching further back (``na+1``) is tested on
+    the rows both have, from factors of its own, as in process; the answer is still the same."""
+    logs, with_effect = _fleet(12, "battery", n_logs=4)
+    y = np.array(logs[1].y)
+    y[[300, 1400]] = np.nan
+    logs[1] = arxid.IOData(y, logs[1].u, 0.001, extra=dict(logs[1].extra))
+    est, val = merged_parts(logs, None, 0.3)
+    local = arxid.analyse(est, val, orders=(2, 2, 1), candidates=CANDIDATES, max_steps=1)
+    fleet = arxid.analyse(logs, client=dask_client, orders=(2, 2, 1), candidates=CANDIDATES, max_steps=1)
+    _assert_same(fleet, local)
+    assert np.isfinite(next(s.score for s in fleet.diagnosis.suspects if s.effect == "na+1"))
+    assert fleet.logs_with_effect == tuple(with_effect)

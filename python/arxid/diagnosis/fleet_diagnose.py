@@ -392,6 +392,8 @@ def _evidence(stats: FleetStatistics, d: Diagnosis, names: Sequence[str], alpha:
     top = d.top
     if top is None:
         return ()
+    if top.effect in stats.own:
+        return _logs_of(stats.per_log_own(top.effect), stats.own[top.effect][1], names, alpha)
     parts = [p for p in top.effect.split("+") if p]
     labels = (
         [top.effect]
@@ -401,7 +403,11 @@ def _evidence(stats: FleetStatistics, d: Diagnosis, names: Sequence[str], alpha:
     if not all(lab in stats.columns for lab in labels):
         return ()
     idx = np.concatenate([stats.index(lab) for lab in labels])
-    tests = stats.per_log(idx)
+    return _logs_of(stats.per_log(idx), stats.rows, names, alpha)
+
+
+def _logs_of(tests: list, rows: Sequence[int], names: Sequence[str], alpha: float) -> tuple[LogEvidence, ...]:
+    """Each log's test as evidence, Holm-corrected over the logs."""
     p = np.array([t.p_value if t is not None else 1.0 for t in tests])
     adj = holm(p)
     nan = math.nan
@@ -415,5 +421,5 @@ def _evidence(stats: FleetStatistics, d: Diagnosis, names: Sequence[str], alpha:
             float(pa) if t else nan,
             bool(t is not None and pa < alpha),
         )
-        for name, n, t, pa in zip(names, stats.rows, tests, adj)
+        for name, n, t, pa in zip(names, rows, tests, adj)
     )

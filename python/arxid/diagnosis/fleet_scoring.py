@@ -12,16 +12,19 @@ basis, so z̃'z̃, z̃'e and e'e come without a sample. The statistics of the te
 the same code as in process (:meth:`AddedVariableTest._from_cross`), so they agree to rounding. A log's
 own factor gives the same test on that log alone: which logs the missing effect shows in.
 
+A candidate whose signal has missing samples on the model's rows is tested, as in process, on the
+rows both have: each share sends the factor of ``[Φ | z | y]`` on those rows per log (a share whose
+logs miss none of them needs not: the factor is that of the columns' sub-block of R).
+
 Not reduced here: threshold scans (``dz(u)``, ``sat(u)``) need the quantiles of the whole fleet's
-signal, and candidates with missing samples on the model's rows would need rows of their own; both
-are left out with a note (give the threshold, ``dz(u1,0.2)``, to test it on a fleet).
+signal; they are left out with a note (give the threshold, ``dz(u1,0.2)``, to test it on a fleet).
 """
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -36,7 +39,6 @@ __all__ = ["FactorTest", "FleetStatistics", "combine_statistics", "share_statist
 
 #: Why a candidate is not scored on a fleet.
 SCAN_NOTE = "a threshold scan needs the whole fleet's quantiles: give the threshold, e.g. dz(u1,0.2)"
-MISSING_NOTE = "missing samples on the model's rows: not scored on a fleet"
 
 
 def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones: bool) -> tuple:
@@ -54,20 +56,27 @@ def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones
     Returns
     -------
     tuple
-        ``(factors, rows per log, {label: (first column, columns)}, notes, p)``.
+        ``(factors, rows per log, {label: (first column, columns)}, notes, p, own)``: ``own`` holds,
+        for a candidate with missing samples on the model's rows, the factors of ``[Φ | z | y]`` on
+        the rows both have, and their counts, per log.
     """
     est = share[0]
     sc = Scoring(model, est, cands)  # the model's rows and regressors, as in process
     notes = dict(sc.notes)
     blocks, columns, at = [sc.phi0], {}, sc.phi0.shape[1]
+    bounds = np.cumsum([0] + [s.n_est for s in share[2]])
+    own: dict[str, tuple] = {}
     for c in sc.prepared:
         z, rows = sc._columns(c, layout_for(c, model, est)[1])
         if z.shape[1] == 0:
             notes[c.label] = "adds no regressor"
             continue
         if not (len(rows) == len(sc.rows0) and np.array_equal(rows, sc.rows0)):
-            notes[c.label] = MISSING_NOTE
-            z = np.zeros((len(sc.rows0), z.shape[1]))  # keeps the layout of every share alike
+            # Missing samples in its signal: tested on the rows both have, as in process, from a
+            # factor of its own per log; zeros keep the layout of every share's R alike.
+            common, i0, i1 = np.intersect1d(sc.rows0, rows, return_indices=True)
+            own[c.label] = _per_log(np.column_stack([sc.phi0[i0], z[i1], sc.y0[i0]]), common, bounds)
+            z = np.zeros((len(sc.rows0), z.shape[1]))
         columns[c.label] = (at, z.shape[1])
         blocks.append(z)
         at += z.shape[1]
@@ -77,11 +86,15 @@ def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones
     if ones:
         columns[""] = (at, 1)
         blocks.append(np.ones((len(sc.rows0), 1)))
-    a = np.column_stack([*blocks, sc.y0])
-    bounds = np.cumsum([0] + [s.n_est for s in share[2]])
-    cut = np.searchsorted(sc.rows0, bounds)
-    factors = [_square_r(a[cut[i] : cut[i + 1]]) for i in range(len(share[2]))]
-    return factors, [int(cut[i + 1] - cut[i]) for i in range(len(share[2]))], columns, notes, sc.phi0.shape[1]
+    factors, counts = _per_log(np.column_stack([*blocks, sc.y0]), sc.rows0, bounds)
+    return factors, counts, columns, notes, sc.phi0.shape[1], own
+
+
+def _per_log(a: np.ndarray, rows: np.ndarray, bounds: np.ndarray) -> tuple[list, list]:
+    """The factor of ``a`` (one row per sample index in ``rows``) over each log's rows, and their counts."""
+    cut = np.searchsorted(rows, bounds)
+    k = len(bounds) - 1
+    return [_square_r(a[cut[i] : cut[i + 1]]) for i in range(k)], [int(cut[i + 1] - cut[i]) for i in range(k)]
 
 
 def _square_r(a: np.ndarray) -> np.ndarray:
@@ -197,6 +210,9 @@ class FleetStatistics:
         Columns of Φ.
     input_names : tuple of str
     output_name : str
+    own : dict
+        ``{label: (factors, rows)}`` per log, in the fleet's order, of the candidates with missing
+        samples on the model's rows: R of ``[Φ | z | y]`` on the rows both have.
     """
 
     model: ArxModel
@@ -208,6 +224,7 @@ class FleetStatistics:
     p: int
     input_names: tuple
     output_name: str
+    own: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = int(sum(self.rows))
@@ -249,7 +266,7 @@ class FleetStatistics:
         """
         scored = []
         for c in self.scorable():
-            res, why = self.test.test(self.index(c.label))
+            res, why = self._own_test(c.label) if c.label in self.own else self.test.test(self.index(c.label))
             if res is None:
                 self.notes[c.label] = why
                 continue
@@ -261,6 +278,14 @@ class FleetStatistics:
             s["p_adj"] = float(pa)
         return scored, self.notes
 
+    def _own_test(self, label: str) -> tuple[AddedVariableResult | None, str]:
+        """A candidate with missing samples tested on the rows both have (as :meth:`Scoring._score`)."""
+        factors, rows = self.own[label]
+        n, k = int(sum(rows)), self.columns[label][1]
+        if n <= self.p + k + 2:
+            return None, "too few rows where its signal exists"
+        return FactorTest(_square_r(np.vstack(factors)), n, self.p).test(np.arange(self.p, self.p + k))
+
     def _one_direction_term(self, scored: list[dict]) -> list[dict]:
         """As :meth:`Scoring._one_direction_term`: ``abs(u)`` or ``pos(u)``, from the gains fitted in R."""
         labels = {s["c"].label for s in scored}
@@ -268,7 +293,7 @@ class FleetStatistics:
         base = list(self.model.regressor_names_)  # the model's regressors, named as the scoring names them
         for label in labels:
             m = re.fullmatch(r"pos\((\w+)\)", label)
-            if not m or f"abs({m[1]})" not in labels:
+            if not m or f"abs({m[1]})" not in labels or label in self.own:
                 continue
             sig = m[1]
             idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
@@ -286,7 +311,10 @@ class FleetStatistics:
             (
                 s
                 for s, pa in zip(scored, adj)
-                if pa < alpha and s["c"].kind == "effect" and s["c"].label not in ("const", "time")
+                if pa < alpha
+                and s["c"].kind == "effect"
+                and s["c"].label not in ("const", "time")
+                and s["c"].label not in self.own
             ),
             key=lambda s: s["p"],
         )
@@ -301,6 +329,22 @@ class FleetStatistics:
                 pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
                 out.append(scored_entry(pc, res))
         return out
+
+    def per_log_own(self, label: str) -> list[AddedVariableResult | None]:
+        """The test of a candidate with missing samples on each log's own common rows.
+
+        Parameters
+        ----------
+        label : str
+
+        Returns
+        -------
+        list of AddedVariableResult or None
+        """
+        k = self.columns[label][1]
+        idx = np.arange(self.p, self.p + k)
+        factors, rows = self.own[label]
+        return [FactorTest(r, n, self.p).test(idx)[0] if n > self.p + k + 1 else None for r, n in zip(factors, rows)]
 
     def per_log(self, idx: np.ndarray) -> list[AddedVariableResult | None]:
         """The added-variable test of the columns ``idx`` of R on each log's own rows.
@@ -346,4 +390,18 @@ def combine_statistics(
         factors[j], rows[j] = f, n
     for o in outs:
         notes.update(o[3])
-    return FleetStatistics(model, cands, factors, rows, outs[0][2], notes, outs[0][4], sig.input_names, sig.output_name)
+    columns, p = outs[0][2], outs[0][4]
+    own: dict[str, tuple] = {}
+    for label in dict.fromkeys(lab for o in outs for lab in o[5]):
+        at, k = columns[label]
+        q = outs[0][0][0].shape[1]
+        cols = np.r_[np.arange(p), np.arange(at, at + k), q - 1]
+        # A share whose logs have every sample of the candidate: its rows are the model's, and the
+        # factor of those columns is that of the sub-block of each log's R.
+        parts = [o[5][label] if label in o[5] else ([_square_r(f[:, cols]) for f in o[0]], list(o[1])) for o in outs]
+        per = [None] * len(order)
+        counts = [0] * len(order)
+        for j, (f, n) in zip(order, [(f, n) for fs, ns in parts for f, n in zip(fs, ns)]):
+            per[j], counts[j] = f, n
+        own[label] = (per, counts)
+    return FleetStatistics(model, cands, factors, rows, columns, notes, p, sig.input_names, sig.output_name, own)
