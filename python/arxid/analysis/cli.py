@@ -28,6 +28,7 @@ from ..models.spec import MODEL_FORMS, parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import DEFAULT_GRID, sweep
 from .benchmark import add_bench_command
+from .fleet_cli import add_fleet_command
 from .flight_log import flight_log_data, is_flight_log
 from .npz_data import read_npz
 from .pipeline import DEFAULT_SPLIT, Analysis, analyse, choose
@@ -567,6 +568,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_sweep)
     _add_analysis_commands(sub, kw)
     add_bench_command(sub, kw, load=_load, grid=_grid)
+    fleet: dict[str, Any] = dict(load_data=load_data, names=_names, units=parse_units, orders=_parse_orders)
+    fleet.update(grid=_grid, order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
+    add_fleet_command(sub, kw, {**fleet, "usage_error": UsageError})
     return root
 
 
@@ -649,7 +653,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
-            raise UsageError("arxid: choose a command: fit, sweep, diagnose, report, demo or bench (see arxid --help)")
+            raise UsageError(
+                "arxid: choose a command: fit, sweep, diagnose, report, demo, bench or fleet (see arxid --help)"
+            )
         for name in ("horizon", "max_steps", "top"):
             v = getattr(args, name, None)
             if v is not None and v < 1:

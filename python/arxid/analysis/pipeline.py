@@ -525,6 +525,11 @@ def _ladder(
     )
 
 
+#: The analysis of a fleet on a Dask cluster, provided by :mod:`arxid.analysis.fleet_analysis`
+#: (which imports this module) under the key ``"analyse"``.
+FLEET_ANALYSIS: dict[str, Any] = {}
+
+
 def analyse(
     data: IOData,
     validation: IOData | None = None,
@@ -540,6 +545,8 @@ def analyse(
     initial: str = "zero",
     grow: bool | None = None,
     max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
+    client: Any = None,
+    read: Any = None,
     **diagnose_kwargs: Any,
 ) -> Analysis:
     """Sweep (unless ``orders`` or a ``model`` are given), choose, compare, test, diagnose and climb the ladder.
@@ -586,12 +593,19 @@ def analyse(
     max_seconds : float or None
         Time budget of the grid search in seconds, the first sweep included (default 30): no
         larger grid is started whose predicted time would pass it. None: no budget.
+    client : dask.distributed.Client, optional
+        With a list of logs (IOData or file paths, read with ``read``): analyse the fleet where the
+        logs are, each log's last ``1 - split`` validating (:mod:`arxid.analysis.fleet_analysis`;
+        returns a :class:`~arxid.analysis.fleet_analysis.FleetAnalysis`).
+    read : dict or callable, optional
+        How the workers read file paths (see :func:`arxid.data.logs.load_experiment`).
     **diagnose_kwargs
         Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
 
     Returns
     -------
     Analysis
+        (a :class:`~arxid.analysis.fleet_analysis.FleetAnalysis` with ``client=``)
 
     Notes
     -----
@@ -614,6 +628,13 @@ def analyse(
     >>> a.model.structure_name(), a.choice.rank, a.residual_tests.whiteness_expected
     ('OE(2,2,3)', None, False)
     """
+    if client is not None:
+        if validation is not None or model is not None:
+            raise ArxidError(
+                "with client=, give the logs as a list (each log's last share validates) and orders or grid"
+            )
+        kw = dict(orders=orders, grid=grid, horizon=horizon, expect=expect, max_steps=max_steps, initial=initial)
+        return FLEET_ANALYSIS["analyse"](data, client, split=split, read=read, **kw, **diagnose_kwargs)
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)
     initial = check_initial(initial)

@@ -274,3 +274,7 @@ def holm(p: np.ndarray) -> np.ndarray:
         running = max(running, min(1.0, (m - i) * p[j]))
         adj[j] = running
     return adj
+
+
+#: The same share under a public name, for tests built from other statistics than the regressors.
+ROUNDING = _ROUNDING

@@ -181,6 +181,20 @@ class Refits:
             except ArxidError:  # gaps in the data, or an effect that cannot be compiled: one by one
                 self.envelope = None
 
+    def has(self, c) -> bool:
+        """Whether candidate ``c`` is fitted from the shared factor.
+
+        Parameters
+        ----------
+        c : Candidate
+
+        Returns
+        -------
+        bool
+        """
+        i = self.index.get(getattr(c, "label", ""))
+        return self.envelope is not None and i is not None and self.envelope.has(i)
+
     def validated(self, c, validation: IOData, horizon: int | None, initial: str = "zero") -> tuple[ArxModel, float]:
         """As :func:`refit_and_validate`, from the envelope's factor when ``c`` is in it.
 

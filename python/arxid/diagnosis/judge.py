@@ -16,7 +16,7 @@ from ..models.polynomial import PolynomialModel
 from .extension import Candidate, Refits, refit_and_validate
 from .result import Suspect
 
-__all__ = ["Judge", "demote_pairs", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
+__all__ = ["Judge", "demote_pairs", "refit_indices", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
 
 #: Validation errors within this share of the lowest count as a tie between suspects of a
 #: polynomial model (the one adding fewer parameters is then the best).
@@ -32,6 +32,10 @@ _IN_WORDS = {"const": "an offset (const)", "time": "a slow trend (time)"}
 class Judge:
     """Refits candidates and judges them by the validation error at the baseline's horizon."""
 
+    #: Fit the candidates that keep the model's rows from one shared factor (:class:`Refits`); a
+    #: judge whose data live elsewhere (a fleet's) refits through :meth:`refit` only.
+    shares_factor = True
+
     def __init__(
         self,
         model: ArxModel,
@@ -45,7 +49,24 @@ class Judge:
         self.model, self.data, self.validation = model, data, validation
         self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
         self.initial = initial
-        self.refits = Refits(model, data, ())
+        self.shared = Refits(model, data, ())
+
+    def refit(self, model: ArxModel, c: Candidate, initial: str) -> tuple[ArxModel, float]:
+        """``model`` refitted with candidate ``c`` and its validation error at the judge's horizon
+        from the ``initial`` conditions: the one place the judge refits (a fleet's judge refits where
+        the logs are, :mod:`arxid.diagnosis.fleet_judge`).
+
+        Parameters
+        ----------
+        model : ArxModel
+        c : Candidate
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        tuple of (ArxModel, float)
+        """
+        return refit_and_validate(model, self.data, self.validation, c, self.horizon, initial)
 
     def _improvement(self, after: float) -> float:
         if math.isfinite(after) and math.isfinite(self.base_rms) and self.base_rms > 0:
@@ -55,13 +76,9 @@ class Judge:
     def suspects(self, scored: list[dict], notes: dict[str, str], alpha: float, n_refit: int | None) -> list[Suspect]:
         """Every candidate that passes the corrected test is refitted (only those can be significant),
         and the best ``n_refit`` by p-value so the table shows their effect (all when None)."""
-        order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
-        chosen = (
-            set(range(len(scored)))
-            if n_refit is None
-            else set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
-        )
-        self.refits = Refits(self.model, self.data, [scored[i]["c"] for i in sorted(chosen)])
+        chosen = refit_indices(scored, alpha, n_refit)
+        if self.shares_factor:
+            self.shared = Refits(self.model, self.data, [scored[i]["c"] for i in sorted(chosen)])
         return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
@@ -69,7 +86,10 @@ class Judge:
         after, fitted = math.nan, None
         if refit:
             try:
-                fitted, after = self.refits.validated(c, self.validation, self.horizon, self.initial)
+                if self.shared.has(c):
+                    fitted, after = self.shared.validated(c, self.validation, self.horizon, self.initial)
+                else:
+                    fitted, after = self.refit(self.model, c, self.initial)
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:
@@ -128,7 +148,7 @@ class Judge:
                 m = self.model
                 try:
                     c = Candidate(name, (name,), m.na_, m.nb_, m.nk_, "effect")
-                    after = refit_and_validate(m, self.data, self.validation, c, self.horizon)[1]
+                    after = self.refit(m, c, "zero")[1]
                 except ArxidError:
                     after = math.nan
             if math.isfinite(after):
@@ -183,7 +203,7 @@ class Judge:
         nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
         both = Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
         try:
-            after = refit_and_validate(m, self.data, self.validation, both, self.horizon, self.initial)[1]
+            after = self.refit(m, both, self.initial)[1]
         except ArxidError:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
@@ -198,7 +218,7 @@ class Judge:
         if top.model is not None:
             try:
                 c = Candidate(s.effect, s.effects, s.na, s.nb, s.nk, s.kind)
-                after = refit_and_validate(top.model, self.data, self.validation, c, self.horizon, self.initial)[1]
+                after = self.refit(top.model, c, self.initial)[1]
             except ArxidError:
                 pass
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
@@ -206,6 +226,26 @@ class Judge:
         return replace(
             s, significant=False, note=f"explained by {top.effect}: no gain once it is added", explained_by=top.effect
         )
+
+
+def refit_indices(scored: list[dict], alpha: float, n_refit: int | None) -> set[int]:
+    """Which scored candidates :meth:`Judge.suspects` refits: those passing the corrected test and
+    the best ``n_refit`` by p-value (all when None).
+
+    Parameters
+    ----------
+    scored : list of dict
+    alpha : float
+    n_refit : int or None
+
+    Returns
+    -------
+    set of int
+    """
+    if n_refit is None:
+        return set(range(len(scored)))
+    order = sorted(range(len(scored)), key=lambda i: (scored[i]["p"], -scored[i]["score"]))
+    return set(order[:n_refit]) | {i for i, s in enumerate(scored) if s["p_adj"] < alpha}
 
 
 def demote_pairs(suspects: list[Suspect], min_improvement: float) -> list[Suspect]:

@@ -158,8 +158,7 @@ def diagnose(
         masked = scoring.masked_pairs(scored, alpha)
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
-    suspects += _unscored(notes, cands, suspects)
-    suspects = sorted((replace(s, physics=physics(s.effect, data)) for s in suspects), key=_rank_key)
+    suspects = finish_suspects(notes, cands, suspects, data)
     del scoring, judge  # their regressors and refit factors: not held while the dependence test builds its own
     dependence = () if polynomial else _dependence(model, data, alpha)
     return Diagnosis(
@@ -271,3 +270,28 @@ def _rank_key(s: Suspect) -> tuple:
     refitted = not math.isnan(after)
     p = s.p_value if math.isfinite(s.p_value) else 2.0
     return (not s.significant, not refitted, after if refitted else 0.0, p, -np.nan_to_num(s.score))
+
+
+def finish_suspects(
+    notes: dict[str, str], cands: list[Candidate], suspects: list[Suspect], data: IOData
+) -> list[Suspect]:
+    """The last step of :func:`diagnose`, shared with the diagnosis of a fleet: the candidates that
+    could not be scored added with their reason, the physics of each suspect, and the ranking.
+
+    Parameters
+    ----------
+    notes : dict of str to str
+        Why a candidate was not scored, by label.
+    cands : list of Candidate
+    suspects : list of Suspect
+        The judged suspects.
+    data : IOData
+        The estimation data (their signal names tell inputs from logged signals).
+
+    Returns
+    -------
+    list of Suspect
+        Ranked: significant first, then refitted by validation error, then by p-value.
+    """
+    suspects = suspects + _unscored(notes, cands, suspects)
+    return sorted((replace(s, physics=physics(s.effect, data)) for s in suspects), key=_rank_key)

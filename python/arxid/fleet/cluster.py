@@ -162,6 +162,8 @@ class WorkerLogs:
     shares : list of futures
         Of :func:`load_share`.
     names : list of str
+    groups : list of list of int
+        The logs (indices into ``sources``) of each share, in the share's order.
     shapes : list of LogShape
         One per log, in the order of ``sources``.
     signals : LogSignals
@@ -186,6 +188,7 @@ class WorkerLogs:
         threads = max(1, sum(client.nthreads().values()))
         n_tasks = min(len(self.sources), 2 * threads)
         groups = [list(range(i, len(self.sources), n_tasks)) for i in range(n_tasks)]
+        self.groups = groups  # the logs of each share, in its order
         self.shares = [
             client.submit(
                 load_share, [self.sources[j] for j in g], [self.names[j] for j in g], read, validation, pure=False

@@ -1,0 +1,427 @@
+"""The missing-effect diagnosis of an ARX model over a fleet's logs kept on a Dask cluster
+(:func:`diagnose_fleet`): the procedure of :mod:`arxid.diagnosis.suspects`, with every stage that
+needs the samples done where the logs are.
+
+* Candidate scoring (step 2) from the shares' triangular factors (:mod:`~.fleet_scoring`).
+* Refits (steps 3 to 5) from the shares' factors of each refit's regressors, and validation errors
+  (free run or k steps ahead) simulated on each share's own logs, pooled from their sums
+  (:mod:`~.fleet_refit`; a free run is not a statistic of the regressors).
+* The judging rules themselves are the in-process ones: :class:`~.judge.Judge` with its refits
+  done on the fleet (:class:`FleetJudge`), :func:`~.judge.demote_pairs`, Holm's correction and the
+  ranking of :func:`~.suspects.finish_suspects`.
+
+The result equals :func:`arxid.diagnose` on the logs merged as experiments of one IOData (each log's
+last share validating) to rounding, with these stages left out on a fleet, said in
+:attr:`FleetDiagnosis.notes`: the residual tests and the slow-disturbance share of the baseline (they
+need the whole residual sequence), the nonlinear-dependence table, threshold scans, and the search for
+two effects that hide each other (run in process only when ``candidates="auto"`` finds nothing).
+``candidates="auto"`` is the union of the candidates each share's logs suggest.
+
+Which logs the missing effect shows in: the added-variable test of the top suspect on each log's own
+rows (its partial correlation, F and p-value, Holm-corrected over the logs): :class:`LogEvidence`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._base.formatting import finite_or_none
+from ..exceptions import ArxidError, DataError
+from ..fleet.cluster import WorkerLogs
+from ..models.arguments import check_horizon, check_model
+from ..models.arx_model import ArxModel
+from ..models.polynomial import PolynomialModel, check_initial
+from .added_variable import holm
+from .candidates import auto_candidates, output_integrates
+from .extension import Candidate, candidate_list
+from .fleet_refit import FleetRefits
+from .fleet_scoring import FleetStatistics, combine_statistics, share_statistics
+from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs, refit_indices
+from .result import Diagnosis
+from .suspects import INTEGRATING_HORIZON, finish_suspects
+
+__all__ = ["FleetDiagnosis", "FleetJudge", "LogEvidence", "diagnose_fleet", "diagnose_logs", "FLEET_NOTES"]
+
+#: What the diagnosis of a fleet leaves out (see the module's docstring).
+FLEET_NOTES = (
+    "On a fleet the residual tests, the slow-disturbance share, the nonlinear-dependence table and threshold "
+    "scans are not computed (they need the whole residual sequence or the fleet's quantiles).",
+)
+
+
+class FleetJudge(Judge):
+    """:class:`~arxid.diagnosis.judge.Judge` whose refits and validation errors are made where the
+    logs are.
+
+    Parameters
+    ----------
+    refits : FleetRefits
+    model : ArxModel
+    data, validation : IOData
+        The merged parts as the client sees them (names and sizes; never read here).
+    horizon : int or None
+    base_rms, min_improvement : float
+    initial : {"zero", "estimate"}
+    """
+
+    shares_factor = False  # the data are on the workers: every refit goes through refit()
+
+    def __init__(self, refits: FleetRefits, model: ArxModel, data: Any, validation: Any, *args: Any):
+        super().__init__(model, data, validation, *args)
+        self.refits = refits
+        self._done: dict[tuple, Any] = {}
+
+    def _key(self, model: ArxModel, c: Any, initial: str) -> tuple:
+        effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
+        return (id(model), c.na, tuple(c.nb), tuple(c.nk), effects, model.first_lag_, initial)
+
+    def suspects(self, scored: list[dict], notes: dict[str, str], alpha: float, n_refit: int | None) -> list:
+        """:meth:`Judge.suspects`, with the refits it makes done together first (two round trips for
+        all of them instead of two for each).
+
+        Parameters
+        ----------
+        scored : list of dict
+        notes : dict of str to str
+        alpha : float
+        n_refit : int or None
+
+        Returns
+        -------
+        list of Suspect
+        """
+        chosen = [scored[i]["c"] for i in sorted(refit_indices(scored, alpha, n_refit))]
+        keys = [self._key(self.model, c, self.initial) for c in chosen]
+        structures = [(c.na, c.nb, c.nk, k[4], self.model.first_lag_) for c, k in zip(chosen, keys)]
+        spec = ("val", self.horizon, self.initial)
+        self._done.update(zip(keys, self.refits.fit_many(structures, [spec])))
+        return super().suspects(scored, notes, alpha, n_refit)
+
+    def refit(self, model: ArxModel, c: Any, initial: str) -> tuple[ArxModel, float]:
+        """``model`` refitted with ``c`` on every log, and its pooled validation error.
+
+        Parameters
+        ----------
+        model : ArxModel
+        c : Candidate or Suspect
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        tuple of (ArxModel, float)
+        """
+        key = self._key(model, c, initial)
+        out = self._done.pop(key, None)
+        if out is None:
+            out = self.refits.fit_many(
+                [(c.na, c.nb, c.nk, key[4], model.first_lag_)], [("val", self.horizon, initial)]
+            )[0]
+        if isinstance(out, ArxidError):
+            raise out
+        fitted, (score,) = out
+        return fitted, score.rms
+
+
+@dataclass(frozen=True)
+class LogEvidence:
+    """The top suspect tested on one log's own rows.
+
+    Attributes
+    ----------
+    log : str
+    rows : int
+        The model's regression rows in the log.
+    score : float
+        Partial correlation of the suspect's columns with the model's residual in this log (its
+        square: the share of this log's residual energy it removes).
+    f_statistic, p_value : float
+        Its added-variable F-test on this log alone (NaN when the log cannot test it).
+    p_adjusted : float
+        Holm-corrected over the logs.
+    significant : bool
+        ``p_adjusted < alpha``.
+    """
+
+    log: str
+    rows: int
+    score: float
+    f_statistic: float
+    p_value: float
+    p_adjusted: float
+    significant: bool
+
+    def to_dict(self) -> dict:
+        """JSON-ready.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "log": self.log,
+            "rows": self.rows,
+            "score": finite_or_none(self.score),
+            "f_statistic": finite_or_none(self.f_statistic),
+            "p_value": finite_or_none(self.p_value),
+            "p_adjusted": finite_or_none(self.p_adjusted),
+            "significant": self.significant,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class FleetDiagnosis:
+    """The diagnosis of a fleet: the :class:`~arxid.Diagnosis` of the merged logs, and the logs the
+    top suspect shows in.
+
+    Attributes
+    ----------
+    diagnosis : Diagnosis
+        As :func:`arxid.diagnose` on the merged logs gives it (without residual tests).
+    evidence : tuple of LogEvidence
+        The top suspect tested on each log (empty when nothing is significant).
+    notes : tuple of str
+        What the fleet's diagnosis left out.
+    """
+
+    diagnosis: Diagnosis
+    evidence: tuple[LogEvidence, ...] = ()
+    notes: tuple[str, ...] = FLEET_NOTES
+
+    @property
+    def logs_with_effect(self) -> tuple[str, ...]:
+        """The logs where the top suspect is significant on their own."""
+        return tuple(e.log for e in self.evidence if e.significant)
+
+    def sentence(self) -> str:
+        """Which logs the missing effect shows in, as one plain sentence.
+
+        Returns
+        -------
+        str
+        """
+        top = self.diagnosis.top
+        if top is None:
+            return "No missing effect is significant on the fleet, so no log is singled out."
+        n, shown = len(self.evidence), self.logs_with_effect
+        alpha = self.diagnosis.alpha
+        how = f"its added-variable F-test on each log's own data, p < {alpha:g} after Holm's correction over the logs"
+        if not shown:
+            alone = f"none of the {n} logs alone ({how}): only the fleet reveals it"
+            return f"The missing effect {top.effect} shows in {alone}."
+        listed = ", ".join(shown)
+        return f"The missing effect {top.effect} shows in {len(shown)} of the {n} logs ({how}): {listed}."
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the logs' evidence, the sentence and the notes.
+
+        Returns
+        -------
+        dict
+        """
+        top = self.diagnosis.top
+        return {
+            "effect": None if top is None else top.effect,
+            "logs": [e.to_dict() for e in self.evidence],
+            "logs_with_effect": list(self.logs_with_effect),
+            "sentence": self.sentence(),
+            "notes": list(self.notes),
+        }
+
+
+@dataclass(frozen=True)
+class _Baseline:
+    horizon: int | None
+    rms: float
+    rms_one_step: float
+    fit: float
+
+
+def _baseline(refits: FleetRefits, model: ArxModel, horizon: int | None, initial: str) -> _Baseline:
+    """As the in-process baseline (:mod:`arxid.diagnosis.suspects`), from pooled scores (one round trip)."""
+    free, asked, one, k = refits.scores(
+        model,
+        [("val", None, "zero"), ("val", horizon, initial), ("val", 1, "zero"), ("val", INTEGRATING_HORIZON, initial)],
+    )
+    free_fit = None if not model.is_stable or free.diverged else free.fit
+    at = horizon
+    if horizon is None and output_integrates(model, free_fit):
+        at = INTEGRATING_HORIZON
+    score = k if at == INTEGRATING_HORIZON and horizon is None else asked
+    if math.isnan(score.rms):
+        raise DataError(
+            f"the validation parts of the logs are too short for a prediction by {model.structure_name()}; "
+            "hold out a larger share of each log"
+        )
+    if at is None and math.isinf(score.rms):
+        at, score = INTEGRATING_HORIZON, k
+    return _Baseline(at, score.rms, one.rms, score.fit)
+
+
+def _candidates(logs: WorkerLogs, model: ArxModel, candidates: str | Sequence[str]) -> tuple[list[Candidate], bool]:
+    """The candidates, parsed against the logs' signals; ``"auto"``: those any share's logs suggest."""
+    auto = isinstance(candidates, str)
+    if auto:
+        if candidates != "auto":
+            raise ArxidError(f"candidates must be 'auto' or a list of effect strings, got {candidates!r}")
+        labels: list[str] = []
+        for share in logs.client.gather(logs.each(_auto_labels, model)):
+            labels += [lab for lab in share if lab not in labels]
+        candidates = labels
+    cands, _ = candidate_list(candidates, model, logs.head)
+    return cands, auto
+
+
+def _auto_labels(share: tuple, model: ArxModel) -> list[str]:
+    return list(auto_candidates(model, share[0]))
+
+
+def fleet_statistics(logs: WorkerLogs, model: ArxModel, cands: list[Candidate]) -> FleetStatistics:
+    """The factors of the model's regressors and its candidates' columns, per log, from the workers.
+
+    Parameters
+    ----------
+    logs : WorkerLogs
+    model : ArxModel
+    cands : list of Candidate
+
+    Returns
+    -------
+    FleetStatistics
+    """
+    outs = logs.client.gather(logs.each(share_statistics, model, cands, "const" not in model.effects))
+    order = [j for group in logs.groups for j in group]
+    return combine_statistics(model, cands, outs, order, logs.signals)
+
+
+def diagnose_fleet(
+    model: ArxModel,
+    logs: WorkerLogs,
+    *,
+    candidates: str | Sequence[str] = "auto",
+    horizon: int | None = None,
+    alpha: float = 0.01,
+    min_improvement: float = 0.05,
+    n_refit: int = 8,
+    n_pairs: int = 8,
+    simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
+    initial: str = "zero",
+) -> FleetDiagnosis:
+    """Rank the physical effects an ARX model misses over a fleet of logs kept on a Dask cluster.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted ARX model (its rows start ``model.first_lag_`` into each log).
+    logs : WorkerLogs
+        The fleet, read by the workers with a validation share (``validation=`` fraction).
+    candidates, horizon, alpha, min_improvement, n_refit, n_pairs, simple_explanations, initial
+        As in :func:`arxid.diagnose`.
+
+    Returns
+    -------
+    FleetDiagnosis
+
+    Raises
+    ------
+    ArxidError
+        For a polynomial model, or logs read without a validation share.
+    """
+    model = check_model(model)
+    if isinstance(model, PolynomialModel):
+        raise ArxidError("the diagnosis of a fleet refits ARX models only; give an ARX model (or orders)")
+    if logs.validation is None:
+        raise ArxidError(
+            "the diagnosis of a fleet needs each log's validation share: read the logs with validation=0.3"
+        )
+    horizon, initial = check_horizon(horizon), check_initial(initial)
+    if not 0 < alpha < 1:
+        raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
+    if not 0 <= min_improvement < 1:
+        raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
+    refits = FleetRefits(logs)
+    est, val = logs.on_demand()
+    assert val is not None  # checked above
+    base = _baseline(refits, model, horizon, initial)
+    cands, auto = _candidates(logs, model, candidates)
+    stats = fleet_statistics(logs, model, cands)
+    scored, notes = stats.run(alpha, n_pairs)
+    judge = FleetJudge(refits, model, est, val, base.horizon, base.rms, min_improvement, initial)
+    suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
+    suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
+    suspects = judge.conditional_on_top(suspects)
+    suspects = finish_suspects(notes, cands, suspects, logs.head)
+    d = Diagnosis(
+        model, est, val, base.horizon, base.rms, base.rms_one_step, base.fit, tuple(suspects), None, alpha,
+        min_improvement, len(scored), False,
+    )  # fmt: skip
+    return FleetDiagnosis(d, _evidence(stats, d, logs.names, alpha))
+
+
+def diagnose_logs(
+    model: ArxModel, logs: Sequence[Any], client: Any, *, split: float = 0.7, read: Any = None, **kwargs: Any
+) -> FleetDiagnosis:
+    """:func:`diagnose_fleet` of a list of logs: the workers of ``client`` read them (``read`` as in
+    :func:`arxid.data.logs.load_experiment`) and hold out the last ``1 - split`` of each for validation.
+
+    Parameters
+    ----------
+    model : ArxModel
+        A fitted ARX model (for example ``arxid.arx(logs, 2, 2, 1, client=client)``).
+    logs : sequence of IOData or file paths
+    client : dask.distributed.Client
+    split : float
+        Estimation share of each log.
+    read : dict or callable, optional
+    **kwargs
+        As in :func:`diagnose_fleet`.
+
+    Returns
+    -------
+    FleetDiagnosis
+    """
+    if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
+        raise ArxidError(f"split must be the estimation fraction of each log between 0 and 1, got {split!r}")
+    return diagnose_fleet(model, WorkerLogs(client, logs, read, 1.0 - float(split)), **kwargs)
+
+
+def _evidence(stats: FleetStatistics, d: Diagnosis, names: Sequence[str], alpha: float) -> tuple[LogEvidence, ...]:
+    """The top suspect's added-variable test on each log alone, Holm-corrected over the logs."""
+    top = d.top
+    if top is None:
+        return ()
+    if top.effect in stats.own:
+        return _logs_of(stats.per_log_own(top.effect), stats.own[top.effect][1], names, alpha)
+    parts = [p for p in top.effect.split("+") if p]
+    labels = (
+        [top.effect]
+        if top.effect in stats.columns
+        else [p if p != "const" or p in stats.columns else "" for p in parts]
+    )
+    if not all(lab in stats.columns for lab in labels):
+        return ()
+    idx = np.concatenate([stats.index(lab) for lab in labels])
+    return _logs_of(stats.per_log(idx), stats.rows, names, alpha)
+
+
+def _logs_of(tests: list, rows: Sequence[int], names: Sequence[str], alpha: float) -> tuple[LogEvidence, ...]:
+    """Each log's test as evidence, Holm-corrected over the logs."""
+    p = np.array([t.p_value if t is not None else 1.0 for t in tests])
+    adj = holm(p)
+    nan = math.nan
+    return tuple(
+        LogEvidence(
+            name,
+            n,
+            t.score if t else nan,
+            t.f_statistic if t else nan,
+            t.p_value if t else nan,
+            float(pa) if t else nan,
+            bool(t is not None and pa < alpha),
+        )
+        for name, n, t, pa in zip(names, rows, tests, adj)
+    )

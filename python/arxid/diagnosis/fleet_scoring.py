@@ -1,0 +1,407 @@
+"""Scoring the candidates of an ARX model over a fleet's logs from sufficient statistics (step 2 of
+the procedure in :mod:`arxid.diagnosis.suspects`, where the logs are).
+
+Each share builds, on its own logs and exactly as :class:`~arxid.diagnosis.scoring.Scoring` builds
+them on the merged data, the model's regressors Φ, every candidate's new columns z and the output y
+on the model's rows, and reduces ``A = [Φ | z₁ … z_K | 1 | y]`` to one triangular factor per log
+(``R'R = A'A`` over that log's rows). Only these q × q factors travel. The client stacks them and
+factors again: the R of the whole fleet. Every added-variable test is then read off R
+(:class:`FactorTest`): with Φ's columns first, ``R[:p, J]`` is Q'z (what the model explains of the
+columns J), ``R[p:, J]`` the stripped columns z̃ and ``R[p:, y]`` the residual e in one orthonormal
+basis, so z̃'z̃, z̃'e and e'e come without a sample. The statistics of the test are computed by
+the same code as in process (:meth:`AddedVariableTest._from_cross`), so they agree to rounding. A log's
+own factor gives the same test on that log alone: which logs the missing effect shows in.
+
+A candidate whose signal has missing samples on the model's rows is tested, as in process, on the
+rows both have: each share sends the factor of ``[Φ | z | y]`` on those rows per log (a share whose
+logs miss none of them needs not: the factor is that of the columns' sub-block of R).
+
+Not reduced here: threshold scans (``dz(u)``, ``sat(u)``) need the quantiles of the whole fleet's
+signal; they are left out with a note (give the threshold, ``dz(u1,0.2)``, to test it on a fleet).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..models.arx_model import ArxModel
+from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, holm
+from .extension import Candidate, layout_for
+from .scoring import Scoring, scored_entry
+
+__all__ = ["FactorTest", "FleetStatistics", "combine_statistics", "share_statistics"]
+
+#: Why a candidate is not scored on a fleet.
+SCAN_NOTE = "a threshold scan needs the whole fleet's quantiles: give the threshold, e.g. dz(u1,0.2)"
+
+
+def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones: bool) -> tuple:
+    """One factor per log of a share: R of ``[Φ | z₁ … z_K | 1 | y]`` on the model's rows of that log.
+
+    Parameters
+    ----------
+    share : tuple
+        From :func:`arxid.fleet.cluster.load_share`.
+    model : ArxModel
+    cands : list of Candidate
+    ones : bool
+        Add a column of ones (for the pairs with an offset).
+
+    Returns
+    -------
+    tuple
+        ``(factors, rows per log, {label: (first column, columns)}, notes, p, own)``: ``own`` holds,
+        for a candidate with missing samples on the model's rows, the factors of ``[Φ | z | y]`` on
+        the rows both have, and their counts, per log.
+    """
+    est = share[0]
+    sc = Scoring(model, est, cands)  # the model's rows and regressors, as in process
+    notes = dict(sc.notes)
+    blocks, columns, at = [sc.phi0], {}, sc.phi0.shape[1]
+    bounds = np.cumsum([0] + [s.n_est for s in share[2]])
+    own: dict[str, tuple] = {}
+    for c in sc.prepared:
+        z, rows = sc._columns(c, layout_for(c, model, est)[1])
+        if z.shape[1] == 0:
+            notes[c.label] = "adds no regressor"
+            continue
+        if not (len(rows) == len(sc.rows0) and np.array_equal(rows, sc.rows0)):
+            # Missing samples in its signal: tested on the rows both have, as in process, from a
+            # factor of its own per log; zeros keep the layout of every share's R alike.
+            common, i0, i1 = np.intersect1d(sc.rows0, rows, return_indices=True)
+            own[c.label] = _per_log(np.column_stack([sc.phi0[i0], z[i1], sc.y0[i0]]), common, bounds)
+            z = np.zeros((len(sc.rows0), z.shape[1]))
+        columns[c.label] = (at, z.shape[1])
+        blocks.append(z)
+        at += z.shape[1]
+    for c in cands:
+        if c.kind == "scan":
+            notes[c.label] = SCAN_NOTE
+    if ones:
+        columns[""] = (at, 1)
+        blocks.append(np.ones((len(sc.rows0), 1)))
+    factors, counts = _per_log(np.column_stack([*blocks, sc.y0]), sc.rows0, bounds)
+    return factors, counts, columns, notes, sc.phi0.shape[1], own
+
+
+def _per_log(a: np.ndarray, rows: np.ndarray, bounds: np.ndarray) -> tuple[list, list]:
+    """The factor of ``a`` (one row per sample index in ``rows``) over each log's rows, and their counts."""
+    cut = np.searchsorted(rows, bounds)
+    k = len(bounds) - 1
+    return [_square_r(a[cut[i] : cut[i + 1]]) for i in range(k)], [int(cut[i + 1] - cut[i]) for i in range(k)]
+
+
+def _square_r(a: np.ndarray) -> np.ndarray:
+    q = a.shape[1]
+    r = np.asarray(np.linalg.qr(a, mode="r")) if a.shape[0] else np.zeros((0, q))
+    return np.vstack([r, np.zeros((q - r.shape[0], q))]) if r.shape[0] < q else r
+
+
+class FactorTest(AddedVariableTest):
+    """Added-variable tests read off the triangular factor R of ``[Φ | Z | y]`` (Φ's ``p`` columns
+    first, y last) over ``n`` rows; a block of columns is given by its column indices in R.
+
+    Parameters
+    ----------
+    r : ndarray of shape (q, q)
+    n : int
+        Rows behind R.
+    p : int
+        Columns of Φ.
+    """
+
+    def __init__(self, r: np.ndarray, n: int, p: int):
+        self.n, self.p = n, p
+        self._rr = r
+        self._m = r[p:]  # the columns stripped of Φ, in one orthonormal basis
+        self._e = self._m[:, -1]
+        self.rss0 = float(self._e @ self._e)
+        y = r[:, -1]
+        self.exact = self.rss0 <= ROUNDING**2 * float(y @ y)
+
+    def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q'z, z'z and z'e of the columns ``z`` (indices into R)."""
+        b, m = self._rr[: self.p, z], self._m[:, z]
+        return b, b.T @ b + m.T @ m, m.T @ self._e
+
+    def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
+        """Test the columns ``z`` (indices into R), as :meth:`AddedVariableTest.test` tests columns.
+
+        Parameters
+        ----------
+        z : ndarray of int
+
+        Returns
+        -------
+        result : AddedVariableResult or None
+        why : str
+        """
+        from scipy import stats
+
+        if self.exact:
+            return None, "the model reproduces the output to rounding: nothing is left to explain"
+        z = np.asarray(z, dtype=int)
+        b, zz, ze = self._cross(z)
+        norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
+        keep = norms > 0
+        if not keep.any():
+            return None, "the candidate is zero on these data"
+        fast = self._from_cross(b, zz, ze, keep, norms)
+        if fast is not None:
+            return fast, ""
+        # Ill-conditioned beside Φ: the QR of the stripped, normalised block decides which columns
+        # count, as in process (the block is Q₂ m in the basis Q₂ of R's rows below Φ).
+        m = self._m[:, z[keep]] / norms[keep]
+        rn = np.linalg.norm(m, axis=0)
+        ok = rn > 1e-7
+        if not ok.any():
+            return None, "already explained by the model's regressors (collinear)"
+        qm, rm = np.linalg.qr(m[:, ok] / rn[ok])
+        d = np.abs(np.diag(rm))
+        qm = qm[:, d > 1e-7 * d.max()]
+        q = qm.shape[1]
+        dof = self.n - self.p - q
+        if dof < 1 or self.rss0 <= 0:
+            return None, "too few rows to test it"
+        drss = min(float(np.sum((qm.T @ self._e) ** 2)), self.rss0)
+        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
+        f = (drss / q) / (rss1 / dof)
+        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
+
+    def coefficients(self, z: np.ndarray) -> np.ndarray:
+        """Least-squares coefficients of y on ``[Φ | columns z]``.
+
+        Parameters
+        ----------
+        z : ndarray of int
+
+        Returns
+        -------
+        ndarray of shape (p + len(z),)
+        """
+        cols = np.concatenate([np.arange(self.p), np.asarray(z, dtype=int), [self._rr.shape[1] - 1]])
+        r = np.asarray(np.linalg.qr(self._rr[:, cols], mode="r"))
+        k = len(cols) - 1
+        return np.linalg.lstsq(r[:k, :k], r[:k, k], rcond=None)[0]
+
+
+@dataclass
+class FleetStatistics:
+    """The shares' factors of one model and its candidates, combined, and the scoring done on them.
+
+    Attributes
+    ----------
+    model : ArxModel
+    cands : list of Candidate
+    factors : list of ndarray
+        One R per log, in the fleet's order.
+    rows : list of int
+        The model's rows in each log.
+    columns : dict
+        ``{label: (first column, columns)}`` in R (``""`` for the column of ones).
+    notes : dict of str to str
+    p : int
+        Columns of Φ.
+    input_names : tuple of str
+    output_name : str
+    own : dict
+        ``{label: (factors, rows)}`` per log, in the fleet's order, of the candidates with missing
+        samples on the model's rows: R of ``[Φ | z | y]`` on the rows both have.
+    """
+
+    model: ArxModel
+    cands: list
+    factors: list
+    rows: list
+    columns: dict
+    notes: dict
+    p: int
+    input_names: tuple
+    output_name: str
+    own: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = int(sum(self.rows))
+        if n <= self.p + 2:
+            raise DataError(f"too few regression rows ({n}) to diagnose a model with {self.p} parameters")
+        self.test = FactorTest(_square_r(np.vstack(self.factors)), n, self.p)
+
+    def index(self, label: str) -> np.ndarray:
+        """The columns of R of a candidate (``""``: the column of ones).
+
+        Parameters
+        ----------
+        label : str
+
+        Returns
+        -------
+        ndarray of int
+        """
+        at, k = self.columns[label]
+        return np.arange(at, at + k)
+
+    def scorable(self) -> list[Candidate]:
+        """The candidates with columns in R and no note against them, in the order given."""
+        return [c for c in self.cands if c.label in self.columns and c.label not in self.notes]
+
+    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
+        """Every candidate's added-variable test, one-direction terms merged, the strong effects paired
+        with an offset, and the Holm-corrected p-values: :meth:`Scoring.run` on the fleet's R.
+
+        Parameters
+        ----------
+        alpha : float
+        n_pairs : int
+
+        Returns
+        -------
+        tuple of (list of dict, dict of str to str)
+            The scored entries (:func:`arxid.diagnosis.scoring.scored_entry`) and the notes.
+        """
+        scored = []
+        for c in self.scorable():
+            res, why = self._own_test(c.label) if c.label in self.own else self.test.test(self.index(c.label))
+            if res is None:
+                self.notes[c.label] = why
+                continue
+            scored.append(scored_entry(c, res))
+        scored = self._one_direction_term(scored)
+        if "const" not in self.model.effects and n_pairs > 0 and "" in self.columns:
+            scored += self._pairs_with_offset(scored, alpha, n_pairs)
+        for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
+            s["p_adj"] = float(pa)
+        return scored, self.notes
+
+    def _own_test(self, label: str) -> tuple[AddedVariableResult | None, str]:
+        """A candidate with missing samples tested on the rows both have (as :meth:`Scoring._score`)."""
+        factors, rows = self.own[label]
+        n, k = int(sum(rows)), self.columns[label][1]
+        if n <= self.p + k + 2:
+            return None, "too few rows where its signal exists"
+        return FactorTest(_square_r(np.vstack(factors)), n, self.p).test(np.arange(self.p, self.p + k))
+
+    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
+        """As :meth:`Scoring._one_direction_term`: ``abs(u)`` or ``pos(u)``, from the gains fitted in R."""
+        labels = {s["c"].label for s in scored}
+        names, drop = self.input_names, set()
+        base = list(self.model.regressor_names_)  # the model's regressors, named as the scoring names them
+        for label in labels:
+            m = re.fullmatch(r"pos\((\w+)\)", label)
+            if not m or f"abs({m[1]})" not in labels or label in self.own:
+                continue
+            sig = m[1]
+            idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
+            own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
+            coef = self.test.coefficients(self.index(label))
+            negative = float(np.sum(coef[own]))
+            positive = negative + float(np.sum(coef[self.p :]))
+            drop.add(f"abs({sig})" if positive * negative >= 0 else label)
+        return [s for s in scored if s["c"].label not in drop]
+
+    def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
+        """As :meth:`Scoring._pairs_with_offset`, on the fleet's R."""
+        adj = holm(np.array([s["p"] for s in scored]))
+        strong = sorted(
+            (
+                s
+                for s, pa in zip(scored, adj)
+                if pa < alpha
+                and s["c"].kind == "effect"
+                and s["c"].label not in ("const", "time")
+                and s["c"].label not in self.own
+            ),
+            key=lambda s: s["p"],
+        )
+        have = {s["c"].label for s in scored}
+        out = []
+        for s in strong[:n_pairs]:
+            c = s["c"]
+            if f"{c.label}+const" in have:
+                continue
+            res, _ = self.test.test(np.concatenate([self.index(c.label), self.index("")]))
+            if res is not None:
+                pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
+                out.append(scored_entry(pc, res))
+        return out
+
+    def per_log_own(self, label: str) -> list[AddedVariableResult | None]:
+        """The test of a candidate with missing samples on each log's own common rows.
+
+        Parameters
+        ----------
+        label : str
+
+        Returns
+        -------
+        list of AddedVariableResult or None
+        """
+        k = self.columns[label][1]
+        idx = np.arange(self.p, self.p + k)
+        factors, rows = self.own[label]
+        return [FactorTest(r, n, self.p).test(idx)[0] if n > self.p + k + 1 else None for r, n in zip(factors, rows)]
+
+    def per_log(self, idx: np.ndarray) -> list[AddedVariableResult | None]:
+        """The added-variable test of the columns ``idx`` of R on each log's own rows.
+
+        Parameters
+        ----------
+        idx : ndarray of int
+
+        Returns
+        -------
+        list of AddedVariableResult or None
+            One per log (None where the log's rows cannot test them).
+        """
+        return [
+            FactorTest(r, n, self.p).test(idx)[0] if n > self.p + len(idx) + 1 else None
+            for r, n in zip(self.factors, self.rows)
+        ]
+
+
+def combine_statistics(
+    model: ArxModel, cands: list[Candidate], outs: list[tuple], order: list[int], sig: Any
+) -> FleetStatistics:
+    """The shares' statistics (:func:`share_statistics`) as those of the fleet, logs in the fleet's order.
+
+    Parameters
+    ----------
+    model : ArxModel
+    cands : list of Candidate
+    outs : list of tuple
+        One per share.
+    order : list of int
+        The fleet's index of each log, share after share.
+    sig : LogSignals
+
+    Returns
+    -------
+    FleetStatistics
+    """
+    factors, rows = [None] * len(order), [0] * len(order)
+    notes: dict[str, str] = {}
+    flat = [(f, n) for o in outs for f, n in zip(o[0], o[1])]
+    for j, (f, n) in zip(order, flat):
+        factors[j], rows[j] = f, n
+    for o in outs:
+        notes.update(o[3])
+    columns, p = outs[0][2], outs[0][4]
+    own: dict[str, tuple] = {}
+    for label in dict.fromkeys(lab for o in outs for lab in o[5]):
+        at, k = columns[label]
+        q = outs[0][0][0].shape[1]
+        cols = np.r_[np.arange(p), np.arange(at, at + k), q - 1]
+        # A share whose logs have every sample of the candidate: its rows are the model's, and the
+        # factor of those columns is that of the sub-block of each log's R.
+        parts = [o[5][label] if label in o[5] else ([_square_r(f[:, cols]) for f in o[0]], list(o[1])) for o in outs]
+        per = [None] * len(order)
+        counts = [0] * len(order)
+        for j, (f, n) in zip(order, [(f, n) for fs, ns in parts for f, n in zip(fs, ns)]):
+            per[j], counts[j] = f, n
+        own[label] = (per, counts)
+    return FleetStatistics(model, cands, factors, rows, columns, notes, p, sig.input_names, sig.output_name, own)
