@@ -201,6 +201,8 @@ def test_a_fleet_whose_every_log_is_broken_is_an_error(logs, tmp_path):
 
 def test_a_corrupt_log_in_a_merged_fleet_sweep_is_named(logs, client, tmp_path):
     fleet_logs = _broken_logs(logs, tmp_path)
-    for kw in ({}, {"client": client}):
-        with pytest.raises(arxid.DataError, match="cannot read log 'truncated.npz'"):
-            arxid.sweep(fleet_logs, **GRID, validation=0.3, progress=False, **kw)
+    with pytest.raises(arxid.DataError, match="cannot read log 'truncated.npz'"):
+        arxid.sweep(fleet_logs, **GRID, validation=0.3, progress=False)
+    # On a cluster the shares are read at once: whichever broken log fails first is named.
+    with pytest.raises(arxid.DataError, match=r"cannot read log '(truncated|corrupt)\.npz'"):
+        arxid.sweep(fleet_logs, **GRID, validation=0.3, progress=False, client=client)
