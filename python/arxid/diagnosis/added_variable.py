@@ -20,7 +20,7 @@ import numpy as np
 
 from .._base.nested import blocked_r, column_norms
 
-__all__ = ["AddedVariableTest", "AddedVariableResult", "holm"]
+__all__ = ["AddedVariableTest", "AddedVariableResult", "holm", "stripped_test"]
 
 
 @dataclass(frozen=True)
@@ -164,7 +164,6 @@ class AddedVariableTest:
         why : str
             The reason it cannot ("" when it can).
         """
-        from scipy import stats
 
         if self.exact:
             return None, "the model reproduces the output to rounding: nothing is left to explain"
@@ -177,23 +176,7 @@ class AddedVariableTest:
         if fast is not None:
             return fast, ""
         z = z[:, keep] / norms[keep]
-        zr = z - self.q @ (self.q.T @ z)
-        rn = np.linalg.norm(zr, axis=0)
-        ok = rn > 1e-7
-        if not ok.any():
-            return None, "already explained by the model's regressors (collinear)"
-        zr = zr[:, ok] / rn[ok]
-        qz, rz = np.linalg.qr(zr)
-        d = np.abs(np.diag(rz))
-        qz = qz[:, d > 1e-7 * d.max()]
-        q = qz.shape[1]
-        dof = self.n - self.p - q
-        if dof < 1 or self.rss0 <= 0:
-            return None, "too few rows to test it"
-        drss = min(float(np.sum((qz.T @ self.e) ** 2)), self.rss0)
-        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
-        f = (drss / q) / (rss1 / dof)
-        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
+        return stripped_test(z - self.q @ (self.q.T @ z), self.e, self.n - self.p, self.rss0)
 
     def _from_cross(
         self, b: np.ndarray, zz: np.ndarray, ze: np.ndarray, keep: np.ndarray, norms: np.ndarray
@@ -220,6 +203,46 @@ class AddedVariableTest:
         rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
         f = (drss / q) / (rss1 / dof)
         return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q)
+
+
+def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tuple[AddedVariableResult | None, str]:
+    """The F-test of a block already stripped of the model's regressors, ``zr`` (z̃ of normalised
+    columns), against the model's residual ``e``: the QR of z̃ decides which columns count.
+
+    Parameters
+    ----------
+    zr : ndarray of shape (n_rows, q)
+        The block minus its projection on the model's regressors (in any orthonormal basis of the
+        rows, as long as ``e`` is in the same one).
+    e : ndarray of shape (n_rows,)
+        The model's residual.
+    dof0 : int
+        Rows minus the model's parameters.
+    rss0 : float
+        The model's residual sum of squares.
+
+    Returns
+    -------
+    (AddedVariableResult or None, str)
+        The result, or None with the reason the block cannot be tested.
+    """
+    from scipy import stats
+
+    rn = np.linalg.norm(zr, axis=0)
+    ok = rn > 1e-7
+    if not ok.any():
+        return None, "already explained by the model's regressors (collinear)"
+    qz, rz = np.linalg.qr(zr[:, ok] / rn[ok])
+    d = np.abs(np.diag(rz))
+    qz = qz[:, d > 1e-7 * d.max()]
+    q = qz.shape[1]
+    dof = dof0 - q
+    if dof < 1 or rss0 <= 0:
+        return None, "too few rows to test it"
+    drss = min(float(np.sum((qz.T @ e) ** 2)), rss0)
+    rss1 = max(rss0 - drss, 1e-300 * rss0)
+    f = (drss / q) / (rss1 / dof)
+    return AddedVariableResult(math.sqrt(drss / rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
 
 
 #: Residual RMS, relative to the output's, below which a fit is exact (rounding, not noise).

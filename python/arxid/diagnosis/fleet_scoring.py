@@ -22,7 +22,6 @@ signal; they are left out with a note (give the threshold, ``dz(u1,0.2)``, to te
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,7 +30,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from ..models.arx_model import ArxModel
-from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, holm
+from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, holm, stripped_test
 from .extension import Candidate, layout_for
 from .scoring import Scoring, scored_entry
 
@@ -142,7 +141,6 @@ class FactorTest(AddedVariableTest):
         result : AddedVariableResult or None
         why : str
         """
-        from scipy import stats
 
         if self.exact:
             return None, "the model reproduces the output to rounding: nothing is left to explain"
@@ -158,21 +156,7 @@ class FactorTest(AddedVariableTest):
         # Ill-conditioned beside Φ: the QR of the stripped, normalised block decides which columns
         # count, as in process (the block is Q₂ m in the basis Q₂ of R's rows below Φ).
         m = self._m[:, z[keep]] / norms[keep]
-        rn = np.linalg.norm(m, axis=0)
-        ok = rn > 1e-7
-        if not ok.any():
-            return None, "already explained by the model's regressors (collinear)"
-        qm, rm = np.linalg.qr(m[:, ok] / rn[ok])
-        d = np.abs(np.diag(rm))
-        qm = qm[:, d > 1e-7 * d.max()]
-        q = qm.shape[1]
-        dof = self.n - self.p - q
-        if dof < 1 or self.rss0 <= 0:
-            return None, "too few rows to test it"
-        drss = min(float(np.sum((qm.T @ self._e) ** 2)), self.rss0)
-        rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
-        f = (drss / q) / (rss1 / dof)
-        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
+        return stripped_test(m, self._e, self.n - self.p, self.rss0)
 
     def coefficients(self, z: np.ndarray) -> np.ndarray:
         """Least-squares coefficients of y on ``[Φ | columns z]``.
