@@ -18,13 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from .._base import metrics
 from .._base.formatting import finite_or_none, require_pandas, text_table
-from .._base.nested import nested_fits
+from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_model
 from ..models.arx_model import ArxModel
+from ..models.lagged import lagged_factor
 from ..models.polynomial import PolynomialModel
 from .comparison import prediction_error
 
@@ -89,21 +89,12 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     """
     x = _centered(x)
     n = len(x)
-    starts = [np.arange(lo + max_order, hi) for lo, hi in segments]
-    rows = np.concatenate(starts) if starts else np.zeros(0, dtype=int)
-    if rows.size == 0:
-        return x
-    lagged = np.empty((len(rows), max_order + 1))
-    for k in range(max_order + 1):
-        lagged[:, k] = x[rows - k]
-    ok = np.all(np.isfinite(lagged), axis=1)
-    rows, lagged = rows[ok], lagged[ok]
-    m = len(rows)
+    # [x(t-1) ... x(t-P) | x(t)] reduced to its factor block by block of rows (never held whole).
+    r, m = lagged_factor([*((x, k) for k in range(1, max_order + 1)), (x, 0)], segments, max_order)
     if m <= 2 * max_order + 2:
         return x
-    best_aic, best = math.log(max(metrics.mean_square(lagged[:, 0]), 1e-300)), (0, np.zeros(0))
-    rss_all, coefs = nested_fits(lagged[:, 1:], lagged[:, 0])  # every order from one QR
-    del lagged
+    best_aic, best = math.log(max(float(np.sum(r[:, -1] ** 2)) / m, 1e-300)), (0, np.zeros(0))
+    rss_all, coefs = nested_from_factor(r)  # every order from one factor
     for p in range(1, max_order + 1):
         a, rss = coefs[p], float(rss_all[p]) / m
         aic = math.log(max(rss, 1e-300)) + 2.0 * p / m
@@ -112,10 +103,13 @@ def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
     p, a = best
     if p == 0:
         return x
+    from scipy.signal import lfilter
+
     out = np.full(n, np.nan)
+    fir = np.concatenate([[1.0], -np.asarray(a)])  # x(t) - a1 x(t-1) - ... - ap x(t-p)
     for lo, hi in segments:
         if hi - lo > p:
-            out[lo + p : hi] = x[lo + p : hi] - sum(a[i] * x[lo + p - 1 - i : hi - 1 - i] for i in range(p))
+            out[lo + p : hi] = lfilter(fir, [1.0], x[lo:hi])[p:]
     return out
 
 
