@@ -34,8 +34,6 @@ and positive/negative parts apply to inputs and logged signals only.
 from __future__ import annotations
 
 import re
-import threading
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -301,18 +299,8 @@ def _check_range(text: str, value: np.ndarray) -> None:
         )
 
 
-#: Layouts kept per data set (the latest first): one model is predicted many times on the same
-#: validation data (its errors, its band, its checks), and its layout is a copy of the inputs.
-_LAYOUTS_KEPT = 2
-_layouts: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_layouts_lock = threading.Lock()
-
-
 def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
     """Turn effect strings into extra regressor columns and output terms for ``data``.
-
-    The latest layouts of each data set are kept (their samples read-only): compiling the same
-    effects and orders on the same data again returns the same layout.
 
     Parameters
     ----------
@@ -328,21 +316,6 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
     EffectLayout
         The inputs followed by the effect columns, with their lags and the output terms.
     """
-    key = (tuple(effects), tuple(int(b) for b in nb), tuple(int(k) for k in nk))
-    with _layouts_lock:
-        layout = _layouts.setdefault(data, {}).pop(key, None)
-    if layout is None:
-        layout = _compile(effects, data, nb, nk)
-        layout.u.setflags(write=False)
-    with _layouts_lock:  # the latest last; the oldest dropped
-        kept = _layouts.setdefault(data, {})
-        kept[key] = layout
-        while len(kept) > _LAYOUTS_KEPT:
-            del kept[next(iter(kept))]
-    return layout
-
-
-def _compile(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
     m = data.n_inputs
     cols = [data.u]
     out_nb, out_nk = list(nb), list(nk)
