@@ -1,7 +1,8 @@
 """Models and their estimation: ARX by Householder QR (:func:`arx`, :class:`ArxModel`), polynomial
 models by instrumental variables (:func:`iv`, :class:`IvModel`, open and closed loop), polynomial
 models by prediction-error minimisation (:func:`oe`, :func:`armax`, :func:`bj`, :func:`polyest`,
-:class:`PolynomialModel`), the physical-effect grammar (``effects``), regressor layouts, conversion
+:class:`PolynomialModel`), the physical-effect grammar (``effects``), regressor layouts, fits of many
+structures from one factor of their envelope (``envelope``), conversion
 to python-control and scipy, continuous-time conversion, continuous-time models from sampled data
 (:func:`tfest` by SRIVC, :func:`procest` process models), and model files."""
 
