@@ -103,7 +103,7 @@ fn linear_run<H: History>(
     cancel: &AtomicBool,
 ) -> Result<()> {
     let (na, m) = (s.na, d.m);
-    for t in rows.0..rows.1 {
+    for (t, o) in out.iter_mut().enumerate().take(rows.1).skip(rows.0) {
         if t % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed) {
             return Err(ArxError::Interrupted);
         }
@@ -120,7 +120,7 @@ fn linear_run<H: History>(
             }
         }
         hist.set(now, acc);
-        out[t] = acc;
+        *o = acc;
     }
     Ok(())
 }
