@@ -59,7 +59,8 @@ def share_refit_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: tup
     phi, y, rows = regressor_matrix(data, na, layout, first_lag)
     r = _factor(np.column_stack([phi, y]))
     lag = max(first_lag, max_lag(na, layout))
-    return r, len(rows), row_bound(data, lag), replace(layout, u=layout.u[:0]), data.n_samples
+    bare = replace(layout, u=np.empty((0, layout.u.shape[1])))  # not a view: it would hold the samples
+    return r, len(rows), row_bound(data, lag), bare, data.n_samples
 
 
 def share_refit_factors(share: tuple, structures: Sequence[tuple]) -> list[tuple]:

@@ -77,7 +77,8 @@ def share_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: Sequence[
     structure = np.array([[na, *layout.nb, *layout.nk]], dtype=np.int64)
     terms = list(layout.output_terms)
     r, n = _core.grid_factor(np.ascontiguousarray(data.y), layout.u, list(data.experiment_starts), structure, terms)
-    return r, n, row_bound(data, max_lag(na, layout)), replace(layout, u=layout.u[:0]), data.n_samples
+    bare = replace(layout, u=np.empty((0, layout.u.shape[1])))  # not a view: it would hold the samples
+    return r, n, row_bound(data, max_lag(na, layout)), bare, data.n_samples
 
 
 def combine_share_factors(a: tuple, b: tuple) -> tuple:
