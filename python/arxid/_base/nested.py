@@ -11,9 +11,19 @@ calls it replaces each read the whole matrix again.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
-__all__ = ["nested_fits", "nested_from_factor", "least_squares", "blocked_r", "column_norms", "BLOCK_ROWS"]
+__all__ = [
+    "nested_fits",
+    "nested_from_factor",
+    "least_squares",
+    "blocked_r",
+    "stacked_factor",
+    "column_norms",
+    "BLOCK_ROWS",
+]
 
 #: Rows per block of the blocked QR (:func:`blocked_r`).
 BLOCK_ROWS = 65536
@@ -191,11 +201,38 @@ def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | No
     >>> bool(np.allclose(r.T @ r, x.T @ x))
     True
     """
-    rs = []
-    for lo in range(0, x.shape[0], BLOCK_ROWS):
-        part = x[lo : lo + BLOCK_ROWS] if scale is None else x[lo : lo + BLOCK_ROWS] / scale
-        block = part if y is None else np.column_stack([part, y[lo : lo + BLOCK_ROWS]])
-        rs.append(np.asarray(np.linalg.qr(block, mode="r")))
+
+    def blocks():
+        for lo in range(0, x.shape[0], BLOCK_ROWS):
+            part = x[lo : lo + BLOCK_ROWS] if scale is None else x[lo : lo + BLOCK_ROWS] / scale
+            yield part if y is None else np.column_stack([part, y[lo : lo + BLOCK_ROWS]])
+
+    return stacked_factor(blocks(), x.shape[1] + (y is not None))
+
+
+def stacked_factor(blocks: Iterable[np.ndarray], n_columns: int) -> np.ndarray:
+    """R of the matrix whose rows are the ``blocks`` stacked: Householder QR of each block, then of
+    their R's stacked (as accurate as one QR of the whole matrix, which is never held).
+
+    Parameters
+    ----------
+    blocks : iterable of ndarray of shape (rows_i, n_columns)
+        Built one at a time by the caller (an empty block is skipped).
+    n_columns : int
+
+    Returns
+    -------
+    ndarray of shape (min(total rows, n_columns), n_columns)
+        Upper triangular (0 rows when there are none).
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(3).standard_normal((1000, 2))
+    >>> r = stacked_factor((x[i : i + 300] for i in range(0, 1000, 300)), 2)
+    >>> bool(np.allclose(r.T @ r, x.T @ x))
+    True
+    """
+    rs = [np.asarray(np.linalg.qr(b, mode="r")) for b in blocks if len(b)]
     if not rs:
-        return np.zeros((0, x.shape[1] + (y is not None)))
+        return np.zeros((0, n_columns))
     return rs[0] if len(rs) == 1 else np.asarray(np.linalg.qr(np.vstack(rs), mode="r"))

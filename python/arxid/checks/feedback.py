@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._base.formatting import json_safe
+from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
@@ -95,27 +96,13 @@ class FeedbackTest:
         return json.dumps(json_safe(fields), allow_nan=False)  # NaN (no conclusion) becomes null
 
 
-def _nested_rss(r: np.ndarray, p_small: int) -> tuple[float, float]:
-    """Residual sums of squares of the last column on the first ``p_small`` columns and on all the
-    others, from the factor R of the matrix (the tail of R's last column; least squares on R when
-    the columns are dependent: the same residuals as on the matrix itself)."""
-    p = r.shape[1] - 1
-    d = np.abs(np.diag(r)[:p])
-    if d.min() > 1e-12 * d.max():
-        return float(np.sum(r[p_small : p + 1, p] ** 2)), float(r[p, p] ** 2)
-    out = []
-    for k in (p_small, p):
-        c = np.linalg.lstsq(r[:, :k], r[:, p], rcond=None)[0]
-        out.append(float(np.sum((r[:, p] - r[:, :k] @ c) ** 2)))
-    return out[0], out[1]
-
-
 def _f_test(r: np.ndarray, n_rows: int, p_small: int) -> tuple[float, float, int, int]:
     """F statistic and p-value of the columns of R beyond the first ``p_small`` (output last)."""
     from scipy import stats
 
     p = r.shape[1] - 1
-    rss_small, rss_big = _nested_rss(r, p_small)
+    rss = nested_from_factor(r)[0]  # every prefix of the columns from the one factor
+    rss_small, rss_big = float(rss[p_small]), float(rss[p])
     q = p - p_small
     dof = n_rows - p
     if rss_big <= 0 or dof <= 0:

@@ -210,9 +210,8 @@ class Refits:
         (ArxModel, float)
             The refitted model and its validation error.
         """
-        i = self.index.get(getattr(c, "label", ""))
-        env = self.envelope
-        if env is None or i is None or not env.has(i):
+        if not self.has(c) or self.envelope is None:
             return refit_and_validate(self.model, self.data, validation, c, horizon, initial)
-        fitted = ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(self.model, c)).fit_in(env, i)
+        i = self.index[c.label]
+        fitted = ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(self.model, c)).fit_in(self.envelope, i)
         return fitted, error_rms(fitted, validation, horizon, initial)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._base.nested import BLOCK_ROWS, least_squares, nested_from_factor
+from .._base.nested import BLOCK_ROWS, least_squares, nested_from_factor, stacked_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -207,14 +207,16 @@ def _previous_rows(rows: np.ndarray, order: int) -> tuple[np.ndarray, list[np.nd
 
 def _lagged_factor(r: np.ndarray, keep: np.ndarray, prev: list[np.ndarray]) -> np.ndarray:
     """R of [r(t−1) … r(t−P) | r(t)] over the rows ``keep``, reduced one block of rows at a time."""
-    parts = []
-    for lo in range(0, len(keep), BLOCK_ROWS):
-        block = np.empty((len(keep[lo : lo + BLOCK_ROWS]), len(prev) + 1))
-        for j, at in enumerate(prev):
-            block[:, j] = r[at[lo : lo + BLOCK_ROWS]]
-        block[:, -1] = r[keep[lo : lo + BLOCK_ROWS]]
-        parts.append(np.asarray(np.linalg.qr(block, mode="r")))
-    return parts[0] if len(parts) == 1 else np.asarray(np.linalg.qr(np.vstack(parts), mode="r"))
+
+    def blocks():
+        for lo in range(0, len(keep), BLOCK_ROWS):
+            block = np.empty((len(keep[lo : lo + BLOCK_ROWS]), len(prev) + 1))
+            for j, at in enumerate(prev):
+                block[:, j] = r[at[lo : lo + BLOCK_ROWS]]
+            block[:, -1] = r[keep[lo : lo + BLOCK_ROWS]]
+            yield block
+
+    return stacked_factor(blocks(), len(prev) + 1)
 
 
 def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):

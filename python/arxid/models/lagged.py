@@ -8,10 +8,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["lagged_columns", "lagged_factor", "filter_segments"]
+from .._base.nested import BLOCK_ROWS, stacked_factor
 
-#: Rows per block of :func:`lagged_factor`.
-_BLOCK = 65536
+__all__ = ["lagged_columns", "lagged_factor", "filter_segments"]
 
 
 def lagged_columns(
@@ -64,19 +63,20 @@ def lagged_factor(
     """
     parts = [np.arange(a + back, b - ahead) for a, b in segments if b - ahead > a + back]
     rows = np.concatenate(parts) if parts else np.zeros(0, dtype=int)
-    factors, n_rows = [], 0
-    for lo in range(0, len(rows), _BLOCK):
-        at = rows[lo : lo + _BLOCK]
-        mat = np.empty((len(at), len(columns)))
-        for j, (signal, lag) in enumerate(columns):
-            mat[:, j] = signal[at - lag]
-        mat = mat[np.all(np.isfinite(mat), axis=1)]
-        n_rows += len(mat)
-        if len(mat):
-            factors.append(np.asarray(np.linalg.qr(mat, mode="r")))
-    if not factors:
-        return np.zeros((0, len(columns))), 0
-    r = factors[0] if len(factors) == 1 else np.asarray(np.linalg.qr(np.vstack(factors), mode="r"))
+    n_rows = 0
+
+    def blocks():
+        nonlocal n_rows
+        for lo in range(0, len(rows), BLOCK_ROWS):
+            at = rows[lo : lo + BLOCK_ROWS]
+            mat = np.empty((len(at), len(columns)))
+            for j, (signal, lag) in enumerate(columns):
+                mat[:, j] = signal[at - lag]
+            mat = mat[np.all(np.isfinite(mat), axis=1)]
+            n_rows += len(mat)
+            yield mat
+
+    r = stacked_factor(blocks(), len(columns))
     return r, n_rows
 
 
