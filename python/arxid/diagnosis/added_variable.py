@@ -175,6 +175,10 @@ class AddedVariableTest:
         fast = self._from_cross(b, zz, ze, keep, norms)
         if fast is not None:
             return fast, ""
+        return self._stripped(z, keep, norms)
+
+    def _stripped(self, z: np.ndarray, keep: np.ndarray, norms: np.ndarray) -> tuple[AddedVariableResult | None, str]:
+        """Ill-conditioned beside Φ: the QR of the stripped, normalised block decides which columns count."""
         z = z[:, keep] / norms[keep]
         return stripped_test(z - self.q @ (self.q.T @ z), self.e, self.n - self.p, self.rss0)
 

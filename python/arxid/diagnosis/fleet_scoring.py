@@ -125,37 +125,14 @@ class FactorTest(AddedVariableTest):
         self.exact = self.rss0 <= ROUNDING**2 * float(y @ y)
 
     def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Q'z, z'z and z'e of the columns ``z`` (indices into R)."""
+        """Q'z, z'z and z'e of the columns ``z`` (indices into R: :meth:`test` takes indices here)."""
+        z = np.asarray(z, dtype=int)
         b, m = self._rr[: self.p, z], self._m[:, z]
         return b, b.T @ b + m.T @ m, m.T @ self._e
 
-    def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
-        """Test the columns ``z`` (indices into R), as :meth:`AddedVariableTest.test` tests columns.
-
-        Parameters
-        ----------
-        z : ndarray of int
-
-        Returns
-        -------
-        result : AddedVariableResult or None
-        why : str
-        """
-
-        if self.exact:
-            return None, "the model reproduces the output to rounding: nothing is left to explain"
-        z = np.asarray(z, dtype=int)
-        b, zz, ze = self._cross(z)
-        norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
-        keep = norms > 0
-        if not keep.any():
-            return None, "the candidate is zero on these data"
-        fast = self._from_cross(b, zz, ze, keep, norms)
-        if fast is not None:
-            return fast, ""
-        # Ill-conditioned beside Φ: the QR of the stripped, normalised block decides which columns
-        # count, as in process (the block is Q₂ m in the basis Q₂ of R's rows below Φ).
-        m = self._m[:, z[keep]] / norms[keep]
+    def _stripped(self, z: np.ndarray, keep: np.ndarray, norms: np.ndarray) -> tuple[AddedVariableResult | None, str]:
+        """The in-process QR test of the stripped block (the block is Q₂ m in the basis Q₂ of R's rows below Φ)."""
+        m = self._m[:, np.asarray(z, dtype=int)[keep]] / norms[keep]
         return stripped_test(m, self._e, self.n - self.p, self.rss0)
 
     def coefficients(self, z: np.ndarray) -> np.ndarray:
