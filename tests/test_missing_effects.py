@@ -121,6 +121,35 @@ def test_actuator_shape_is_the_top_suspect_with_its_threshold(shape):
     assert not any(s.effect.startswith(twin) for s in d.suspects)
 
 
+@pytest.mark.parametrize("collinear", [False, True])
+def test_threshold_shares_in_one_pass_equal_the_shares_one_by_one(collinear):
+    """The scan scores forty thresholds from one pass over the regressors per block of rows; each
+    share is the one :meth:`AddedVariableTest.share` gives for that threshold's columns alone."""
+    from arxid.diagnosis.added_variable import AddedVariableTest
+    from arxid.models.effects import thresholded
+
+    rng = np.random.default_rng(5)
+    n = 40_000  # more than two blocks of rows
+    phi = rng.standard_normal((n, 4))
+    if collinear:  # rank-deficient regressors: the blocked QR path of the test
+        phi[:, 3] = phi[:, 0] - 2.0 * phi[:, 1]
+    x = rng.uniform(-2, 2, n + 2)
+    lagged = np.column_stack([x[2:], x[1:-1]])  # two lags of one signal
+    y = phi @ [1.0, -0.5, 0.3, 0.0] + 0.4 * thresholded("dz", np.abs(lagged[:, 0]), np.sign(lagged[:, 0]), 0.7)
+    test = AddedVariableTest(phi, y + 0.05 * rng.standard_normal(n))
+    cs = np.linspace(0.1, 1.9, 40)
+    mag, sign = np.abs(lagged.T), np.sign(lagged.T)
+
+    def columns(lo, hi):
+        return np.vstack([thresholded("dz", mag[:, lo:hi], sign[:, lo:hi], c) for c in cs])
+
+    batch = test.shares(columns, len(cs), 2)
+    one_by_one = [test.share(thresholded("dz", np.abs(lagged), np.sign(lagged), c)) for c in cs]
+    assert batch is not None
+    np.testing.assert_allclose(batch, one_by_one, rtol=1e-9, atol=1e-15)
+    assert abs(cs[int(np.argmax(batch))] - 0.7) < 0.05  # the dead zone put in
+
+
 def test_threshold_grid_is_the_quantiles_and_needs_enough_levels():
     x = np.linspace(-1, 1, 2001)
     np.testing.assert_allclose(threshold_grid(x), np.quantile(np.abs(x), np.linspace(0.05, 0.95, 19)))

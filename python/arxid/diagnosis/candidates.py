@@ -329,16 +329,17 @@ def _entry_text(written: str, signal: str, c: str) -> str:
     return text.replace("|u|", f"|{signal}|").replace("< c", f"< {c}").replace("> c", f"> {c}")
 
 
-def scan_threshold(x: np.ndarray, score: Callable[[float], float]) -> tuple[float, int]:
-    """The threshold c that maximises ``score(c)``: the grid of :func:`threshold_grid`, then a grid
-    ten times finer between the best value's neighbours.
+def scan_threshold(x: np.ndarray, scores: Callable[[np.ndarray], np.ndarray]) -> tuple[float, int]:
+    """The threshold c of the best score: the grid of :func:`threshold_grid`, then a grid ten times
+    finer between the best value's neighbours.
 
     Parameters
     ----------
     x : ndarray
         The signal the threshold applies to.
-    score : callable
-        Score of a threshold (NaN when it cannot be tested); the added-variable score in the diagnosis.
+    scores : callable
+        The scores of an array of thresholds, one call per grid (NaN where one cannot be tested);
+        the added-variable score in the diagnosis.
 
     Returns
     -------
@@ -349,12 +350,12 @@ def scan_threshold(x: np.ndarray, score: Callable[[float], float]) -> tuple[floa
         for the chosen threshold's p-value.
     """
     grid = threshold_grid(x)
-    coarse = np.array([score(float(c)) for c in grid])
+    coarse = np.asarray(scores(grid), dtype=float) if grid.size else np.zeros(0)
     if not grid.size or np.isnan(coarse).all():
         return float("nan"), int(grid.size)
     i = int(np.nanargmax(coarse))
     fine = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 21)
-    scores = np.array([score(float(c)) for c in fine])
-    if np.isnan(scores).all() or np.nanmax(scores) <= coarse[i]:
+    near = np.asarray(scores(fine), dtype=float)
+    if np.isnan(near).all() or np.nanmax(near) <= coarse[i]:
         return float(grid[i]), int(grid.size)
-    return float(fine[int(np.nanargmax(scores))]), int(grid.size)
+    return float(fine[int(np.nanargmax(near))]), int(grid.size)

@@ -66,7 +66,7 @@ def _scan_polynomial(model, data: IOData, c: Candidate, notes: dict[str, str]):
         res = score_effects(model, data, [label(op, t)])[0]
         return math.nan if res is None else res.score
 
-    t, n = scan_threshold(x, score)
+    t, n = scan_threshold(x, lambda ts: np.array([score(float(t)) for t in ts]))
     if not math.isfinite(t):
         return None, "no threshold could be tested" if n else f"|{signal}| takes too few distinct values to scan"
     best = label(_threshold_shape(model, data, signal, label(op, t)), t)

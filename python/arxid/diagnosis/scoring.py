@@ -19,7 +19,7 @@ from .._base.nested import least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
-from ..models.effects import compile_effects, factor_series, format_threshold, parse_effect
+from ..models.effects import compile_effects, factor_series, format_threshold, parse_effect, thresholded
 from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
@@ -105,20 +105,51 @@ class Scoring:
             self.single_z.keep(c.label, ("candidate", c))
         return scored_entry(c, res)
 
+    def _threshold_lag(self, op: str, signal: str) -> tuple[int, int]:
+        """nb and nk of the columns of ``op(signal, c)`` (they do not depend on the threshold)."""
+        if (op, signal) not in self._threshold_lags:
+            lay = compile_effects((f"{op}({signal},1)",), self.data, self.model.nb_, self.model.nk_)
+            self._threshold_lags[op, signal] = (lay.nb[-1], lay.nk[-1])
+        return self._threshold_lags[op, signal]
+
     def _threshold_columns(self, op: str, signal: str, c: float) -> tuple[Candidate, np.ndarray]:
         """The candidate ``op(signal,c)`` and its columns on the common rows, read straight off the
         effect's series (the scan tries some forty thresholds, so no regressor matrix is rebuilt)."""
         label = f"{op}({signal},{format_threshold(c)})"
         cand = Candidate(label, (label,), self.model.na_, self.model.nb_, self.model.nk_, "effect")
-        if (op, signal) not in self._threshold_lags:  # the lags do not depend on the threshold
-            lay = compile_effects((label,), self.data, self.model.nb_, self.model.nk_)
-            self._threshold_lags[op, signal] = (lay.nb[-1], lay.nk[-1])
-        b, k = self._threshold_lags[op, signal]
+        b, k = self._threshold_lag(op, signal)
         col = factor_series(parse_effect(label, self.data).factors[0], self.data)
         z = np.empty((len(self.rows0), b))
         for j in range(b):
             z[:, j] = col[self.rows0 - k - j]
         return cand, z
+
+    def _threshold_shares(self, op: str, signal: str, cs: np.ndarray) -> np.ndarray:
+        """The share of every threshold in ``cs`` (NaN where it cannot be scored), all from one pass
+        over the model's regressors per block of rows (:meth:`AddedVariableTest.shares`)."""
+        b, k = self._threshold_lag(op, signal)
+        labels = [f"{op}({signal},{format_threshold(c)})" for c in cs]
+        thresholds = [parse_effect(lab, self.data).factors[0].threshold for lab in labels]
+        x = np.asarray(self.data.signal(signal), dtype=float)
+        lagged = x[self.rows0[:, None] - k - np.arange(b)]  # (rows, b): the columns' samples
+        if b and np.isfinite(lagged).all():
+            magnitude, sign = np.abs(lagged.T), np.sign(lagged.T)
+            del lagged
+
+            def columns(lo: int, hi: int) -> np.ndarray:
+                zt = np.empty((len(cs), b, hi - lo))
+                for i, c in enumerate(thresholds):
+                    thresholded(op, magnitude[:, lo:hi], sign[:, lo:hi], c, out=zt[i])
+                return zt.reshape(len(cs) * b, hi - lo)
+
+            got = self.proj0.shares(columns, len(cs), b)
+            if got is not None:
+                return got
+        return np.array([self._one_share(op, signal, float(c)) for c in cs])
+
+    def _one_share(self, op: str, signal: str, c: float) -> float:
+        z = self._threshold_columns(op, signal, c)[1]
+        return self.proj0.share(z) if z.shape[1] and np.isfinite(z).all() else math.nan
 
     def _scan(self, signal: str, group: list[Candidate]) -> dict | None:
         """The threshold of ``dz`` / ``sat`` on ``signal`` by a grid scan (:func:`arxid.candidates.scan_threshold`).
@@ -128,12 +159,7 @@ class Scoring:
         """
         ops = [c.label[: c.label.index("(")] for c in group]
         x = np.asarray(self.data.signal(signal), dtype=float)
-
-        def score(c: float) -> float:
-            z = self._threshold_columns(ops[0], signal, c)[1]
-            return self.proj0.share(z) if z.shape[1] and np.isfinite(z).all() else math.nan
-
-        c, n = scan_threshold(x, score)
+        c, n = scan_threshold(x, lambda cs: self._threshold_shares(ops[0], signal, cs))
         if not math.isfinite(c):
             for cand in group:
                 why = "no threshold could be tested" if n else f"|{signal}| takes too few distinct values to scan"

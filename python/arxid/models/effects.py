@@ -50,6 +50,7 @@ __all__ = [
     "compile_effects",
     "format_threshold",
     "factor_series",
+    "thresholded",
     "effect_names",
     "effect_series",
 ]
@@ -239,6 +240,40 @@ def factor_series(f: Factor, data: IOData) -> np.ndarray:
         return _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
 
 
+def thresholded(op: str, magnitude: np.ndarray, sign: np.ndarray, c: float, out: np.ndarray | None = None) -> np.ndarray:
+    """A dead zone or a saturation of a signal given as |x| and sign(x): ``dz`` is
+    sign(x)·max(|x| − c, 0), ``sat`` is sign(x)·min(|x|, c) (a threshold scan shapes the same
+    samples with dozens of thresholds, so |x| and sign(x) are taken once).
+
+    Parameters
+    ----------
+    op : {"dz", "sat"}
+    magnitude, sign : ndarray
+        |x| and sign(x).
+    c : float
+        The threshold.
+    out : ndarray, optional
+        Where to write (same shape as ``magnitude``).
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> x = np.array([-2.0, 0.5, 3.0])
+    >>> thresholded("dz", np.abs(x), np.sign(x), 1.0).tolist(), thresholded("sat", np.abs(x), np.sign(x), 1.0).tolist()
+    ([-1.0, 0.0, 2.0], [-1.0, 0.5, 1.0])
+    """
+    if op == "dz":
+        out = np.subtract(magnitude, c, out=out)
+        np.maximum(out, 0.0, out=out)
+    else:
+        out = np.minimum(magnitude, c, out=out)
+    out *= sign
+    return out
+
+
 def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     if f.op == "pow":
         return x**f.power
@@ -247,8 +282,7 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     if f.op == "sign":
         return np.sign(x)
     if f.op in ("dz", "sat"):
-        shaped = np.maximum(np.abs(x) - f.threshold, 0.0) if f.op == "dz" else np.minimum(np.abs(x), f.threshold)
-        return np.sign(x) * shaped
+        return thresholded(f.op, np.abs(x), np.sign(x), f.threshold)
     if f.op in ("pos", "neg"):
         return np.maximum(x, 0.0) if f.op == "pos" else np.minimum(x, 0.0)
     d = np.zeros_like(x)
