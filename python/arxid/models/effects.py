@@ -240,7 +240,9 @@ def factor_series(f: Factor, data: IOData) -> np.ndarray:
         return _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
 
 
-def thresholded(op: str, magnitude: np.ndarray, sign: np.ndarray, c: float, out: np.ndarray | None = None) -> np.ndarray:
+def thresholded(
+    op: str, magnitude: np.ndarray, sign: np.ndarray, c: float, out: np.ndarray | None = None
+) -> np.ndarray:
     """A dead zone or a saturation of a signal given as |x| and sign(x): ``dz`` is
     sign(x)·max(|x| − c, 0), ``sat`` is sign(x)·min(|x|, c) (a threshold scan shapes the same
     samples with dozens of thresholds, so |x| and sign(x) are taken once).
