@@ -236,3 +236,27 @@ def test_free_run_restarts_after_missing_initial_outputs():
     second = free[400:]
     assert np.isnan(second[:4]).all()
     np.testing.assert_allclose(second[4:], y[4:], atol=1e-9)
+
+
+def test_compiled_effects_are_kept_per_data_and_equal_a_fresh_compile():
+    """The input matrix of the last effect sets compiled on a record is kept (read-only) and served
+    again; lags still follow each call's nb, nk, and another record gets its own."""
+    from arxid.models import effects as fx
+
+    rng = np.random.default_rng(3)
+    n = 500
+    data = arxid.IOData(rng.standard_normal(n), rng.standard_normal((n, 2)), 0.01, extra={"vbat": 4 + rng.random(n)})
+    first = fx.compile_effects(("u1*vbat", "y^2"), data, (2, 1), (1, 3))
+    again = fx.compile_effects(("u1*vbat", "y^2"), data, (3, 2), (0, 1))
+    assert again.u is first.u and not first.u.flags.writeable
+    assert again.nb == (3, 2, 3) and again.nk == (0, 1, 0) and first.nb == (2, 1, 2)
+    fx._COMPILED.clear()
+    fresh = fx.compile_effects(("u1*vbat", "y^2"), data, (3, 2), (0, 1))
+    np.testing.assert_array_equal(fresh.u, again.u)
+    assert fresh.output_terms == again.output_terms and fresh.column_labels == again.column_labels
+    np.testing.assert_array_equal(fresh.u[:, 2], data.u[:, 0] * data.extra["vbat"])
+    other = arxid.IOData(data.y.copy(), data.u * 2.0, 0.01, extra={"vbat": data.extra["vbat"]})
+    np.testing.assert_allclose(fx.compile_effects(("u1*vbat", "y^2"), other, (3, 2), (0, 1)).u, 2.0 * fresh.u)
+    for effects in [(), ("const",), ("time",), ("u1^2",)]:  # only the last two sets stay
+        fx.compile_effects(effects, data, (1, 1), (1, 1))
+    assert len(fx._COMPILED[data]) == 2

@@ -34,6 +34,7 @@ and positive/negative parts apply to inputs and logged signals only.
 from __future__ import annotations
 
 import re
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -338,6 +339,10 @@ def _check_range(text: str, value: np.ndarray) -> None:
 def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
     """Turn effect strings into extra regressor columns and output terms for ``data``.
 
+    The input matrix depends only on the effects and the data (not on nb, nk): the last few built
+    on each data set are kept (read-only), as a diagnosis compiles the same effects on the same
+    record for every refit, free run and band.
+
     Parameters
     ----------
     effects : sequence of str
@@ -352,59 +357,101 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
     EffectLayout
         The inputs followed by the effect columns, with their lags and the output terms.
     """
-    m = data.n_inputs
-    cols = [data.u]
-    out_nb, out_nk = list(nb), list(nk)
-    tie: list[int | None] = list(range(m))
-    labels = list(data.input_names)
-    eff_col: list[str | None] = [None] * m
-    terms: list[tuple[str, int, int]] = []
-    eff_term: list[str] = []
-    used_nk = [k for b, k in zip(nb, nk, strict=False) if b > 0]
-    min_nk = min(used_nk) if used_nk else 0
-
-    def add(col: np.ndarray, b: int, k: int, source: int | None, label: str, effect: str | None) -> None:
-        cols.append(col.reshape(-1, 1))
-        out_nb.append(b)
-        out_nk.append(k)
-        tie.append(source)
-        labels.append(label)
-        eff_col.append(effect)
-
+    texts = tuple(effects)
+    kept = _COMPILED.get(data)
+    u = kept.get(texts) if kept is not None else None
+    plan = _Plan(data, nb, nk, build=u is None)
     seen = set()
-    for text in effects:
+    for text in texts:
         e = parse_effect(text, data)
         if e.text in seen:
             raise OrderError(f"effect {e.text!r} is listed twice")
         seen.add(e.text)
+        plan.effect(e, text)
+    if u is None:
+        u = _keep(data, texts, np.ascontiguousarray(np.hstack(plan.cols), dtype=float))
+    return EffectLayout(
+        u,
+        tuple(plan.nb),
+        tuple(plan.nk),
+        tuple(plan.tie),
+        tuple(plan.terms),
+        tuple(plan.labels),
+        tuple(plan.eff_col),
+        tuple(plan.eff_term),
+    )
+
+
+#: The input matrices of the last effect sets compiled on each data set (by effect tuple).
+_COMPILED: weakref.WeakKeyDictionary[IOData, dict[tuple[str, ...], np.ndarray]] = weakref.WeakKeyDictionary()
+
+#: How many input matrices are kept per data set: the model's own, and one refit's.
+_KEEP_PER_DATA = 2
+
+
+def _keep(data: IOData, texts: tuple[str, ...], u: np.ndarray) -> np.ndarray:
+    u.setflags(write=False)
+    kept = _COMPILED.setdefault(data, {})
+    kept.pop(texts, None)
+    kept[texts] = u
+    while len(kept) > _KEEP_PER_DATA:
+        kept.pop(next(iter(kept)))
+    return u
+
+
+class _Plan:
+    """The layout of :func:`compile_effects` as its effects are added: lags, ties, labels and output
+    terms always; the columns only when ``build`` (else the kept input matrix serves)."""
+
+    def __init__(self, data: IOData, nb: Sequence[int], nk: Sequence[int], build: bool):
+        m = data.n_inputs
+        self.data, self.build = data, build
+        self.cols: list[np.ndarray] = [data.u]
+        self.nb, self.nk = list(nb), list(nk)
+        self.tie: list[int | None] = list(range(m))
+        self.labels = list(data.input_names)
+        self.eff_col: list[str | None] = [None] * m
+        self.terms: list[tuple[str, int, int]] = []
+        self.eff_term: list[str] = []
+        used_nk = [k for b, k in zip(nb, nk, strict=False) if b > 0]
+        self.min_nk = min(used_nk) if used_nk else 0
+
+    def add(self, col: np.ndarray | None, b: int, k: int, source: int | None, label: str, effect: str | None) -> None:
+        if col is not None:
+            self.cols.append(col.reshape(-1, 1))
+        self.nb.append(b)
+        self.nk.append(k)
+        self.tie.append(source)
+        self.labels.append(label)
+        self.eff_col.append(effect)
+
+    def effect(self, e: Effect, text: str) -> None:
+        data = self.data
         if e.special is not None:
-            add(np.ones(data.n_samples) if e.special == "const" else data.time, 1, 0, None, e.special, e.text)
-            continue
+            col = (np.ones(data.n_samples) if e.special == "const" else data.time) if self.build else None
+            self.add(col, 1, 0, None, e.special, e.text)
+            return
         y_factors = [f for f in e.factors if _is_output(f.signal, data)]
         others = [f for f in e.factors if not _is_output(f.signal, data)]
         if len(y_factors) > 1:
             raise OrderError(f"effect {text!r}: at most one factor may involve the output")
-        prod = _input_product(text, others, data)
+        prod = _input_product(text, others, data) if self.build else None
         if y_factors:
             kind, power = _output_term(y_factors[0], text)
-            _check_output_term(text, kind, power, prod, data)
+            if self.build:
+                _check_output_term(text, kind, power, prod, data)
             mult = -1
-            if prod is not None:
-                mult = len(out_nb)
-                add(prod, 0, 0, None, f"carrier:{e.text}", None)
-            terms.append((kind, power, mult))
-            eff_term.append(e.text)
-            continue
-        assert prod is not None  # an effect has at least one factor (parse_effect)
+            if others:
+                mult = len(self.nb)
+                self.add(prod, 0, 0, None, f"carrier:{e.text}", None)
+            self.terms.append((kind, power, mult))
+            self.eff_term.append(e.text)
+            return
         src = next((_input_index(f.signal, data) for f in others if _input_index(f.signal, data) is not None), None)
         if src is not None:
-            add(prod, nb[src], nk[src], src, e.text, e.text)
+            self.add(prod, self.nb[src], self.nk[src], src, e.text, e.text)
         else:
-            add(prod, 1, min_nk, None, e.text, e.text)
-    u = np.ascontiguousarray(np.hstack(cols), dtype=float)
-    return EffectLayout(
-        u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term)
-    )
+            self.add(prod, 1, self.min_nk, None, e.text, e.text)
 
 
 def effect_series(text: str, data: IOData) -> np.ndarray:
