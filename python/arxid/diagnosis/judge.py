@@ -77,8 +77,10 @@ class Judge:
         """Every candidate that passes the corrected test is refitted (only those can be significant),
         and the best ``n_refit`` by p-value so the table shows their effect (all when None)."""
         chosen = refit_indices(scored, alpha, n_refit)
-        if self.shares_factor:
-            self.shared = Refits(self.model, self.data, [scored[i]["c"] for i in sorted(chosen)])
+        if self.shares_factor:  # the simple explanations too: every effect is compared with them
+            m = self.model
+            simple = [Candidate(n, (n,), m.na_, m.nb_, m.nk_, "effect") for n in SIMPLE_EXPLANATIONS]
+            self.shared = Refits(m, self.data, [scored[i]["c"] for i in sorted(chosen)] + simple)
         return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
@@ -148,7 +150,10 @@ class Judge:
                 m = self.model
                 try:
                     c = Candidate(name, (name,), m.na_, m.nb_, m.nk_, "effect")
-                    after = self.refit(m, c, "zero")[1]
+                    if self.shared.has(c):
+                        after = self.shared.validated(c, self.validation, self.horizon, "zero")[1]
+                    else:
+                        after = self.refit(m, c, "zero")[1]
                 except ArxidError:
                     after = math.nan
             if math.isfinite(after):
@@ -189,21 +194,31 @@ class Judge:
             # a tie goes to the simpler change: a delay that fits as well as one more coefficient
             near = [s for s in sig if s.rms_sim_val_after <= (1.0 + TIE_SHARE) * top.rms_sim_val_after]
             top = min(near, key=lambda s: (self._added_parameters(s), s.rms_sim_val_after))
+        if self.shares_factor and not isinstance(self.model, PolynomialModel):
+            self.shared = Refits(self.model, self.data, [self._with_top(s, top) for s in sig if s is not top])
         return [s if not s.significant or s is top else self._given_top(s, top) for s in suspects]
 
     def _added_parameters(self, s: Suspect) -> int:
         return s.model.n_params - self.model.n_params if s.model is not None else s.n_columns
 
+    def _with_top(self, s: Suspect, top: Suspect) -> Candidate:
+        """The candidate of ``s`` and ``top`` together (their changes of orders added)."""
+        m = self.model
+        na = max(top.na + s.na - m.na_, 0)
+        nb = tuple(max(t + x - b, 0) for t, x, b in zip(top.nb, s.nb, m.nb_))
+        nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
+        return Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
+
     def _given_top(self, s: Suspect, top: Suspect) -> Suspect:
         m = self.model
         if isinstance(m, PolynomialModel):
             return self._given_top_polynomial(s, top)
-        na = max(top.na + s.na - m.na_, 0)
-        nb = tuple(max(t + x - b, 0) for t, x, b in zip(top.nb, s.nb, m.nb_))
-        nk = tuple(max(t + x - k, 0) for t, x, k in zip(top.nk, s.nk, m.nk_))
-        both = Candidate(f"{top.effect}+{s.effect}", tuple(dict.fromkeys(top.effects + s.effects)), na, nb, nk, "pair")
+        both = self._with_top(s, top)
         try:
-            after = self.refit(m, both, self.initial)[1]
+            if self.shared.has(both):
+                after = self.shared.validated(both, self.validation, self.horizon, self.initial)[1]
+            else:
+                after = self.refit(m, both, self.initial)[1]
         except ArxidError:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:

@@ -40,8 +40,9 @@ class EnvelopeFactor:
         Estimation data without missing samples (structures on data with gaps keep their own rows:
         fit them one by one).
     structures : sequence of (na, nb, nk, effects)
-        The structures to fit; nb and nk one per input. Their effects may differ (the envelope holds
-        the union of their columns) but their output terms may not.
+        The structures to fit; nb and nk one per input. Their effects may differ: the envelope holds
+        the union of their columns, an output term's regressor (g(y(t-1))·s(t-1) on the measured
+        output) as one more column.
     first_lag : int
         Start the regression rows at least this far into each experiment (as ``ArxModel.fit``).
 
@@ -49,8 +50,8 @@ class EnvelopeFactor:
     ----------
     first_lag : int
         The first regression row of every experiment: the one most structures start on (at least
-        ``first_lag``). A structure whose own fit starts elsewhere, or whose output terms differ
-        from the first structure's, is left out of the envelope (:meth:`has` is False).
+        ``first_lag``). A structure whose own fit starts elsewhere is left out of the envelope
+        (:meth:`has` is False).
 
     Raises
     ------
@@ -66,21 +67,22 @@ class EnvelopeFactor:
             (int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk), effect_names(eff))
             for na, nb, nk, eff in structures
         ]
-        # Each layout is kept without its samples, each distinct column's samples once.
+        # Each layout is kept without its samples, each distinct column's samples once. An output
+        # term is a column too: on the estimation rows it is g(y(t-1))·s(t-1), a lag of its series.
         self.layouts, samples = [], {}
         for _, nb, nk, eff in self.structures:
             lay = compile_effects(eff, data, nb, nk)
             for j, label in enumerate(lay.column_labels):
                 if label not in samples:  # a copy: a view would hold the whole layout
                     samples[label] = lay.u[:, j].copy()
+            for text, term in zip(lay.effect_of_term, lay.output_terms):
+                if _TERM + text not in samples:
+                    samples[_TERM + text] = _term_series(term, lay, data)
             self.layouts.append(replace(lay, u=np.empty((0, lay.u.shape[1]))))  # not a view: it holds the samples
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
-        terms = self.layouts[0].output_terms
-        self.inside = [r == self.first_lag and lay.output_terms == terms for r, lay in zip(rows, self.layouts)]
-        self.labels = list(
-            dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in lay.column_labels)
-        )
+        self.inside = [r == self.first_lag for r in rows]
+        self.labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
         u = np.empty((data.n_samples, len(self.labels)))
         for j, label in enumerate(self.labels):
             u[:, j] = samples.pop(label)
@@ -96,7 +98,7 @@ class EnvelopeFactor:
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
         grid = np.array([[self.envelope[0], *self.envelope[1], *self.envelope[2]]], dtype=np.int64)
         y = np.require(data.y, requirements=["C", "A"])
-        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, list(terms))
+        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, [])
 
     def has(self, i: int) -> bool:
         """Whether structure ``i`` is fitted from the factor (on its own rows).
@@ -138,7 +140,7 @@ class EnvelopeFactor:
             raise ArxidError(f"structure {i} is fitted on other rows than the envelope's")
         layout, na = self.layouts[i], self.structures[i][0]
         nb, nk = self.columns[i]
-        out = _core.fit_from_factor(self.r, self.n_rows, self.envelope, (na, nb, nk), list(layout.output_terms))
+        out = _core.fit_from_factor(self.r, self.n_rows, self.envelope, (na, nb, nk), [])
         own = _own_order(na, layout, self.labels)
         theta = np.empty(len(own))
         theta[own] = np.asarray(out.theta)
@@ -148,25 +150,58 @@ class EnvelopeFactor:
         return layout, regressor_names(self.data.output_name, na, layout), res
 
 
+#: Label prefix of an output term's column in the envelope.
+_TERM = "term:"
+
+
+def _labels(layout: EffectLayout) -> list[str]:
+    """The envelope columns a structure brings: its layout's, then one per output term."""
+    return list(layout.column_labels) + [_TERM + text for text in layout.effect_of_term]
+
+
+def _term_series(term: tuple[str, int, int], layout: EffectLayout, data: IOData) -> np.ndarray:
+    """g(y(t), y(t-1))·s(t) of an output term (kind, power, carrier column): its regressor at row
+    t + 1, as the core evaluates it (an experiment's first sample, never read, is 0 for sign(dy))."""
+    kind, power, carrier = term
+    y = np.asarray(data.y, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        if kind == "pow":
+            g = y**power
+        elif kind == "abs":
+            g = np.abs(y)
+        elif kind == "sign":
+            g = np.sign(y)
+        else:  # signdiff
+            g = np.zeros_like(y)
+            for a, b in data.segments:
+                g[a + 1 : b] = np.sign(np.diff(y[a:b]))
+        return g * layout.u[:, carrier] if carrier >= 0 else g
+
+
 def _column_orders(layout: EffectLayout, labels: list[str]) -> tuple[list[int], list[int]]:
-    """(nb, nk) of a structure per envelope column: its own, or no lag where it has no such column."""
+    """(nb, nk) of a structure per envelope column: its own, or no lag where it has no such column
+    (an output term's column: one lag, delay 1)."""
     own = dict(zip(layout.column_labels, zip(layout.nb, layout.nk)))
+    own.update({_TERM + text: (1, 1) for text in layout.effect_of_term})
     nb = [int(own[label][0]) if label in own else 0 for label in labels]
     nk = [int(own[label][1]) if label in own else 0 for label in labels]
     return nb, nk
 
 
 def _own_order(na: int, layout: EffectLayout, labels: list[str]) -> np.ndarray:
-    """For each parameter of a structure as the envelope orders them (output lags, the envelope's
-    columns in its order, output terms), its position in the structure's own order."""
+    """For each parameter of a structure as the envelope orders them (output lags, then the
+    envelope's columns in its order, output terms among them), its position in the structure's own
+    order (output lags, input columns, output terms)."""
     starts = na + np.concatenate([[0], np.cumsum(layout.nb)]).astype(int)
     at = {label: j for j, label in enumerate(layout.column_labels)}
+    term_at = {_TERM + text: int(starts[-1]) + i for i, text in enumerate(layout.effect_of_term)}
     order = list(range(na))
     for label in labels:
         j = at.get(label)
         if j is not None:
             order += list(range(starts[j], starts[j] + layout.nb[j]))
-    order += list(range(int(starts[-1]), int(starts[-1]) + len(layout.effect_of_term)))
+        elif label in term_at:
+            order.append(term_at[label])
     return np.array(order, dtype=np.intp)
 
 
