@@ -154,18 +154,22 @@ class AddedVariableTest:
         if self._r is None:
             return None
         m = n_blocks * width
-        pz, ze, zz = np.zeros((m, self.p)), np.zeros(m), np.zeros((n_blocks, width, width))
+        cross, zz = np.zeros((self.p + 1, m)), np.zeros((n_blocks, width, width))
+        pairs = [(i, j) for i in range(width) for j in range(i, width)]
         for lo in range(0, self.n, _SCAN_ROWS):
             hi = min(lo + _SCAN_ROWS, self.n)
             zt = columns(lo, hi)
-            pz += zt @ self._phi[lo:hi]
-            ze += zt @ self.e[lo:hi]
-            for i in range(n_blocks):
-                zi = zt[i * width : (i + 1) * width]
-                zz[i] += zi @ zi.T
+            pe = np.empty((hi - lo, self.p + 1))  # [Φ | e] of the block: one product gives Φ'z and e'z
+            pe[:, : self.p], pe[:, self.p] = self._phi[lo:hi], self.e[lo:hi]
+            cross += pe.T @ zt.T
+            z3 = zt.reshape(n_blocks, width, hi - lo)
+            for i, j in pairs:  # each block's own z'z: row-wise dot products, no n_blocks² product
+                zz[:, i, j] += np.einsum("cr,cr->c", z3[:, i], z3[:, j])
+        il, jl = np.tril_indices(width, -1)
+        zz[:, il, jl] = zz[:, jl, il]
         from scipy.linalg import solve_triangular
 
-        pz = pz.T / self._scale[:, None]
+        pz, ze = cross[: self.p] / self._scale[:, None], cross[self.p]
         b = solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
         out = np.empty(n_blocks)
         for i in range(n_blocks):
