@@ -568,7 +568,10 @@ fn divergence_limit(y: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
 
 /// `(R, n_rows)`: the triangular factor (q × q, output last) of the grid envelope's regressor on
 /// these data, a partial of a fleet sweep (combine partials by QR of their stacked factors).
+/// `n_threads` (default 1: a fleet's workers already run one log per core; 0 = all cores) reduce
+/// blocks of rows in parallel.
 #[pyfunction]
+#[pyo3(signature = (y, u, starts, structures, output_terms, n_threads = 1))]
 fn grid_factor<'py>(
     py: Python<'py>,
     y: PyReadonlyArray1<'py, f64>,
@@ -576,12 +579,13 @@ fn grid_factor<'py>(
     starts: Vec<usize>,
     structures: PyReadonlyArray2<'py, i64>,
     output_terms: Vec<(String, i32, i64)>,
+    n_threads: usize,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, usize)> {
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
     let terms = parse_output_terms(output_terms)?;
     let grid = parse_grid(py, &structures, m, &terms)?;
-    let (r, n) = run(py, 1, |_| crate::sweep::grid_factor(&d, &grid, false))?;
+    let (r, n) = run(py, n_threads, |_| crate::sweep::grid_factor(&d, &grid, n_threads != 1))?;
     Ok((factor_array(py, r)?, n))
 }
 

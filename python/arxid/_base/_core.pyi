@@ -212,7 +212,12 @@ def pem_max_lag(orders: _PolyOrders) -> int: ...
 
 # Sweeps at scale (arxid.fleet, benches).
 def grid_factor(
-    y: _F, u: _F, starts: Sequence[int], structures: npt.NDArray[np.int64], output_terms: Sequence[_Term]
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    structures: npt.NDArray[np.int64],
+    output_terms: Sequence[_Term],
+    n_threads: int = 1,
 ) -> tuple[_F, int]: ...
 def sweep_factors(
     r_est: _F,

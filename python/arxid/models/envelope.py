@@ -98,7 +98,7 @@ class EnvelopeFactor:
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
         grid = np.array([[self.envelope[0], *self.envelope[1], *self.envelope[2]]], dtype=np.int64)
         y = np.require(data.y, requirements=["C", "A"])
-        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, [])
+        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, [], n_threads=0)
 
     def has(self, i: int) -> bool:
         """Whether structure ``i`` is fitted from the factor (on its own rows).
