@@ -329,6 +329,7 @@ def fit_log(source: Any, read: Any, name: str, fit: Callable) -> tuple:
     """
     data = read_log(source, read, name)
     model = _fit_named(fit, data, name)
+    model.fit_percent_ = model.fit_percent_  # an ArxModel computes it when first read: while the log is here
     model.data_ = None
     return model, LogSignals.of(data)
 

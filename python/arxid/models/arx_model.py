@@ -206,8 +206,8 @@ class ArxModel(FittedModel):
         self.data_ = data if isinstance(data, IOData) else None
         if fit_percent is not None:
             self.fit_percent_ = fit_percent(self)
-        else:
-            self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
+        else:  # a pass over the data: made when first read (refits in a diagnosis never read it)
+            self.__dict__.pop("fit_percent_", None)
 
     def check_fitted(self) -> None:
         """Raise :class:`NotFittedError` unless the model is fitted (or loaded from JSON).
@@ -224,6 +224,10 @@ class ArxModel(FittedModel):
         # an AttributeError, so Python asked here: say why instead of "no attribute 'a'".
         if hasattr(type(self), name):
             self.check_fitted()
+        if name == "fit_percent_" and "parameters_" in self.__dict__ and self.__dict__.get("data_") is not None:
+            data = self.__dict__["data_"]
+            self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
+            return self.fit_percent_
         if name.endswith("_") and not name.startswith("__"):
             raise NotFittedError(f"{name} is not available: this ArxModel is not fitted yet; call .fit(data) first")
         raise AttributeError(name)
