@@ -29,6 +29,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypedDict, cast
 
+from .._base.background import Background
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
@@ -197,7 +198,8 @@ class Analysis:
     failures : tuple of FailureAnalysis
         Where each model of ``comparison`` fails, in the same order.
     timings : dict of str to float
-        Seconds spent in each stage.
+        Seconds spent in each stage: ``sweep``, ``diagnose`` (the ladder), ``checks and
+        frequency`` (the two run side by side; the feedback test runs beside all of them).
     notes : tuple of str
         What the reader should know (the measure switched to k-step, ...).
     frequency : tuple of FrequencyCheck
@@ -638,6 +640,7 @@ def analyse(
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)
     initial = check_initial(initial)
+    feedback = Background(feedback_check, est)  # the estimation data alone: beside everything else
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     res, chosen, choice, g = _structure(
@@ -649,13 +652,12 @@ def analyse(
     ladder = _ladder(chosen, est, val, res, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    cmp, failures = _checks(chosen, ladder.final_model, val, ladder.horizon, initial)
-    timings["checks"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    checks = Background(_checks, chosen, ladder.final_model, val, ladder.horizon, initial)
     compared = [chosen] if ladder.final_model is chosen else [chosen, ladder.final_model]
     freq, bands, freq_notes = _frequency(compared, val, ladder.horizon)
-    timings["frequency"] = time.perf_counter() - t0
-    fb = feedback_check(est)
+    cmp, failures = checks.result()
+    timings["checks and frequency"] = time.perf_counter() - t0
+    fb = feedback.result()
     return Analysis(
         est,
         val,

@@ -34,6 +34,7 @@ and positive/negative parts apply to inputs and logged signals only.
 from __future__ import annotations
 
 import re
+import threading
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -358,8 +359,9 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
         The inputs followed by the effect columns, with their lags and the output terms.
     """
     texts = tuple(effects)
-    kept = _COMPILED.get(data)
-    u = kept.get(texts) if kept is not None else None
+    with _COMPILED_LOCK:
+        kept = _COMPILED.get(data)
+        u = kept.get(texts) if kept is not None else None
     plan = _Plan(data, nb, nk, build=u is None)
     seen = set()
     for text in texts:
@@ -389,13 +391,18 @@ _COMPILED: weakref.WeakKeyDictionary[IOData, dict[tuple[str, ...], np.ndarray]] 
 _KEEP_PER_DATA = 2
 
 
+#: Stages of an analysis may compile on two threads (:mod:`arxid._base.background`).
+_COMPILED_LOCK = threading.Lock()
+
+
 def _keep(data: IOData, texts: tuple[str, ...], u: np.ndarray) -> np.ndarray:
     u.setflags(write=False)
-    kept = _COMPILED.setdefault(data, {})
-    kept.pop(texts, None)
-    kept[texts] = u
-    while len(kept) > _KEEP_PER_DATA:
-        kept.pop(next(iter(kept)))
+    with _COMPILED_LOCK:
+        kept = _COMPILED.setdefault(data, {})
+        kept.pop(texts, None)
+        kept[texts] = u
+        while len(kept) > _KEEP_PER_DATA:
+            kept.pop(next(iter(kept)))
     return u
 
 
