@@ -239,7 +239,7 @@ def test_free_run_restarts_after_missing_initial_outputs():
 
 
 def test_compiled_effects_are_kept_per_data_and_equal_a_fresh_compile():
-    """The input matrix of the last effect sets compiled on a record is kept (read-only) and served
+    """The input matrix of the last effect set compiled on a record is kept (read-only) and served
     again; lags still follow each call's nb, nk, and another record gets its own."""
     from arxid.models import effects as fx
 
@@ -257,6 +257,8 @@ def test_compiled_effects_are_kept_per_data_and_equal_a_fresh_compile():
     np.testing.assert_array_equal(fresh.u[:, 2], data.u[:, 0] * data.extra["vbat"])
     other = arxid.IOData(data.y.copy(), data.u * 2.0, 0.01, extra={"vbat": data.extra["vbat"]})
     np.testing.assert_allclose(fx.compile_effects(("u1*vbat", "y^2"), other, (3, 2), (0, 1)).u, 2.0 * fresh.u)
-    for effects in [(), ("const",), ("time",), ("u1^2",)]:  # only the last two sets stay
+    for effects in [(), ("const",), ("time",), ("u1^2",)]:  # only the last set stays
         fx.compile_effects(effects, data, (1, 1), (1, 1))
-    assert len(fx._COMPILED[data]) == 2
+    assert list(fx._COMPILED[data]) == [("u1^2",)]
+    bare = fx.compile_effects(("u1*vbat", "y^2"), data, (3, 2), (0, 1), samples=False)
+    assert bare.u.shape == (0, 3) and bare.nb == fresh.nb and list(fx._COMPILED[data]) == [("u1^2",)]

@@ -93,10 +93,11 @@ def _has_threshold(model: ArxModel, signal: str) -> bool:
     return any(e.startswith((f"dz({signal},", f"sat({signal},")) for e in model.effects)
 
 
-def layout_for(c: Candidate, model: ArxModel, data: IOData):
-    """The effects of the model with ``c`` (the model's first) and their compiled layout."""
+def layout_for(c: Candidate, model: ArxModel, data: IOData, samples: bool = True):
+    """The effects of the model with ``c`` (the model's first) and their compiled layout (without
+    its samples when ``samples`` is False)."""
     effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
-    layout = compile_effects(effects, data, c.nb, c.nk)
+    layout = compile_effects(effects, data, c.nb, c.nk, samples=samples)
     return effects, layout
 
 

@@ -44,12 +44,12 @@ class Scoring:
                 self.scans.setdefault(c.label[c.label.index("(") + 1 : -1], []).append(c)
                 continue
             try:
-                _, lay = layout_for(c, model, data)
+                _, lay = layout_for(c, model, data, samples=False)
             except (OrderError, DataError) as exc:
                 self.notes[c.label] = str(exc)
                 continue
             lag = max(lag, max_lag(c.na, lay))
-            self.prepared.append(c)  # its layout (a copy of the inputs) is compiled again when scored
+            self.prepared.append(c)  # its columns are built when it is scored, one candidate at a time
         self.lag = lag
         self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
         if len(self.rows0) <= self.phi0.shape[1] + 2:
@@ -64,7 +64,7 @@ class Scoring:
         self._threshold_lags: dict[tuple[str, str], tuple[int, int]] = {}
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
-        scored = [s for s in (self._score(c, layout_for(c, self.model, self.data)[1]) for c in self.prepared) if s]
+        scored = [s for s in (self._score(c) for c in self.prepared) if s]
         scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
         scored = self._one_direction_term(scored)
         if "const" not in self.model.effects and n_pairs > 0:
@@ -84,7 +84,12 @@ class Scoring:
         new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         return phi[:, new], rows
 
-    def _score(self, c: Candidate, lay) -> dict | None:
+    def _score(self, c: Candidate) -> dict | None:
+        try:
+            lay = layout_for(c, self.model, self.data)[1]
+        except DataError as exc:  # its samples overflow
+            self.notes[c.label] = str(exc)
+            return None
         z, rows = self._columns(c, lay)
         if z.shape[1] == 0:
             self.notes[c.label] = "adds no regressor"

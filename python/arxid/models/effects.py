@@ -337,7 +337,9 @@ def _check_range(text: str, value: np.ndarray) -> None:
         )
 
 
-def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int]) -> EffectLayout:
+def compile_effects(
+    effects: Sequence[str], data: IOData, nb: Sequence[int], nk: Sequence[int], *, samples: bool = True
+) -> EffectLayout:
     """Turn effect strings into extra regressor columns and output terms for ``data``.
 
     The input matrix depends only on the effects and the data (not on nb, nk): the last few built
@@ -352,6 +354,9 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
         The data the model is fitted on.
     nb, nk : sequence of int
         Orders and delays of the model's inputs, one per input.
+    samples : bool
+        False: the layout's lags, labels and output terms only (``u`` has no rows, and an effect
+        that overflows is not found here).
 
     Returns
     -------
@@ -362,7 +367,7 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
     with _COMPILED_LOCK:
         kept = _COMPILED.get(data)
         u = kept.get(texts) if kept is not None else None
-    plan = _Plan(data, nb, nk, build=u is None)
+    plan = _Plan(data, nb, nk, build=u is None and samples)
     seen = set()
     for text in texts:
         e = parse_effect(text, data)
@@ -371,7 +376,9 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
         seen.add(e.text)
         plan.effect(e, text)
     if u is None:
-        u = _keep(data, texts, np.ascontiguousarray(np.hstack(plan.cols), dtype=float))
+        u = _keep(data, texts, np.ascontiguousarray(np.hstack(plan.cols), dtype=float)) if samples else None
+    if u is None:
+        u = np.empty((0, len(plan.nb)))
     return EffectLayout(
         u,
         tuple(plan.nb),
@@ -387,8 +394,8 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
 #: The input matrices of the last effect sets compiled on each data set (by effect tuple).
 _COMPILED: weakref.WeakKeyDictionary[IOData, dict[tuple[str, ...], np.ndarray]] = weakref.WeakKeyDictionary()
 
-#: How many input matrices are kept per data set: the model's own, and one refit's.
-_KEEP_PER_DATA = 2
+#: How many input matrices are kept per data set: the last (a model is simulated again and again).
+_KEEP_PER_DATA = 1
 
 
 #: Stages of an analysis may compile on two threads (:mod:`arxid._base.background`).
