@@ -365,10 +365,24 @@ def compile_effects(effects: Sequence[str], data: IOData, nb: Sequence[int], nk:
             add(prod, nb[src], nk[src], src, e.text, e.text)
         else:
             add(prod, 1, min_nk, None, e.text, e.text)
-    u = np.ascontiguousarray(np.hstack(cols), dtype=float)
+    u = _stacked(cols, data.n_samples)
     return EffectLayout(
         u, tuple(out_nb), tuple(out_nk), tuple(tie), tuple(terms), tuple(labels), tuple(eff_col), tuple(eff_term)
     )
+
+
+def _stacked(cols: list[np.ndarray], n: int) -> np.ndarray:
+    """The columns side by side as one C-ordered float64 array: the inputs themselves (already
+    C-ordered float64, read-only) when there is no effect column, else one array filled column by
+    column (no intermediate copies)."""
+    if len(cols) == 1:
+        return np.ascontiguousarray(cols[0], dtype=float)
+    out = np.empty((n, sum(c.shape[1] for c in cols)))
+    at = 0
+    for c in cols:
+        out[:, at : at + c.shape[1]] = c
+        at += c.shape[1]
+    return out
 
 
 def effect_series(text: str, data: IOData) -> np.ndarray:
@@ -402,10 +416,16 @@ def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray
     prod = None
     with np.errstate(over="ignore", invalid="ignore"):
         for f in factors:
-            x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
-            _check_range(text, x)
-            prod = x if prod is None else prod * x
-            _check_range(text, prod)
+            x = np.asarray(data.signal(f.signal), dtype=float)
+            if f.op != "pow" or f.power != 1:
+                x = _apply(f, x, data)
+                _check_range(text, x)
+            # else: the signal as it is (an IOData's samples hold no inf), not a copy
+            if prod is not None:
+                prod = prod * x
+                _check_range(text, prod)
+            else:
+                prod = x
     return prod
 
 
