@@ -60,6 +60,9 @@ impl Taps {
     /// `scratch`), or the input itself when there is only one.
     fn columns<'a>(&self, d: &'a Data, (t0, t1): (usize, usize), scratch: &'a mut Vec<f64>) -> &'a [f64] {
         let first = t0 - self.reach;
+        if self.taps.is_empty() {
+            return &[]; // a pure AR model reads no input
+        }
         if d.m == 1 {
             return &d.u[first..t1];
         }
