@@ -7,6 +7,7 @@ pub mod error;
 pub mod fit;
 pub mod iv;
 pub mod kstep;
+pub mod linear_predict;
 pub mod one_step;
 pub mod pem;
 pub mod procest;

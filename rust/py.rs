@@ -307,13 +307,22 @@ fn predict<'py>(
             s.n_params()
         )));
     }
-    let linear_complete = s.output_terms.is_empty() && ys.iter().chain(us).all(|v| v.is_finite());
-    let out = run(py, 1, |cancel| match horizon {
-        // The k-step predictor of a linear structure is a filter: O(N (na + nb)) for any k.
-        Some(k) if k >= 2 && linear_complete => Ok(crate::kstep::predict_k(&d, &s, th, k, first_lag)),
-        _ => crate::simulate::predict_cancellable(&d, &s, th, horizon, first_lag, cancel),
-    })?;
-    Ok(out.into_pyarray(py))
+    // Scanned only for a k-step prediction (a pass over all the data).
+    let linear_complete = || s.output_terms.is_empty() && ys.iter().chain(us).all(|v| v.is_finite());
+    // The k-step predictor of a linear structure is a filter: O(N (na + nb)) for any k.
+    if let Some(k) = horizon.filter(|&k| k >= 2 && linear_complete()) {
+        let out = run(py, 1, |_| Ok(crate::kstep::predict_k(&d, &s, th, k, first_lag)))?;
+        return Ok(out.into_pyarray(py));
+    }
+    // Written in place into numpy's zeroed memory (large blocks in huge pages): no page-by-page
+    // faults on a fresh Rust buffer.
+    let out = PyArray1::<f64>::zeros(py, ys.len(), false);
+    {
+        let mut rw = out.readwrite();
+        let buf = rw.as_slice_mut()?;
+        run(py, 1, |cancel| crate::simulate::predict_into(&d, &s, th, horizon, first_lag, cancel, buf))?;
+    }
+    Ok(out)
 }
 
 /// What `sweep` returns: one entry per structure of the grid, in grid order.

@@ -375,8 +375,10 @@ def compile_effects(
             raise OrderError(f"effect {e.text!r} is listed twice")
         seen.add(e.text)
         plan.effect(e, text)
-    if u is None:
-        u = _keep(data, texts, np.ascontiguousarray(np.hstack(plan.cols), dtype=float)) if samples else None
+    if u is None and samples:
+        u = _stacked(plan.cols, data.n_samples)
+        if len(plan.cols) > 1:  # the inputs themselves need no keeping
+            u = _keep(data, texts, u)
     if u is None:
         u = np.empty((0, len(plan.nb)))
     return EffectLayout(
@@ -468,6 +470,20 @@ class _Plan:
             self.add(prod, 1, self.min_nk, None, e.text, e.text)
 
 
+def _stacked(cols: list[np.ndarray], n: int) -> np.ndarray:
+    """The columns side by side as one C-ordered float64 array: the inputs themselves (already
+    C-ordered float64, read-only) when there is no effect column, else one array filled column by
+    column (no intermediate copies)."""
+    if len(cols) == 1:
+        return np.ascontiguousarray(cols[0], dtype=float)
+    out = np.empty((n, sum(c.shape[1] for c in cols)))
+    at = 0
+    for c in cols:
+        out[:, at : at + c.shape[1]] = c
+        at += c.shape[1]
+    return out
+
+
 def effect_series(text: str, data: IOData) -> np.ndarray:
     """The effect's signal at each sample, without lags: ``y^3`` is y(t)³, ``sign(dy)`` is
     sign(y(t) − y(t−1)), ``u1*vbat`` is u1(t)·vbat(t) (the model applies the lags).
@@ -499,10 +515,16 @@ def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray
     prod = None
     with np.errstate(over="ignore", invalid="ignore"):
         for f in factors:
-            x = _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
-            _check_range(text, x)
-            prod = x if prod is None else prod * x
-            _check_range(text, prod)
+            x = np.asarray(data.signal(f.signal), dtype=float)
+            if f.op != "pow" or f.power != 1:
+                x = _apply(f, x, data)
+                _check_range(text, x)
+            # else: the signal as it is (an IOData's samples hold no inf), not a copy
+            if prod is not None:
+                prod = prod * x
+                _check_range(text, prod)
+            else:
+                prod = x
     return prod
 
 
