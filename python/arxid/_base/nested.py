@@ -25,8 +25,10 @@ __all__ = [
     "BLOCK_ROWS",
 ]
 
-#: Rows per block of the blocked QR (:func:`blocked_r`).
-BLOCK_ROWS = 65536
+#: Rows per block of the blocked QR (:func:`blocked_r`): a block of a few dozen columns stays in
+#: the processor's cache while LAPACK's Householder sweeps (one per column) pass over it, which on
+#: 2M rows x 23 columns is about 2.5 times faster than blocks of 65536 rows.
+BLOCK_ROWS = 16384
 
 
 def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:

@@ -192,31 +192,59 @@ def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: l
     return design, data.y[rows][ok], rows[ok]
 
 
-def _previous_rows(rows: np.ndarray, order: int) -> tuple[np.ndarray, list[np.ndarray]]:
+def _previous_rows(rows: np.ndarray, order: int) -> np.ndarray:
     """The positions in ``rows`` (ascending sample numbers) whose ``order`` previous samples are rows
-    too, and for each lag j = 1..order the positions of those previous samples (32-bit where they
-    fit: a long record's ten lags would otherwise weigh as much as its regressors)."""
-    have = np.ones(len(rows), dtype=bool)
-    for j in range(1, order + 1):  # one lag at a time: no position array is kept for this pass
-        pos = np.searchsorted(rows, rows - j)
-        have &= (pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == rows - j)
-    use = np.flatnonzero(have)
-    index = np.int32 if len(rows) < 2**31 else np.int64
-    return use, [np.searchsorted(rows, rows[use] - j).astype(index) for j in range(1, order + 1)]
+    too; those samples are then the ``order`` rows just before (the rows are distinct and ascending,
+    so ``rows[p] − rows[p − order] = order`` says exactly that), at positions p − 1 … p − order."""
+    if order == 0:
+        return np.arange(len(rows))
+    return np.flatnonzero(rows[order:] - rows[:-order] == order) + order
 
 
-def _lagged_factor(r: np.ndarray, keep: np.ndarray, prev: list[np.ndarray]) -> np.ndarray:
-    """R of [r(t−1) … r(t−P) | r(t)] over the rows ``keep``, reduced one block of rows at a time."""
+def _runs(use: np.ndarray, size: int):
+    """(position in ``use``, first, last + 1) of stretches of at most ``size`` consecutive
+    positions of ``use``: the lagged values of a stretch are slices, not gathers."""
+    breaks = np.flatnonzero(np.diff(use) != 1) + 1
+    for lo, hi in zip(np.r_[0, breaks], np.r_[breaks, len(use)], strict=True):
+        for at in range(int(lo), int(hi), size):
+            first = int(use[at])
+            yield at, first, first + min(size, int(hi) - at)
+
+
+#: Rows filtered at a time: a block of the design stays in the processor's cache for the lags.
+FILTER_ROWS = 4096
+
+
+def _filtered(v: np.ndarray, a: np.ndarray, use: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``v(t) − Σ_j a_j v(t − j)`` at the positions ``use`` (whose ``a.size`` previous positions are
+    the previous samples), written to ``out`` in order, a block of rows at a time (``out`` may be
+    ``v`` itself: a block is written only below the rows later blocks read)."""
+    for at, lo, hi in _runs(use, FILTER_ROWS):
+        acc = a[0] * v[lo - 1 : hi - 1]
+        for j in range(1, a.size):
+            acc += a[j] * v[lo - 1 - j : hi - 1 - j]
+        out[at : at + hi - lo] = v[lo:hi] - acc
+    return out[: len(use)]
+
+
+def _lagged_factor(r: np.ndarray, keep: np.ndarray, order: int) -> np.ndarray:
+    """R of [r(t−1) … r(t−P) | r(t)] over the positions ``keep``, reduced one block of rows at a time."""
 
     def blocks():
         for lo in range(0, len(keep), BLOCK_ROWS):
-            block = np.empty((len(keep[lo : lo + BLOCK_ROWS]), len(prev) + 1))
-            for j, at in enumerate(prev):
-                block[:, j] = r[at[lo : lo + BLOCK_ROWS]]
-            block[:, -1] = r[keep[lo : lo + BLOCK_ROWS]]
+            at = keep[lo : lo + BLOCK_ROWS]
+            block = np.empty((len(at), order + 1))
+            if at[-1] - at[0] == len(at) - 1:  # consecutive positions: the lags are slices
+                for j in range(1, order + 1):
+                    block[:, j - 1] = r[at[0] - j : at[-1] + 1 - j]
+                block[:, -1] = r[at[0] : at[-1] + 1]
+            else:
+                for j in range(1, order + 1):
+                    block[:, j - 1] = r[at - j]
+                block[:, -1] = r[at]
             yield block
 
-    return stacked_factor(blocks(), len(prev) + 1)
+    return stacked_factor(blocks(), order + 1)
 
 
 def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
@@ -228,12 +256,12 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
         return z, yy
 
     r = y - x @ least_squares(x, y)
-    keep, prev = _previous_rows(rows, MAX_NOISE_ORDER)
+    keep = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return identity
     now = r[keep]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
-    rss_all, coefs = nested_from_factor(_lagged_factor(r, keep, prev))  # every order from one factor
+    rss_all, coefs = nested_from_factor(_lagged_factor(r, keep, MAX_NOISE_ORDER))  # every order from one factor
     for p in range(1, MAX_NOISE_ORDER + 1):
         c = coefs[p]
         ic = math.log(max(float(rss_all[p]) / len(now), 1e-300)) + 2.0 * p / len(now)
@@ -241,20 +269,12 @@ def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
             best_ic, a = ic, c
     if a.size == 0:
         return identity
-    use, prev = _previous_rows(rows, a.size)
+    use = _previous_rows(rows, a.size)
 
     def whiten(z: np.ndarray, yy: np.ndarray | None = None, inplace: bool = False):
-        def f(v: np.ndarray) -> np.ndarray:
-            if v.ndim == 1:
-                return v[use] - sum(a[j] * v[prev[j]] for j in range(a.size))
-            # Column by column (temporaries of one column only); in place, the filtered rows
-            # overwrite the first ones of each column once the whole column has been read.
-            out = v if inplace else np.empty((len(use), v.shape[1]))
-            for i in range(v.shape[1]):
-                out[: len(use), i] = f(v[:, i])
-            return out[: len(use)]
-
-        return f(z), (None if yy is None else f(yy))
+        # In place, the filtered rows overwrite the first ones once no later block reads them.
+        out = z if inplace else np.empty((len(use), *z.shape[1:]))
+        return _filtered(z, a, use, out), (None if yy is None else _filtered(yy, a, use, np.empty(len(use))))
 
     return whiten
 
