@@ -270,52 +270,103 @@ class FailureAnalysis:
         return plot_failures(self, ax=ax)
 
 
-def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int, e_order: np.ndarray) -> SignalBins | None:
-    """The residual ``e`` binned by the quantiles of ``x``; ``e_order`` sorts e² over its finite
-    samples (shared by every signal: the Kruskal–Wallis ranks need no sort per signal)."""
-    from scipy import stats
+class _SquaredRanks:
+    """The ranks of the squared one-step residual over its finite samples, shared by every binned
+    signal (the Kruskal–Wallis test needs one sort, not one per signal; ranks are whole or half
+    numbers, so their sums per bin are exact in any order).
 
-    ok = np.isfinite(x) & np.isfinite(e)
-    xs, es = x[ok], e[ok]
-    if len(xs) < 4 * n_bins:
-        return None
+    ``order`` sorts e² over the finite samples (positions in the record), ``ranks`` holds the
+    midrank of each finite sample in record order and ``ties`` the tie correction Σ (t³ − t).
+    """
+
+    def __init__(self, e: np.ndarray):
+        finite = np.flatnonzero(np.isfinite(e))
+        self.finite = finite
+        sort = np.argsort(e[finite] ** 2)  # the order among equal values changes no rank and no sum
+        self.order = finite[sort]
+        v = e[self.order] ** 2
+        n = len(v)
+        starts = np.flatnonzero(np.r_[True, v[1:] != v[:-1]])
+        ties = np.diff(np.r_[starts, n]).astype(float)
+        ranks = np.empty(n)
+        ranks[sort] = np.repeat(starts + (ties + 1.0) / 2.0, ties.astype(np.intp))
+        self.ranks, self.ties = ranks, float(np.sum(ties**3 - ties))
+
+
+def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bin edges of ``xs`` (its quantiles; for a signal with at most ``n_bins`` values, the midpoints
+    between them) and the bin of each sample; None for a signal with a single value."""
     # The quantile edges (a partition, linear in n) are all distinct for a signal with more than
     # n_bins values; only a signal with few values needs its values sorted.
     edges = np.quantile(xs, np.linspace(0, 1, n_bins + 1))
     values = np.unique(xs) if len(np.unique(edges)) <= n_bins else None
     if values is not None and len(values) < 2:
         return None
-    idx = np.zeros(len(x), dtype=np.intp)
     if values is not None and len(values) <= n_bins:
         mids = (values[1:] + values[:-1]) / 2
-        edges = np.concatenate([[values[0]], mids, [values[-1]]])
-        idx[ok] = np.searchsorted(values, xs)
-    else:
-        edges = np.unique(edges)
-        idx[ok] = np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
+        return np.concatenate([[values[0]], mids, [values[-1]]]), np.searchsorted(values, xs)
+    edges = np.unique(edges)
+    return edges, np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
+
+
+def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks) -> SignalBins | None:
+    """The residual ``e`` binned by the quantiles of ``x``; ``ranked`` holds the ranks of e² (shared
+    by every signal)."""
+    from scipy import stats
+
+    ok = np.isfinite(x) & np.isfinite(e)
+    xs, es = x[ok], e[ok]
+    if len(xs) < 4 * n_bins:
+        return None
+    binned = _bin_index(xs, n_bins)
+    if binned is None:
+        return None
+    edges, where = binned
     nb = len(edges) - 1
-    groups = [es[idx[ok] == i] for i in range(nb)]
-    counts = np.array([len(g) for g in groups])
+    # The samples of each bin in record order, as views of one array sorted by bin (a stable sort).
+    counts = np.bincount(where, minlength=nb)
+    groups = np.split(
+        es[np.argsort(where.astype(np.uint8 if nb < 256 else np.intp), kind="stable")], np.cumsum(counts)[:-1]
+    )
     rms = np.array([metrics.rms(g) for g in groups])
     mean = np.array([np.mean(g) if len(g) else np.nan for g in groups])
     overall = metrics.rms(es)
     used = [g for g in groups if len(g) >= 2]
     if len(used) < 2 or overall == 0:
         return None
-    sq = [g**2 for g in used]
-    if np.ptp(np.concatenate(sq)) <= 0:
+    size = [np.abs(g) for g in used]  # max and min of e² are those of |e|, squared (rounding is monotone)
+    largest, smallest = max(float(a.max()) for a in size), min(float(a.min()) for a in size)
+    if largest * largest - smallest * smallest <= 0:
         p_kw = 1.0
     elif len(used) == int(np.count_nonzero(counts)):  # every sample in a used group: shared ranks
-        sub = e_order[ok[e_order]]
-        p_kw = _kruskal_sorted(e[sub] ** 2, idx[sub], nb)
+        p_kw = _kruskal(ok, where, nb, e, ranked)
     else:
-        p_kw = float(stats.kruskal(*sq).pvalue)
+        p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
     p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
     p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
     p_an = 1.0 if not math.isfinite(p_an) else p_an
     p = min(1.0, 2 * min(p_kw, p_an))
     centers = (edges[1:] + edges[:-1]) / 2
     return SignalBins(name, edges, centers, rms, mean, counts, float(np.nanmax(rms) / overall), p)
+
+
+def _kruskal(ok: np.ndarray, where: np.ndarray, nb: int, e: np.ndarray, ranked: _SquaredRanks) -> float:
+    """Kruskal–Wallis p-value of e² between the bins ``where`` of the samples ``ok``: from the shared
+    ranks when ``ok`` holds every finite residual, else from the ranks of those samples."""
+    from scipy import stats
+
+    if len(where) == len(ranked.finite):  # the same samples: the ranks are the shared ones
+        n = len(where)
+        sums = np.bincount(where, weights=ranked.ranks, minlength=nb)
+        sizes = np.bincount(where, minlength=nb).astype(float)
+        have = sizes > 0
+        h = 12.0 / (n * (n + 1.0)) * float(np.sum(sums[have] ** 2 / sizes[have])) - 3.0 * (n + 1.0)
+        h /= 1.0 - ranked.ties / (float(n) ** 3 - n)
+        return float(stats.chi2.sf(h, int(np.count_nonzero(have)) - 1))
+    idx = np.zeros(len(e), dtype=np.intp)
+    idx[ok] = where
+    sub = ranked.order[ok[ranked.order]]
+    return _kruskal_sorted(e[sub] ** 2, idx[sub], nb)
 
 
 def _kruskal_sorted(v: np.ndarray, group: np.ndarray, n_groups: int) -> float:
@@ -448,9 +499,8 @@ def where_it_fails(
     signals.append((data.output_name, y1))
     signals.append((f"d{data.output_name}", dy1))
     signals += [(k, np.asarray(v, dtype=float)) for k, v in data.extra.items()]
-    finite = np.flatnonzero(np.isfinite(res))
-    e_order = finite[np.argsort(res[finite] ** 2, kind="stable")]
-    bins = [b for b in (_bin_signal(name, x, res, n_bins, e_order) for name, x in signals) if b is not None]
+    ranked = _SquaredRanks(res)
+    bins = [b for b in (_bin_signal(name, x, res, n_bins, ranked) for name, x in signals) if b is not None]
     bins.sort(key=lambda b: (b.p_value, -b.ratio))
     return FailureAnalysis(
         t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()
