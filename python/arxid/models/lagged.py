@@ -70,9 +70,13 @@ def lagged_factor(
         for lo in range(0, len(rows), BLOCK_ROWS):
             at = rows[lo : lo + BLOCK_ROWS]
             mat = np.empty((len(at), len(columns)))
+            first, last = int(at[0]), int(at[-1])
             for j, (signal, lag) in enumerate(columns):
-                mat[:, j] = signal[at - lag]
-            mat = mat[np.all(np.isfinite(mat), axis=1)]
+                # Consecutive samples (the usual block): a slice, not a gather.
+                mat[:, j] = signal[first - lag : last + 1 - lag] if last - first == len(at) - 1 else signal[at - lag]
+            finite = np.isfinite(mat).all(axis=1)
+            if not finite.all():
+                mat = mat[finite]
             n_rows += len(mat)
             yield mat
 
