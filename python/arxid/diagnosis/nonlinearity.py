@@ -87,6 +87,15 @@ def _plan(model: ArxModel, data: IOData) -> list[tuple[str, np.ndarray, tuple[in
     return plan
 
 
+def _model_lags(model: ArxModel, data: IOData) -> set[tuple[str, int]]:
+    """(signal name, lag) of the model's plain regressors: the output at 1..na, each input from its
+    delay on."""
+    own = {(data.output_name, lag) for lag in range(1, model.na_ + 1)}
+    for i, name in enumerate(data.input_names):
+        own |= {(name, model.nk_[i] + j) for j in range(model.nb_[i])}
+    return own
+
+
 def _standardised(x: np.ndarray) -> np.ndarray:
     finite = x[np.isfinite(x)]
     return (x - finite.mean()) / (finite.std() or 1.0)
@@ -138,17 +147,26 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     plan = _plan(model, data)
     deepest = max((max(lags) for _, _, lags in plan if lags), default=0) + LINEAR_CONTEXT
     first = max(model.first_lag_, max_lag(model.na_, layout), deepest)
-    lin_specs = [(x, lag) for _, x, lags in plan for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1) if lags]
+    # The plain lags that are already model regressors stay out of the design (the same span; a
+    # design without repeated columns is solved by Cholesky, not by a QR of every row), but they
+    # still count in the F-tests' degrees of freedom, as they did when they were repeated.
+    own = _model_lags(model, data)
+    lin_all = [
+        (name, x, lag) for name, x, lags in plan if lags for lag in range(min(lags), max(lags) + LINEAR_CONTEXT + 1)
+    ]
+    lin_specs = [(x, lag) for name, x, lag in lin_all if (name, lag) not in own]
+    repeated = len(lin_all) - len(lin_specs)
     standard = {name: _standardised(x) for name, x, lags in plan if lags}
     specs = [(name, standard[name], lag, changes_sign(x)) for name, x, lags in plan for lag in lags]
     if not specs:
         return ()
-    built = _design(data, model.na_, layout, first, lin_specs, specs)
+    built = _design(data, model.na_, layout, first, lin_specs, specs, repeated)
     if built is None:
         return ()
     design, y_kept, kept = built
     whiten = _prewhitening(design, y_kept, kept)
     base = AddedVariableTest(*whiten(design, y_kept, inplace=True))  # the design is not needed again
+    base.p += repeated
     del design
     tested = [
         (name, lag, res)
@@ -171,21 +189,30 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     return tuple(sorted(out, key=lambda d: d.p_value))
 
 
-def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: list) -> tuple | None:
+#: Rows of the design written at a time: a block stays in cache while its columns are written.
+DESIGN_ROWS = 8192
+
+
+def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: list, repeated: int) -> tuple | None:
     """The model's regressors, the plain lags of the tested signals and a constant, written into one
-    array (the columns one at a time: stacked lists would hold several copies of a long record), on
-    the rows where every tested feature exists too; None when too few rows are left."""
+    array (a block of rows at a time, column by column: stacked lists would hold several copies of
+    a long record), on the rows where every tested feature exists too; None when too few rows are
+    left (counting the ``repeated`` plain lags that are model regressors, left out of the array)."""
     rows = regression_rows(data, first)
     p = len(regressor_names(data.output_name, na, layout))
     design = np.empty((len(rows), p + len(lin_specs) + 1))
-    write_regressors(design, data, na, layout, rows)
-    for j, (x, lag) in enumerate(lin_specs):
-        design[:, p + j] = x[rows - lag]
-    design[:, -1] = 1.0
-    ok = np.isfinite(design).all(axis=1) & np.isfinite(data.y[rows])
-    for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
-        ok &= np.isfinite(x[rows - lag]) & np.isfinite(x[rows - lag - 1])
-    if ok.sum() <= design.shape[1] + 9:
+    ok = np.empty(len(rows), dtype=bool)
+    for lo in range(0, len(rows), DESIGN_ROWS):
+        at, block = rows[lo : lo + DESIGN_ROWS], design[lo : lo + DESIGN_ROWS]
+        write_regressors(block, data, na, layout, at)
+        for j, (x, lag) in enumerate(lin_specs):
+            block[:, p + j] = x[at - lag]
+        block[:, -1] = 1.0
+        good = np.isfinite(block).all(axis=1) & np.isfinite(data.y[at])
+        for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
+            good &= np.isfinite(x[at - lag]) & np.isfinite(x[at - lag - 1])
+        ok[lo : lo + DESIGN_ROWS] = good
+    if ok.sum() <= design.shape[1] + repeated + 9:
         return None
     if not ok.all():
         design = design[ok]
