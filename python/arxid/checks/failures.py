@@ -7,8 +7,10 @@ point (RMS of the one-step residual binned by each signal, with a significance t
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -309,16 +311,40 @@ def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | N
     return edges, np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
 
 
-def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks) -> SignalBins | None:
+#: Per IOData (weakly held: an entry goes with its data): the bins of each operating-point signal
+#: over the samples used, (signal, shift, bins, samples) → (source array, edges, bin of each sample
+#: as uint8). Where it fails is asked of several models on the same validation data; their bins
+#: are the same when their residuals exist on the same samples (2 MB per signal at 2M samples).
+_BINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
+    """:func:`_bin_index` of ``xs`` (the signal on the samples ``ok``), from ``memo`` when the same
+    signal (``tag``: name, shift and the data's array it comes from) was binned on the same samples."""
+    if memo is None:
+        return _bin_index(xs, n_bins)
+    key = (tag[:-1], n_bins, hashlib.blake2b(np.packbits(ok).tobytes(), digest_size=16).digest())
+    hit = memo.get(key)
+    if hit is None or hit[0] is not tag[-1]:
+        binned = _bin_index(xs, n_bins)
+        if binned is not None and len(binned[0]) <= 256:
+            binned = (binned[0], binned[1].astype(np.uint8))
+        hit = memo[key] = (tag[-1], binned)
+    return None if hit[1] is None else (hit[1][0].copy(), hit[1][1])
+
+
+def _bin_signal(
+    name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks, memo: dict | None, tag: tuple
+) -> SignalBins | None:
     """The residual ``e`` binned by the quantiles of ``x``; ``ranked`` holds the ranks of e² (shared
-    by every signal)."""
+    by every signal); ``memo`` and ``tag`` as in :func:`_signal_bins`."""
     from scipy import stats
 
     ok = np.isfinite(x) & np.isfinite(e)
     xs, es = x[ok], e[ok]
     if len(xs) < 4 * n_bins:
         return None
-    binned = _bin_index(xs, n_bins)
+    binned = _signal_bins(xs, ok, n_bins, memo, tag)
     if binned is None:
         return None
     edges, where = binned
@@ -482,7 +508,7 @@ def where_it_fails(
             )
         )
         r[max(0, lo - half) : min(n, hi + half)] = np.nan
-    # Operating points.
+    # Operating points: (name, samples, (name, shift, the data's array they come from)).
     signals = []
     for i, name in enumerate(data.input_names):
         x = np.full(n, np.nan)
@@ -490,17 +516,18 @@ def where_it_fails(
         for a, b in data.segments:
             if b - a > k:
                 x[a + k : b] = data.u[a : b - k, i]
-        signals.append((name, x))
+        signals.append((name, x, (name, k, data.u)))
     y1 = np.full(n, np.nan)
     dy1 = np.full(n, np.nan)
     for a, b in data.segments:
         y1[a + 1 : b] = data.y[a : b - 1]
         dy1[a + 2 : b] = (data.y[a + 1 : b - 1] - data.y[a : b - 2]) / data.ts
-    signals.append((data.output_name, y1))
-    signals.append((f"d{data.output_name}", dy1))
-    signals += [(k, np.asarray(v, dtype=float)) for k, v in data.extra.items()]
+    signals.append((data.output_name, y1, (data.output_name, 1, data.y)))
+    signals.append((f"d{data.output_name}", dy1, (f"d{data.output_name}", 1, data.y)))
+    signals += [(k, np.asarray(v, dtype=float), (k, 0, v)) for k, v in data.extra.items()]
     ranked = _SquaredRanks(res)
-    bins = [b for b in (_bin_signal(name, x, res, n_bins, ranked) for name, x in signals) if b is not None]
+    memo = _BINS.setdefault(data, {})
+    bins = [b for b in (_bin_signal(nm, x, res, n_bins, ranked, memo, tag) for nm, x, tag in signals) if b is not None]
     bins.sort(key=lambda b: (b.p_value, -b.ratio))
     return FailureAnalysis(
         t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()
