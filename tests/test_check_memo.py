@@ -75,3 +75,27 @@ def test_a_replaced_signal_is_not_taken_for_the_one_checked_before():
     assert after[0].cross_p_values["drift"] == residuals(m, fresh).cross_p_values["drift"]
     np.testing.assert_array_equal(after[1].bins("drift").edges, where_it_fails(m, fresh).bins("drift").edges)
     assert not np.array_equal(before[1], after[1].bins("drift").edges)
+
+
+@pytest.mark.parametrize("digits", [1, None])
+def test_shared_ranks_of_the_squared_residual_give_scipy_kruskal(digits):
+    """One sort of e² serves every signal's Kruskal–Wallis test, on all finite samples or a subset,
+    with ties (midranks, tie correction) or without."""
+    from scipy import stats
+
+    from arxid.checks.failures import _kruskal, _SquaredRanks
+
+    rng = np.random.default_rng(5)
+    e = rng.standard_normal(4000)
+    e = np.round(e, digits) if digits else e
+    e[:3] = np.nan
+    ranked = _SquaredRanks(e)
+    ok = np.isfinite(e)
+    for subset in (False, True):
+        use = ok.copy()
+        if subset:
+            use[100:400] = False
+        where = rng.integers(0, 5, int(use.sum()))
+        es = e[use]
+        want = stats.kruskal(*[es[where == g] ** 2 for g in range(5)]).pvalue
+        assert _kruskal(use, where, 5, e, ranked) == pytest.approx(want, rel=1e-12)

@@ -284,15 +284,25 @@ class _SquaredRanks:
     def __init__(self, e: np.ndarray):
         finite = np.flatnonzero(np.isfinite(e))
         self.finite = finite
-        sort = np.argsort(e[finite] ** 2)  # the order among equal values changes no rank and no sum
-        self.order = finite[sort]
-        v = e[self.order] ** 2
+        squared = e[finite] ** 2
+        self._sort = np.argsort(squared)  # the order among equal values changes no rank and no sum
+        v = squared[self._sort]
         n = len(v)
-        starts = np.flatnonzero(np.r_[True, v[1:] != v[:-1]])
-        ties = np.diff(np.r_[starts, n]).astype(float)
         ranks = np.empty(n)
-        ranks[sort] = np.repeat(starts + (ties + 1.0) / 2.0, ties.astype(np.intp))
+        distinct = v[1:] != v[:-1]
+        if distinct.all():  # no ties (the usual residual): the ranks are 1..n
+            ranks[self._sort] = np.arange(1.0, n + 1.0)
+            self.ranks, self.ties = ranks, 0.0
+            return
+        starts = np.flatnonzero(np.r_[True, distinct])
+        ties = np.diff(np.r_[starts, n]).astype(float)
+        ranks[self._sort] = np.repeat(starts + (ties + 1.0) / 2.0, ties.astype(np.intp))
         self.ranks, self.ties = ranks, float(np.sum(ties**3 - ties))
+
+    @property
+    def order(self) -> np.ndarray:
+        """The finite samples' positions in the record, by ascending e²."""
+        return self.finite[self._sort]
 
 
 def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | None:
