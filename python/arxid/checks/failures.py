@@ -288,6 +288,7 @@ class _SquaredRanks:
         self._sort = np.argsort(squared)  # the order among equal values changes no rank and no sum
         v = squared[self._sort]
         n = len(v)
+        self.smallest, self.largest = (float(v[0]), float(v[-1])) if n else (math.nan, math.nan)
         ranks = np.empty(n)
         distinct = v[1:] != v[:-1]
         if distinct.all():  # no ties (the usual residual): the ranks are 1..n
@@ -361,20 +362,24 @@ def _bin_signal(
     nb = len(edges) - 1
     # The samples of each bin in record order, as views of one array sorted by bin (a stable sort).
     counts = np.bincount(where, minlength=nb)
-    groups = np.split(
-        es[np.argsort(where.astype(np.uint8 if nb < 256 else np.intp), kind="stable")], np.cumsum(counts)[:-1]
-    )
-    rms = np.array([metrics.rms(g) for g in groups])
+    by_bin = es[np.argsort(where.astype(np.uint8 if nb < 256 else np.intp), kind="stable")]
+    groups = np.split(by_bin, np.cumsum(counts)[:-1])
+    rms = metrics.rms_of_groups(by_bin, counts)
     mean = np.array([np.mean(g) if len(g) else np.nan for g in groups])
     overall = metrics.rms(es)
     used = [g for g in groups if len(g) >= 2]
     if len(used) < 2 or overall == 0:
         return None
-    size = [np.abs(g) for g in used]  # max and min of e² are those of |e|, squared (rounding is monotone)
-    largest, smallest = max(float(a.max()) for a in size), min(float(a.min()) for a in size)
-    if largest * largest - smallest * smallest <= 0:
+    every = len(used) == int(np.count_nonzero(counts))  # every sample in a used group
+    if every and len(es) == len(ranked.finite):  # every finite residual: the shared range of e²
+        spread = ranked.largest - ranked.smallest
+    else:
+        size = [np.abs(g) for g in used]  # max and min of e² are those of |e|, squared (rounding is monotone)
+        largest, smallest = max(float(a.max()) for a in size), min(float(a.min()) for a in size)
+        spread = largest * largest - smallest * smallest
+    if spread <= 0:
         p_kw = 1.0
-    elif len(used) == int(np.count_nonzero(counts)):  # every sample in a used group: shared ranks
+    elif every:  # shared ranks
         p_kw = _kruskal(ok, where, nb, e, ranked)
     else:
         p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
