@@ -99,3 +99,14 @@ def test_shared_ranks_of_the_squared_residual_give_scipy_kruskal(digits):
         es = e[use]
         want = stats.kruskal(*[es[where == g] ** 2 for g in range(5)]).pvalue
         assert _kruskal(use, where, 5, e, ranked) == pytest.approx(want, rel=1e-12)
+
+
+def test_what_the_checks_keep_per_data_is_bounded():
+    from arxid.checks import correlation, failures
+
+    est, val = _record(6, n=3000), _record(7, n=3000)
+    for na in range(1, 8):  # each structure's residual starts at another sample: new bins, new filters
+        m = arxid.arx(est, na, 1, 1)
+        where_it_fails(m, val), residuals(m, val)
+    assert 0 < len(failures._BINS[val]) <= failures._MAX_BINNED
+    assert 0 < len(correlation._MEMO[val]) <= correlation._MAX_SIGNALS

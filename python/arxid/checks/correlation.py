@@ -219,6 +219,8 @@ class SignalWhitening:
 
 #: Per IOData (weakly held: an entry goes with its data): (signal, samples used, order, lags) → SignalWhitening.
 _MEMO: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Most signal filters kept per IOData (the oldest go first).
+_MAX_SIGNALS = 64
 
 
 def signal_whitening(
@@ -253,4 +255,6 @@ def signal_whitening(
         return hit
     out = SignalWhitening(source, ar_filter(sc, data.segments, order), correlation(sc, sc, lags, data.segments))
     memo[key] = out
+    while len(memo) > _MAX_SIGNALS:  # bounded: a long series of structures keeps only the latest
+        memo.pop(next(iter(memo)))
     return out

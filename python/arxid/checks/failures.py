@@ -327,6 +327,8 @@ def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | N
 #: as uint8). Where it fails is asked of several models on the same validation data; their bins
 #: are the same when their residuals exist on the same samples (2 MB per signal at 2M samples).
 _BINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Most binned signals kept per IOData (the oldest go first).
+_MAX_BINNED = 16
 
 
 def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
@@ -341,6 +343,8 @@ def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None,
         if binned is not None and len(binned[0]) <= 256:
             binned = (binned[0], binned[1].astype(np.uint8))
         hit = memo[key] = (tag[-1], binned)
+        while len(memo) > _MAX_BINNED:  # bounded: a long series of structures keeps only the latest
+            memo.pop(next(iter(memo)))
     return None if hit[1] is None else (hit[1][0].copy(), hit[1][1])
 
 
