@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._base.nested import nested_from_factor
+from .._base.nested import cholesky_factor, nested_from_factor
 from ..data.iodata import IOData
 from ..models.lagged import lagged_factor, lagged_gram
 
@@ -140,7 +140,7 @@ def ar_filter(x: np.ndarray, segments: Sequence[tuple[int, int]], max_order: int
     # R then keeps about twelve digits), else a Householder QR (a drifting or integrating signal).
     columns = [*((x, k) for k in range(1, max_order + 1)), (x, 0)]
     gram, m = lagged_gram(columns, segments, max_order)
-    r = _cholesky_factor(gram)
+    r = cholesky_factor(gram, _WELL_CONDITIONED)
     if r is None:
         r, m = lagged_factor(columns, segments, max_order)
     if m <= 2 * max_order + 2:
@@ -158,18 +158,6 @@ def ar_filter(x: np.ndarray, segments: Sequence[tuple[int, int]], max_order: int
 #: Smallest eigenvalue, relative to the largest, of the scaled cross products whose Cholesky factor
 #: stands for the QR's R in :func:`ar_filter` (rounding in R grows with the condition number).
 _WELL_CONDITIONED = 1e-4
-
-
-def _cholesky_factor(gram: np.ndarray) -> np.ndarray | None:
-    """R with R'R = ``gram`` from its Cholesky factor when the scaled matrix is well conditioned, else None."""
-    d = np.sqrt(np.diag(gram))
-    if not (np.all(d > 0) and np.all(np.isfinite(gram))):
-        return None
-    scaled = gram / np.outer(d, d)
-    w = np.linalg.eigvalsh(scaled)
-    if w.min() <= _WELL_CONDITIONED * w.max():
-        return None
-    return np.linalg.cholesky(scaled).T * d
 
 
 def ar_innovations(x: np.ndarray, segments: Sequence[tuple[int, int]], a: np.ndarray) -> np.ndarray:
