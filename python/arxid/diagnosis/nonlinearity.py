@@ -287,8 +287,8 @@ def _lagged_factor(r: np.ndarray, keep: np.ndarray, order: int) -> np.ndarray:
         gram += block.T @ block
     # A near-white remainder (the usual case): the Cholesky factor of the cross products, several
     # times faster than the QR of every row and as accurate (about twelve digits); else the QR.
-    r = cholesky_factor(gram, WELL_CONDITIONED)
-    return stacked_factor(blocks(), order + 1) if r is None else r
+    factor = cholesky_factor(gram, WELL_CONDITIONED)
+    return stacked_factor(blocks(), order + 1) if factor is None else factor
 
 
 def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
