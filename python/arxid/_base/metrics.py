@@ -38,6 +38,7 @@ __all__ = [
     "diverged",
     "mean_square",
     "rms",
+    "rms_of_groups",
     "prediction_rms",
     "fit_percent",
     "fit_percent_part",
@@ -86,6 +87,33 @@ def mean_square(e: _ArrayLike) -> float:
 def rms(e: _ArrayLike) -> float:
     """Root mean square of ``e`` over its finite samples (NaN when there are none)."""
     return math.sqrt(mean_square(e))
+
+
+def rms_of_groups(e: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """:func:`rms` of each group of consecutive samples of a finite ``e`` (``counts[i]`` samples in
+    group i; NaN for an empty group), from one array of squares.
+
+    Parameters
+    ----------
+    e : ndarray of shape (n,)
+        Finite samples, group by group.
+    counts : ndarray of int of shape (n_groups,)
+        Samples per group, summing to n.
+
+    Returns
+    -------
+    ndarray of shape (n_groups,)
+
+    Examples
+    --------
+    >>> rms_of_groups(np.array([3.0, 4.0, 1.0]), np.array([2, 0, 1])).tolist()
+    [3.5355339059327378, nan, 1.0]
+    """
+    squares = e * e
+    ends = np.cumsum(counts)
+    return np.array(
+        [math.sqrt(float(np.mean(squares[b - c : b]))) if c else math.nan for b, c in zip(ends, counts, strict=True)]
+    )
 
 
 def prediction_rms(y: _ArrayLike, pred: _ArrayLike) -> float:

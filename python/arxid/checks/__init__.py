@@ -3,7 +3,8 @@
 * :mod:`~arxid.checks.comparison` -- free-run comparison (:func:`compare`) and the prediction error
   the other checks start from (:func:`prediction_error`, :func:`error_rms`)
 * :mod:`~arxid.checks.residual_analysis` -- residual tests: whiteness and independence
-  (:func:`residuals`)
+  (:func:`residuals`); :mod:`~arxid.checks.correlation` -- its lagged correlations and
+  prewhitening filters (a signal's filter fitted once per record)
 * :mod:`~arxid.checks.failures` -- where the model fails, in time and by operating point
   (:func:`where_it_fails`)
 * :mod:`~arxid.checks.frequency` -- the frequency check (:func:`frequency_check`)

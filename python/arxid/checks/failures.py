@@ -7,8 +7,10 @@ point (RMS of the one-step residual binned by each signal, with a significance t
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -270,52 +272,146 @@ class FailureAnalysis:
         return plot_failures(self, ax=ax)
 
 
-def _bin_signal(name: str, x: np.ndarray, e: np.ndarray, n_bins: int, e_order: np.ndarray) -> SignalBins | None:
-    """The residual ``e`` binned by the quantiles of ``x``; ``e_order`` sorts e² over its finite
-    samples (shared by every signal: the Kruskal–Wallis ranks need no sort per signal)."""
-    from scipy import stats
+class _SquaredRanks:
+    """The ranks of the squared one-step residual over its finite samples, shared by every binned
+    signal (the Kruskal–Wallis test needs one sort, not one per signal; ranks are whole or half
+    numbers, so their sums per bin are exact in any order).
 
-    ok = np.isfinite(x) & np.isfinite(e)
-    xs, es = x[ok], e[ok]
-    if len(xs) < 4 * n_bins:
-        return None
+    ``order`` sorts e² over the finite samples (positions in the record), ``ranks`` holds the
+    midrank of each finite sample in record order and ``ties`` the tie correction Σ (t³ − t).
+    """
+
+    def __init__(self, e: np.ndarray):
+        finite = np.flatnonzero(np.isfinite(e))
+        self.finite = finite
+        squared = e[finite] ** 2
+        self._sort = np.argsort(squared)  # the order among equal values changes no rank and no sum
+        v = squared[self._sort]
+        n = len(v)
+        self.smallest, self.largest = (float(v[0]), float(v[-1])) if n else (math.nan, math.nan)
+        ranks = np.empty(n)
+        distinct = v[1:] != v[:-1]
+        if distinct.all():  # no ties (the usual residual): the ranks are 1..n
+            ranks[self._sort] = np.arange(1.0, n + 1.0)
+            self.ranks, self.ties = ranks, 0.0
+            return
+        starts = np.flatnonzero(np.r_[True, distinct])
+        ties = np.diff(np.r_[starts, n]).astype(float)
+        ranks[self._sort] = np.repeat(starts + (ties + 1.0) / 2.0, ties.astype(np.intp))
+        self.ranks, self.ties = ranks, float(np.sum(ties**3 - ties))
+
+    @property
+    def order(self) -> np.ndarray:
+        """The finite samples' positions in the record, by ascending e²."""
+        return self.finite[self._sort]
+
+
+def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bin edges of ``xs`` (its quantiles; for a signal with at most ``n_bins`` values, the midpoints
+    between them) and the bin of each sample; None for a signal with a single value."""
     # The quantile edges (a partition, linear in n) are all distinct for a signal with more than
     # n_bins values; only a signal with few values needs its values sorted.
     edges = np.quantile(xs, np.linspace(0, 1, n_bins + 1))
     values = np.unique(xs) if len(np.unique(edges)) <= n_bins else None
     if values is not None and len(values) < 2:
         return None
-    idx = np.zeros(len(x), dtype=np.intp)
     if values is not None and len(values) <= n_bins:
         mids = (values[1:] + values[:-1]) / 2
-        edges = np.concatenate([[values[0]], mids, [values[-1]]])
-        idx[ok] = np.searchsorted(values, xs)
-    else:
-        edges = np.unique(edges)
-        idx[ok] = np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
+        return np.concatenate([[values[0]], mids, [values[-1]]]), np.searchsorted(values, xs)
+    edges = np.unique(edges)
+    return edges, np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
+
+
+#: Per IOData (weakly held: an entry goes with its data): the bins of each operating-point signal
+#: over the samples used, (signal, shift, bins, samples) → (source array, edges, bin of each sample
+#: as uint8). Where it fails is asked of several models on the same validation data; their bins
+#: are the same when their residuals exist on the same samples (2 MB per signal at 2M samples).
+_BINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Most binned signals kept per IOData (the oldest go first).
+_MAX_BINNED = 16
+
+
+def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
+    """:func:`_bin_index` of ``xs`` (the signal on the samples ``ok``), from ``memo`` when the same
+    signal (``tag``: name, shift and the data's array it comes from) was binned on the same samples."""
+    if memo is None:
+        return _bin_index(xs, n_bins)
+    key = (tag[:-1], n_bins, hashlib.blake2b(np.packbits(ok).tobytes(), digest_size=16).digest())
+    hit = memo.get(key)
+    if hit is None or hit[0] is not tag[-1]:
+        binned = _bin_index(xs, n_bins)
+        if binned is not None and len(binned[0]) <= 256:
+            binned = (binned[0], binned[1].astype(np.uint8))
+        hit = memo[key] = (tag[-1], binned)
+        while len(memo) > _MAX_BINNED:  # bounded: a long series of structures keeps only the latest
+            memo.pop(next(iter(memo)))
+    return None if hit[1] is None else (hit[1][0].copy(), hit[1][1])
+
+
+def _bin_signal(
+    name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks, memo: dict | None, tag: tuple
+) -> SignalBins | None:
+    """The residual ``e`` binned by the quantiles of ``x``; ``ranked`` holds the ranks of e² (shared
+    by every signal); ``memo`` and ``tag`` as in :func:`_signal_bins`."""
+    from scipy import stats
+
+    ok = np.isfinite(x) & np.isfinite(e)
+    xs, es = x[ok], e[ok]
+    if len(xs) < 4 * n_bins:
+        return None
+    binned = _signal_bins(xs, ok, n_bins, memo, tag)
+    if binned is None:
+        return None
+    edges, where = binned
     nb = len(edges) - 1
-    groups = [es[idx[ok] == i] for i in range(nb)]
-    counts = np.array([len(g) for g in groups])
-    rms = np.array([metrics.rms(g) for g in groups])
+    # The samples of each bin in record order, as views of one array sorted by bin (a stable sort).
+    counts = np.bincount(where, minlength=nb)
+    by_bin = es[np.argsort(where.astype(np.uint8 if nb < 256 else np.intp), kind="stable")]
+    groups = np.split(by_bin, np.cumsum(counts)[:-1])
+    rms = metrics.rms_of_groups(by_bin, counts)
     mean = np.array([np.mean(g) if len(g) else np.nan for g in groups])
     overall = metrics.rms(es)
     used = [g for g in groups if len(g) >= 2]
     if len(used) < 2 or overall == 0:
         return None
-    sq = [g**2 for g in used]
-    if np.ptp(np.concatenate(sq)) <= 0:
-        p_kw = 1.0
-    elif len(used) == int(np.count_nonzero(counts)):  # every sample in a used group: shared ranks
-        sub = e_order[ok[e_order]]
-        p_kw = _kruskal_sorted(e[sub] ** 2, idx[sub], nb)
+    every = len(used) == int(np.count_nonzero(counts))  # every sample in a used group
+    if every and len(es) == len(ranked.finite):  # every finite residual: the shared range of e²
+        spread = ranked.largest - ranked.smallest
     else:
-        p_kw = float(stats.kruskal(*sq).pvalue)
+        size = [np.abs(g) for g in used]  # max and min of e² are those of |e|, squared (rounding is monotone)
+        largest, smallest = max(float(a.max()) for a in size), min(float(a.min()) for a in size)
+        spread = largest * largest - smallest * smallest
+    if spread <= 0:
+        p_kw = 1.0
+    elif every:  # shared ranks
+        p_kw = _kruskal(ok, where, nb, e, ranked)
+    else:
+        p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
     p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
     p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
     p_an = 1.0 if not math.isfinite(p_an) else p_an
     p = min(1.0, 2 * min(p_kw, p_an))
     centers = (edges[1:] + edges[:-1]) / 2
     return SignalBins(name, edges, centers, rms, mean, counts, float(np.nanmax(rms) / overall), p)
+
+
+def _kruskal(ok: np.ndarray, where: np.ndarray, nb: int, e: np.ndarray, ranked: _SquaredRanks) -> float:
+    """Kruskal–Wallis p-value of e² between the bins ``where`` of the samples ``ok``: from the shared
+    ranks when ``ok`` holds every finite residual, else from the ranks of those samples."""
+    from scipy import stats
+
+    if len(where) == len(ranked.finite):  # the same samples: the ranks are the shared ones
+        n = len(where)
+        sums = np.bincount(where, weights=ranked.ranks, minlength=nb)
+        sizes = np.bincount(where, minlength=nb).astype(float)
+        have = sizes > 0
+        h = 12.0 / (n * (n + 1.0)) * float(np.sum(sums[have] ** 2 / sizes[have])) - 3.0 * (n + 1.0)
+        h /= 1.0 - ranked.ties / (float(n) ** 3 - n)
+        return float(stats.chi2.sf(h, int(np.count_nonzero(have)) - 1))
+    idx = np.zeros(len(e), dtype=np.intp)
+    idx[ok] = where
+    sub = ranked.order[ok[ranked.order]]
+    return _kruskal_sorted(e[sub] ** 2, idx[sub], nb)
 
 
 def _kruskal_sorted(v: np.ndarray, group: np.ndarray, n_groups: int) -> float:
@@ -431,7 +527,7 @@ def where_it_fails(
             )
         )
         r[max(0, lo - half) : min(n, hi + half)] = np.nan
-    # Operating points.
+    # Operating points: (name, samples, (name, shift, the data's array they come from)).
     signals = []
     for i, name in enumerate(data.input_names):
         x = np.full(n, np.nan)
@@ -439,18 +535,18 @@ def where_it_fails(
         for a, b in data.segments:
             if b - a > k:
                 x[a + k : b] = data.u[a : b - k, i]
-        signals.append((name, x))
+        signals.append((name, x, (name, k, data.u)))
     y1 = np.full(n, np.nan)
     dy1 = np.full(n, np.nan)
     for a, b in data.segments:
         y1[a + 1 : b] = data.y[a : b - 1]
         dy1[a + 2 : b] = (data.y[a + 1 : b - 1] - data.y[a : b - 2]) / data.ts
-    signals.append((data.output_name, y1))
-    signals.append((f"d{data.output_name}", dy1))
-    signals += [(k, np.asarray(v, dtype=float)) for k, v in data.extra.items()]
-    finite = np.flatnonzero(np.isfinite(res))
-    e_order = finite[np.argsort(res[finite] ** 2, kind="stable")]
-    bins = [b for b in (_bin_signal(name, x, res, n_bins, e_order) for name, x in signals) if b is not None]
+    signals.append((data.output_name, y1, (data.output_name, 1, data.y)))
+    signals.append((f"d{data.output_name}", dy1, (f"d{data.output_name}", 1, data.y)))
+    signals += [(k, np.asarray(v, dtype=float), (k, 0, v)) for k, v in data.extra.items()]
+    ranked = _SquaredRanks(res)
+    memo = _BINS.setdefault(data, {})
+    bins = [b for b in (_bin_signal(nm, x, res, n_bins, ranked, memo, tag) for nm, x, tag in signals) if b is not None]
     bins.sort(key=lambda b: (b.p_value, -b.ratio))
     return FailureAnalysis(
         t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()

@@ -19,98 +19,18 @@ from typing import Any
 import numpy as np
 
 from .._base.formatting import finite_or_none, require_pandas, text_table
-from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_model
 from ..models.arx_model import ArxModel
-from ..models.lagged import lagged_factor
 from ..models.polynomial import PolynomialModel
 from .comparison import prediction_error
+from .correlation import ar_filter, ar_innovations, centered, correlation, signal_whitening
 
 __all__ = ["residuals", "ResidualAnalysis", "low_frequency_test"]
 
 #: Two-sided 99% point of the standard normal distribution.
 Z99 = 2.5758293035489004
-
-
-def _centered(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, dtype=float).copy()
-    ok = np.isfinite(x)
-    if ok.any():
-        x[ok] -= x[ok].mean()
-    return x
-
-
-#: Lags up to which a correlation is summed lag by lag rather than by FFT.
-_DIRECT_LAGS = 128
-
-
-def _correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray, segments) -> np.ndarray:
-    """corr(a(t), b(t − k)) for each lag k, over pairs inside one experiment where both exist.
-
-    Normalised by √(Σa² Σb²) over the valid samples of each, as MATLAB ``resid`` and ``xcorr``
-    with the biased estimator do.
-    """
-    av = np.where(np.isfinite(a), a, 0.0)
-    bv = np.where(np.isfinite(b), b, 0.0)
-    den = math.sqrt(float(np.sum(av * av)) * float(np.sum(bv * bv)))
-    out = np.zeros(len(lags))
-    if den == 0:
-        return out
-    lags = np.asarray(lags)
-    for lo, hi in segments:
-        n = hi - lo
-        # Many lags of a long record: every lag at once by FFT (n log n). A few dozen lags (the
-        # residual tests' usual 2 x 25 + 1) cost less as one dot product each (n per lag), without
-        # the FFT's padding to twice the length.
-        if n * len(lags) > 1 << 18 and len(lags) > _DIRECT_LAGS:
-            size = 1 << int(2 * n - 1).bit_length()
-            c = np.fft.irfft(np.fft.rfft(av[lo:hi], size) * np.conj(np.fft.rfft(bv[lo:hi], size)), size)
-            inside = np.abs(lags) < n
-            out[inside] += c[lags[inside] % size]
-            continue
-        for i, k in enumerate(lags):
-            if abs(k) >= n:
-                continue
-            if k >= 0:
-                out[i] += float(np.dot(av[lo + k : hi], bv[lo : hi - k]))
-            else:
-                out[i] += float(np.dot(av[lo : hi + k], bv[lo - k : hi]))
-    return out / den
-
-
-def _prewhiten(x: np.ndarray, segments, max_order: int) -> np.ndarray:
-    """Innovations of an AR model of ``x`` (order by AIC, 0..max_order), NaN where none exists.
-
-    Lags stay inside one experiment and skip missing samples. Used for the independence test:
-    the cross-correlations of two whitened series at different lags are nearly uncorrelated, so
-    their sum of squares is χ² (Haugh 1976); those of a coloured signal are not.
-    """
-    x = _centered(x)
-    n = len(x)
-    # [x(t-1) ... x(t-P) | x(t)] reduced to its factor block by block of rows (never held whole).
-    r, m = lagged_factor([*((x, k) for k in range(1, max_order + 1)), (x, 0)], segments, max_order)
-    if m <= 2 * max_order + 2:
-        return x
-    best_aic, best = math.log(max(float(np.sum(r[:, -1] ** 2)) / m, 1e-300)), (0, np.zeros(0))
-    rss_all, coefs = nested_from_factor(r)  # every order from one factor
-    for p in range(1, max_order + 1):
-        a, rss = coefs[p], float(rss_all[p]) / m
-        aic = math.log(max(rss, 1e-300)) + 2.0 * p / m
-        if aic < best_aic:
-            best_aic, best = aic, (p, a)
-    p, a = best
-    if p == 0:
-        return x
-    from scipy.signal import lfilter
-
-    out = np.full(n, np.nan)
-    fir = np.concatenate([[1.0], -np.asarray(a)])  # x(t) - a1 x(t-1) - ... - ap x(t-p)
-    for lo, hi in segments:
-        if hi - lo > p:
-            out[lo + p : hi] = lfilter(fir, [1.0], x[lo:hi])[p:]
-    return out
 
 
 def _block_means(x: np.ndarray, segments, block: int) -> np.ndarray:
@@ -492,6 +412,49 @@ def _at_round_off(e: np.ndarray, y: np.ndarray) -> bool:
     return scale > 0 and float(np.sqrt(np.mean(e * e))) <= ROUND_OFF_SHARE * scale
 
 
+def _signal_tests(
+    data: IOData,
+    name: str,
+    s: np.ndarray,
+    source: np.ndarray,
+    e: np.ndarray,
+    ec: np.ndarray,
+    ew: np.ndarray,
+    auto_full: np.ndarray,
+    max_lag: int,
+) -> tuple[np.ndarray, float, float, float]:
+    """Cross-correlation with the residual ``e`` (``ec`` centred), its 99% bound, Haugh's p-value
+    (against the prewhitened residual ``ew``) and the low-frequency p-value of one signal ``s`` (``source``: the
+    data's array it comes from)."""
+    from scipy import stats
+
+    segs = data.segments
+    ok = np.isfinite(e)
+    cl = np.arange(-max_lag, max_lag + 1)
+    n = int(ok.sum())
+    both = ok & np.isfinite(s)
+    if int(both.sum()) <= max_lag + 1 or np.ptp(s[both]) == 0:
+        return np.full(len(cl), np.nan), math.nan, math.nan, math.nan
+    sc = centered(np.where(ok, s, np.nan))
+    slow = low_frequency_test(e, np.where(ok, s, np.nan), segs, max_lag)
+    cross = correlation(ec, sc, cl, segs)
+    # The signal's filter and autocorrelation depend on the data and the samples used only:
+    # fitted once for the residual tests of every model on these data.
+    whitening = signal_whitening(data, name, source, sc, min(max_lag, 10), np.arange(0, max_lag + 1))
+    ss = whitening.autocorrelation
+    v = max(float(np.dot(auto_full, np.concatenate([ss[:0:-1], ss]))), 1.0 / max_lag)  # (near-)constant: ~0
+    bound = Z99 * math.sqrt(v / n)
+    # Independence: cross-correlations of the prewhitened series (Haugh's test).
+    sw = ar_innovations(sc, segs, whitening.filter)
+    pair = np.isfinite(ew) & np.isfinite(sw)
+    nw = int(pair.sum())
+    if nw <= 2 * max_lag + 1:
+        return cross, bound, math.nan, slow
+    rw = correlation(centered(np.where(pair, ew, np.nan)), centered(np.where(pair, sw, np.nan)), cl, segs)
+    stat = float(nw * nw * np.sum(rw**2 / (nw - np.abs(cl))))
+    return cross, bound, float(stats.chi2.sf(stat, len(cl))), slow
+
+
 def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0.01) -> ResidualAnalysis:
     """Residual analysis: is the one-step residual white and independent of the inputs?
 
@@ -539,41 +502,22 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     if n <= max_lag + 1:
         raise DataError(f"only {n} residual samples for max_lag={max_lag}; use more data or a smaller max_lag")
     segs = data.segments
-    ec = _centered(e)
+    ec = centered(e)
     lags = np.arange(0, max_lag + 1)
-    auto = _correlation(ec, ec, lags, segs)
+    auto = correlation(ec, ec, lags, segs)
     cl = np.arange(-max_lag, max_lag + 1)
     auto_full = np.concatenate([auto[:0:-1], auto])  # ρ_ee(k) for k = -L..L
     from scipy import stats
 
     cross, bounds, pvals, slow = {}, {}, {}, {}
-    signals = [(name, data.u[:, i]) for i, name in enumerate(data.input_names)] + list(data.extra.items())
+    signals = [(name, data.u[:, i], data.u) for i, name in enumerate(data.input_names)]
+    signals += [(name, s, s) for name, s in data.extra.items()]
     order = min(max_lag, 10)
-    ew = _prewhiten(e, segs, order)
-    for name, s in signals:
-        s = np.asarray(s, dtype=float)
-        sc = _centered(np.where(ok, s, np.nan))
-        both = ok & np.isfinite(s)
-        if int(both.sum()) <= max_lag + 1 or np.ptp(s[both]) == 0:
-            cross[name] = np.full(len(cl), np.nan)
-            bounds[name] = pvals[name] = slow[name] = math.nan
-            continue
-        slow[name] = low_frequency_test(e, np.where(ok, s, np.nan), segs, max_lag)
-        cross[name] = _correlation(ec, sc, cl, segs)
-        ss = _correlation(sc, sc, lags, segs)
-        ss_full = np.concatenate([ss[:0:-1], ss])
-        v = max(float(np.dot(auto_full, ss_full)), 1.0 / max_lag)  # a (near-)constant signal gives ~0
-        bounds[name] = Z99 * math.sqrt(v / n)
-        # Independence: cross-correlations of the prewhitened series (Haugh's test).
-        sw = _prewhiten(np.where(ok, s, np.nan), segs, order)
-        pair = np.isfinite(ew) & np.isfinite(sw)
-        nw = int(pair.sum())
-        if nw <= 2 * max_lag + 1:
-            pvals[name] = math.nan
-            continue
-        rw = _correlation(_centered(np.where(pair, ew, np.nan)), _centered(np.where(pair, sw, np.nan)), cl, segs)
-        stat = float(nw * nw * np.sum(rw**2 / (nw - np.abs(cl))))
-        pvals[name] = float(stats.chi2.sf(stat, len(cl)))
+    ew = ar_innovations(ec, segs, ar_filter(ec, segs, order))
+    for name, s, source in signals:
+        cross[name], bounds[name], pvals[name], slow[name] = _signal_tests(
+            data, name, np.asarray(s, dtype=float), source, e, ec, ew, auto_full, max_lag
+        )
 
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
     noise_parameters = model.na_ + (model.nc_ + model.nd_ if isinstance(model, PolynomialModel) else 0)
