@@ -68,10 +68,14 @@ def divergence_limit(y: _ArrayLike) -> float:
 def diverged(y: _ArrayLike, pred: _ArrayLike) -> bool:
     """True when ``pred`` reaches inf or leaves ±:func:`divergence_limit` of ``y`` (NaN is missing data)."""
     p = np.asarray(pred, dtype=float)
-    if np.isinf(p).any():
-        return True
-    finite = p[np.isfinite(p)]
-    return bool(finite.size and np.abs(finite).max() > divergence_limit(y))
+    if not p.size:
+        return False
+    # The largest |pred| over the samples that have one, from two reductions (fmax/fmin skip NaN;
+    # ±inf wins), without the copies a mask of the finite samples would make.
+    top = max(float(np.fmax.reduce(p, axis=None)), -float(np.fmin.reduce(p, axis=None)))
+    if math.isnan(top):  # no sample has a prediction
+        return False
+    return math.isinf(top) or top > divergence_limit(y)
 
 
 def mean_square(e: _ArrayLike) -> float:

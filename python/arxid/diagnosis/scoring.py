@@ -15,7 +15,7 @@ import weakref
 
 import numpy as np
 
-from .._base.nested import least_squares
+from .._base.nested import BLOCK_ROWS, cholesky_factor, least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
@@ -210,16 +210,36 @@ class Scoring:
         idx = names.index(signal) if signal in names else int(signal[1:]) - 1 if signal[1:].isdigit() else -1
         if not 0 <= idx < len(names):
             return "dz"
-        rss = {}
         base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
         keep = [j for j, nm in enumerate(base) if not nm.startswith(f"{names[idx]}(")]
-        for op in ("dz", "sat"):  # the model's regressors without the input's own, and the shape's
-            z = self._threshold_columns(op, signal, c)[1]
-            x = np.empty((len(self.rows0), len(keep) + z.shape[1]))
-            x[:, : len(keep)] = self.phi0[:, keep]
-            x[:, len(keep) :] = z
-            rss[op] = float(np.sum((self.y0 - x @ least_squares(x, self.y0)) ** 2))
+        zs = {op: self._threshold_columns(op, signal, c)[1] for op in ("dz", "sat")}
+        rss = self._shape_rss(keep, zs)
         return min(rss, key=lambda k: rss[k])
+
+    def _shape_rss(self, keep: list[int], zs: dict[str, np.ndarray]) -> dict[str, float]:
+        """Residual sum of squares of y on the model's ``keep`` regressors and each shape's columns:
+        from the cross products of ``[Φ | z_dz | z_sat | y]`` (one pass over the rows) when they are
+        well conditioned, else from a fit of each."""
+        p, b = self.phi0.shape[1], zs["dz"].shape[1]
+        width = p + 2 * b + 1
+        gram = np.zeros((width, width))
+        for lo in range(0, len(self.rows0), BLOCK_ROWS):
+            hi = min(lo + BLOCK_ROWS, len(self.rows0))
+            a = np.empty((hi - lo, width))
+            a[:, :p], a[:, p : p + b], a[:, p + b : -1] = self.phi0[lo:hi], zs["dz"][lo:hi], zs["sat"][lo:hi]
+            a[:, -1] = self.y0[lo:hi]
+            gram += a.T @ a
+        rss = {}
+        for i, op in enumerate(("dz", "sat")):
+            sel = keep + list(range(p + i * b, p + (i + 1) * b)) + [width - 1]
+            r = cholesky_factor(gram[np.ix_(sel, sel)], 1e-10)
+            if r is None:  # ill-conditioned: the fit itself
+                x = np.empty((len(self.rows0), len(keep) + b))
+                x[:, : len(keep)], x[:, len(keep) :] = self.phi0[:, keep], zs[op]
+                rss[op] = float(np.sum((self.y0 - x @ least_squares(x, self.y0)) ** 2))
+            else:
+                rss[op] = float(r[-1, -1] ** 2)
+        return rss
 
     def masked_pairs(self, scored: list[dict], alpha: float, n_partners: int = 3) -> list[dict]:
         """Pairs for two effects that hide each other (each alone barely lowers the free-run error).
