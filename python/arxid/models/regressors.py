@@ -203,6 +203,7 @@ def _columns(
     u = layout.u
     s = -1.0 if signs else 1.0
     at = -1
+    lagged = _lagger(rows)
 
     def wanted() -> bool:
         nonlocal at
@@ -211,15 +212,15 @@ def _columns(
 
     for i in range(1, na + 1):
         if wanted():
-            yield s * y[rows - i]
+            yield s * lagged(y, i)
     for j, (b, k) in enumerate(zip(layout.nb, layout.nk, strict=True)):
         for lag_j in range(b):
             if wanted():
-                yield u[rows - k - lag_j, j]
+                yield lagged(u[:, j], k + lag_j)
     for kind, power, mult in layout.output_terms:
         if not wanted():
             continue
-        y1 = y[rows - 1]
+        y1 = lagged(y, 1)
         if kind == "pow":
             g = y1**power
         elif kind == "abs":
@@ -227,10 +228,20 @@ def _columns(
         elif kind == "sign":
             g = np.sign(y1)
         else:
-            g = np.sign(y1 - y[rows - 2])
+            g = np.sign(y1 - lagged(y, 2))
         if mult >= 0:
-            g = g * u[rows - 1, mult]
+            g = g * lagged(u[:, mult], 1)
         yield g
+
+
+def _lagger(rows: np.ndarray):
+    """``lagged(x, lag)``: the samples ``x[rows - lag]``; a view of ``x`` when the rows are one run of
+    consecutive samples (the usual case: one experiment without gaps), else a gather."""
+    n = len(rows)
+    if n and rows[-1] - rows[0] == n - 1 and bool(np.all(np.diff(rows) == 1)):
+        first = int(rows[0])
+        return lambda x, lag: x[first - lag : first - lag + n]
+    return lambda x, lag: x[rows - lag]
 
 
 def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:
