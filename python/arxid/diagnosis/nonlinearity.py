@@ -181,7 +181,7 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     tested = [
         (name, lag, res)
         for name, x, lag, signed in specs
-        if (res := base.test(whiten(_features(x, kept, lag, signed))[0])[0]) is not None
+        if (res := base.test(whiten(_features(x, kept, lag, signed), inplace=True)[0])[0]) is not None
     ]
     if not tested:
         return ()
