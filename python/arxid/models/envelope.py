@@ -23,7 +23,7 @@ from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from .effects import EffectLayout, compile_effects, effect_names
-from .regressors import max_lag, regressor_names
+from .regressors import max_lag, output_term_values, regressor_names
 
 __all__ = ["EnvelopeFactor"]
 
@@ -164,17 +164,15 @@ def _term_series(term: tuple[str, int, int], layout: EffectLayout, data: IOData)
     t + 1, as the core evaluates it (an experiment's first sample, never read, is 0 for sign(dy))."""
     kind, power, carrier = term
     y = np.asarray(data.y, dtype=float)
+
+    def previous() -> np.ndarray:  # y(t-1), and y(t) itself at an experiment's first sample
+        p = np.empty_like(y)
+        p[1:] = y[:-1]
+        p[[a for a, _ in data.segments]] = y[[a for a, _ in data.segments]]
+        return p
+
     with np.errstate(over="ignore", invalid="ignore"):
-        if kind == "pow":
-            g = y**power
-        elif kind == "abs":
-            g = np.abs(y)
-        elif kind == "sign":
-            g = np.sign(y)
-        else:  # signdiff
-            g = np.zeros_like(y)
-            for a, b in data.segments:
-                g[a + 1 : b] = np.sign(np.diff(y[a:b]))
+        g = output_term_values(kind, power, y, previous)
         return g * layout.u[:, carrier] if carrier >= 0 else g
 
 

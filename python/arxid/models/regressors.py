@@ -7,7 +7,7 @@ reference the core must match.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -18,6 +18,7 @@ from .effects import EffectLayout
 __all__ = [
     "regression_rows",
     "write_regressors",
+    "output_term_values",
     "regressor_names",
     "regressor_matrix",
     "regressor_columns",
@@ -220,18 +221,44 @@ def _columns(
     for kind, power, mult in layout.output_terms:
         if not wanted():
             continue
-        y1 = lagged(y, 1)
-        if kind == "pow":
-            g = y1**power
-        elif kind == "abs":
-            g = np.abs(y1)
-        elif kind == "sign":
-            g = np.sign(y1)
-        else:
-            g = np.sign(y1 - lagged(y, 2))
+        g = output_term_values(kind, power, lagged(y, 1), lambda: lagged(y, 2))
         if mult >= 0:
             g = g * lagged(u[:, mult], 1)
         yield g
+
+
+def output_term_values(kind: str, power: int, y1: np.ndarray, y2: Callable[[], np.ndarray]) -> np.ndarray:
+    """g(y(t-1), y(t-2)) of an output term without its carrier, as the core evaluates it.
+
+    Parameters
+    ----------
+    kind : {"pow", "abs", "sign", "signdiff"}
+    power : int
+        The power of ``"pow"``.
+    y1 : ndarray
+        y(t-1).
+    y2 : callable
+        Gives y(t-2) (read only by ``"signdiff"``).
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> y1, y2 = np.array([2.0, -1.0]), np.array([1.0, 1.0])
+    >>> output_term_values("pow", 3, y1, lambda: y2).tolist()
+    [8.0, -1.0]
+    >>> output_term_values("signdiff", 1, y1, lambda: y2).tolist()
+    [1.0, -1.0]
+    """
+    if kind == "pow":
+        return y1**power
+    if kind == "abs":
+        return np.abs(y1)
+    if kind == "sign":
+        return np.sign(y1)
+    return np.sign(y1 - y2())
 
 
 def _lagger(rows: np.ndarray):
