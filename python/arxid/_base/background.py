@@ -1,7 +1,7 @@
 """Stages of an analysis run beside each other on a second core.
 
 numpy's large operations, BLAS and the Rust core release the GIL, so a stage that depends only on
-the data (the feedback test, the nonlinear-dependence test of a model) can run on another thread
+the data (the feedback test, the checks of where the models fail) can run on another thread
 while the caller goes on with the stages that need each other's results. The answer is the same as
 when the stages run one after the other: each stage reads only immutable inputs.
 

@@ -41,7 +41,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._base import metrics
-from .._base.background import Background
 from ..checks import ResidualAnalysis, error_rms, prediction_error, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -146,8 +145,6 @@ def diagnose(
         raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
-    # The dependence test reads only the model and the estimation data: it runs beside the rest.
-    dependence = Background(_dependence, model, data, alpha) if not polynomial else None
     base = _baseline(model, validation, horizon, residual_max_lag, initial)
     cands, auto = candidate_list(candidates, model, data)
     scoring = None if polynomial else Scoring(model, data, cands)
@@ -162,6 +159,10 @@ def diagnose(
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
     suspects = finish_suspects(notes, cands, suspects, data)
+    # In sequence, not beside the scoring: its design (~0.4 GiB at 2M rows) on top of the other
+    # stages' arrays would take the analysis of a 4M-sample record past 1 GiB.
+    del scoring, judge  # their regressors and refit factors: not held while the dependence test builds its own
+    dependence = () if polynomial else _dependence(model, data, alpha)
     return Diagnosis(
         model,
         data,
@@ -176,7 +177,7 @@ def diagnose(
         min_improvement,
         len(scored),
         same,
-        () if dependence is None else dependence.result(),
+        dependence,
         base.disturbance,
     )
 
