@@ -150,6 +150,41 @@ def test_threshold_shares_in_one_pass_equal_the_shares_one_by_one(collinear):
     assert abs(cs[int(np.argmax(batch))] - 0.7) < 0.05  # the dead zone put in
 
 
+@pytest.mark.parametrize("collinear", [False, True])
+def test_candidate_tests_in_one_pass_equal_the_tests_one_by_one(collinear):
+    """Candidates are tested in groups that read the regressors once per block of rows; each
+    result is the one :meth:`AddedVariableTest.test` gives for that block alone, including a block
+    collinear with the regressors (the stripped QR decides), a zero block and a block with a
+    column that repeats a regressor."""
+    from arxid.diagnosis.added_variable import AddedVariableTest
+
+    rng = np.random.default_rng(11)
+    n = 40_000  # more than two blocks of rows
+    phi = rng.standard_normal((n, 4))
+    if collinear:  # rank-deficient regressors: the blocked QR path of the test
+        phi[:, 3] = phi[:, 0] - 2.0 * phi[:, 1]
+    x = rng.standard_normal(n)
+    y = phi @ [1.0, -0.5, 0.3, 0.0] + 0.3 * x**2 + 0.05 * rng.standard_normal(n)
+    test = AddedVariableTest(phi, y)
+    blocks = [
+        np.column_stack([x**2, x**3]),  # the effect put in
+        rng.standard_normal((n, 1)),  # nothing
+        np.zeros((n, 2)),  # zero on these data
+        np.column_stack([phi[:, 1], np.abs(x)]),  # one column already in the model
+        np.column_stack([phi[:, 0] + 1e-9 * x, x]),  # nearly collinear: the stripped QR
+    ]
+    batch, one_by_one = test.tests(blocks), [test.test(z) for z in blocks]
+    assert [why for _, why in batch] == [why for _, why in one_by_one]
+    for (got, _), (want, _) in zip(batch, one_by_one):
+        assert (got is None) == (want is None)
+        if got is not None:
+            assert got.n_columns == want.n_columns
+            np.testing.assert_allclose(
+                [got.score, got.f_statistic, got.p_value], [want.score, want.f_statistic, want.p_value], rtol=1e-9
+            )
+    assert batch[0][0].p_value < 1e-12 and batch[1][0].p_value > 1e-4  # the effect, and not the noise
+
+
 def test_threshold_grid_is_the_quantiles_and_needs_enough_levels():
     x = np.linspace(-1, 1, 2001)
     np.testing.assert_allclose(threshold_grid(x), np.quantile(np.abs(x), np.linspace(0.05, 0.95, 19)))

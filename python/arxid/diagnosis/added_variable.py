@@ -167,10 +167,7 @@ class AddedVariableTest:
                 zz[:, i, j] += np.einsum("cr,cr->c", z3[:, i], z3[:, j])
         il, jl = np.tril_indices(width, -1)
         zz[:, il, jl] = zz[:, jl, il]
-        from scipy.linalg import solve_triangular
-
-        pz, ze = cross[: self.p] / self._scale[:, None], cross[self.p]
-        b = solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
+        b, ze = self._projected(cross[: self.p]), cross[self.p]
         out = np.empty(n_blocks)
         for i in range(n_blocks):
             sl = slice(i * width, (i + 1) * width)
@@ -206,13 +203,7 @@ class AddedVariableTest:
 
     def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q'z, z'z and z'e: all a test needs of the n rows (z'e = z̃'e, as Q'e = 0)."""
-        if self._r is None:
-            b = self.q.T @ z
-        else:
-            from scipy.linalg import solve_triangular
-
-            pz = (self._phi.T @ z) / self._scale[:, None]
-            b = solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
+        b = self.q.T @ z if self._r is None else self._projected(self._phi.T @ z)
         return b, z.T @ z, z.T @ self.e
 
     def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
@@ -231,8 +222,54 @@ class AddedVariableTest:
         """
 
         if self.exact:
-            return None, "the model reproduces the output to rounding: nothing is left to explain"
-        b, zz, ze = self._cross(z)
+            return None, _EXACT
+        return self._tested(z, *self._cross(z))
+
+    def tests(self, blocks: list[np.ndarray]) -> list[tuple[AddedVariableResult | None, str]]:
+        """:meth:`test` of several blocks, reading Φ once per block of rows for all of them (one
+        product per block would read the regressors once per candidate).
+
+        Parameters
+        ----------
+        blocks : list of ndarray of shape (n_rows, q_i)
+
+        Returns
+        -------
+        list of (AddedVariableResult or None, str)
+            As :meth:`test`, in the order of ``blocks``.
+        """
+        if self.exact:
+            return [(None, _EXACT) for _ in blocks]
+        if self._r is None or len(blocks) < 2:
+            return [self.test(z) for z in blocks]
+        edges = np.cumsum([0] + [z.shape[1] for z in blocks])
+        cross = np.zeros((self.p + 1, edges[-1]))
+        zz = [np.zeros((w, w)) for w in np.diff(edges)]
+        for lo in range(0, self.n, _SCAN_ROWS):
+            hi = min(lo + _SCAN_ROWS, self.n)
+            zb = np.concatenate([z[lo:hi] for z in blocks], axis=1)
+            pe = np.empty((hi - lo, self.p + 1))  # [Φ | e] of the block: one product gives Φ'z and e'z
+            pe[:, : self.p], pe[:, self.p] = self._phi[lo:hi], self.e[lo:hi]
+            cross += pe.T @ zb
+            for i, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+                zz[i] += zb[:, a:b].T @ zb[:, a:b]
+        b = self._projected(cross[: self.p])
+        return [
+            self._tested(z, b[:, a:e], zz[i], cross[self.p, a:e])
+            for i, (z, a, e) in enumerate(zip(blocks, edges[:-1], edges[1:]))
+        ]
+
+    def _projected(self, phi_z: np.ndarray) -> np.ndarray:
+        """Q'z from Φ'z (R⁻ᵀ of the scaled products, on the independent columns)."""
+        from scipy.linalg import solve_triangular
+
+        pz = phi_z / self._scale[:, None]
+        return solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
+
+    def _tested(
+        self, z: np.ndarray, b: np.ndarray, zz: np.ndarray, ze: np.ndarray
+    ) -> tuple[AddedVariableResult | None, str]:
+        """The test of ``z`` from its cross-products Q'z, z'z and z'e."""
         norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         keep = norms > 0
         if not keep.any():
@@ -317,6 +354,8 @@ def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tupl
 #: Rows of one block of a batch of scores (:meth:`AddedVariableTest.shares`): 16k rows of some
 #: hundred columns stay within a few megabytes.
 _SCAN_ROWS = 16384
+
+_EXACT = "the model reproduces the output to rounding: nothing is left to explain"
 
 #: Residual RMS, relative to the output's, below which a fit is exact (rounding, not noise).
 _ROUNDING = 1e-10

@@ -64,7 +64,7 @@ class Scoring:
         self._threshold_lags: dict[tuple[str, str], tuple[int, int]] = {}
 
     def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
-        scored = [s for s in (self._score(c) for c in self.prepared) if s]
+        scored = self._score_all()
         scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
         scored = self._one_direction_term(scored)
         if "const" not in self.model.effects and n_pairs > 0:
@@ -84,7 +84,28 @@ class Scoring:
         new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         return phi[:, new], rows
 
-    def _score(self, c: Candidate) -> dict | None:
+    def _score_all(self) -> list[dict]:
+        """Every prepared candidate scored, in order; those on the model's rows in groups that
+        share one pass over the regressors (:meth:`AddedVariableTest.tests`), the group's columns
+        bounded by :data:`_GROUP_BYTES`."""
+        slots: list[dict | None] = []
+        group: list[tuple[int, Candidate, np.ndarray]] = []
+        budget = max(1, _GROUP_BYTES // (8 * max(len(self.rows0), 1)))
+        for c in self.prepared:
+            got = self._columns_of(c)
+            if got is not None and len(got[1]) == len(self.rows0) and np.array_equal(got[1], self.rows0):
+                group.append((len(slots), c, got[0]))
+                slots.append(None)
+                if sum(g[2].shape[1] for g in group) >= budget:
+                    self._score_group(group, slots)
+                    group = []
+            elif got is not None:
+                slots.append(self._score_on_common_rows(c, *got))
+        self._score_group(group, slots)
+        return [s for s in slots if s is not None]
+
+    def _columns_of(self, c: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
+        """A candidate's new columns and their rows (None, with a note, when it has none)."""
         try:
             lay = layout_for(c, self.model, self.data)[1]
         except DataError as exc:  # its samples overflow
@@ -94,20 +115,26 @@ class Scoring:
         if z.shape[1] == 0:
             self.notes[c.label] = "adds no regressor"
             return None
-        proj = self.proj0
-        if not (len(rows) == len(self.rows0) and np.array_equal(rows, self.rows0)):
-            # a candidate with missing samples: test on the rows both have
-            common, i0, i1 = np.intersect1d(self.rows0, rows, return_indices=True)
-            if len(common) <= self.phi0.shape[1] + z.shape[1] + 2:
-                self.notes[c.label] = "too few rows where its signal exists"
-                return None
-            proj, z = AddedVariableTest(self.phi0[i0], self.y0[i0]), z[i1]
-        res, why = proj.test(z)
+        return z, rows
+
+    def _score_group(self, group: list[tuple[int, Candidate, np.ndarray]], slots: list[dict | None]) -> None:
+        for (i, c, _), (res, why) in zip(group, self.proj0.tests([z for _, _, z in group])):
+            if res is None:
+                self.notes[c.label] = why
+                continue
+            self.single_z.keep(c.label, ("candidate", c))
+            slots[i] = scored_entry(c, res)
+
+    def _score_on_common_rows(self, c: Candidate, z: np.ndarray, rows: np.ndarray) -> dict | None:
+        """A candidate with missing samples: tested on the rows both it and the model have."""
+        common, i0, i1 = np.intersect1d(self.rows0, rows, return_indices=True)
+        if len(common) <= self.phi0.shape[1] + z.shape[1] + 2:
+            self.notes[c.label] = "too few rows where its signal exists"
+            return None
+        res, why = AddedVariableTest(self.phi0[i0], self.y0[i0]).test(z[i1])
         if res is None:
             self.notes[c.label] = why
             return None
-        if proj is self.proj0:
-            self.single_z.keep(c.label, ("candidate", c))
         return scored_entry(c, res)
 
     def _threshold_lag(self, op: str, signal: str) -> tuple[int, int]:
@@ -300,6 +327,11 @@ class Scoring:
                 pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
                 out.append(scored_entry(pc, res))
         return out
+
+
+#: Bytes of candidate columns scored together in one pass over the model's regressors: a few
+#: copies of a column of the record at most, so memory does not grow with the number of candidates.
+_GROUP_BYTES = 128 * 2**20
 
 
 class _Rebuilt(dict):
