@@ -17,6 +17,7 @@ pub mod srivc;
 pub mod structure;
 pub mod sweep;
 pub mod sweep_columns;
+pub mod threshold_scan;
 
 #[cfg(feature = "python")]
 mod py;

@@ -24,7 +24,7 @@ const WIDTH: usize = 8;
 
 /// `acc + c · x`, fused (one rounding) when the caller runs with FMA.
 #[inline(always)]
-fn madd<const FMA: bool>(c: f64, x: f64, acc: f64) -> f64 {
+pub(crate) fn madd<const FMA: bool>(c: f64, x: f64, acc: f64) -> f64 {
     if FMA {
         c.mul_add(x, acc)
     } else {
@@ -131,7 +131,7 @@ fn sums<const FMA: bool>(x: &mut [f64], u: &[f64], u_taps: &[(f64, usize)], y: &
 }
 
 /// Whether this CPU runs the AVX2 + FMA builds of the kernels.
-fn avx2_fma() -> bool {
+pub(crate) fn avx2_fma() -> bool {
     #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
     {
         std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")

@@ -24,6 +24,8 @@ use crate::sweep_columns::{envelope_rows, release, structures_of_rows, SweepColu
 mod py_procest;
 #[path = "py_srivc.rs"]
 mod py_srivc;
+#[path = "py_threshold_scan.rs"]
+mod py_threshold_scan;
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
@@ -929,6 +931,8 @@ mod core_module {
     use super::py_procest::{procest_refine, procest_simulate};
     #[pymodule_export]
     use super::py_srivc::srivc_filter;
+    #[pymodule_export]
+    use super::py_threshold_scan::threshold_products;
     #[pymodule_export]
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,

@@ -126,7 +126,7 @@ def test_threshold_shares_in_one_pass_equal_the_shares_one_by_one(collinear):
     """The scan scores forty thresholds from one pass over the regressors per block of rows; each
     share is the one :meth:`AddedVariableTest.share` gives for that threshold's columns alone."""
     from arxid.diagnosis.added_variable import AddedVariableTest
-    from arxid.models.effects import thresholded
+    from arxid.models.effects import thresholded, thresholded_products
 
     rng = np.random.default_rng(5)
     n = 40_000  # more than two blocks of rows
@@ -138,16 +138,32 @@ def test_threshold_shares_in_one_pass_equal_the_shares_one_by_one(collinear):
     y = phi @ [1.0, -0.5, 0.3, 0.0] + 0.4 * thresholded("dz", np.abs(lagged[:, 0]), np.sign(lagged[:, 0]), 0.7)
     test = AddedVariableTest(phi, y + 0.05 * rng.standard_normal(n))
     cs = np.linspace(0.1, 1.9, 40)
-    mag, sign = np.abs(lagged.T), np.sign(lagged.T)
+    for op in ("dz", "sat"):
+        batch = test.shares(lambda phi, e, op=op: thresholded_products(op, phi, e, lagged, cs), len(cs), 2)
+        one_by_one = [test.share(thresholded(op, np.abs(lagged), np.sign(lagged), c)) for c in cs]
+        assert batch is not None
+        np.testing.assert_allclose(batch, one_by_one, rtol=1e-9, atol=1e-15)
+        if op == "dz":
+            assert abs(cs[int(np.argmax(batch))] - 0.7) < 0.05  # the dead zone put in
 
-    def columns(lo, hi):
-        return np.vstack([thresholded("dz", mag[:, lo:hi], sign[:, lo:hi], c) for c in cs])
 
-    batch = test.shares(columns, len(cs), 2)
-    one_by_one = [test.share(thresholded("dz", np.abs(lagged), np.sign(lagged), c)) for c in cs]
-    assert batch is not None
-    np.testing.assert_allclose(batch, one_by_one, rtol=1e-9, atol=1e-15)
-    assert abs(cs[int(np.argmax(batch))] - 0.7) < 0.05  # the dead zone put in
+def test_threshold_products_equal_the_products_of_the_columns():
+    """The Rust core forms a scan's products without its columns; they are those of the columns
+    numpy forms, for both shapes, a zero sample and rows that are not a multiple of its chunks."""
+    from arxid.models.effects import thresholded, thresholded_products
+
+    rng = np.random.default_rng(3)
+    n = 20_011
+    a, e, lagged = rng.standard_normal((n, 3)), rng.standard_normal(n), rng.uniform(-2, 2, (n, 2))
+    lagged[5, 1] = 0.0
+    cs = np.array([0.0, 0.2, 1.0, 1.7, 3.0])
+    for op in ("dz", "sat"):
+        cross, zz = thresholded_products(op, a, e, lagged, cs)
+        for i, c in enumerate(cs):
+            z = thresholded(op, np.abs(lagged), np.sign(lagged), c)
+            want = np.column_stack([a, e]).T @ z
+            np.testing.assert_allclose(cross[:, 2 * i : 2 * i + 2], want, rtol=1e-11, atol=1e-9)
+            np.testing.assert_allclose(zz[i], z.T @ z, rtol=1e-11, atol=1e-9)
 
 
 @pytest.mark.parametrize("collinear", [False, True])

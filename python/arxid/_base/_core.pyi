@@ -39,6 +39,7 @@ __all__ = [
     "srivc_filter",
     "procest_refine",
     "procest_simulate",
+    "threshold_products",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -268,6 +269,9 @@ def csv_read(
 def srivc_filter(
     signal: _F, segments: Sequence[tuple[int, int]], phi: _F, prev: _F, cur: _F, next: _F, shift: int = 0
 ) -> _F: ...
+def threshold_products(
+    a: _F, e: _F, lagged: _F, thresholds: _F, dead_zone: bool, n_threads: int = 0
+) -> tuple[_F, _F]: ...
 
 _Process = tuple[int, bool, bool, bool, bool]
 

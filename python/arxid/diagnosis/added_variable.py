@@ -132,15 +132,20 @@ class AddedVariableTest:
         k = norms > 0
         return self._exact_share(z[:, k] / norms[k], ze[k] / norms[k])
 
-    def shares(self, columns: Callable[[int, int], np.ndarray], n_blocks: int, width: int) -> np.ndarray | None:
-        """:meth:`share` of many blocks of ``width`` columns at once, reading Φ once per block of rows
-        (a threshold scan tries some forty blocks; one product per block would read Φ forty times).
+    def shares(
+        self, products: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]], n_blocks: int, width: int
+    ) -> np.ndarray | None:
+        """:meth:`share` of many blocks of ``width`` columns at once, from their products with the
+        regressors formed in one pass (a threshold scan tries some forty blocks; one product per
+        block would read Φ forty times).
 
         Parameters
         ----------
-        columns : callable
-            ``columns(lo, hi)`` gives the blocks' columns on rows ``lo:hi``, transposed: shape
-            ``(n_blocks * width, hi - lo)``, block i in rows ``i * width`` to ``(i + 1) * width``.
+        products : callable
+            ``products(phi, e)`` gives ``(cross, zz)``: ``cross`` of shape ``(n_params + 1,
+            n_blocks * width)``, the products of ``[Φ | e]`` with every column (block i in columns
+            ``i * width`` to ``(i + 1) * width``), and ``zz`` of shape ``(n_blocks, width, width)``,
+            each block's own products.
         n_blocks, width : int
 
         Returns
@@ -153,20 +158,7 @@ class AddedVariableTest:
             return np.full(n_blocks, math.nan)
         if self._r is None:
             return None
-        m = n_blocks * width
-        cross, zz = np.zeros((self.p + 1, m)), np.zeros((n_blocks, width, width))
-        pairs = [(i, j) for i in range(width) for j in range(i, width)]
-        for lo in range(0, self.n, _SCAN_ROWS):
-            hi = min(lo + _SCAN_ROWS, self.n)
-            zt = columns(lo, hi)
-            pe = np.empty((hi - lo, self.p + 1))  # [Φ | e] of the block: one product gives Φ'z and e'z
-            pe[:, : self.p], pe[:, self.p] = self._phi[lo:hi], self.e[lo:hi]
-            cross += pe.T @ zt.T
-            z3 = zt.reshape(n_blocks, width, hi - lo)
-            for i, j in pairs:  # each block's own z'z: row-wise dot products, no n_blocks² product
-                zz[:, i, j] += np.einsum("cr,cr->c", z3[:, i], z3[:, j])
-        il, jl = np.tril_indices(width, -1)
-        zz[:, il, jl] = zz[:, jl, il]
+        cross, zz = products(self._phi, self.e)
         b, ze = self._projected(cross[: self.p]), cross[self.p]
         out = np.empty(n_blocks)
         for i in range(n_blocks):

@@ -19,7 +19,7 @@ from .._base.nested import BLOCK_ROWS, cholesky_factor, least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
-from ..models.effects import compile_effects, factor_series, format_threshold, parse_effect, thresholded
+from ..models.effects import compile_effects, factor_series, format_threshold, parse_effect, thresholded_products
 from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
@@ -165,16 +165,8 @@ class Scoring:
         x = np.asarray(self.data.signal(signal), dtype=float)
         lagged = x[self.rows0[:, None] - k - np.arange(b)]  # (rows, b): the columns' samples
         if b and np.isfinite(lagged).all():
-            magnitude, sign = np.abs(lagged.T), np.sign(lagged.T)
-            del lagged
-
-            def columns(lo: int, hi: int) -> np.ndarray:
-                zt = np.empty((len(cs), b, hi - lo))
-                for i, c in enumerate(thresholds):
-                    thresholded(op, magnitude[:, lo:hi], sign[:, lo:hi], c, out=zt[i])
-                return zt.reshape(len(cs) * b, hi - lo)
-
-            got = self.proj0.shares(columns, len(cs), b)
+            ts = np.array(thresholds, dtype=float)
+            got = self.proj0.shares(lambda phi, e: thresholded_products(op, phi, e, lagged, ts), len(cs), b)
             if got is not None:
                 return got
         return np.array([self._one_share(op, signal, float(c)) for c in cs])

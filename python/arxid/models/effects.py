@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 
@@ -53,6 +54,7 @@ __all__ = [
     "format_threshold",
     "factor_series",
     "thresholded",
+    "thresholded_products",
     "effect_names",
     "effect_series",
 ]
@@ -276,6 +278,45 @@ def thresholded(
         out = np.minimum(magnitude, c, out=out)
     out *= sign
     return out
+
+
+def thresholded_products(
+    op: str, a: np.ndarray, e: np.ndarray, lagged: np.ndarray, thresholds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The products of a threshold scan, without forming its columns: for every threshold c the
+    columns ``z_c = thresholded(op, |lagged|, sign(lagged), c)`` times ``[a | e]`` and times
+    themselves, in one pass over the rows (Rust core, all cores).
+
+    Parameters
+    ----------
+    op : {"dz", "sat"}
+    a : ndarray of shape (n_rows, k)
+        The columns each ``z_c`` is multiplied with (a model's regressors).
+    e : ndarray of shape (n_rows,)
+        One more such column (the model's residual).
+    lagged : ndarray of shape (n_rows, width)
+        The samples each of the ``width`` columns of ``z_c`` shapes, row by row.
+    thresholds : ndarray of shape (m,)
+
+    Returns
+    -------
+    cross : ndarray of shape (k + 1, m * width)
+        ``[a | e]' z_c`` for threshold i in columns ``i * width`` to ``(i + 1) * width``.
+    zz : ndarray of shape (m, width, width)
+        ``z_c' z_c`` for every threshold.
+
+    Examples
+    --------
+    >>> x = np.array([[-2.0], [0.5], [3.0]])
+    >>> cross, zz = thresholded_products("dz", np.ones((3, 1)), np.zeros(3), x, np.array([1.0]))
+    >>> cross.tolist(), zz.tolist()
+    ([[1.0], [0.0]], [[[5.0]]])
+    """
+    a, e, lagged = (np.ascontiguousarray(v, dtype=float) for v in (a, e, lagged))
+    cs = np.ascontiguousarray(thresholds, dtype=float)
+    cross, zz = _core.threshold_products(a, e, lagged, cs, op == "dz")
+    k, width, m = cross.shape
+    return cross.transpose(0, 2, 1).reshape(k, m * width), zz.transpose(2, 0, 1)
 
 
 def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
