@@ -295,3 +295,39 @@ def test_docs_table_lists_every_candidate():
     text = (Path(__file__).resolve().parents[1] / "docs" / "diagnostics.md").read_text(encoding="utf-8")
     for entry in CATALOGUE:
         assert f"`{entry.written}`" in text, entry.written
+
+
+def test_candidate_columns_read_off_one_effect_equal_the_regressor_columns():
+    """The scoring builds a one-effect candidate's columns from that effect's own column (or, for
+    an output term, from the output) instead of the input matrix of the model with it; they are the
+    regressor columns of that model, bit for bit, on a record of two experiments with a logged
+    signal, for a model that already has an effect."""
+    from arxid.diagnosis.extension import candidate_list, layout_for
+    from arxid.diagnosis.scoring import Scoring
+    from arxid.models.regressors import regressor_columns, regressor_names
+
+    rng = np.random.default_rng(4)
+    parts = []
+    for _ in range(2):
+        n = 1500
+        u, vbat = rng.uniform(-1, 1, (n, 2)), 11 + rng.standard_normal(n)
+        y = np.zeros(n)
+        for t in range(1, n):
+            y[t] = (
+                0.7 * y[t - 1] + 0.4 * u[t - 1, 0] * vbat[t - 1] / 11 + 0.2 * u[t - 1, 1] + 0.01 * rng.standard_normal()
+            )
+        parts.append(arxid.IOData(y + 1.0, u, ts=0.01, extra={"vbat": vbat}))
+    data = arxid.IOData.merge(parts)
+    model = arxid.ArxModel(na=2, nb=(2, 1), nk=(1, 2), effects=("u1*vbat",)).fit(data)
+    sc = Scoring(model, data, candidate_list("auto", model, data)[0])
+    read_off = 0
+    for c in sc.prepared:
+        z = sc._effect_columns(c)
+        if z is None:
+            continue
+        read_off += 1
+        lay = layout_for(c, model, data)[1]
+        names = regressor_names(data.output_name, c.na, lay)
+        new = [i for i, nm in enumerate(names) if nm not in sc.base_names]
+        np.testing.assert_array_equal(z, regressor_columns(data, c.na, lay, sc.rows0, new), err_msg=c.label)
+    assert read_off >= 10  # input effects, a logged signal, const/time and output terms

@@ -19,7 +19,15 @@ from .._base.nested import BLOCK_ROWS, cholesky_factor, least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
-from ..models.effects import compile_effects, factor_series, format_threshold, parse_effect, thresholded_products
+from ..models.effects import (
+    EffectLayout,
+    compile_effects,
+    factor_series,
+    format_threshold,
+    input_column,
+    parse_effect,
+    thresholded_products,
+)
 from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
@@ -38,6 +46,7 @@ class Scoring:
         self.base_names = set(regressor_names(data.output_name, model.na_, self.base_layout))
         lag = max(model.first_lag_, max_lag(model.na_, self.base_layout))
         self.prepared = []
+        self._lags: dict[str, EffectLayout] = {}  # each candidate's layout without samples
         self.scans: dict[str, list[Candidate]] = {}
         for c in cands:
             if c.kind == "scan":
@@ -48,6 +57,7 @@ class Scoring:
             except (OrderError, DataError) as exc:
                 self.notes[c.label] = str(exc)
                 continue
+            self._lags[c.label] = lay
             lag = max(lag, max_lag(c.na, lay))
             self.prepared.append(c)  # its columns are built when it is scored, one candidate at a time
         self.lag = lag
@@ -73,7 +83,13 @@ class Scoring:
             s["p_adj"] = float(pa)
         return scored, self.notes
 
-    def _columns(self, c: Candidate, lay) -> tuple[np.ndarray, np.ndarray]:
+    def _columns(self, c: Candidate) -> tuple[np.ndarray, np.ndarray]:
+        """The candidate's new columns and their rows: the model's rows unless its columns are
+        missing there. Raises DataError when its samples overflow."""
+        z = self._effect_columns(c)
+        if z is not None:
+            return z, self.rows0
+        lay = layout_for(c, self.model, self.data)[1]
         names = regressor_names(self.data.output_name, c.na, lay)
         new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         if max_lag(c.na, lay) <= self.lag:  # only the new columns, on the model's rows
@@ -81,8 +97,33 @@ class Scoring:
             if np.isfinite(z).all():
                 return z, self.rows0
         phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
-        new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         return phi[:, new], rows
+
+    def _effect_columns(self, c: Candidate) -> np.ndarray | None:
+        """The columns of a candidate that adds one effect, built without the input matrix of the
+        model with it (dozens of candidates are scored one at a time): an input-side effect's own
+        column (:func:`input_column`) at the lags of its layout, or an output term without a
+        carrier from the output alone. None when the candidate is not of that kind or a sample is
+        missing on the model's rows."""
+        lay = self._lags.get(c.label)
+        if c.kind != "effect" or lay is None or len(c.effects) != 1:
+            return None
+        col = input_column(c.effects[0], self.data)
+        if col is not None:
+            if lay.effect_of_column[-1] != parse_effect(c.effects[0], self.data).text:
+                return None
+            b, k = lay.nb[-1], lay.nk[-1]
+            z = np.empty((len(self.rows0), b))
+            for j in range(b):
+                z[:, j] = col[self.rows0 - k - j]
+        else:  # an output term: its columns read the output, and the inputs only for a carrier
+            names = regressor_names(self.data.output_name, c.na, lay)
+            new = [i for i, nm in enumerate(names) if nm not in self.base_names]
+            first_term = c.na + sum(lay.nb)
+            if any(i < first_term or lay.output_terms[i - first_term][2] >= 0 for i in new):
+                return None
+            z = regressor_columns(self.data, c.na, lay, self.rows0, new)
+        return z if np.isfinite(z).all() else None
 
     def _score_all(self) -> list[dict]:
         """Every prepared candidate scored, in order; those on the model's rows in groups that
@@ -107,11 +148,10 @@ class Scoring:
     def _columns_of(self, c: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
         """A candidate's new columns and their rows (None, with a note, when it has none)."""
         try:
-            lay = layout_for(c, self.model, self.data)[1]
+            z, rows = self._columns(c)
         except DataError as exc:  # its samples overflow
             self.notes[c.label] = str(exc)
             return None
-        z, rows = self._columns(c, lay)
         if z.shape[1] == 0:
             self.notes[c.label] = "adds no regressor"
             return None
@@ -343,7 +383,7 @@ class _Rebuilt(dict):
         assert sc is not None
         if recipe[0] == "candidate":
             c = recipe[1]
-            return sc._columns(c, layout_for(c, sc.model, sc.data)[1])[0]
+            return sc._columns(c)[0]
         return sc._threshold_columns(*recipe[1:])[1]
 
 
