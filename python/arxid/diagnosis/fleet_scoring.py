@@ -31,7 +31,7 @@ import numpy as np
 from ..exceptions import DataError
 from ..models.arx_model import ArxModel
 from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, holm, stripped_test
-from .extension import Candidate, layout_for
+from .extension import Candidate
 from .scoring import Scoring, scored_entry
 
 __all__ = ["FactorTest", "FleetStatistics", "combine_statistics", "share_statistics"]
@@ -66,7 +66,7 @@ def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones
     bounds = np.cumsum([0] + [s.n_est for s in share[2]])
     own: dict[str, tuple] = {}
     for c in sc.prepared:
-        z, rows = sc._columns(c, layout_for(c, model, est)[1])
+        z, rows = sc._columns(c)
         if z.shape[1] == 0:
             notes[c.label] = "adds no regressor"
             continue
