@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 import re
 import weakref
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
 
 import numpy as np
 
@@ -34,6 +36,8 @@ from .candidates import scan_threshold
 from .extension import Candidate, layout_for
 
 __all__ = ["Scoring", "scored_entry"]
+
+_Key = TypeVar("_Key")
 
 
 class Scoring:
@@ -127,23 +131,46 @@ class Scoring:
 
     def _score_all(self) -> list[dict]:
         """Every prepared candidate scored, in order; those on the model's rows in groups that
-        share one pass over the regressors (:meth:`AddedVariableTest.tests`), the group's columns
-        bounded by :data:`_GROUP_BYTES`."""
+        share one pass over the regressors (:meth:`_grouped_tests`)."""
         slots: list[dict | None] = []
-        group: list[tuple[int, Candidate, np.ndarray]] = []
-        budget = max(1, _GROUP_BYTES // (8 * max(len(self.rows0), 1)))
-        for c in self.prepared:
-            got = self._columns_of(c)
-            if got is not None and len(got[1]) == len(self.rows0) and np.array_equal(got[1], self.rows0):
-                group.append((len(slots), c, got[0]))
-                slots.append(None)
-                if sum(g[2].shape[1] for g in group) >= budget:
-                    self._score_group(group, slots)
-                    group = []
-            elif got is not None:
-                slots.append(self._score_on_common_rows(c, *got))
-        self._score_group(group, slots)
+
+        def on_model_rows() -> Iterator[tuple[tuple[int, Candidate], np.ndarray]]:
+            for c in self.prepared:
+                got = self._columns_of(c)
+                if got is not None and len(got[1]) == len(self.rows0) and np.array_equal(got[1], self.rows0):
+                    slots.append(None)
+                    yield (len(slots) - 1, c), got[0]
+                elif got is not None:
+                    slots.append(self._score_on_common_rows(c, *got))
+
+        for (i, c), res, why in self._grouped_tests(on_model_rows()):
+            if res is None:
+                self.notes[c.label] = why
+                continue
+            self.single_z.keep(c.label, ("candidate", c))
+            slots[i] = scored_entry(c, res)
         return [s for s in slots if s is not None]
+
+    def _grouped_tests(
+        self, blocks: Iterable[tuple[_Key, np.ndarray]]
+    ) -> Iterator[tuple[_Key, AddedVariableResult | None, str]]:
+        """Each block's test against the model's regressors, as ``(key, result, why)``: the blocks
+        are tested in groups that read the regressors once per block of rows
+        (:meth:`AddedVariableTest.tests`), each group's columns within :data:`_GROUP_BYTES`."""
+        budget = max(1, _GROUP_BYTES // (8 * max(len(self.rows0), 1)))
+        group: list[tuple[_Key, np.ndarray]] = []
+        for key, z in blocks:
+            group.append((key, z))
+            if sum(g[1].shape[1] for g in group) >= budget:
+                yield from self._group_tested(group)
+                group = []
+        yield from self._group_tested(group)
+
+    def _group_tested(
+        self, group: list[tuple[_Key, np.ndarray]]
+    ) -> Iterator[tuple[_Key, AddedVariableResult | None, str]]:
+        for (key, _), (res, why) in zip(group, self.proj0.tests([z for _, z in group])):
+            yield key, res, why
 
     def _columns_of(self, c: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
         """A candidate's new columns and their rows (None, with a note, when it has none)."""
@@ -156,14 +183,6 @@ class Scoring:
             self.notes[c.label] = "adds no regressor"
             return None
         return z, rows
-
-    def _score_group(self, group: list[tuple[int, Candidate, np.ndarray]], slots: list[dict | None]) -> None:
-        for (i, c, _), (res, why) in zip(group, self.proj0.tests([z for _, _, z in group])):
-            if res is None:
-                self.notes[c.label] = why
-                continue
-            self.single_z.keep(c.label, ("candidate", c))
-            slots[i] = scored_entry(c, res)
 
     def _score_on_common_rows(self, c: Candidate, z: np.ndarray, rows: np.ndarray) -> dict | None:
         """A candidate with missing samples: tested on the rows both it and the model have."""
@@ -348,13 +367,10 @@ class Scoring:
             key=lambda s: s["p"],
         )
         have = {s["c"].label for s in scored}
+        pairs = [s["c"] for s in strong[:n_pairs] if f"{s['c'].label}+const" not in have]
+        blocks = ((c, np.column_stack([self.single_z[c.label], np.ones(len(self.rows0))])) for c in pairs)
         out = []
-        for s in strong[:n_pairs]:
-            c = s["c"]
-            if f"{c.label}+const" in have:
-                continue
-            z = np.column_stack([self.single_z[c.label], np.ones(len(self.rows0))])
-            res, _ = self.proj0.test(z)
+        for c, res, _ in self._grouped_tests(blocks):
             if res is not None:
                 pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
                 out.append(scored_entry(pc, res))
