@@ -331,3 +331,26 @@ def test_candidate_columns_read_off_one_effect_equal_the_regressor_columns():
         new = [i for i, nm in enumerate(names) if nm not in sc.base_names]
         np.testing.assert_array_equal(z, regressor_columns(data, c.na, lay, sc.rows0, new), err_msg=c.label)
     assert read_off >= 10  # input effects, a logged signal, const/time and output terms
+
+
+@pytest.mark.parametrize("collinear", [False, True])
+def test_coefficients_from_cross_products_equal_the_least_squares_fit(collinear):
+    """The coefficients of y on [Φ | z] from the partitioned normal equations are numpy's lstsq
+    fit; ill-conditioned blocks give None (the caller fits the columns themselves)."""
+    from arxid.diagnosis.added_variable import AddedVariableTest
+
+    rng = np.random.default_rng(8)
+    n = 5000
+    phi = rng.standard_normal((n, 4)) * [1.0, 100.0, 0.01, 1.0]
+    if collinear:
+        phi[:, 3] = phi[:, 0] - 2.0 * phi[:, 1]
+    z = np.column_stack([np.maximum(phi[:, 0], 0.0), rng.standard_normal(n)])
+    y = phi @ [1.0, -0.5, 30.0, 0.2] + z @ [0.7, -0.1] + 0.05 * rng.standard_normal(n)
+    test = AddedVariableTest(phi, y)
+    got = test.coefficients(z)
+    if collinear:
+        assert got is None  # the rank-deficient regressors: the caller fits
+        return
+    want = np.linalg.lstsq(np.column_stack([phi, z]), y, rcond=None)[0]
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    assert test.coefficients(np.column_stack([phi[:, 1], z[:, 0]])) is None  # a column the model has

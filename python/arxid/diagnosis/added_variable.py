@@ -67,9 +67,13 @@ class AddedVariableTest:
         # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
         # the residual is refined once. Otherwise Householder QR, as accurate as it gets.
         self._r = self._cholesky(phi, scale)
+        self._theta: np.ndarray | None = None
         if self._r is not None:
-            self.e = y - phi @ self._solve(phi.T @ y)
-            self.e = self.e - phi @ self._solve(phi.T @ self.e)
+            first = self._solve(phi.T @ y)
+            self.e = y - phi @ first
+            refined = self._solve(phi.T @ self.e)
+            self.e = self.e - phi @ refined
+            self._theta = first + refined
         else:  # ill-conditioned: R of [Φ | y] by Householder QR in blocks of rows (no n × p copy)
             self._keep, self._r, theta = _independent(blocked_r(phi, y, scale), phi.shape[1])
             if self._r is not None:
@@ -250,6 +254,34 @@ class AddedVariableTest:
             self._tested(z, b[:, a:e], zz[i], cross[self.p, a:e])
             for i, (z, a, e) in enumerate(zip(blocks, edges[:-1], edges[1:]))
         ]
+
+    def coefficients(self, z: np.ndarray) -> np.ndarray | None:
+        """Least-squares coefficients of y on ``[Φ | z]`` (Φ's first) from the cross-products, by
+        the partitioned normal equations: one pass over the rows, no n × (p + q) copy.
+
+        Parameters
+        ----------
+        z : ndarray of shape (n_rows, q)
+
+        Returns
+        -------
+        ndarray of shape (n_params + q,) or None
+            None when Φ or the stripped block is ill-conditioned (then fit ``[Φ | z]`` itself).
+        """
+        from scipy.linalg import solve_triangular
+
+        if self._theta is None or self._keep is not None:
+            return None
+        b, zz, ze = self._cross(z)
+        g = zz - b.T @ b  # z̃'z̃, with z̃ = z stripped of Φ
+        d = np.sqrt(np.maximum(np.diag(g), 0.0))
+        if d.min() <= 1e-4 * max(float(np.sqrt(np.max(np.diag(zz)))), 1e-300):
+            return None
+        if np.linalg.eigvalsh(g / np.outer(d, d)).min() <= 1e-8:
+            return None
+        gamma = np.linalg.solve(g, ze)
+        fitted_z = solve_triangular(self._r, b) / self._scale[:, None]  # Φ⁺z
+        return np.concatenate([self._theta - fitted_z @ gamma, gamma])
 
     def _projected(self, phi_z: np.ndarray) -> np.ndarray:
         """Q'z from Φ'z (R⁻ᵀ of the scaled products, on the independent columns)."""

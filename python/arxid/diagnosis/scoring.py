@@ -30,7 +30,7 @@ from ..models.effects import (
     parse_effect,
     thresholded_products,
 )
-from ..models.regressors import max_lag, regressor_columns, regressor_matrix, regressor_names
+from ..models.regressors import lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
@@ -71,6 +71,7 @@ class Scoring:
                 f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
             )
         self.proj0 = AddedVariableTest(self.phi0, self.y0)
+        self.lagged = lagger(self.rows0)  # x[rows0 - lag], a slice when the rows are consecutive
         # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
         # are formed from a few of them): holding every candidate's columns would cost a copy of
         # the record per candidate.
@@ -119,7 +120,7 @@ class Scoring:
             b, k = lay.nb[-1], lay.nk[-1]
             z = np.empty((len(self.rows0), b))
             for j in range(b):
-                z[:, j] = col[self.rows0 - k - j]
+                z[:, j] = self.lagged(col, k + j)
         else:  # an output term: its columns read the output, and the inputs only for a carrier
             names = regressor_names(self.data.output_name, c.na, lay)
             new = [i for i, nm in enumerate(names) if nm not in self.base_names]
@@ -212,7 +213,7 @@ class Scoring:
         col = factor_series(parse_effect(label, self.data).factors[0], self.data)
         z = np.empty((len(self.rows0), b))
         for j in range(b):
-            z[:, j] = col[self.rows0 - k - j]
+            z[:, j] = self.lagged(col, k + j)
         return cand, z
 
     def _threshold_shares(self, op: str, signal: str, cs: np.ndarray) -> np.ndarray:
@@ -222,7 +223,9 @@ class Scoring:
         labels = [f"{op}({signal},{format_threshold(c)})" for c in cs]
         thresholds = [parse_effect(lab, self.data).factors[0].threshold for lab in labels]
         x = np.asarray(self.data.signal(signal), dtype=float)
-        lagged = x[self.rows0[:, None] - k - np.arange(b)]  # (rows, b): the columns' samples
+        lagged = np.empty((len(self.rows0), b))  # the columns' samples
+        for j in range(b):
+            lagged[:, j] = self.lagged(x, k + j)
         if b and np.isfinite(lagged).all():
             ts = np.array(thresholds, dtype=float)
             got = self.proj0.shares(lambda phi, e: thresholded_products(op, phi, e, lagged, ts), len(cs), b)
@@ -276,7 +279,9 @@ class Scoring:
             base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
             own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
             z = self.single_z[label]
-            coef = least_squares(np.column_stack([self.phi0, z]), self.y0)
+            coef = self.proj0.coefficients(z)
+            if coef is None:  # ill-conditioned: the fit itself
+                coef = least_squares(np.column_stack([self.phi0, z]), self.y0)
             negative = float(np.sum(coef[own]))
             positive = negative + float(np.sum(coef[self.phi0.shape[1] :]))
             drop.add(f"abs({sig})" if positive * negative >= 0 else label)

@@ -22,6 +22,7 @@ __all__ = [
     "regressor_names",
     "regressor_matrix",
     "regressor_columns",
+    "lagger",
     "max_lag",
     "row_bound",
 ]
@@ -204,7 +205,7 @@ def _columns(
     u = layout.u
     s = -1.0 if signs else 1.0
     at = -1
-    lagged = _lagger(rows)
+    lagged = lagger(rows)
 
     def wanted() -> bool:
         nonlocal at
@@ -261,9 +262,26 @@ def output_term_values(kind: str, power: int, y1: np.ndarray, y2: Callable[[], n
     return np.sign(y1 - y2())
 
 
-def _lagger(rows: np.ndarray):
+def lagger(rows: np.ndarray) -> Callable[[np.ndarray, int], np.ndarray]:
     """``lagged(x, lag)``: the samples ``x[rows - lag]``; a view of ``x`` when the rows are one run of
-    consecutive samples (the usual case: one experiment without gaps), else a gather."""
+    consecutive samples (the usual case: one experiment without gaps), else a gather.
+
+    Parameters
+    ----------
+    rows : ndarray of int
+        Sample index of each row.
+
+    Returns
+    -------
+    callable
+        ``lagged(x, lag)`` for a signal ``x`` and a lag.
+
+    Examples
+    --------
+    >>> lagged = lagger(np.array([2, 3, 4]))
+    >>> lagged(np.arange(10.0), 2).tolist()
+    [0.0, 1.0, 2.0]
+    """
     n = len(rows)
     if n and rows[-1] - rows[0] == n - 1 and bool(np.all(np.diff(rows) == 1)):
         first = int(rows[0])
