@@ -17,7 +17,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from .._base.nested import BLOCK_ROWS, cholesky_factor, least_squares
+from .._base.nested import cholesky_factor, least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.arx_model import ArxModel
@@ -72,6 +72,7 @@ class Scoring:
             )
         self.proj0 = AddedVariableTest(self.phi0, self.y0)
         self.lagged = lagger(self.rows0)  # x[rows0 - lag], a slice when the rows are consecutive
+        self._phi_y_gram: np.ndarray | None = None
         # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
         # are formed from a few of them): holding every candidate's columns would cost a copy of
         # the record per candidate.
@@ -222,16 +223,22 @@ class Scoring:
         b, k = self._threshold_lag(op, signal)
         labels = [f"{op}({signal},{format_threshold(c)})" for c in cs]
         thresholds = [parse_effect(lab, self.data).factors[0].threshold for lab in labels]
-        x = np.asarray(self.data.signal(signal), dtype=float)
-        lagged = np.empty((len(self.rows0), b))  # the columns' samples
-        for j in range(b):
-            lagged[:, j] = self.lagged(x, k + j)
+        lagged = self._threshold_samples(signal, b, k)
         if b and np.isfinite(lagged).all():
             ts = np.array(thresholds, dtype=float)
             got = self.proj0.shares(lambda phi, e: thresholded_products(op, phi, e, lagged, ts), len(cs), b)
             if got is not None:
                 return got
         return np.array([self._one_share(op, signal, float(c)) for c in cs])
+
+    def _threshold_samples(self, signal: str, b: int, k: int) -> np.ndarray:
+        """The samples of ``signal`` each of a threshold effect's ``b`` columns shapes, on the
+        model's rows: ``(rows, b)``."""
+        x = np.asarray(self.data.signal(signal), dtype=float)
+        lagged = np.empty((len(self.rows0), b))
+        for j in range(b):
+            lagged[:, j] = self.lagged(x, k + j)
+        return lagged
 
     def _one_share(self, op: str, signal: str, c: float) -> float:
         z = self._threshold_columns(op, signal, c)[1]
@@ -295,34 +302,44 @@ class Scoring:
             return "dz"
         base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
         keep = [j for j, nm in enumerate(base) if not nm.startswith(f"{names[idx]}(")]
-        zs = {op: self._threshold_columns(op, signal, c)[1] for op in ("dz", "sat")}
-        rss = self._shape_rss(keep, zs)
+        rss = {op: self._shape_rss(op, keep, signal, c) for op in ("dz", "sat")}
         return min(rss, key=lambda k: rss[k])
 
-    def _shape_rss(self, keep: list[int], zs: dict[str, np.ndarray]) -> dict[str, float]:
-        """Residual sum of squares of y on the model's ``keep`` regressors and each shape's columns:
-        from the cross products of ``[Φ | z_dz | z_sat | y]`` (one pass over the rows) when they are
-        well conditioned, else from a fit of each."""
-        p, b = self.phi0.shape[1], zs["dz"].shape[1]
-        width = p + 2 * b + 1
-        gram = np.zeros((width, width))
-        for lo in range(0, len(self.rows0), BLOCK_ROWS):
-            hi = min(lo + BLOCK_ROWS, len(self.rows0))
-            a = np.empty((hi - lo, width))
-            a[:, :p], a[:, p : p + b], a[:, p + b : -1] = self.phi0[lo:hi], zs["dz"][lo:hi], zs["sat"][lo:hi]
-            a[:, -1] = self.y0[lo:hi]
-            gram += a.T @ a
-        rss = {}
-        for i, op in enumerate(("dz", "sat")):
-            sel = keep + list(range(p + i * b, p + (i + 1) * b)) + [width - 1]
+    def _shape_rss(self, op: str, keep: list[int], signal: str, c: float) -> float:
+        """Residual sum of squares of y on the model's ``keep`` regressors and the columns of
+        ``op(signal, c)``: from the cross products of ``[Φ | z | y]`` (one pass over the rows, the
+        columns never formed) when they are well conditioned, else from the fit itself."""
+        p = self.phi0.shape[1]
+        b, k = self._threshold_lag(op, signal)
+        lagged = self._threshold_samples(signal, b, k)
+        threshold = parse_effect(f"{op}({signal},{format_threshold(c)})", self.data).factors[0].threshold
+        r = None
+        if np.isfinite(lagged).all():
+            cross, zz = thresholded_products(op, self.phi0, self.y0, lagged, np.array([threshold]))
+            gram = np.empty((p + b + 1, p + b + 1))  # [Φ | z | y]'[Φ | z | y]
+            gram[np.ix_(range(p), range(p))] = self._gram[:p, :p]
+            gram[:p, -1] = gram[-1, :p] = self._gram[:p, p]
+            gram[-1, -1] = self._gram[p, p]
+            gram[:p, p:-1], gram[-1, p:-1] = cross[:p], cross[p]
+            gram[p:-1, :p], gram[p:-1, -1] = cross[:p].T, cross[p]
+            gram[p:-1, p:-1] = zz[0]
+            sel = keep + list(range(p, p + b + 1))
             r = cholesky_factor(gram[np.ix_(sel, sel)], 1e-10)
-            if r is None:  # ill-conditioned: the fit itself
-                x = np.empty((len(self.rows0), len(keep) + b))
-                x[:, : len(keep)], x[:, len(keep) :] = self.phi0[:, keep], zs[op]
-                rss[op] = float(np.sum((self.y0 - x @ least_squares(x, self.y0)) ** 2))
-            else:
-                rss[op] = float(r[-1, -1] ** 2)
-        return rss
+        if r is not None:
+            return float(r[-1, -1] ** 2)
+        x = np.column_stack([self.phi0[:, keep], self._threshold_columns(op, signal, c)[1]])
+        return float(np.sum((self.y0 - x @ least_squares(x, self.y0)) ** 2))
+
+    @property
+    def _gram(self) -> np.ndarray:
+        """``[Φ | y]'[Φ | y]`` of the model's rows (formed when first asked for)."""
+        if self._phi_y_gram is None:
+            p = self.phi0.shape[1]
+            g = np.empty((p + 1, p + 1))
+            g[:p, :p], g[:p, p], g[p, p] = self.phi0.T @ self.phi0, self.phi0.T @ self.y0, self.y0 @ self.y0
+            g[p, :p] = g[:p, p]
+            self._phi_y_gram = g
+        return self._phi_y_gram
 
     def masked_pairs(self, scored: list[dict], alpha: float, n_partners: int = 3) -> list[dict]:
         """Pairs for two effects that hide each other (each alone barely lowers the free-run error).
