@@ -238,22 +238,18 @@ class AddedVariableTest:
             return [(None, _EXACT) for _ in blocks]
         if self._r is None or len(blocks) < 2:
             return [self.test(z) for z in blocks]
-        edges = np.cumsum([0] + [z.shape[1] for z in blocks])
-        cross = np.zeros((self.p + 1, edges[-1]))
-        zz = [np.zeros((w, w)) for w in np.diff(edges)]
-        for lo in range(0, self.n, _SCAN_ROWS):
+        pz = [np.zeros((self.p, z.shape[1])) for z in blocks]
+        ze = [np.zeros(z.shape[1]) for z in blocks]
+        zz = [np.zeros((z.shape[1], z.shape[1])) for z in blocks]
+        for lo in range(0, self.n, _SCAN_ROWS):  # the block of Φ stays in cache for every z
             hi = min(lo + _SCAN_ROWS, self.n)
-            zb = np.concatenate([z[lo:hi] for z in blocks], axis=1)
-            pe = np.empty((hi - lo, self.p + 1))  # [Φ | e] of the block: one product gives Φ'z and e'z
-            pe[:, : self.p], pe[:, self.p] = self._phi[lo:hi], self.e[lo:hi]
-            cross += pe.T @ zb
-            for i, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-                zz[i] += zb[:, a:b].T @ zb[:, a:b]
-        b = self._projected(cross[: self.p])
-        return [
-            self._tested(z, b[:, a:e], zz[i], cross[self.p, a:e])
-            for i, (z, a, e) in enumerate(zip(blocks, edges[:-1], edges[1:]))
-        ]
+            phi, e = self._phi[lo:hi], self.e[lo:hi]
+            for i, z in enumerate(blocks):
+                zb = z[lo:hi]
+                pz[i] += phi.T @ zb
+                ze[i] += e @ zb
+                zz[i] += zb.T @ zb
+        return [self._tested(z, self._projected(pz[i]), zz[i], ze[i]) for i, z in enumerate(blocks)]
 
     def coefficients(self, z: np.ndarray) -> np.ndarray | None:
         """Least-squares coefficients of y on ``[Φ | z]`` (Φ's first) from the cross-products, by
