@@ -317,20 +317,20 @@ def test_candidate_columns_read_off_one_effect_equal_the_regressor_columns():
                 0.7 * y[t - 1] + 0.4 * u[t - 1, 0] * vbat[t - 1] / 11 + 0.2 * u[t - 1, 1] + 0.01 * rng.standard_normal()
             )
         parts.append(arxid.IOData(y + 1.0, u, ts=0.01, extra={"vbat": vbat}))
-    data = arxid.IOData.merge(parts)
-    model = arxid.ArxModel(na=2, nb=(2, 1), nk=(1, 2), effects=("u1*vbat",)).fit(data)
-    sc = Scoring(model, data, candidate_list("auto", model, data)[0])
-    read_off = 0
-    for c in sc.prepared:
-        z = sc._effect_columns(c)
-        if z is None:
-            continue
-        read_off += 1
-        lay = layout_for(c, model, data)[1]
-        names = regressor_names(data.output_name, c.na, lay)
-        new = [i for i, nm in enumerate(names) if nm not in sc.base_names]
-        np.testing.assert_array_equal(z, regressor_columns(data, c.na, lay, sc.rows0, new), err_msg=c.label)
-    assert read_off >= 10  # input effects, a logged signal, const/time and output terms
+    for data in (arxid.IOData.merge(parts), parts[0]):  # rows gathered, and rows as strided views
+        model = arxid.ArxModel(na=2, nb=(2, 1), nk=(1, 2), effects=("u1*vbat",)).fit(data)
+        sc = Scoring(model, data, candidate_list("auto", model, data)[0])
+        read_off = 0
+        for c in sc.prepared:
+            z = sc._effect_columns(c)
+            if z is None:
+                continue
+            read_off += 1
+            lay = layout_for(c, model, data)[1]
+            names = regressor_names(data.output_name, c.na, lay)
+            new = [i for i, nm in enumerate(names) if nm not in sc.base_names]
+            np.testing.assert_array_equal(z, regressor_columns(data, c.na, lay, sc.rows0, new), err_msg=c.label)
+        assert read_off >= 10  # input effects, a logged signal, const/time and output terms
 
 
 @pytest.mark.parametrize("collinear", [False, True])

@@ -163,7 +163,8 @@ class AddedVariableTest:
         if self._r is None:
             return None
         cross, zz = products(self._phi, self.e)
-        b, ze = self._projected(cross[: self.p]), cross[self.p]
+        k = self._phi.shape[1]  # the regressors' columns (p may count more, for the degrees of freedom)
+        b, ze = self._projected(cross[:k]), cross[k]
         out = np.empty(n_blocks)
         for i in range(n_blocks):
             sl = slice(i * width, (i + 1) * width)
@@ -199,8 +200,10 @@ class AddedVariableTest:
 
     def _cross(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q'z, z'z and z'e: all a test needs of the n rows (z'e = z̃'e, as Q'e = 0)."""
-        b = self.q.T @ z if self._r is None else self._projected(self._phi.T @ z)
-        return b, z.T @ z, z.T @ self.e
+        if self._r is None:
+            return self.q.T @ z, z.T @ z, z.T @ self.e
+        pz, zz, ze = self._products([z])[0]
+        return self._projected(pz), zz, ze
 
     def test(self, z: np.ndarray) -> tuple[AddedVariableResult | None, str]:
         """Test the columns ``z`` (rows aligned with ``phi``).
@@ -236,20 +239,25 @@ class AddedVariableTest:
         """
         if self.exact:
             return [(None, _EXACT) for _ in blocks]
-        if self._r is None or len(blocks) < 2:
+        if self._r is None:
             return [self.test(z) for z in blocks]
-        pz = [np.zeros((self.p, z.shape[1])) for z in blocks]
+        return [self._tested(z, self._projected(pz), zz, ze) for z, (pz, zz, ze) in zip(blocks, self._products(blocks))]
+
+    def _products(self, blocks: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Φ'z, z'z and z'e of every block, by blocks of rows: the rows of Φ stay in cache for every
+        z, and a z that is a strided view of a signal (lagged samples) is copied a block at a time."""
+        pz = [np.zeros((self._phi.shape[1], z.shape[1])) for z in blocks]
         ze = [np.zeros(z.shape[1]) for z in blocks]
         zz = [np.zeros((z.shape[1], z.shape[1])) for z in blocks]
-        for lo in range(0, self.n, _SCAN_ROWS):  # the block of Φ stays in cache for every z
+        for lo in range(0, self.n, _SCAN_ROWS):
             hi = min(lo + _SCAN_ROWS, self.n)
             phi, e = self._phi[lo:hi], self.e[lo:hi]
             for i, z in enumerate(blocks):
-                zb = z[lo:hi]
+                zb = np.ascontiguousarray(z[lo:hi])
                 pz[i] += phi.T @ zb
                 ze[i] += e @ zb
                 zz[i] += zb.T @ zb
-        return [self._tested(z, self._projected(pz[i]), zz[i], ze[i]) for i, z in enumerate(blocks)]
+        return list(zip(pz, zz, ze))
 
     def coefficients(self, z: np.ndarray) -> np.ndarray | None:
         """Least-squares coefficients of y on ``[Φ | z]`` (Φ's first) from the cross-products, by

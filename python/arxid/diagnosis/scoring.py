@@ -72,6 +72,10 @@ class Scoring:
             )
         self.proj0 = AddedVariableTest(self.phi0, self.y0)
         self.lagged = lagger(self.rows0)  # x[rows0 - lag], a slice when the rows are consecutive
+        rows = self.rows0
+        consecutive = len(rows) > 0 and rows[-1] - rows[0] == len(rows) - 1 and bool(np.all(np.diff(rows) == 1))
+        self._first_row = int(rows[0]) if consecutive else None
+        self._samples: dict[tuple[str, int, int], np.ndarray] = {}  # one signal's, during its scan
         self._phi_y_gram: np.ndarray | None = None
         # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
         # are formed from a few of them): holding every candidate's columns would cost a copy of
@@ -118,10 +122,7 @@ class Scoring:
         if col is not None:
             if lay.effect_of_column[-1] != parse_effect(c.effects[0], self.data).text:
                 return None
-            b, k = lay.nb[-1], lay.nk[-1]
-            z = np.empty((len(self.rows0), b))
-            for j in range(b):
-                z[:, j] = self.lagged(col, k + j)
+            z = self._lag_columns(col, lay.nb[-1], lay.nk[-1])
         else:  # an output term: its columns read the output, and the inputs only for a carrier
             names = regressor_names(self.data.output_name, c.na, lay)
             new = [i for i, nm in enumerate(names) if nm not in self.base_names]
@@ -212,10 +213,7 @@ class Scoring:
         cand = Candidate(label, (label,), self.model.na_, self.model.nb_, self.model.nk_, "effect")
         b, k = self._threshold_lag(op, signal)
         col = factor_series(parse_effect(label, self.data).factors[0], self.data)
-        z = np.empty((len(self.rows0), b))
-        for j in range(b):
-            z[:, j] = self.lagged(col, k + j)
-        return cand, z
+        return cand, self._lag_columns(col, b, k)
 
     def _threshold_shares(self, op: str, signal: str, cs: np.ndarray) -> np.ndarray:
         """The share of every threshold in ``cs`` (NaN where it cannot be scored), all from one pass
@@ -233,12 +231,27 @@ class Scoring:
 
     def _threshold_samples(self, signal: str, b: int, k: int) -> np.ndarray:
         """The samples of ``signal`` each of a threshold effect's ``b`` columns shapes, on the
-        model's rows: ``(rows, b)``."""
-        x = np.asarray(self.data.signal(signal), dtype=float)
-        lagged = np.empty((len(self.rows0), b))
+        model's rows: ``(rows, b)``, C-ordered, kept for the scan of that signal."""
+        key = (signal, b, k)
+        if key not in self._samples:
+            x = np.asarray(self.data.signal(signal), dtype=float)
+            self._samples = {key: np.ascontiguousarray(self._lag_columns(x, b, k))}
+        return self._samples[key]
+
+    def _lag_columns(self, x: np.ndarray, b: int, k: int) -> np.ndarray:
+        """``(rows, b)``: column j holds ``x[rows0 - k - j]``. When the rows are consecutive it is
+        a read-only strided view of ``x`` (nothing copied: a test reads it a block of rows at a
+        time), else a gather."""
+        n = len(self.rows0)
+        if self._first_row is not None and self._first_row - k - (b - 1) >= 0 and x.ndim == 1:
+            x = np.ascontiguousarray(x)
+            step = x.strides[0]
+            start = x[self._first_row - k :]
+            return np.lib.stride_tricks.as_strided(start, shape=(n, b), strides=(step, -step), writeable=False)
+        z = np.empty((n, b))
         for j in range(b):
-            lagged[:, j] = self.lagged(x, k + j)
-        return lagged
+            z[:, j] = self.lagged(x, k + j)
+        return z
 
     def _one_share(self, op: str, signal: str, c: float) -> float:
         z = self._threshold_columns(op, signal, c)[1]
