@@ -157,8 +157,8 @@ def threshold_grid(x: np.ndarray) -> np.ndarray:
         Distinct positive thresholds, ascending (empty when |x| takes fewer than
         ``MIN_THRESHOLD_LEVELS`` values).
     """
-    a = np.abs(x[np.isfinite(x)])
-    if np.unique(a).size < MIN_THRESHOLD_LEVELS:
+    a = np.sort(np.abs(x[np.isfinite(x)]))  # one sort serves the count of levels and the quantiles
+    if a.size == 0 or 1 + np.count_nonzero(a[1:] != a[:-1]) < MIN_THRESHOLD_LEVELS:
         return np.zeros(0)
     q = np.unique(np.quantile(a, np.linspace(0.05, 0.95, 19)))
     return q[q > 0]
