@@ -22,10 +22,10 @@ use crate::sweep_columns::{envelope_rows, release, structures_of_rows, SweepColu
 
 #[path = "py_procest.rs"]
 mod py_procest;
+#[path = "py_scoring.rs"]
+mod py_scoring;
 #[path = "py_srivc.rs"]
 mod py_srivc;
-#[path = "py_threshold_scan.rs"]
-mod py_threshold_scan;
 
 pyo3::import_exception!(arxid.exceptions, ArxidError);
 pyo3::import_exception!(arxid.exceptions, DataError);
@@ -930,9 +930,9 @@ mod core_module {
     #[pymodule_export]
     use super::py_procest::{procest_refine, procest_simulate};
     #[pymodule_export]
-    use super::py_srivc::srivc_filter;
+    use super::py_scoring::{tested_products, threshold_products};
     #[pymodule_export]
-    use super::py_threshold_scan::threshold_products;
+    use super::py_srivc::srivc_filter;
     #[pymodule_export]
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,

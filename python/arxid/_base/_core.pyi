@@ -40,6 +40,7 @@ __all__ = [
     "procest_refine",
     "procest_simulate",
     "threshold_products",
+    "tested_products",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -272,6 +273,9 @@ def srivc_filter(
 def threshold_products(
     a: _F, e: _F, lagged: _F, thresholds: _F, dead_zone: bool, n_threads: int = 0
 ) -> tuple[_F, _F]: ...
+def tested_products(
+    a: _F, e: _F, blocks: Sequence[tuple[_F, int, bool]], n_threads: int = 0
+) -> list[tuple[_F, _F]]: ...
 
 _Process = tuple[int, bool, bool, bool, bool]
 

@@ -19,9 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base import _core
 from .._base.nested import blocked_r, column_norms
 
-__all__ = ["AddedVariableTest", "AddedVariableResult", "holm", "stripped_test"]
+__all__ = ["AddedVariableTest", "AddedVariableResult", "holm", "lagged_view", "stripped_test"]
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class AddedVariableTest:
         scale = column_norms(phi)
         scale[scale == 0] = 1.0
         self.n, self.p = phi.shape
-        self._phi, self._scale = phi, scale
+        self._phi, self._scale = np.ascontiguousarray(phi, dtype=float), scale
         self._q: np.ndarray | None = None
         self._keep: np.ndarray | None = None  # the independent columns (None: all)
         # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
@@ -244,20 +245,17 @@ class AddedVariableTest:
         return [self._tested(z, self._projected(pz), zz, ze) for z, (pz, zz, ze) in zip(blocks, self._products(blocks))]
 
     def _products(self, blocks: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Φ'z, z'z and z'e of every block, by blocks of rows: the rows of Φ stay in cache for every
-        z, and a z that is a strided view of a signal (lagged samples) is copied a block at a time."""
-        pz = [np.zeros((self._phi.shape[1], z.shape[1])) for z in blocks]
-        ze = [np.zeros(z.shape[1]) for z in blocks]
-        zz = [np.zeros((z.shape[1], z.shape[1])) for z in blocks]
-        for lo in range(0, self.n, _SCAN_ROWS):
-            hi = min(lo + _SCAN_ROWS, self.n)
-            phi, e = self._phi[lo:hi], self.e[lo:hi]
-            for i, z in enumerate(blocks):
-                zb = np.ascontiguousarray(z[lo:hi])
-                pz[i] += phi.T @ zb
-                ze[i] += e @ zb
-                zz[i] += zb.T @ zb
-        return list(zip(pz, zz, ze))
+        """Φ'z, z'z and z'e of every block, in one pass over the rows (Rust core): a z that is a
+        strided view of one signal's lags (see :func:`lagged_view`) is read off the signal, never
+        copied."""
+        k = self._phi.shape[1]
+        some = [z for z in blocks if z.shape[1]]
+        got = iter(_core.tested_products(self._phi, self.e, [_as_block(z) for z in some]) if some else ())
+        out = []
+        for z in blocks:
+            cross, zz = next(got) if z.shape[1] else (np.zeros((k + 1, 0)), np.zeros((0, 0)))
+            out.append((cross[:k], zz, cross[k]))
+        return out
 
     def coefficients(self, z: np.ndarray) -> np.ndarray | None:
         """Least-squares coefficients of y on ``[Φ | z]`` (Φ's first) from the cross-products, by
@@ -379,9 +377,43 @@ def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tupl
     return AddedVariableResult(math.sqrt(drss / rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
 
 
-#: Rows of one block of a batch of scores (:meth:`AddedVariableTest.shares`): 16k rows of some
-#: hundred columns stay within a few megabytes.
-_SCAN_ROWS = 16384
+def lagged_view(x: np.ndarray, first: int, width: int, n_rows: int) -> np.ndarray:
+    """``(n_rows, width)`` with column j holding ``x[first - j + r]`` for row r: a read-only strided
+    view of ``x``, nothing copied (the columns of a lagged candidate on consecutive rows).
+
+    Parameters
+    ----------
+    x : ndarray of shape (n_samples,)
+    first : int
+        The sample of row 0, column 0 (at least ``width - 1``).
+    width, n_rows : int
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> lagged_view(np.arange(6.0), 2, 2, 3).tolist()
+    [[2.0, 1.0], [3.0, 2.0], [4.0, 3.0]]
+    """
+    x = np.ascontiguousarray(x, dtype=float)
+    if first < width - 1 or first + n_rows > len(x):
+        raise ValueError(f"rows {first - width + 1} to {first + n_rows - 1} are outside the {len(x)} samples")
+    step = x.strides[0]
+    return np.lib.stride_tricks.as_strided(x[first:], shape=(n_rows, width), strides=(step, -step), writeable=False)
+
+
+def _as_block(z: np.ndarray) -> tuple[np.ndarray, int, bool]:
+    """A block as the core reads it: the signal behind a :func:`lagged_view` (or a contiguous single
+    column), else the C-ordered values."""
+    n, w = z.shape
+    step = z.itemsize
+    if z.dtype == np.float64 and w and z.strides[0] == step and (w == 1 or z.strides[1] == -step):
+        series = np.lib.stride_tricks.as_strided(z[:, w - 1 :], shape=(n + w - 1,), strides=(step,), writeable=False)
+        return series, w, True
+    return np.ascontiguousarray(z, dtype=float).ravel(), w, False
+
 
 _EXACT = "the model reproduces the output to rounding: nothing is left to explain"
 

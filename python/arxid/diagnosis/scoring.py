@@ -31,7 +31,7 @@ from ..models.effects import (
     thresholded_products,
 )
 from ..models.regressors import lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
-from .added_variable import AddedVariableResult, AddedVariableTest, holm
+from .added_variable import AddedVariableResult, AddedVariableTest, holm, lagged_view
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
 
@@ -244,10 +244,7 @@ class Scoring:
         time), else a gather."""
         n = len(self.rows0)
         if self._first_row is not None and self._first_row - k - (b - 1) >= 0 and x.ndim == 1:
-            x = np.ascontiguousarray(x)
-            step = x.strides[0]
-            start = x[self._first_row - k :]
-            return np.lib.stride_tricks.as_strided(start, shape=(n, b), strides=(step, -step), writeable=False)
+            return lagged_view(x, self._first_row - k, b, n)
         z = np.empty((n, b))
         for j in range(b):
             z[:, j] = self.lagged(x, k + j)
