@@ -211,13 +211,22 @@ def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: l
     rows = regression_rows(data, first)
     p = len(regressor_names(data.output_name, na, layout))
     design = np.empty((len(rows), p + len(lin_specs) + 1))
-    ok = np.empty(len(rows), dtype=bool)
+    ok = np.ones(len(rows), dtype=bool)
+    # Finite samples give finite regressors (an output term that overflows is refused when compiled):
+    # then no row is checked.
+    check = not (np.isfinite(data.y).all() and np.isfinite(layout.u).all())
     for lo in range(0, len(rows), DESIGN_ROWS):
         at, block = rows[lo : lo + DESIGN_ROWS], design[lo : lo + DESIGN_ROWS]
         write_regressors(block, data, na, layout, at)
+        a0, a1 = int(at[0]), int(at[-1])
         for j, (x, lag) in enumerate(lin_specs):
-            block[:, p + j] = x[at - lag]
+            if a1 - a0 == len(at) - 1:  # consecutive samples: a slice, not a gather
+                block[:, p + j] = x[a0 - lag : a1 + 1 - lag]
+            else:
+                block[:, p + j] = x[at - lag]
         block[:, -1] = 1.0
+        if not check:
+            continue
         good = np.isfinite(block).all(axis=1) & np.isfinite(data.y[at])
         for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
             good &= np.isfinite(x[at - lag]) & np.isfinite(x[at - lag - 1])
