@@ -70,6 +70,7 @@ class EnvelopeFactor:
         # (not every structure's whole input matrix). An output term is a column too: on the
         # estimation rows it is g(y(t-1))·s(t-1), a lag of its series.
         self.layouts = [compile_effects(eff, data, nb, nk, samples=False) for _, nb, nk, eff in self.structures]
+        self.given_first_lag = int(first_lag)
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
         self.inside = [r == self.first_lag for r in rows]
@@ -112,6 +113,41 @@ class EnvelopeFactor:
         bool
         """
         return self.inside[i]
+
+    def add(self, structure: Spec) -> int | None:
+        """Fit one more structure from the factor when the envelope holds it: its columns, lags
+        within the envelope's and the envelope's rows (the same fit to rounding as from the factor of
+        its own envelope, without another pass over the data).
+
+        Parameters
+        ----------
+        structure : (na, nb, nk, effects)
+
+        Returns
+        -------
+        int or None
+            Its index (for :meth:`solve`), None when the envelope does not hold it.
+        """
+        na, nb, nk, eff = structure
+        spec = (int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk), effect_names(eff))
+        try:
+            lay = compile_effects(spec[3], self.data, spec[1], spec[2], samples=False)
+        except ArxidError:
+            return None
+        have = set(self.labels)
+        if max(self.given_first_lag, max_lag(spec[0], lay)) != self.first_lag or spec[0] > self.envelope[0]:
+            return None
+        if any(label not in have for label in _labels(lay)):
+            return None
+        cols = _column_orders(lay, self.labels)
+        for b, k, b_env, k_env in zip(*cols, self.envelope[1], self.envelope[2], strict=True):
+            if b > 0 and (k < k_env or b + k > b_env + k_env):
+                return None
+        self.structures.append(spec)
+        self.layouts.append(lay)
+        self.inside.append(True)
+        self.columns.append(cols)
+        return len(self.structures) - 1
 
     def solve(self, i: int) -> tuple[EffectLayout, list[str], types.SimpleNamespace]:
         """The fit of structure ``i`` from the factor.
