@@ -201,7 +201,7 @@ def regressor_columns(
 
 #: Rows of the regressors written at a time: the input and output rows a block reads stay in cache
 #: while its columns (several lags of the same samples) are written.
-_BLOCK_ROWS = 8192
+_BLOCK_ROWS = 32768
 
 
 def _columns(
