@@ -50,12 +50,12 @@ __all__ = [
     "parse_effect",
     "EffectLayout",
     "compile_effects",
+    "layout_column",
     "format_threshold",
     "factor_series",
     "thresholded",
     "effect_names",
     "effect_series",
-    "layout_column",
 ]
 
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE]-?\d+)?"
@@ -510,45 +510,6 @@ def effect_series(text: str, data: IOData) -> np.ndarray:
     return prod
 
 
-def layout_column(label: str, data: IOData) -> np.ndarray:
-    """The samples of one column of a compiled layout, by its label (``EffectLayout.column_labels``):
-    an input, an input-derived effect or an output term's carrier, the values :func:`compile_effects`
-    puts in that column, without building the other columns.
-
-    Parameters
-    ----------
-    label : str
-        An input's name, an effect's text (``u1^2``, ``const``) or ``carrier:`` and an output term's
-        text (``carrier:y*u1``).
-    data : IOData
-
-    Returns
-    -------
-    ndarray of shape (n_samples,)
-        Read-only when it is the data's own input.
-
-    Raises
-    ------
-    DataError
-        When the column overflows the float range.
-
-    Examples
-    --------
-    >>> data = IOData(np.zeros(3), np.array([1.0, -2.0, 3.0]), 0.1)
-    >>> layout_column("u1^2", data).tolist(), layout_column("carrier:sign(y)*u1", data).tolist()
-    ([1.0, 4.0, 9.0], [1.0, -2.0, 3.0])
-    """
-    i = _input_index(label, data)
-    if i is not None:
-        return data.u[:, i]
-    text = label.removeprefix("carrier:")
-    e = parse_effect(text, data)
-    if e.special is not None:
-        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
-    prod = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
-    return np.array(prod, dtype=float)  # a copy: never the data's own samples
-
-
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
     """Product of the factors that do not involve the output (None when there are none), refusing
     overflow."""
@@ -589,3 +550,42 @@ def _check_output_term_once(text: str, kind: str, power: int, prod: np.ndarray |
         _check_range(text, g)
         if prod is not None:
             _check_range(text, g * prod)
+
+
+def layout_column(label: str, data: IOData) -> np.ndarray:
+    """The samples of one column of a compiled layout, by its label (``EffectLayout.column_labels``):
+    an input, an input-derived effect or an output term's carrier, the values :func:`compile_effects`
+    puts in that column, without building the other columns.
+
+    Parameters
+    ----------
+    label : str
+        An input's name, an effect's text (``u1^2``, ``const``) or ``carrier:`` and an output term's
+        text (``carrier:y*u1``).
+    data : IOData
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+        Read-only when it is the data's own input.
+
+    Raises
+    ------
+    DataError
+        When the column overflows the float range.
+
+    Examples
+    --------
+    >>> data = IOData(np.zeros(3), np.array([1.0, -2.0, 3.0]), 0.1)
+    >>> layout_column("u1^2", data).tolist(), layout_column("carrier:sign(y)*u1", data).tolist()
+    ([1.0, 4.0, 9.0], [1.0, -2.0, 3.0])
+    """
+    i = _input_index(label, data)
+    if i is not None:
+        return data.u[:, i]
+    text = label.removeprefix("carrier:")
+    e = parse_effect(text, data)
+    if e.special is not None:
+        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
+    prod = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
+    return np.array(prod, dtype=float)  # a copy: never the data's own samples
