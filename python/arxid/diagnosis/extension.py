@@ -163,9 +163,12 @@ class Refits:
         Estimation data.
     cands : sequence of Candidate
         The candidates that will be refitted.
+    reuse : Refits, optional
+        Refits of the same model and data whose envelope may hold these candidates too: then they
+        are fitted from its factor (no other pass over the data).
     """
 
-    def __init__(self, model: ArxModel, data: IOData, cands: Sequence[Candidate]):
+    def __init__(self, model: ArxModel, data: IOData, cands: Sequence[Candidate], reuse: Refits | None = None):
         self.model, self.data = model, data
         self.index: dict[str, int] = {}
         self.envelope: EnvelopeFactor | None = None
@@ -176,11 +179,26 @@ class Refits:
             if c.kind in ("effect", "pair", "dynamics") and c.label not in self.index:
                 self.index[c.label] = len(specs)
                 specs.append((c.na, c.nb, c.nk, _with(model, c)))
-        if len(specs) > 1:
+        if len(specs) > 1 and not self._from(reuse, specs):
             try:
                 self.envelope = EnvelopeFactor(data, specs, model.first_lag_)
             except ArxidError:  # gaps in the data, or an effect that cannot be compiled: one by one
                 self.envelope = None
+
+    def _from(self, reuse: Refits | None, specs: list[tuple]) -> bool:
+        """Fit every structure of ``specs`` from the factor of ``reuse`` (the same model and data)
+        when its envelope holds them all: no other pass over the data."""
+        env = reuse.envelope if reuse is not None else None
+        if env is None or reuse is None or reuse.model is not self.model or reuse.data is not self.data:
+            return False
+        if env.given_first_lag != self.model.first_lag_:
+            return False
+        at = [env.add(spec) for spec in specs]
+        if any(i is None for i in at):
+            return False
+        self.envelope = env
+        self.index = {label: at[i] for label, i in self.index.items()}  # type: ignore[misc]
+        return True
 
     def has(self, c) -> bool:
         """Whether candidate ``c`` is fitted from the shared factor.

@@ -80,7 +80,8 @@ class Judge:
         if self.shares_factor:  # the simple explanations too: every effect is compared with them
             m = self.model
             simple = [Candidate(n, (n,), m.na_, m.nb_, m.nk_, "effect") for n in SIMPLE_EXPLANATIONS]
-            self.shared = Refits(m, self.data, [scored[i]["c"] for i in sorted(chosen)] + simple)
+            # from the factor of the last refits when it holds these candidates (the masked pairs')
+            self.shared = Refits(m, self.data, [scored[i]["c"] for i in sorted(chosen)] + simple, self.shared)
         return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
@@ -195,7 +196,9 @@ class Judge:
             near = [s for s in sig if s.rms_sim_val_after <= (1.0 + TIE_SHARE) * top.rms_sim_val_after]
             top = min(near, key=lambda s: (self._added_parameters(s), s.rms_sim_val_after))
         if self.shares_factor and not isinstance(self.model, PolynomialModel):
-            self.shared = Refits(self.model, self.data, [self._with_top(s, top) for s in sig if s is not top])
+            # the pairs from the factor the suspects were refitted from, when it holds them
+            pairs = [self._with_top(s, top) for s in sig if s is not top]
+            self.shared = Refits(self.model, self.data, pairs, self.shared)
         return [s if not s.significant or s is top else self._given_top(s, top) for s in suspects]
 
     def _added_parameters(self, s: Suspect) -> int:

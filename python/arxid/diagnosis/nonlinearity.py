@@ -104,10 +104,12 @@ def _standardised(x: np.ndarray) -> np.ndarray:
     return (x - finite.mean()) / (finite.std() or 1.0)
 
 
-def _features(s: np.ndarray, rows: np.ndarray, lag: int, signed: bool) -> np.ndarray:
+def _features(s: np.ndarray, rows: np.ndarray, lag: int, signed: bool, buffer: np.ndarray | None = None) -> np.ndarray:
     """The nonlinear functions of the standardised signal ``s`` at ``lag`` on ``rows``, one column
-    each, written a block of rows at a time (in cache)."""
-    out = np.empty((len(rows), 5 if signed else 3))
+    each, written a block of rows at a time (in cache), into the start of ``buffer`` when given (one
+    array for every lag: its pages are not mapped again for each)."""
+    shape = (len(rows), 5 if signed else 3)
+    out = np.empty(shape) if buffer is None else buffer[: shape[0] * shape[1]].reshape(shape)
     for lo in range(0, len(rows), DESIGN_ROWS):
         at, block = rows[lo : lo + DESIGN_ROWS], out[lo : lo + DESIGN_ROWS]
         first, last = int(at[0]), int(at[-1])
@@ -178,11 +180,13 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     base = AddedVariableTest(*whiten(design, y_kept, inplace=True))  # the design is not needed again
     base.p += repeated
     del design
+    buffer = np.empty(len(kept) * 5)  # the functions of one lag at a time (the tests keep none)
     tested = [
         (name, lag, res)
         for name, x, lag, signed in specs
-        if (res := base.test(whiten(_features(x, kept, lag, signed), inplace=True)[0])[0]) is not None
+        if (res := base.test(whiten(_features(x, kept, lag, signed, buffer), inplace=True)[0])[0]) is not None
     ]
+    del buffer
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))
@@ -211,13 +215,22 @@ def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: l
     rows = regression_rows(data, first)
     p = len(regressor_names(data.output_name, na, layout))
     design = np.empty((len(rows), p + len(lin_specs) + 1))
-    ok = np.empty(len(rows), dtype=bool)
+    ok = np.ones(len(rows), dtype=bool)
+    # Finite samples give finite regressors (an output term that overflows is refused when compiled):
+    # then no row is checked.
+    check = not (np.isfinite(data.y).all() and np.isfinite(layout.u).all())
     for lo in range(0, len(rows), DESIGN_ROWS):
         at, block = rows[lo : lo + DESIGN_ROWS], design[lo : lo + DESIGN_ROWS]
         write_regressors(block, data, na, layout, at)
+        a0, a1 = int(at[0]), int(at[-1])
         for j, (x, lag) in enumerate(lin_specs):
-            block[:, p + j] = x[at - lag]
+            if a1 - a0 == len(at) - 1:  # consecutive samples: a slice, not a gather
+                block[:, p + j] = x[a0 - lag : a1 + 1 - lag]
+            else:
+                block[:, p + j] = x[at - lag]
         block[:, -1] = 1.0
+        if not check:
+            continue
         good = np.isfinite(block).all(axis=1) & np.isfinite(data.y[at])
         for _, x, lag, _signed in specs:  # the features are finite where the signal is, at lag and lag + 1
             good &= np.isfinite(x[at - lag]) & np.isfinite(x[at - lag - 1])

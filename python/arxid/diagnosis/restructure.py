@@ -227,7 +227,7 @@ def rechoose_structure(
     terms = bool(model.layout_.output_terms)
     current, tried = model, 0
     err_current = search.errors(current)
-    rms_first = _rms(err_current)
+    rms_first = rms_current = _rms(err_current)
     for _ in range(int(max_rounds)):
         orders = (current.na_, tuple(current.nb_), tuple(current.nk_))
         cands = _neighbours(orders)
@@ -237,7 +237,12 @@ def rechoose_structure(
         base = current if first_lag == current.first_lag_ else models[0]
         if base is None:
             break
-        err_base = search.errors(base)
+        # the current model's errors are known (a free run of the validation data costs a pass)
+        if base is current:
+            err_base, rms_base = err_current, rms_current
+        else:
+            err_base = search.errors(base)
+            rms_base = _rms(err_base)
         fitted = []
         for m in models[1:]:
             if m is None:
@@ -245,7 +250,7 @@ def rechoose_structure(
             err = search.errors(m)
             fitted.append((_rms(err), m, err))
         tried += len(fitted)
-        better = [f for f in fitted if _better(f[2], err_base, min_improvement)]
+        better = [f for f in fitted if _better(f[0], f[2], rms_base, err_base, min_improvement)]
         if not better:
             break
         lowest = min(better, key=lambda f: f[0])
@@ -257,13 +262,13 @@ def rechoose_structure(
         chosen = next((f for f in ranked if not search.flags(f[1]) - flags), None)
         if chosen is None:
             break
-        _, current, err_current = chosen
-    return Rechoice(current, model, rms_first, _rms(err_current), tried)
+        rms_current, current, err_current = chosen
+    return Rechoice(current, model, rms_first, rms_current, tried)
 
 
-def _better(err_new: np.ndarray, err_old: np.ndarray, min_improvement: float) -> bool:
-    """``err_new`` lower by ``min_improvement`` and ``err_old`` significantly larger (Diebold-Mariano)."""
-    new, old = _rms(err_new), _rms(err_old)
+def _better(new: float, err_new: np.ndarray, old: float, err_old: np.ndarray, min_improvement: float) -> bool:
+    """``err_new`` (RMS ``new``) lower by ``min_improvement`` than ``err_old`` (RMS ``old``: each
+    error's RMS is taken once) and ``err_old`` significantly larger (Diebold-Mariano)."""
     if not (math.isfinite(new) and new <= (1.0 - min_improvement) * old):
         return False
     return math.isinf(old) or diebold_mariano(err_old, err_new).worse

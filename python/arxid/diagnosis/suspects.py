@@ -35,13 +35,13 @@ re-diagnoses, and repeats — the error falls step by step.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .._base import metrics
-from ..checks import ResidualAnalysis, error_rms, prediction_error, residuals
+from ..checks import ResidualAnalysis, prediction_error, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model
@@ -221,19 +221,33 @@ class _Baseline:
 
 
 def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int, initial: str) -> _Baseline:
-    """The model's validation errors; a free run that drifts or diverges is measured k steps ahead."""
-    if horizon is None and output_integrates(model, _free_run_fit(model, validation)):
+    """The model's validation errors; a free run that drifts or diverges is measured k steps ahead.
+    Each prediction is made once (a free run of a long record is a pass over it) and measured as
+    :func:`arxid.checks.error_rms` measures it."""
+    made: dict[tuple[int | None, str], tuple[np.ndarray, bool]] = {}
+
+    def predicted(k: int | None, init: str) -> tuple[np.ndarray, bool]:
+        if (k, init) not in made:
+            pred, _, diverged = prediction_error(model, validation, k, init)
+            made[k, init] = (pred, diverged)
+        return made[k, init]
+
+    def rms(k: int | None, init: str) -> float:
+        pred, diverged = predicted(k, init)
+        return math.inf if diverged else metrics.prediction_rms(validation.y, pred)
+
+    if horizon is None and output_integrates(model, _free_run_fit(model, validation, predicted)):
         horizon = INTEGRATING_HORIZON
-    rms = error_rms(model, validation, horizon, initial)
-    if math.isnan(rms):  # no sample of the validation data has a prediction
+    base_rms = rms(horizon, initial)
+    if math.isnan(base_rms):  # no sample of the validation data has a prediction
         raise DataError(
             f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
             f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)"
         )
-    if horizon is None and math.isinf(rms):
+    if horizon is None and math.isinf(base_rms):
         horizon = INTEGRATING_HORIZON
-        rms = error_rms(model, validation, horizon, initial)
-    pred, _, _ = prediction_error(model, validation, horizon, initial)
+        base_rms = rms(horizon, initial)
+    pred, _ = predicted(horizon, initial)
     try:
         rtests = residuals(model, validation, max_lag=max_lag)
     except ArxidError:
@@ -242,15 +256,18 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
     if rtests is not None:
         rest = remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
     fit = metrics.fit_percent(validation.y, pred)
-    return _Baseline(horizon, rms, error_rms(model, validation, 1), fit, rtests, rest)
+    return _Baseline(horizon, base_rms, rms(1, "zero"), fit, rtests, rest)
 
 
-def _free_run_fit(model: ArxModel, validation: IOData) -> float | None:
+def _free_run_fit(
+    model: ArxModel, validation: IOData, predicted: Callable[[int | None, str], tuple[np.ndarray, bool]]
+) -> float | None:
     """The model's free-run fit on the validation data, percent (None when it diverges or has a
-    pole on or outside the unit circle: then there is no settling to speak of)."""
+    pole on or outside the unit circle: then there is no settling to speak of); ``predicted(k,
+    initial)`` gives (prediction, diverged)."""
     if not model.is_stable:
         return None
-    pred, _, diverged = prediction_error(model, validation, None)
+    pred, diverged = predicted(None, "zero")
     return None if diverged else metrics.fit_percent(validation.y, pred)
 
 

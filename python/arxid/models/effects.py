@@ -51,6 +51,7 @@ __all__ = [
     "parse_effect",
     "EffectLayout",
     "compile_effects",
+    "layout_column",
     "format_threshold",
     "factor_series",
     "thresholded",
@@ -599,10 +600,63 @@ def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray
     return prod
 
 
+#: Output terms whose values on a data set were found finite (a data set never changes).
+_TERMS_CHECKED: weakref.WeakKeyDictionary[IOData, set[str]] = weakref.WeakKeyDictionary()
+
+
 def _check_output_term(text: str, kind: str, power: int, prod: np.ndarray | None, data: IOData) -> None:
-    """The core evaluates an output term on y(t-1); refuse overflow on the measured output here."""
+    """The core evaluates an output term on y(t-1); refuse overflow on the measured output here
+    (once per term and data set: the diagnosis compiles the same term for every refit)."""
+    with _COMPILED_LOCK:
+        if text in _TERMS_CHECKED.get(data, ()):
+            return
+    _check_output_term_once(text, kind, power, prod, data)
+    with _COMPILED_LOCK:
+        _TERMS_CHECKED.setdefault(data, set()).add(text)
+
+
+def _check_output_term_once(text: str, kind: str, power: int, prod: np.ndarray | None, data: IOData) -> None:
     with np.errstate(over="ignore", invalid="ignore"):
         g = _apply(Factor("y", kind, power), data.y, data)
         _check_range(text, g)
         if prod is not None:
             _check_range(text, g * prod)
+
+
+def layout_column(label: str, data: IOData) -> np.ndarray:
+    """The samples of one column of a compiled layout, by its label (``EffectLayout.column_labels``):
+    an input, an input-derived effect or an output term's carrier, the values :func:`compile_effects`
+    puts in that column, without building the other columns.
+
+    Parameters
+    ----------
+    label : str
+        An input's name, an effect's text (``u1^2``, ``const``) or ``carrier:`` and an output term's
+        text (``carrier:y*u1``).
+    data : IOData
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+        Read-only when it is the data's own input.
+
+    Raises
+    ------
+    DataError
+        When the column overflows the float range.
+
+    Examples
+    --------
+    >>> data = IOData(np.zeros(3), np.array([1.0, -2.0, 3.0]), 0.1)
+    >>> layout_column("u1^2", data).tolist(), layout_column("carrier:sign(y)*u1", data).tolist()
+    ([1.0, 4.0, 9.0], [1.0, -2.0, 3.0])
+    """
+    i = _input_index(label, data)
+    if i is not None:
+        return data.u[:, i]
+    text = label.removeprefix("carrier:")
+    e = parse_effect(text, data)
+    if e.special is not None:
+        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
+    prod = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
+    return np.array(prod, dtype=float)  # a copy: never the data's own samples

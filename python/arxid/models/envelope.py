@@ -15,14 +15,13 @@ from __future__ import annotations
 import types
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
 from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
-from .effects import EffectLayout, compile_effects, effect_names
+from .effects import EffectLayout, compile_effects, effect_names, layout_column
 from .regressors import max_lag, output_term_values, regressor_names
 
 __all__ = ["EnvelopeFactor"]
@@ -67,26 +66,28 @@ class EnvelopeFactor:
             (int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk), effect_names(eff))
             for na, nb, nk, eff in structures
         ]
-        # Each layout is kept without its samples, each distinct column's samples once. An output
-        # term is a column too: on the estimation rows it is g(y(t-1))·s(t-1), a lag of its series.
-        self.layouts, samples = [], {}
-        for _, nb, nk, eff in self.structures:
-            lay = compile_effects(eff, data, nb, nk)
-            for j, label in enumerate(lay.column_labels):
-                if label not in samples:  # a copy: a view would hold the whole layout
-                    samples[label] = lay.u[:, j].copy()
-            for text, term in zip(lay.effect_of_term, lay.output_terms):
-                if _TERM + text not in samples:
-                    samples[_TERM + text] = _term_series(term, lay, data)
-            self.layouts.append(replace(lay, u=np.empty((0, lay.u.shape[1]))))  # not a view: it holds the samples
+        # Each layout is compiled without its samples; the envelope's columns are computed one by one
+        # (not every structure's whole input matrix). An output term is a column too: on the
+        # estimation rows it is g(y(t-1))·s(t-1), a lag of its series.
+        self.layouts = [compile_effects(eff, data, nb, nk, samples=False) for _, nb, nk, eff in self.structures]
+        self.given_first_lag = int(first_lag)
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
         self.inside = [r == self.first_lag for r in rows]
         self.labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
+        terms = {
+            _TERM + text: (kind, power, lay.column_labels[carrier] if carrier >= 0 else None)
+            for lay in self.layouts
+            for text, (kind, power, carrier) in zip(lay.effect_of_term, lay.output_terms)
+        }
         u = np.empty((data.n_samples, len(self.labels)))
+        at = {label: j for j, label in enumerate(self.labels)}
         for j, label in enumerate(self.labels):
-            u[:, j] = samples.pop(label)
-        del samples
+            if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
+                kind, power, by = terms[label]
+                u[:, j] = _term_series(kind, power, None if by is None else u[:, at[by]], data)
+            else:
+                u[:, j] = layout_column(label, data)
         if not (np.isfinite(data.y).all() and np.isfinite(u).all()):
             raise ArxidError("the envelope's fits need data without missing samples")
         self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
@@ -112,6 +113,41 @@ class EnvelopeFactor:
         bool
         """
         return self.inside[i]
+
+    def add(self, structure: Spec) -> int | None:
+        """Fit one more structure from the factor when the envelope holds it: its columns, lags
+        within the envelope's and the envelope's rows (the same fit to rounding as from the factor of
+        its own envelope, without another pass over the data).
+
+        Parameters
+        ----------
+        structure : (na, nb, nk, effects)
+
+        Returns
+        -------
+        int or None
+            Its index (for :meth:`solve`), None when the envelope does not hold it.
+        """
+        na, nb, nk, eff = structure
+        spec = (int(na), tuple(int(b) for b in nb), tuple(int(k) for k in nk), effect_names(eff))
+        try:
+            lay = compile_effects(spec[3], self.data, spec[1], spec[2], samples=False)
+        except ArxidError:
+            return None
+        have = set(self.labels)
+        if max(self.given_first_lag, max_lag(spec[0], lay)) != self.first_lag or spec[0] > self.envelope[0]:
+            return None
+        if any(label not in have for label in _labels(lay)):
+            return None
+        cols = _column_orders(lay, self.labels)
+        for b, k, b_env, k_env in zip(*cols, self.envelope[1], self.envelope[2], strict=True):
+            if b > 0 and (k < k_env or b + k > b_env + k_env):
+                return None
+        self.structures.append(spec)
+        self.layouts.append(lay)
+        self.inside.append(True)
+        self.columns.append(cols)
+        return len(self.structures) - 1
 
     def solve(self, i: int) -> tuple[EffectLayout, list[str], types.SimpleNamespace]:
         """The fit of structure ``i`` from the factor.
@@ -159,10 +195,10 @@ def _labels(layout: EffectLayout) -> list[str]:
     return list(layout.column_labels) + [_TERM + text for text in layout.effect_of_term]
 
 
-def _term_series(term: tuple[str, int, int], layout: EffectLayout, data: IOData) -> np.ndarray:
-    """g(y(t), y(t-1))·s(t) of an output term (kind, power, carrier column): its regressor at row
-    t + 1, as the core evaluates it (an experiment's first sample, never read, is 0 for sign(dy))."""
-    kind, power, carrier = term
+def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
+    """g(y(t), y(t-1))·s(t) of an output term (kind, power; s the samples of its carrier column, 1
+    without one): its regressor at row t + 1, as the core evaluates it (an experiment's first sample,
+    never read, is 0 for sign(dy))."""
     y = np.asarray(data.y, dtype=float)
 
     def previous() -> np.ndarray:  # y(t-1), and y(t) itself at an experiment's first sample
@@ -173,7 +209,7 @@ def _term_series(term: tuple[str, int, int], layout: EffectLayout, data: IOData)
 
     with np.errstate(over="ignore", invalid="ignore"):
         g = output_term_values(kind, power, y, previous)
-        return g * layout.u[:, carrier] if carrier >= 0 else g
+        return g * carrier if carrier is not None else g
 
 
 def _column_orders(layout: EffectLayout, labels: list[str]) -> tuple[list[int], list[int]]:

@@ -162,8 +162,10 @@ def write_regressors(
     rows : ndarray of int
         Sample index of each row (each at least the model's largest lag into its experiment).
     """
-    for j, col in enumerate(_columns(data, na, layout, rows, None, signs)):
-        out[:, j] = col
+    for lo in range(0, len(rows), _BLOCK_ROWS):  # a block of rows at a time: the lags of a column share its cache lines
+        block = out[lo : lo + _BLOCK_ROWS]
+        for j, col in enumerate(_columns(data, na, layout, rows[lo : lo + _BLOCK_ROWS], None, signs)):
+            block[:, j] = col
 
 
 def regressor_columns(
@@ -188,12 +190,19 @@ def regressor_columns(
     -------
     ndarray of shape (len(rows), len(which))
     """
-    cols = list(_columns(data, na, layout, rows, set(which), True))
     index = sorted(set(which))
     out = np.empty((len(rows), len(which)))
-    for i, w in enumerate(which):
-        out[:, i] = cols[index.index(w)]
+    for lo in range(0, len(rows), _BLOCK_ROWS):  # a block of rows at a time, as write_regressors
+        cols = list(_columns(data, na, layout, rows[lo : lo + _BLOCK_ROWS], set(which), True))
+        block = out[lo : lo + _BLOCK_ROWS]
+        for i, w in enumerate(which):
+            block[:, i] = cols[index.index(w)]
     return out
+
+
+#: Rows of the regressors written at a time: the input and output rows a block reads stay in cache
+#: while its columns (several lags of the same samples) are written.
+_BLOCK_ROWS = 32768
 
 
 def _columns(
