@@ -26,7 +26,7 @@ from ..models.effects import (
     compile_effects,
     factor_series,
     format_threshold,
-    input_column,
+    layout_column,
     parse_effect,
     thresholded_products,
 )
@@ -112,17 +112,14 @@ class Scoring:
     def _effect_columns(self, c: Candidate) -> np.ndarray | None:
         """The columns of a candidate that adds one effect, built without the input matrix of the
         model with it (dozens of candidates are scored one at a time): an input-side effect's own
-        column (:func:`input_column`) at the lags of its layout, or an output term without a
+        column (:func:`layout_column`) at the lags of its layout, or an output term without a
         carrier from the output alone. None when the candidate is not of that kind or a sample is
         missing on the model's rows."""
         lay = self._lags.get(c.label)
         if c.kind != "effect" or lay is None or len(c.effects) != 1:
             return None
-        col = input_column(c.effects[0], self.data)
-        if col is not None:
-            if lay.effect_of_column[-1] != parse_effect(c.effects[0], self.data).text:
-                return None
-            z = self._lag_columns(col, lay.nb[-1], lay.nk[-1])
+        if lay.effect_of_column[-1] == parse_effect(c.effects[0], self.data).text:  # its column is the last
+            z = self._lag_columns(layout_column(lay.column_labels[-1], self.data), lay.nb[-1], lay.nk[-1])
         else:  # an output term: its columns read the output, and the inputs only for a carrier
             names = regressor_names(self.data.output_name, c.na, lay)
             new = [i for i, nm in enumerate(names) if nm not in self.base_names]

@@ -58,7 +58,6 @@ __all__ = [
     "thresholded_products",
     "effect_names",
     "effect_series",
-    "input_column",
 ]
 
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE]-?\d+)?"
@@ -550,35 +549,6 @@ def effect_series(text: str, data: IOData) -> np.ndarray:
             prod = prod * _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
     _check_range(e.text, prod)
     return prod
-
-
-def input_column(text: str, data: IOData) -> np.ndarray | None:
-    """The column an effect adds to the input matrix, exactly as :func:`compile_effects` builds it,
-    without building the others (a diagnosis tests dozens of effects one at a time).
-
-    Parameters
-    ----------
-    text : str
-        An effect string.
-    data : IOData
-
-    Returns
-    -------
-    ndarray of shape (n_samples,) or None
-        Read-only when it is a signal of ``data`` itself; None for an effect with an output factor
-        (it becomes an output term, not a column).
-
-    Raises
-    ------
-    DataError
-        When the column overflows the float range.
-    """
-    e = parse_effect(text, data)
-    if e.special is not None:
-        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
-    if any(_is_output(f.signal, data) for f in e.factors):
-        return None
-    return _input_product(text, list(e.factors), data)
 
 
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
