@@ -118,3 +118,15 @@ def test_sorted_quantiles_are_numpys_to_the_bit():
             for n_bins in [2, 7, 8, 13]:
                 q = np.linspace(0, 1, n_bins + 1)
                 assert np.array_equal(_sorted_quantiles(np.sort(xs), q), np.quantile(xs, q))
+
+
+def test_argsort_of_nonnegative_values_sorts_them():
+    from arxid.checks.failures import _argsort_nonnegative
+
+    rng = np.random.default_rng(8)
+    base = rng.standard_normal(300000) ** 2
+    near = np.nextafter(base[:5000], np.inf)  # values that tie in all but the lowest bits
+    for v in [base, np.r_[base, near, base[:100], 0.0, 0.0], np.round(base, 3), np.zeros(5), base[:1], base[:0]]:
+        order = _argsort_nonnegative(v)
+        assert np.array_equal(np.sort(order), np.arange(len(v)))
+        assert np.array_equal(v[order], np.sort(v))

@@ -272,6 +272,35 @@ class FailureAnalysis:
         return plot_failures(self, ax=ax)
 
 
+def _argsort_nonnegative(v: np.ndarray) -> np.ndarray:
+    """An order that sorts ``v`` (finite, >= 0) ascending; equal values in any order.
+
+    A vectorised sort of one 64-bit key per sample (the value's bits, which order non-negative
+    floats as integers, with the low bits replaced by the sample's index) is several times faster
+    than ``np.argsort``; values equal in all but those low bits are then sorted among themselves.
+    """
+    n = len(v)
+    k = max(1, (n - 1).bit_length())
+    if n < 2 or k > 32:
+        return np.argsort(v)
+    low = np.uint64((1 << k) - 1)
+    key = (v.view(np.uint64) & ~low) | np.arange(n, dtype=np.uint64)
+    key.sort()
+    order = (key & low).astype(np.intp)
+    high = key >> np.uint64(k)
+    del key
+    same = high[1:] == high[:-1]  # neighbours whose truncated keys tie: sort them by value
+    if same.any():
+        run = np.cumsum(np.r_[True, ~same])
+        tied = np.zeros(n, dtype=bool)
+        tied[:-1] |= same
+        tied[1:] |= same
+        at = np.flatnonzero(tied)
+        sub = order[at]
+        order[at] = sub[np.lexsort((v[sub], run[at]))]
+    return order
+
+
 class _SquaredRanks:
     """The ranks of the squared one-step residual over its finite samples, shared by every binned
     signal (the Kruskal–Wallis test needs one sort, not one per signal; ranks are whole or half
@@ -288,7 +317,7 @@ class _SquaredRanks:
         #: :func:`metrics.rms` of the finite residuals (NaN when there are none).
         with np.errstate(over="ignore"):
             self.rms = math.sqrt(float(np.mean(squared))) if len(squared) else math.nan
-        self._sort = np.argsort(squared)  # the order among equal values changes no rank and no sum
+        self._sort = _argsort_nonnegative(squared)  # the order among equal values changes no rank and no sum
         v = squared[self._sort]
         n = len(v)
         self.smallest, self.largest = (float(v[0]), float(v[-1])) if n else (math.nan, math.nan)
