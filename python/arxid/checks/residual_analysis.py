@@ -94,9 +94,15 @@ def low_frequency_test(e: np.ndarray, s: np.ndarray, segments, block: int) -> fl
     -------
     float
     """
+    return _low_frequency_of_blocks(
+        _block_means(e, segments, block), _block_means(np.asarray(s, dtype=float), segments, block)
+    )
+
+
+def _low_frequency_of_blocks(eb: np.ndarray, sb: np.ndarray) -> float:
+    """:func:`low_frequency_test` from the block means of the residual and of the signal."""
     from scipy import stats
 
-    eb, sb = _block_means(e, segments, block), _block_means(np.asarray(s, dtype=float), segments, block)
     ok = np.isfinite(eb) & np.isfinite(sb)
     eb, sb = eb[ok], sb[ok]
     m = len(eb)
@@ -419,11 +425,13 @@ def _signal_tests(
     source: np.ndarray,
     e: np.ndarray,
     ecz: np.ndarray,
+    e_blocks: np.ndarray,
     ew: np.ndarray,
     auto_full: np.ndarray,
     max_lag: int,
 ) -> tuple[np.ndarray, float, float, float]:
-    """Cross-correlation with the residual ``e`` (``ecz`` centred, 0 where missing), its 99% bound, Haugh's p-value
+    """Cross-correlation with the residual ``e`` (``ecz`` centred, 0 where missing; ``e_blocks`` its
+    means over blocks of ``max_lag`` samples), its 99% bound, Haugh's p-value
     (against the prewhitened residual ``ew``) and the low-frequency p-value of one signal ``s`` (``source``: the
     data's array it comes from)."""
     from scipy import stats
@@ -442,7 +450,7 @@ def _signal_tests(
     if top == bottom:
         return np.full(len(cl), np.nan), math.nan, math.nan, math.nan
     sc = used - used[both].mean()  # centered(used), NaN stays NaN
-    slow = low_frequency_test(e, used, segs, max_lag)
+    slow = _low_frequency_of_blocks(e_blocks, _block_means(used, segs, max_lag))  # = low_frequency_test(e, used, ...)
     cross = zeroed_correlation(ecz, np.where(both, sc, 0.0), cl, segs)
     # The signal's filter and autocorrelation depend on the data and the samples used only:
     # fitted once for the residual tests of every model on these data.
@@ -523,9 +531,10 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     signals += [(name, s, s) for name, s in data.extra.items()]
     order = min(max_lag, 10)
     ew = ar_innovations(ec, segs, ar_filter(ec, segs, order))
+    e_blocks = _block_means(e, segs, max_lag)  # the residual's side of every low-frequency test
     for name, s, source in signals:
         cross[name], bounds[name], pvals[name], slow[name] = _signal_tests(
-            data, name, np.asarray(s, dtype=float), source, e, ecz, ew, auto_full, max_lag
+            data, name, np.asarray(s, dtype=float), source, e, ecz, e_blocks, ew, auto_full, max_lag
         )
 
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
