@@ -104,7 +104,8 @@ def zeroed_correlation(
     -------
     ndarray of shape (len(lags),)
     """
-    den = math.sqrt(float(np.dot(av, av)) * float(np.dot(bv, bv)))
+    # einsum, not dot: a multithreaded BLAS dot leaves threads spinning on the cores others need
+    den = math.sqrt(float(np.einsum("i,i->", av, av)) * float(np.einsum("i,i->", bv, bv)))
     out = np.zeros(len(lags))
     if den == 0:
         return out

@@ -413,7 +413,7 @@ def _anova_p(es: np.ndarray, where: np.ndarray, counts: np.ndarray) -> float:
     offset = float(np.mean(es))
     d = es - offset
     normalized = float(np.sum(d)) ** 2 / n
-    sstot = float(np.dot(d, d)) - normalized
+    sstot = float(np.einsum("i,i->", d, d)) - normalized
     sums = np.bincount(where, weights=d, minlength=nb)[have]
     ssbn = float(np.sum(sums**2 / counts[have])) - normalized
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -550,7 +550,7 @@ def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int, total: t
     if inside.size < 2 or n_out < 2:
         return math.nan
     with np.errstate(over="ignore"):
-        sq_in = float(np.dot(inside, inside))
+        sq_in = float(np.einsum("i,i->", inside, inside))
     v_out = max(total[1] - sq_in, 0.0) / n_out
     if v_out == 0:
         return math.nan
@@ -618,8 +618,9 @@ def where_it_fails(
     r = roll.copy()
     half = window // 2
     finite_res = res[np.isfinite(res)]
+    # einsum, not dot: a multithreaded BLAS dot leaves threads spinning on the cores others need
     with np.errstate(over="ignore"):
-        total = (finite_res.size, float(np.dot(finite_res, finite_res)))
+        total = (finite_res.size, float(np.einsum("i,i->", finite_res, finite_res)))
     del finite_res
     for _ in range(int(n_worst)):
         if not np.isfinite(r).any():

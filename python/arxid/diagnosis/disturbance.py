@@ -209,7 +209,7 @@ def _low_power(e: np.ndarray, k: int) -> float:
     for lo in range(1, n, chunk):
         m = np.arange(lo, min(lo + chunk, n), dtype=np.int64)
         kernel = _sin_pi(((2 * k + 1) * m) % (2 * n), n) / _sin_pi(m, n)
-        total += 2.0 * float(np.dot(r[lo : lo + len(m)], kernel))
+        total += 2.0 * float(np.einsum("i,i->", r[lo : lo + len(m)], kernel))
     return total
 
 
@@ -235,7 +235,8 @@ def _low_share(error: np.ndarray, segments, ts: float, split: float) -> float:
     low = total = 0.0
     for e in _finite_runs(error, segments):
         n = len(e)
-        energy = n * float(np.dot(e, e))
+        # einsum, not dot: a multithreaded BLAS dot leaves threads spinning on the cores others need
+        energy = n * float(np.einsum("i,i->", e, e))
         n_low = int(np.count_nonzero(np.fft.rfftfreq(n, ts) <= split))
         total += energy
         if n_low >= n // 2 + 1:
