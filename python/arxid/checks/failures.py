@@ -311,9 +311,13 @@ class _SquaredRanks:
     """
 
     def __init__(self, e: np.ndarray):
-        finite = np.flatnonzero(np.isfinite(e))
+        #: Where the residual is finite, its finite samples and their squares (record order).
+        self.mask = np.isfinite(e)
+        finite = np.flatnonzero(self.mask)
         self.finite = finite
-        squared = e[finite] ** 2
+        self.values = e[finite]
+        self.squared = squared = self.values**2
+        self._centred: tuple[np.ndarray, float, float] | None = None
         #: :func:`metrics.rms` of the finite residuals (NaN when there are none).
         with np.errstate(over="ignore"):
             self.rms = math.sqrt(float(np.mean(squared))) if len(squared) else math.nan
@@ -336,6 +340,12 @@ class _SquaredRanks:
     def order(self) -> np.ndarray:
         """The finite samples' positions in the record, by ascending e²."""
         return self.finite[self._sort]
+
+    def centred(self) -> tuple[np.ndarray, float, float]:
+        """:func:`_centred` of the finite residuals (computed once)."""
+        if self._centred is None:
+            self._centred = _centred(self.values)
+        return self._centred
 
 
 def _sorted_quantiles(ordered: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -385,15 +395,15 @@ _BINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _MAX_BINNED = 16
 
 
-def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
-    """:func:`_bin_index` of ``xs`` (the signal on the samples ``ok``), from ``memo`` when the same
+def _signal_bins(x: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
+    """:func:`_bin_index` of ``x[ok]`` (the signal on the samples ``ok``), from ``memo`` when the same
     signal (``tag``: name, shift and the data's array it comes from) was binned on the same samples."""
     if memo is None:
-        return _bin_index(xs, n_bins)
+        return _bin_index(x[ok], n_bins)
     key = (tag[:-1], n_bins, hashlib.blake2b(np.packbits(ok).tobytes(), digest_size=16).digest())
     hit = memo.get(key)
     if hit is None or hit[0] is not tag[-1]:
-        binned = _bin_index(xs, n_bins)
+        binned = _bin_index(x[ok], n_bins)
         if binned is not None and len(binned[0]) <= 256:
             binned = (binned[0], binned[1].astype(np.uint8))
         hit = memo[key] = (tag[-1], binned)
@@ -402,18 +412,23 @@ def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None,
     return None if hit[1] is None else (hit[1][0].copy(), hit[1][1])
 
 
-def _anova_p(es: np.ndarray, where: np.ndarray, counts: np.ndarray) -> float:
+def _centred(es: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """``es`` less its mean, (Σ of that)² / n and the total sum of squares, as f_oneway has them."""
+    d = es - float(np.mean(es))
+    normalized = float(np.sum(d)) ** 2 / len(es)
+    return d, normalized, float(np.einsum("i,i->", d, d)) - normalized
+
+
+def _anova_p(es: np.ndarray, where: np.ndarray, counts: np.ndarray, centred: tuple | None = None) -> float:
     """One-way ANOVA p-value of ``es`` between the groups ``where`` (every group with >= 2 samples
     and not constant), from per-group sums: scipy.stats.f_oneway's formula (sums of squares about
-    the overall mean) without splitting the samples into groups."""
+    the overall mean) without splitting the samples into groups. ``centred``: :func:`_centred` of
+    ``es`` when known."""
     from scipy import stats
 
     nb, have = len(counts), counts > 0
     k, n = int(np.count_nonzero(have)), len(es)
-    offset = float(np.mean(es))
-    d = es - offset
-    normalized = float(np.sum(d)) ** 2 / n
-    sstot = float(np.einsum("i,i->", d, d)) - normalized
+    d, normalized, sstot = _centred(es) if centred is None else centred
     sums = np.bincount(where, weights=d, minlength=nb)[have]
     ssbn = float(np.sum(sums**2 / counts[have])) - normalized
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -455,23 +470,25 @@ def _bin_signal(
     from sums per bin (bincount), in one pass each; otherwise from the bins' samples split out."""
     from scipy import stats
 
-    ok = np.isfinite(x) & np.isfinite(e)
-    xs, es = x[ok], e[ok]
-    if len(xs) < 4 * n_bins:
+    ok = np.isfinite(x) & ranked.mask
+    n_ok = int(np.count_nonzero(ok))
+    if n_ok < 4 * n_bins:
         return None
-    binned = _signal_bins(xs, ok, n_bins, memo, tag)
+    full = n_ok == len(ranked.finite)  # every finite residual (the signal exists wherever it does)
+    es = ranked.values if full else e[ok]
+    binned = _signal_bins(x, ok, n_bins, memo, tag)
     if binned is None:
         return None
     edges, where = binned
     nb = len(edges) - 1
     counts = np.bincount(where, minlength=nb)
     every = not np.any(counts == 1)  # every sample in a group of two or more
-    whole = every and len(es) == len(ranked.finite)  # every finite residual
+    whole = every and full
     overall = ranked.rms if whole else metrics.rms(es)
     if every:
         with np.errstate(divide="ignore", invalid="ignore"):
             mean = np.bincount(where, weights=es, minlength=nb) / counts
-            rms = np.sqrt(np.bincount(where, weights=es * es, minlength=nb) / counts)
+            rms = np.sqrt(np.bincount(where, weights=ranked.squared if full else es * es, minlength=nb) / counts)
         n_used, used = int(np.count_nonzero(counts)), None
     else:
         rms, mean, used = _grouped(es, where, counts)
@@ -491,7 +508,7 @@ def _bin_signal(
     else:
         p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
     if used is None:
-        p_an = _anova_p(es, where, counts) if _varies(es, where, counts) else 1.0
+        p_an = _anova_p(es, where, counts, ranked.centred() if full else None) if _varies(es, where, counts) else 1.0
     else:
         p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
     p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
