@@ -104,8 +104,8 @@ def zeroed_correlation(
     -------
     ndarray of shape (len(lags),)
     """
-    # einsum, not dot: a multithreaded BLAS dot leaves threads spinning on the cores others need
-    den = math.sqrt(float(np.einsum("i,i->", av, av)) * float(np.einsum("i,i->", bv, bv)))
+    saa = float(np.sum(av * av))
+    den = math.sqrt(saa * (saa if bv is av else float(np.sum(bv * bv))))
     out = np.zeros(len(lags))
     if den == 0:
         return out
