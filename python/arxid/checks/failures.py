@@ -503,7 +503,7 @@ def _bin_signal(
         spread = largest * largest - smallest * smallest
     if spread <= 0:
         p_kw = 1.0
-    elif every:  # shared ranks
+    elif used is None:  # every sample in a group of two or more: the shared ranks
         p_kw = _kruskal(ok, where, nb, e, ranked)
     else:
         p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
