@@ -80,6 +80,7 @@ bench: develop
 	$(PY) benches/iv_sweep.py
 	$(PY) benches/tfest.py
 	$(PY) benches/analyse_scale.py
+	$(PY) benches/checks_kernels.py
 	$(PY) benches/analyse_fleet.py
 
 # The wheel (abi3: one file for CPython >= 3.10) for manylinux2014 (glibc 2.17; maturin links with

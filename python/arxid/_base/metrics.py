@@ -81,7 +81,9 @@ def diverged(y: _ArrayLike, pred: _ArrayLike) -> bool:
 def mean_square(e: _ArrayLike) -> float:
     """Mean of e² over the finite samples (NaN when there are none)."""
     x = np.asarray(e, dtype=float)
-    x = x[np.isfinite(x)]
+    ok = np.isfinite(x)
+    if not ok.all():  # every sample finite: the same values in the same order, without the copy
+        x = x[ok]
     if not x.size:
         return math.nan
     with np.errstate(over="ignore"):
@@ -311,12 +313,17 @@ def rolling_rms(e: _ArrayLike, window: int) -> np.ndarray:
         s = np.convolve(np.where(ok, x * x, 0.0), ker, mode="same")
         c = np.convolve(ok.astype(float), ker, mode="same")
     else:  # sums over [i - w//2, i + (w-1)//2] by cumulative sums: linear in n
-        lo = np.clip(np.arange(n) - w // 2, 0, n)
-        hi = np.clip(np.arange(n) + (w - 1) // 2 + 1, 0, n)
         cs = np.concatenate([[0.0], np.cumsum(np.where(ok, x * x, 0.0))])
         cc = np.concatenate([[0], np.cumsum(ok)])
-        s = np.maximum(cs[hi] - cs[lo], 0.0)
-        c = (cc[hi] - cc[lo]).astype(float)
+        s, c = np.empty(n), np.empty(n)
+        back, ahead = w // 2, (w - 1) // 2 + 1
+        a, b = back, max(back, n - ahead + 1)  # the windows inside the record: slices
+        s[a:b] = cs[a + ahead : b + ahead] - cs[a - back : b - back]
+        c[a:b] = cc[a + ahead : b + ahead] - cc[a - back : b - back]
+        for part in (np.arange(0, min(a, n)), np.arange(b, n)):  # the windows cut by an end
+            lo, hi = np.clip(part - back, 0, n), np.clip(part + ahead, 0, n)
+            s[part], c[part] = cs[hi] - cs[lo], cc[hi] - cc[lo]
+        np.maximum(s, 0.0, out=s)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.sqrt(s / c)
     out[c < max(1, w // 2)] = np.nan

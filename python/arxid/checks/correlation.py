@@ -28,7 +28,15 @@ from .._base.nested import cholesky_factor, nested_from_factor
 from ..data.iodata import IOData
 from ..models.lagged import lagged_factor, lagged_gram
 
-__all__ = ["centered", "correlation", "ar_filter", "ar_innovations", "SignalWhitening", "signal_whitening"]
+__all__ = [
+    "centered",
+    "correlation",
+    "zeroed_correlation",
+    "ar_filter",
+    "ar_innovations",
+    "SignalWhitening",
+    "signal_whitening",
+]
 
 
 def centered(x: np.ndarray) -> np.ndarray:
@@ -46,10 +54,9 @@ def centered(x: np.ndarray) -> np.ndarray:
     ok = np.isfinite(x)
     if ok.all():  # the same mean as over x[ok], without the copy
         return x - x.mean()
-    x = x.copy()
-    if ok.any():
-        x[ok] -= x[ok].mean()
-    return x
+    if not ok.any():
+        return x.copy()
+    return x - x[ok].mean()  # NaN and ±inf stay what they are
 
 
 #: Lags up to which a correlation is summed lag by lag rather than by FFT.
@@ -77,8 +84,28 @@ def correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray, segments: Sequen
     ndarray of shape (len(lags),)
     """
     av = np.where(np.isfinite(a), a, 0.0)
-    bv = np.where(np.isfinite(b), b, 0.0)
-    den = math.sqrt(float(np.sum(av * av)) * float(np.sum(bv * bv)))
+    bv = av if b is a else np.where(np.isfinite(b), b, 0.0)
+    return zeroed_correlation(av, bv, lags, segments)
+
+
+def zeroed_correlation(
+    av: np.ndarray, bv: np.ndarray, lags: np.ndarray, segments: Sequence[tuple[int, int]]
+) -> np.ndarray:
+    """:func:`correlation` of series given with 0 where they are missing (no NaN), as it computes it.
+
+    Parameters
+    ----------
+    av, bv : ndarray of shape (n_samples,)
+        Centred series, 0 where missing.
+    lags : ndarray of int
+    segments : sequence of (int, int)
+
+    Returns
+    -------
+    ndarray of shape (len(lags),)
+    """
+    saa = float(np.sum(av * av))
+    den = math.sqrt(saa * (saa if bv is av else float(np.sum(bv * bv))))
     out = np.zeros(len(lags))
     if den == 0:
         return out

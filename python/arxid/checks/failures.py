@@ -272,6 +272,35 @@ class FailureAnalysis:
         return plot_failures(self, ax=ax)
 
 
+def _argsort_nonnegative(v: np.ndarray) -> np.ndarray:
+    """An order that sorts ``v`` (finite, >= 0) ascending; equal values in any order.
+
+    A vectorised sort of one 64-bit key per sample (the value's bits, which order non-negative
+    floats as integers, with the low bits replaced by the sample's index) is several times faster
+    than ``np.argsort``; values equal in all but those low bits are then sorted among themselves.
+    """
+    n = len(v)
+    k = max(1, (n - 1).bit_length())
+    if n < 2 or k > 32:
+        return np.argsort(v)
+    low = np.uint64((1 << k) - 1)
+    key = (v.view(np.uint64) & ~low) | np.arange(n, dtype=np.uint64)
+    key.sort()
+    order = (key & low).astype(np.intp)
+    high = key >> np.uint64(k)
+    del key
+    same = high[1:] == high[:-1]  # neighbours whose truncated keys tie: sort them by value
+    if same.any():
+        run = np.cumsum(np.r_[True, ~same])
+        tied = np.zeros(n, dtype=bool)
+        tied[:-1] |= same
+        tied[1:] |= same
+        at = np.flatnonzero(tied)
+        sub = order[at]
+        order[at] = sub[np.lexsort((v[sub], run[at]))]
+    return order
+
+
 class _SquaredRanks:
     """The ranks of the squared one-step residual over its finite samples, shared by every binned
     signal (the Kruskal–Wallis test needs one sort, not one per signal; ranks are whole or half
@@ -282,10 +311,17 @@ class _SquaredRanks:
     """
 
     def __init__(self, e: np.ndarray):
-        finite = np.flatnonzero(np.isfinite(e))
+        #: Where the residual is finite, its finite samples and their squares (record order).
+        self.mask = np.isfinite(e)
+        finite = np.flatnonzero(self.mask)
         self.finite = finite
-        squared = e[finite] ** 2
-        self._sort = np.argsort(squared)  # the order among equal values changes no rank and no sum
+        self.values = e[finite]
+        self.squared = squared = self.values**2
+        self._centred: tuple[np.ndarray, float, float] | None = None
+        #: :func:`metrics.rms` of the finite residuals (NaN when there are none).
+        with np.errstate(over="ignore"):
+            self.rms = math.sqrt(float(np.mean(squared))) if len(squared) else math.nan
+        self._sort = _argsort_nonnegative(squared)  # the order among equal values changes no rank and no sum
         v = squared[self._sort]
         n = len(v)
         self.smallest, self.largest = (float(v[0]), float(v[-1])) if n else (math.nan, math.nan)
@@ -305,21 +341,49 @@ class _SquaredRanks:
         """The finite samples' positions in the record, by ascending e²."""
         return self.finite[self._sort]
 
+    def centred(self) -> tuple[np.ndarray, float, float]:
+        """:func:`_centred` of the finite residuals (computed once)."""
+        if self._centred is None:
+            self._centred = _centred(self.values)
+        return self._centred
+
+
+def _sorted_quantiles(ordered: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``np.quantile(x, q)`` (its default, linear method, and its rounding) of the values
+    ``ordered``, sorted: the order statistics are read instead of partitioned for."""
+    n = len(ordered)
+    virtual = (n - 1) * q
+    below = np.floor(virtual)
+    t = virtual - below
+    i = below.astype(np.intp)
+    a, b = ordered[i], ordered[np.minimum(i + 1, n - 1)]
+    d = b - a
+    return np.where(t >= 0.5, b - d * (1 - t), a + d * t)
+
 
 def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Bin edges of ``xs`` (its quantiles; for a signal with at most ``n_bins`` values, the midpoints
     between them) and the bin of each sample; None for a signal with a single value."""
-    # The quantile edges (a partition, linear in n) are all distinct for a signal with more than
-    # n_bins values; only a signal with few values needs its values sorted.
-    edges = np.quantile(xs, np.linspace(0, 1, n_bins + 1))
-    values = np.unique(xs) if len(np.unique(edges)) <= n_bins else None
+    # One sort (a vectorised sort is faster than np.quantile's partition) gives the quantiles and,
+    # for a signal with few values, its values; the quantile edges are all distinct for a signal
+    # with more than n_bins values.
+    ordered = np.sort(xs)
+    edges = _sorted_quantiles(ordered, np.linspace(0, 1, n_bins + 1))
+    values = ordered[np.r_[True, ordered[1:] != ordered[:-1]]] if len(np.unique(edges)) <= n_bins else None
     if values is not None and len(values) < 2:
         return None
     if values is not None and len(values) <= n_bins:
         mids = (values[1:] + values[:-1]) / 2
         return np.concatenate([[values[0]], mids, [values[-1]]]), np.searchsorted(values, xs)
     edges = np.unique(edges)
-    return edges, np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
+    if len(edges) > 256:
+        return edges, np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
+    # searchsorted(edges, x, "right") − 1 clipped to the bins: the inner edges at or below x
+    # (edges[0] is the smallest sample, the last edge the largest, which falls in the last bin).
+    where = np.zeros(len(xs), dtype=np.uint8)
+    for edge in edges[1:-1]:
+        where += xs >= edge
+    return edges, where
 
 
 #: Per IOData (weakly held: an entry goes with its data): the bins of each operating-point signal
@@ -331,15 +395,15 @@ _BINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _MAX_BINNED = 16
 
 
-def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
-    """:func:`_bin_index` of ``xs`` (the signal on the samples ``ok``), from ``memo`` when the same
+def _signal_bins(x: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None, tag: tuple) -> tuple | None:
+    """:func:`_bin_index` of ``x[ok]`` (the signal on the samples ``ok``), from ``memo`` when the same
     signal (``tag``: name, shift and the data's array it comes from) was binned on the same samples."""
     if memo is None:
-        return _bin_index(xs, n_bins)
+        return _bin_index(x[ok], n_bins)
     key = (tag[:-1], n_bins, hashlib.blake2b(np.packbits(ok).tobytes(), digest_size=16).digest())
     hit = memo.get(key)
     if hit is None or hit[0] is not tag[-1]:
-        binned = _bin_index(xs, n_bins)
+        binned = _bin_index(x[ok], n_bins)
         if binned is not None and len(binned[0]) <= 256:
             binned = (binned[0], binned[1].astype(np.uint8))
         hit = memo[key] = (tag[-1], binned)
@@ -348,46 +412,105 @@ def _signal_bins(xs: np.ndarray, ok: np.ndarray, n_bins: int, memo: dict | None,
     return None if hit[1] is None else (hit[1][0].copy(), hit[1][1])
 
 
-def _bin_signal(
-    name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks, memo: dict | None, tag: tuple
-) -> SignalBins | None:
-    """The residual ``e`` binned by the quantiles of ``x``; ``ranked`` holds the ranks of e² (shared
-    by every signal); ``memo`` and ``tag`` as in :func:`_signal_bins`."""
+def _centred(es: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """``es`` less its mean, (Σ of that)² / n and the total sum of squares, as f_oneway has them."""
+    d = es - float(np.mean(es))
+    normalized = float(np.sum(d)) ** 2 / len(es)
+    return d, normalized, float(np.einsum("i,i->", d, d)) - normalized
+
+
+def _anova_p(es: np.ndarray, where: np.ndarray, counts: np.ndarray, centred: tuple | None = None) -> float:
+    """One-way ANOVA p-value of ``es`` between the groups ``where`` (every group with >= 2 samples
+    and not constant), from per-group sums: scipy.stats.f_oneway's formula (sums of squares about
+    the overall mean) without splitting the samples into groups. ``centred``: :func:`_centred` of
+    ``es`` when known."""
     from scipy import stats
 
-    ok = np.isfinite(x) & np.isfinite(e)
-    xs, es = x[ok], e[ok]
-    if len(xs) < 4 * n_bins:
-        return None
-    binned = _signal_bins(xs, ok, n_bins, memo, tag)
-    if binned is None:
-        return None
-    edges, where = binned
-    nb = len(edges) - 1
-    # The samples of each bin in record order, as views of one array sorted by bin (a stable sort).
-    counts = np.bincount(where, minlength=nb)
+    nb, have = len(counts), counts > 0
+    k, n = int(np.count_nonzero(have)), len(es)
+    d, normalized, sstot = _centred(es) if centred is None else centred
+    sums = np.bincount(where, weights=d, minlength=nb)[have]
+    ssbn = float(np.sum(sums**2 / counts[have])) - normalized
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = (ssbn / (k - 1)) / ((sstot - ssbn) / (n - k))
+    return float(stats.f.sf(f, k - 1, n - k))
+
+
+def _varies(es: np.ndarray, where: np.ndarray, counts: np.ndarray) -> bool:
+    """Whether every non-empty group of ``es`` holds two different values (each sample compared
+    with its group's first)."""
+    filled = np.flatnonzero(counts)
+    first = np.zeros(len(counts), dtype=np.intp)
+    head = where[: 1 << 14]  # the first sample of each group is usually near the start
+    for g in filled:
+        at = head == g
+        first[g] = int(np.argmax(at)) if at.any() else int(np.argmax(where == g))
+    differs = np.bincount(where, weights=es != es[first][where], minlength=len(counts))
+    return bool(np.all(differs[filled] > 0))
+
+
+def _grouped(es: np.ndarray, where: np.ndarray, counts: np.ndarray):
+    """RMS and mean of ``es`` per group (NaN for an empty one) and the groups with >= 2 samples, in
+    record order (one stable sort by group)."""
+    nb = len(counts)
     by_bin = es[np.argsort(where.astype(np.uint8 if nb < 256 else np.intp), kind="stable")]
     groups = np.split(by_bin, np.cumsum(counts)[:-1])
     rms = metrics.rms_of_groups(by_bin, counts)
     mean = np.array([np.mean(g) if len(g) else np.nan for g in groups])
-    overall = metrics.rms(es)
-    used = [g for g in groups if len(g) >= 2]
-    if len(used) < 2 or overall == 0:
+    return rms, mean, [g for g in groups if len(g) >= 2]
+
+
+def _bin_signal(
+    name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks, memo: dict | None, tag: tuple
+) -> SignalBins | None:
+    """The residual ``e`` binned by the quantiles of ``x``; ``ranked`` holds the ranks of e² (shared
+    by every signal); ``memo`` and ``tag`` as in :func:`_signal_bins`.
+
+    When every non-empty bin holds two samples or more (the usual case) the per-bin statistics come
+    from sums per bin (bincount), in one pass each; otherwise from the bins' samples split out."""
+    from scipy import stats
+
+    ok = np.isfinite(x) & ranked.mask
+    n_ok = int(np.count_nonzero(ok))
+    if n_ok < 4 * n_bins:
         return None
-    every = len(used) == int(np.count_nonzero(counts))  # every sample in a used group
-    if every and len(es) == len(ranked.finite):  # every finite residual: the shared range of e²
-        spread = ranked.largest - ranked.smallest
+    full = n_ok == len(ranked.finite)  # every finite residual (the signal exists wherever it does)
+    es = ranked.values if full else e[ok]
+    binned = _signal_bins(x, ok, n_bins, memo, tag)
+    if binned is None:
+        return None
+    edges, where = binned
+    nb = len(edges) - 1
+    counts = np.bincount(where, minlength=nb)
+    every = not np.any(counts == 1)  # every sample in a group of two or more
+    whole = every and full
+    overall = ranked.rms if whole else metrics.rms(es)
+    if every:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mean = np.bincount(where, weights=es, minlength=nb) / counts
+            rms = np.sqrt(np.bincount(where, weights=ranked.squared if full else es * es, minlength=nb) / counts)
+        n_used, used = int(np.count_nonzero(counts)), None
     else:
-        size = [np.abs(g) for g in used]  # max and min of e² are those of |e|, squared (rounding is monotone)
-        largest, smallest = max(float(a.max()) for a in size), min(float(a.min()) for a in size)
+        rms, mean, used = _grouped(es, where, counts)
+        n_used = len(used)
+    if n_used < 2 or overall == 0:
+        return None
+    if whole:  # the shared range of e²
+        spread = ranked.largest - ranked.smallest
+    else:  # max and min of e² are those of |e|, squared (rounding is monotone)
+        size = np.abs(es) if used is None else np.concatenate([np.abs(g) for g in used])
+        largest, smallest = float(size.max()), float(size.min())
         spread = largest * largest - smallest * smallest
     if spread <= 0:
         p_kw = 1.0
-    elif every:  # shared ranks
+    elif used is None:  # every sample in a group of two or more: the shared ranks
         p_kw = _kruskal(ok, where, nb, e, ranked)
     else:
         p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
-    p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
+    if used is None:
+        p_an = _anova_p(es, where, counts, ranked.centred() if full else None) if _varies(es, where, counts) else 1.0
+    else:
+        p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
     p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
     p_an = 1.0 if not math.isfinite(p_an) else p_an
     p = min(1.0, 2 * min(p_kw, p_an))
@@ -432,20 +555,24 @@ def _kruskal_sorted(v: np.ndarray, group: np.ndarray, n_groups: int) -> float:
     return float(stats.chi2.sf(h, int(np.count_nonzero(have)) - 1))
 
 
-def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int) -> float:
-    """One-sided F test: is the one-step residual variance in [lo, hi) larger than outside it?"""
+def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int, total: tuple[int, float]) -> float:
+    """One-sided F test: is the one-step residual variance in [lo, hi) larger than outside it?
+    ``total``: the count and the sum of squares of the finite residuals (the outside's are the
+    total's less the inside's)."""
     from scipy import stats
 
     inside = res[lo:hi]
-    outside = np.concatenate([res[:lo], res[hi:]])
-    inside, outside = inside[np.isfinite(inside)], outside[np.isfinite(outside)]
-    if inside.size < 2 or outside.size < 2:
+    inside = inside[np.isfinite(inside)]
+    n_out = total[0] - inside.size
+    if inside.size < 2 or n_out < 2:
         return math.nan
-    v_out = metrics.mean_square(outside)
+    with np.errstate(over="ignore"):
+        sq_in = float(np.einsum("i,i->", inside, inside))
+    v_out = max(total[1] - sq_in, 0.0) / n_out
     if v_out == 0:
         return math.nan
-    f = metrics.mean_square(inside) / v_out
-    return float(min(1.0, stats.f.sf(f, inside.size, outside.size) * n_windows))
+    f = (sq_in / inside.size) / v_out
+    return float(min(1.0, stats.f.sf(f, inside.size, n_out) * n_windows))
 
 
 def where_it_fails(
@@ -507,13 +634,18 @@ def where_it_fails(
     worst = []
     r = roll.copy()
     half = window // 2
+    finite_res = res[np.isfinite(res)]
+    # einsum, not dot: a multithreaded BLAS dot leaves threads spinning on the cores others need
+    with np.errstate(over="ignore"):
+        total = (finite_res.size, float(np.einsum("i,i->", finite_res, finite_res)))
+    del finite_res
     for _ in range(int(n_worst)):
         if not np.isfinite(r).any():
             break
         i = int(np.nanargmax(r))
         lo, hi = max(0, i - half), min(n, i - half + window)
         rms = metrics.rms(err[lo:hi])
-        p = _segment_p_value(res, lo, hi, n_windows=max(1, n // window))
+        p = _segment_p_value(res, lo, hi, max(1, n // window), total)
         worst.append(
             WorstSegment(
                 lo,

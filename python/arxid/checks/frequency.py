@@ -278,15 +278,53 @@ def spectra(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment
     n_segments : int
         Segments averaged.
     """
+    from scipy.signal import get_window
+
+    if segment_length % 2:
+        return _spectra_by_csd(signals, runs, ts, segment_length)
+    q = signals.shape[0]
+    step = segment_length // 2
+    window = get_window("hann", segment_length)
+    n_f = segment_length // 2 + 1
+    total = np.zeros((q, q, n_f), dtype=complex)
+    count = 0
+    for a, b in runs:
+        k = 1 + (b - a - segment_length) // step
+        # Each signal's segments are transformed once and every cross-spectrum formed from those
+        # transforms (as scipy.signal.csd with a Hann window, 50 % overlap and each segment's mean
+        # removed), in chunks of at most _CHUNK segments: the transforms of a long record at once
+        # would hold several copies of it.
+        for first in range(0, k, _CHUNK):
+            kc = min(_CHUNK, k - first)
+            lo = a + first * step
+            frames = np.lib.stride_tricks.sliding_window_view(
+                signals[:, lo : lo + (kc - 1) * step + segment_length], segment_length, axis=-1
+            )[:, ::step]
+            frames = frames - frames.mean(axis=-1, keepdims=True)
+            x = np.fft.rfft(frames * window, axis=-1)
+            for i in range(q):
+                for j in range(i, q):
+                    total[i, j] += np.sum(np.conj(x[i]) * x[j], axis=0)
+        count += k
+    for i in range(q):
+        for j in range(i):
+            total[i, j] = np.conj(total[j, i])
+    # One-sided density: every bin but 0 and Nyquist doubled, scaled by fs Σ w².
+    total /= (1.0 / ts) * float(np.sum(window**2)) * count
+    total[..., 1 : n_f - 1] *= 2.0
+    freq = np.fft.rfftfreq(segment_length, ts)
+    return freq, np.moveaxis(total, -1, 0), count
+
+
+def _spectra_by_csd(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment_length: int):
+    """:func:`spectra` from ``scipy.signal.csd`` per chunk of segments (an odd segment length, whose
+    segments advance by more than half a segment)."""
     from scipy.signal import csd
 
     total, count, freq = None, 0, None
     step = segment_length // 2
     for a, b in runs:
         k = 1 + (b - a - segment_length) // step
-        # In chunks of at most _CHUNK segments (the cross-spectra of every pair of signals and
-        # segment would hold several copies of a long record at once); each chunk's mean weighted
-        # by its segments is the mean over all of them.
         for first in range(0, k, _CHUNK):
             kc = min(_CHUNK, k - first)
             lo = a + first * step

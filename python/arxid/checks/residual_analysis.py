@@ -25,7 +25,7 @@ from ..models.arguments import check_data, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
 from .comparison import prediction_error
-from .correlation import ar_filter, ar_innovations, centered, correlation, signal_whitening
+from .correlation import ar_filter, ar_innovations, centered, signal_whitening, zeroed_correlation
 
 __all__ = ["residuals", "ResidualAnalysis", "low_frequency_test"]
 
@@ -94,9 +94,15 @@ def low_frequency_test(e: np.ndarray, s: np.ndarray, segments, block: int) -> fl
     -------
     float
     """
+    return _low_frequency_of_blocks(
+        _block_means(e, segments, block), _block_means(np.asarray(s, dtype=float), segments, block)
+    )
+
+
+def _low_frequency_of_blocks(eb: np.ndarray, sb: np.ndarray) -> float:
+    """:func:`low_frequency_test` from the block means of the residual and of the signal."""
     from scipy import stats
 
-    eb, sb = _block_means(e, segments, block), _block_means(np.asarray(s, dtype=float), segments, block)
     ok = np.isfinite(eb) & np.isfinite(sb)
     eb, sb = eb[ok], sb[ok]
     m = len(eb)
@@ -418,12 +424,14 @@ def _signal_tests(
     s: np.ndarray,
     source: np.ndarray,
     e: np.ndarray,
-    ec: np.ndarray,
+    ecz: np.ndarray,
+    e_blocks: np.ndarray,
     ew: np.ndarray,
     auto_full: np.ndarray,
     max_lag: int,
 ) -> tuple[np.ndarray, float, float, float]:
-    """Cross-correlation with the residual ``e`` (``ec`` centred), its 99% bound, Haugh's p-value
+    """Cross-correlation with the residual ``e`` (``ecz`` centred, 0 where missing; ``e_blocks`` its
+    means over blocks of ``max_lag`` samples), its 99% bound, Haugh's p-value
     (against the prewhitened residual ``ew``) and the low-frequency p-value of one signal ``s`` (``source``: the
     data's array it comes from)."""
     from scipy import stats
@@ -432,12 +440,18 @@ def _signal_tests(
     ok = np.isfinite(e)
     cl = np.arange(-max_lag, max_lag + 1)
     n = int(ok.sum())
-    both = ok & np.isfinite(s)
-    if int(both.sum()) <= max_lag + 1 or np.ptp(s[both]) == 0:
+    used = np.where(ok, s, np.nan)  # the signal where the residual exists
+    both = np.isfinite(used)
+    if int(np.count_nonzero(both)) <= max_lag + 1:
         return np.full(len(cl), np.nan), math.nan, math.nan, math.nan
-    sc = centered(np.where(ok, s, np.nan))
-    slow = low_frequency_test(e, np.where(ok, s, np.nan), segs, max_lag)
-    cross = correlation(ec, sc, cl, segs)
+    top, bottom = float(np.fmax.reduce(used)), float(np.fmin.reduce(used))  # skip NaN, no copy
+    if not math.isfinite(top - bottom):  # ±inf: the range of the finite samples
+        top, bottom = float(np.max(used[both])), float(np.min(used[both]))
+    if top == bottom:
+        return np.full(len(cl), np.nan), math.nan, math.nan, math.nan
+    sc = used - used[both].mean()  # centered(used), NaN stays NaN
+    slow = _low_frequency_of_blocks(e_blocks, _block_means(used, segs, max_lag))  # = low_frequency_test(e, used, ...)
+    cross = zeroed_correlation(ecz, np.where(both, sc, 0.0), cl, segs)
     # The signal's filter and autocorrelation depend on the data and the samples used only:
     # fitted once for the residual tests of every model on these data.
     whitening = signal_whitening(data, name, source, sc, min(max_lag, 10), np.arange(0, max_lag + 1))
@@ -450,7 +464,9 @@ def _signal_tests(
     nw = int(pair.sum())
     if nw <= 2 * max_lag + 1:
         return cross, bound, math.nan, slow
-    rw = correlation(centered(np.where(pair, ew, np.nan)), centered(np.where(pair, sw, np.nan)), cl, segs)
+    # centered(ew) and centered(sw) over the pairs, 0 elsewhere
+    mw, ms = ew[pair].mean(), sw[pair].mean()
+    rw = zeroed_correlation(np.where(pair, ew - mw, 0.0), np.where(pair, sw - ms, 0.0), cl, segs)
     stat = float(nw * nw * np.sum(rw**2 / (nw - np.abs(cl))))
     return cross, bound, float(stats.chi2.sf(stat, len(cl))), slow
 
@@ -503,8 +519,9 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
         raise DataError(f"only {n} residual samples for max_lag={max_lag}; use more data or a smaller max_lag")
     segs = data.segments
     ec = centered(e)
+    ecz = np.where(ok, ec, 0.0)
     lags = np.arange(0, max_lag + 1)
-    auto = correlation(ec, ec, lags, segs)
+    auto = zeroed_correlation(ecz, ecz, lags, segs)
     cl = np.arange(-max_lag, max_lag + 1)
     auto_full = np.concatenate([auto[:0:-1], auto])  # ρ_ee(k) for k = -L..L
     from scipy import stats
@@ -514,9 +531,10 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     signals += [(name, s, s) for name, s in data.extra.items()]
     order = min(max_lag, 10)
     ew = ar_innovations(ec, segs, ar_filter(ec, segs, order))
+    e_blocks = _block_means(e, segs, max_lag)  # the residual's side of every low-frequency test
     for name, s, source in signals:
         cross[name], bounds[name], pvals[name], slow[name] = _signal_tests(
-            data, name, np.asarray(s, dtype=float), source, e, ec, ew, auto_full, max_lag
+            data, name, np.asarray(s, dtype=float), source, e, ecz, e_blocks, ew, auto_full, max_lag
         )
 
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))

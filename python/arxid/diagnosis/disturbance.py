@@ -160,28 +160,89 @@ def slowest_mode_hz(model: ArxModel, ts: float, n_samples: int) -> float:
     return float(f.min()) if f.size else math.nan
 
 
-def _periodograms(x: np.ndarray, segments, ts: float):
-    """(|DFT|², frequency in Hz, bin weight) of the finite run of each experiment; a missing sample
-    inside a run counts as 0. The weight is 2 for the bins strictly between 0 and Nyquist (a one-sided
-    spectrum), 1 for those two."""
+def _sin_pi(q: np.ndarray, n: int) -> np.ndarray:
+    """sin(π q / n) for integers 0 <= q < 2n, with the argument reduced to [0, π/2] first (exact
+    reduction in integers: near π the direct form loses the small result's digits)."""
+    neg = q >= n
+    p = np.where(neg, q - n, q)
+    p = np.minimum(p, n - p)
+    s = np.sin(p * (math.pi / n))
+    return np.where(neg, -s, s)
+
+
+def _largest_prime_factor(n: int) -> int:
+    """The largest prime factor of ``n`` >= 1 (1 for 1), by trial division (√n steps at most)."""
+    largest, d = 1, 2
+    while d * d <= n:
+        while n % d == 0:
+            largest, n = d, n // d
+        d += 1 if d == 2 else 2
+    return max(largest, n)
+
+
+#: A length-n DFT whose prime factors are all at most this is fast (numpy's pocketfft: within ~2x
+#: a power of two at 2M samples); a larger factor makes it a Bluestein transform (~10x).
+_FAST_PRIME = 500
+
+
+def _low_power(e: np.ndarray, k: int) -> float:
+    """Σ |X_j|² over the DFT bins -k <= j <= k of ``e`` (length n, 2k + 1 < n), X its length-n DFT.
+
+    A length-n DFT is slow when n has a large prime factor (a Bluestein transform, ~10x a smooth
+    length). The sum equals Σ_m r(m) D(m) over the lags -n < m < n, with r the linear
+    autocorrelation of ``e`` (from one zero-padded transform of a smooth length >= 2n - 1) and D the
+    Dirichlet kernel sin(π(2k+1)m/n) / sin(πm/n); exact in exact arithmetic, so the bins and the
+    resolution are those of the length-n DFT. When n is a fast length the DFT is taken.
+    """
+    from scipy.fft import next_fast_len  # here: importing arxid does not import scipy
+
+    n = len(e)
+    if _largest_prime_factor(n) <= _FAST_PRIME:
+        spec = np.abs(np.fft.rfft(e)[: k + 1]) ** 2
+        return float(spec[0] + 2.0 * np.sum(spec[1:]))
+    size = next_fast_len(2 * n - 1, real=True)
+    spec = np.fft.rfft(e, size)
+    r = np.fft.irfft(spec.real**2 + spec.imag**2, size)[:n]
+    del spec
+    total = (2 * k + 1) * float(r[0])
+    chunk = 1 << 18
+    for lo in range(1, n, chunk):
+        m = np.arange(lo, min(lo + chunk, n), dtype=np.int64)
+        kernel = _sin_pi(((2 * k + 1) * m) % (2 * n), n) / _sin_pi(m, n)
+        total += 2.0 * float(np.einsum("i,i->", r[lo : lo + len(m)], kernel))
+    return total
+
+
+def _finite_runs(x: np.ndarray, segments):
+    """The finite run of each experiment (first to last finite sample); a missing sample inside a
+    run counts as 0. Runs with fewer than 2 finite samples are skipped."""
     for lo, hi in segments:
         e = x[lo:hi]
         ok = np.isfinite(e)
         if ok.sum() < 2:
             continue
         first, last = int(np.argmax(ok)), len(e) - int(np.argmax(ok[::-1]))
-        e = np.where(ok[first:last], e[first:last], 0.0)
-        weight = np.ones(len(e) // 2 + 1)
-        weight[1 : (len(e) + 1) // 2] = 2.0
-        yield np.abs(np.fft.rfft(e)) ** 2, np.fft.rfftfreq(len(e), ts), weight
+        yield np.where(ok[first:last], e[first:last], 0.0)
 
 
 def _low_share(error: np.ndarray, segments, ts: float, split: float) -> float:
-    """Share of Σ e² in the DFT bins at or below ``split`` Hz, over the experiments (Parseval)."""
+    """Share of Σ e² in the DFT bins at or below ``split`` Hz, over the experiments (Parseval).
+
+    The one-sided periodogram of each finite run (weight 2 strictly between 0 and Nyquist, 1 at
+    both) sums to n Σ e²; its bins at or below ``split`` sum to Σ |X_j|² over |j| <= k, k the last
+    such bin (all bins when that reaches Nyquist).
+    """
     low = total = 0.0
-    for spec, f, weight in _periodograms(error, segments, ts):
-        low += float(np.sum((spec * weight)[f <= split]))
-        total += float(np.sum(spec * weight))
+    for e in _finite_runs(error, segments):
+        n = len(e)
+        # einsum, not dot: a multithreaded BLAS dot leaves threads spinning on the cores others need
+        energy = n * float(np.einsum("i,i->", e, e))
+        n_low = int(np.count_nonzero(np.fft.rfftfreq(n, ts) <= split))
+        total += energy
+        if n_low >= n // 2 + 1:
+            low += energy
+        elif n_low > 0:
+            low += _low_power(e, n_low - 1)
     return low / total if total > 0 else math.nan
 
 
