@@ -53,7 +53,7 @@ impl OutputTerm {
 
 /// Sign with sign(0) = 0 (numpy's convention, so Python and the core build the same regressors).
 #[inline]
-fn sign(x: f64) -> f64 {
+pub(crate) fn sign(x: f64) -> f64 {
     if x > 0.0 {
         1.0
     } else if x < 0.0 {

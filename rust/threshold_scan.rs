@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
 use crate::linear_predict::{avx2_fma, madd};
+use crate::structure::sign;
 
 /// Rows per chunk: one chunk's partial products are summed in chunk order, so the result does not
 /// depend on the number of threads. The cancel flag is read once per chunk.
@@ -241,16 +242,7 @@ fn add_row<const FMA: bool>(left: &[f64], z: &[f64], m: usize, cross: &mut [f64]
 /// `shape(x, c)` for every threshold c, as numpy's `thresholded` computes it.
 #[inline(always)]
 fn shaped(x: f64, thresholds: &[f64], shape: Shape, out: &mut [f64]) {
-    let (magnitude, sign) = (
-        x.abs(),
-        if x > 0.0 {
-            1.0
-        } else if x < 0.0 {
-            -1.0
-        } else {
-            0.0
-        },
-    );
+    let (magnitude, sign) = (x.abs(), sign(x));
     match shape {
         Shape::DeadZone => {
             for (o, &c) in out.iter_mut().zip(thresholds) {
@@ -276,13 +268,7 @@ mod tests {
         for (t, &c) in thresholds.iter().enumerate() {
             let col = |j: usize, r: usize| {
                 let x: f64 = rows.lagged[r * b + j];
-                let s = if x > 0.0 {
-                    1.0
-                } else if x < 0.0 {
-                    -1.0
-                } else {
-                    0.0
-                };
+                let s = sign(x);
                 match shape {
                     Shape::DeadZone => s * (x.abs() - c).max(0.0),
                     Shape::Saturation => s * x.abs().min(c),

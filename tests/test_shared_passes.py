@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.signal import lfilter
 
 import arxid
 from arxid.diagnosis.extension import Candidate, Refits
@@ -14,16 +13,7 @@ from arxid.exceptions import DataError
 from arxid.models.arx_model import ArxModel
 from arxid.models.effects import compile_effects, layout_column
 from arxid.models.envelope import EnvelopeFactor
-
-
-def _data(seed: int, n: int = 5000) -> arxid.IOData:
-    rng = np.random.default_rng(seed)
-    u = rng.standard_normal((n, 2))
-    v = 4.2 - 0.5 * np.linspace(0, 1, n) + 0.01 * rng.standard_normal(n)
-    x = u[:, 0] * v / 4.2 + 0.3 * u[:, 1] ** 2
-    y = lfilter([0, 0.5, 0.25], [1, -1.5, 0.7], x) + 0.01 * rng.standard_normal(n)
-    return arxid.IOData(y, u, 0.01, extra={"vbat": v})
-
+from test_envelope import _data  # the battery-scaled two-input plant
 
 EFFECTS = ("u1*vbat", "u2^2", "vbat", "const", "time", "sat(u1,0.5)", "sign(dy)", "u1*y^2", "abs(u2)")
 
