@@ -32,3 +32,17 @@ def test_the_stage_error_is_raised_to_the_caller_with_its_type_and_words():
     job = Background(stage)
     with pytest.raises(DataError, match="too short"):
         job.result()
+
+
+def test_a_diagnosis_says_what_is_wrong_with_the_validation_data_first():
+    """The baseline (validation data) runs beside the scoring (estimation data); when both fail,
+    the baseline's error is the one raised, as when it ran first."""
+    import arxid
+
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(400)
+    y = np.convolve(u, [0.0, 0.5, 0.3])[:400] + 0.01 * rng.standard_normal(400)
+    model = arxid.arx(arxid.IOData(y, u, 0.01), 2, 2, 1)
+    short = arxid.IOData(y[:2], u[:2], 0.01)  # too short for the prediction and for the scoring
+    with pytest.raises(DataError, match="validation data .* too short for a prediction"):
+        arxid.diagnose(model, short, short)

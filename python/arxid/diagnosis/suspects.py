@@ -41,6 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._base import metrics
+from .._base.background import Background
 from ..checks import ResidualAnalysis, prediction_error, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -145,10 +146,16 @@ def diagnose(
         raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
-    base = _baseline(model, validation, horizon, residual_max_lag, initial)
-    cands, auto = candidate_list(candidates, model, data)
-    scoring = None if polynomial else Scoring(model, data, cands)
-    scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
+    # The baseline reads the validation data only: beside the scoring, on the second core.
+    baseline = Background(_baseline, model, validation, horizon, residual_max_lag, initial)
+    try:
+        cands, auto = candidate_list(candidates, model, data)
+        scoring = None if polynomial else Scoring(model, data, cands)
+        scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
+    except Exception:
+        baseline.result()  # the baseline's error first, as when it ran before the scoring
+        raise
+    base = baseline.result()
     judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement, initial)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
