@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -83,8 +82,7 @@ def error_rms(model: ArxModel, data: IOData, horizon: int | None = None, initial
     """
     if check_initial(initial) == "zero":
         return model.rms(data, horizon)
-    pred, _, diverged = prediction_error(model, data, horizon, initial)
-    return math.inf if diverged else metrics.prediction_rms(data.y, pred)
+    return metrics.prediction_rms(data.y, prediction_error(model, data, horizon, initial)[0])  # inf when it diverged
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,7 +30,7 @@ from ..models.effects import (
     parse_effect,
     thresholded_products,
 )
-from ..models.regressors import lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
+from ..models.regressors import first_of_run, lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, holm, lagged_view
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
@@ -72,9 +72,7 @@ class Scoring:
             )
         self.proj0 = AddedVariableTest(self.phi0, self.y0)
         self.lagged = lagger(self.rows0)  # x[rows0 - lag], a slice when the rows are consecutive
-        rows = self.rows0
-        consecutive = len(rows) > 0 and rows[-1] - rows[0] == len(rows) - 1 and bool(np.all(np.diff(rows) == 1))
-        self._first_row = int(rows[0]) if consecutive else None
+        self._first_row = first_of_run(self.rows0)
         self._samples: dict[tuple[str, int, int], np.ndarray] = {}  # one signal's, during its scan
         self._phi_y_gram: np.ndarray | None = None
         # The columns of each candidate tested on the model's rows, rebuilt when asked for (pairs
@@ -199,7 +197,7 @@ class Scoring:
     def _threshold_lag(self, op: str, signal: str) -> tuple[int, int]:
         """nb and nk of the columns of ``op(signal, c)`` (they do not depend on the threshold)."""
         if (op, signal) not in self._threshold_lags:
-            lay = compile_effects((f"{op}({signal},1)",), self.data, self.model.nb_, self.model.nk_)
+            lay = compile_effects((f"{op}({signal},1)",), self.data, self.model.nb_, self.model.nk_, samples=False)
             self._threshold_lags[op, signal] = (lay.nb[-1], lay.nk[-1])
         return self._threshold_lags[op, signal]
 
@@ -240,7 +238,7 @@ class Scoring:
         a read-only strided view of ``x`` (nothing copied: a test reads it a block of rows at a
         time), else a gather."""
         n = len(self.rows0)
-        if self._first_row is not None and self._first_row - k - (b - 1) >= 0 and x.ndim == 1:
+        if self._first_row is not None and self._first_row - k - (b - 1) >= 0:
             return lagged_view(x, self._first_row - k, b, n)
         z = np.empty((n, b))
         for j in range(b):

@@ -240,8 +240,7 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
         return made[k, init]
 
     def rms(k: int | None, init: str) -> float:
-        pred, diverged = predicted(k, init)
-        return math.inf if diverged else metrics.prediction_rms(validation.y, pred)
+        return metrics.prediction_rms(validation.y, predicted(k, init)[0])  # inf when it diverged
 
     if horizon is None and output_integrates(model, _free_run_fit(model, validation, predicted)):
         horizon = INTEGRATING_HORIZON

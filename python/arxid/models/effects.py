@@ -486,7 +486,7 @@ class _Plan:
     def effect(self, e: Effect, text: str) -> None:
         data = self.data
         if e.special is not None:
-            col = (np.ones(data.n_samples) if e.special == "const" else data.time) if self.build else None
+            col = _special_column(e.special, data) if self.build else None
             self.add(col, 1, 0, None, e.special, e.text)
             return
         y_factors = [f for f in e.factors if _is_output(f.signal, data)]
@@ -542,13 +542,18 @@ def effect_series(text: str, data: IOData) -> np.ndarray:
     """
     e = parse_effect(text, data)
     if e.special is not None:
-        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
+        return _special_column(e.special, data)
     prod = np.ones(data.n_samples)
     with np.errstate(over="ignore", invalid="ignore"):
         for f in e.factors:
             prod = prod * _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
     _check_range(e.text, prod)
     return prod
+
+
+def _special_column(special: str, data: IOData) -> np.ndarray:
+    """The column of ``const`` (ones) or ``time`` (the sample times)."""
+    return np.ones(data.n_samples) if special == "const" else np.asarray(data.time, dtype=float)
 
 
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
@@ -627,6 +632,6 @@ def layout_column(label: str, data: IOData) -> np.ndarray:
     text = label.removeprefix("carrier:")
     e = parse_effect(text, data)
     if e.special is not None:
-        return np.ones(data.n_samples) if e.special == "const" else np.asarray(data.time, dtype=float)
+        return _special_column(e.special, data)
     prod = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
     return np.array(prod, dtype=float)  # a copy: never the data's own samples

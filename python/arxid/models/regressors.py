@@ -23,6 +23,7 @@ __all__ = [
     "regressor_matrix",
     "regressor_columns",
     "lagger",
+    "first_of_run",
     "max_lag",
     "row_bound",
 ]
@@ -291,11 +292,33 @@ def lagger(rows: np.ndarray) -> Callable[[np.ndarray, int], np.ndarray]:
     >>> lagged(np.arange(10.0), 2).tolist()
     [0.0, 1.0, 2.0]
     """
-    n = len(rows)
-    if n and rows[-1] - rows[0] == n - 1 and bool(np.all(np.diff(rows) == 1)):
-        first = int(rows[0])
+    n, first = len(rows), first_of_run(rows)
+    if first is not None:
         return lambda x, lag: x[first - lag : first - lag + n]
     return lambda x, lag: x[rows - lag]
+
+
+def first_of_run(rows: np.ndarray) -> int | None:
+    """The first row when ``rows`` are one run of consecutive samples (a lagged column of them is a
+    slice), else None.
+
+    Parameters
+    ----------
+    rows : ndarray of int
+
+    Returns
+    -------
+    int or None
+
+    Examples
+    --------
+    >>> first_of_run(np.array([3, 4, 5])), first_of_run(np.array([3, 5]))
+    (3, None)
+    """
+    n = len(rows)
+    if n and rows[-1] - rows[0] == n - 1 and bool(np.all(np.diff(rows) == 1)):
+        return int(rows[0])
+    return None
 
 
 def dependent_partners(phi: np.ndarray, column: int, names: Sequence[str], top: int = 3) -> list[str]:
