@@ -29,7 +29,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypedDict, cast
 
-from .._base.background import Background
+from .._base.background import Background, one_blas_thread
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
@@ -532,6 +532,7 @@ def _ladder(
 FLEET_ANALYSIS: dict[str, Any] = {}
 
 
+@one_blas_thread()  # its stages run beside each other on the cores BLAS's threads would take
 def analyse(
     data: IOData,
     validation: IOData | None = None,

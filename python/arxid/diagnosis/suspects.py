@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._base import metrics
-from .._base.background import Background
+from .._base.background import Background, one_blas_thread
 from ..checks import ResidualAnalysis, prediction_error, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -63,6 +63,7 @@ __all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_H
 INTEGRATING_HORIZON = 10
 
 
+@one_blas_thread()  # the baseline runs beside the scoring on the cores BLAS's threads would take
 def diagnose(
     model: ArxModel,
     data: IOData | None = None,
