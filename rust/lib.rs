@@ -8,6 +8,7 @@ pub mod error;
 pub mod fit;
 pub mod iv;
 pub mod kstep;
+pub mod lagged_qr;
 pub mod linear_predict;
 pub mod one_step;
 pub mod pem;

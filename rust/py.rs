@@ -20,6 +20,8 @@ use crate::structure::{Data, OutputKind, OutputTerm, Structure};
 use crate::sweep::{clamp_threads, effective_threads, SweepOptions};
 use crate::sweep_columns::{envelope_rows, release, structures_of_rows, SweepColumns};
 
+#[path = "py_lagged.rs"]
+mod py_lagged;
 #[path = "py_procest.rs"]
 mod py_procest;
 #[path = "py_scoring.rs"]
@@ -927,6 +929,8 @@ mod py_iv;
 mod core_module {
     #[pymodule_export]
     use super::py_iv::iv_sweep;
+    #[pymodule_export]
+    use super::py_lagged::lagged_r;
     #[pymodule_export]
     use super::py_procest::{procest_refine, procest_simulate};
     #[pymodule_export]

@@ -1,6 +1,6 @@
-"""The dependence test's noise model reads its AR fits from one factor of the lagged remainder:
-the Cholesky factor of the cross products for a near-white remainder, the QR of the rows for an
-ill-conditioned one (a drifting remainder); both give R'R = M'M of the lagged matrix M."""
+"""The dependence test's noise model reads its AR fits from one factor of the lagged remainder, the
+QR of its rows in the Rust core: R'R = M'M of the lagged matrix M, for a near-white remainder and for
+an ill-conditioned one (a drifting remainder), on rows with gaps."""
 
 from __future__ import annotations
 
@@ -19,5 +19,5 @@ def test_noise_factor_of_the_lagged_remainder(drifting):
     keep = _previous_rows(rows, MAX_NOISE_ORDER)
     assert len(keep) == len(rows) - 3 * MAX_NOISE_ORDER  # the first rows and those after each gap
     m = np.column_stack([r[keep - j] for j in range(1, MAX_NOISE_ORDER + 1)] + [r[keep]])
-    f = _lagged_factor(r, keep, MAX_NOISE_ORDER)
+    f = _lagged_factor(r, rows, MAX_NOISE_ORDER)
     np.testing.assert_allclose(f.T @ f, m.T @ m, rtol=1e-10, atol=1e-10 * np.abs(m.T @ m).max())

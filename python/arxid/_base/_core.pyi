@@ -41,6 +41,7 @@ __all__ = [
     "procest_simulate",
     "threshold_products",
     "tested_products",
+    "lagged_r",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -276,6 +277,17 @@ def threshold_products(
 def tested_products(
     a: _F, e: _F, blocks: Sequence[tuple[_F, int, bool]], n_threads: int = 0
 ) -> list[tuple[_F, _F]]: ...
+
+# The factor of lagged signals (arxid.models.lagged, the residual tests, the dependence test).
+def lagged_r(
+    sources: Sequence[_F],
+    columns: Sequence[tuple[int, int, int]],
+    segments: Sequence[tuple[int, int]],
+    back: int,
+    ahead: int,
+    skip_missing: bool = True,
+    n_threads: int = 0,
+) -> tuple[_F, int]: ...
 
 _Process = tuple[int, bool, bool, bool, bool]
 

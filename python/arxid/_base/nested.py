@@ -11,24 +11,23 @@ calls it replaces each read the whole matrix again.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-
 import numpy as np
+
+from . import _core
 
 __all__ = [
     "nested_fits",
     "nested_from_factor",
     "least_squares",
     "blocked_r",
-    "stacked_factor",
     "column_norms",
     "cholesky_factor",
     "BLOCK_ROWS",
 ]
 
-#: Rows per block of the blocked QR (:func:`blocked_r`): a block of a few dozen columns stays in
-#: the processor's cache while LAPACK's Householder sweeps (one per column) pass over it, which on
-#: 2M rows x 23 columns is about 2.5 times faster than blocks of 65536 rows.
+#: Rows per block of the cross products summed in numpy (:func:`arxid.models.lagged.lagged_gram`): a
+#: block of a few dozen columns stays in the processor's cache (the QRs, :func:`blocked_r`, are
+#: reduced in the Rust core in blocks of its own).
 BLOCK_ROWS = 16384
 
 
@@ -214,7 +213,8 @@ def column_norms(x: np.ndarray) -> np.ndarray:
 
 def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:
     """R with R'R = [x/scale | y]'[x/scale | y]: Householder QR of blocks of rows, then of their R's
-    stacked (as accurate as one QR of the whole matrix; each block copied once, no n × p copy).
+    stacked (as accurate as one QR of the whole matrix), in the Rust core on every core (the same R
+    for any number); the columns are read where they are, never copied.
 
     Parameters
     ----------
@@ -237,38 +237,23 @@ def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | No
     >>> bool(np.allclose(r.T @ r, x.T @ x))
     True
     """
+    x = _readable(x)
+    sources, columns = [x], [(0, j, 0) for j in range(x.shape[1])]
+    if y is not None:
+        sources.append(_readable(y)[:, None])
+        columns.append((1, 0, 0))
+    if not columns:
+        return np.zeros((0, 0))
+    r, n_rows = _core.lagged_r(sources, columns, [(0, x.shape[0])], 0, 0, skip_missing=False)
+    r = np.asarray(r)[: min(n_rows, len(columns))]
+    if scale is not None:  # the R of [x D | y] is R D: QR commutes with scaling columns
+        r[:, : x.shape[1]] /= scale
+    return r
 
-    def blocks():
-        for lo in range(0, x.shape[0], BLOCK_ROWS):
-            part = x[lo : lo + BLOCK_ROWS] if scale is None else x[lo : lo + BLOCK_ROWS] / scale
-            yield part if y is None else np.column_stack([part, y[lo : lo + BLOCK_ROWS]])
 
-    return stacked_factor(blocks(), x.shape[1] + (y is not None))
+def _readable(a: np.ndarray) -> np.ndarray:
+    """``a`` as float, read in place by the core unless a stride is negative."""
+    a = np.asarray(a, dtype=float)
+    return a if all(s >= 0 for s in a.strides) else np.ascontiguousarray(a)
 
 
-def stacked_factor(blocks: Iterable[np.ndarray], n_columns: int) -> np.ndarray:
-    """R of the matrix whose rows are the ``blocks`` stacked: Householder QR of each block, then of
-    their R's stacked (as accurate as one QR of the whole matrix, which is never held).
-
-    Parameters
-    ----------
-    blocks : iterable of ndarray of shape (rows_i, n_columns)
-        Built one at a time by the caller (an empty block is skipped).
-    n_columns : int
-
-    Returns
-    -------
-    ndarray of shape (min(total rows, n_columns), n_columns)
-        Upper triangular (0 rows when there are none).
-
-    Examples
-    --------
-    >>> x = np.random.default_rng(3).standard_normal((1000, 2))
-    >>> r = stacked_factor((x[i : i + 300] for i in range(0, 1000, 300)), 2)
-    >>> bool(np.allclose(r.T @ r, x.T @ x))
-    True
-    """
-    rs = [np.asarray(np.linalg.qr(b, mode="r")) for b in blocks if len(b)]
-    if not rs:
-        return np.zeros((0, n_columns))
-    return rs[0] if len(rs) == 1 else np.asarray(np.linalg.qr(np.vstack(rs), mode="r"))

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._base.nested import BLOCK_ROWS, cholesky_factor, least_squares, nested_from_factor, stacked_factor
+from .._base import _core
+from .._base.nested import least_squares, nested_from_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -44,9 +45,6 @@ MAX_LAGS = 3
 LINEAR_CONTEXT = 3
 #: Largest order of the AR model that prewhitens the regression.
 MAX_NOISE_ORDER = 10
-#: Smallest eigenvalue, relative to the largest, of the scaled cross products of the noise model's
-#: lags whose Cholesky factor stands for their QR.
-WELL_CONDITIONED = 1e-4
 
 
 @dataclass(frozen=True)
@@ -176,17 +174,15 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     if built is None:
         return ()
     design, y_kept, kept = built
-    whiten = _prewhitening(design, y_kept, kept)
-    base = AddedVariableTest(*whiten(design, y_kept, inplace=True))  # the design is not needed again
+    a = _noise_model(design, y_kept, kept)
+    use = _previous_rows(kept, a.size)
+    base = AddedVariableTest(_filtered(design, a, use, design), _filtered(y_kept, a, use, np.empty(len(use))))
     base.p += repeated
-    del design
-    buffer = np.empty(len(kept) * 5)  # the functions of one lag at a time (the tests keep none)
-    tested = [
-        (name, lag, res)
-        for name, x, lag, signed in specs
-        if (res := base.test(whiten(_features(x, kept, lag, signed, buffer), inplace=True)[0])[0]) is not None
-    ]
-    del buffer
+    del design  # filtered in place: the regressors of the tests
+    if kept[-1] - kept[0] == len(kept) - 1:
+        tested = _tests_by_signal(base, specs, a, int(kept[0]) + a.size)
+    else:
+        tested = _tests_by_lag(base, specs, a, kept, use)
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))
@@ -201,6 +197,45 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
         for name, hits in found.items()
     ]
     return tuple(sorted(out, key=lambda d: d.p_value))
+
+
+def _tests_by_lag(base: AddedVariableTest, specs: list, a: np.ndarray, kept: np.ndarray, use: np.ndarray) -> list:
+    """(signal, lag, result) of each tested block: its functions on the kept rows, filtered as the
+    regressors were (rows with gaps between them)."""
+    buffer = np.empty(len(kept) * 5)  # the functions of one lag at a time (the tests keep none)
+    tested = []
+    for name, x, lag, signed in specs:
+        z = _features(x, kept, lag, signed, buffer)
+        res = base.test(_filtered(z, a, use, z))[0]
+        if res is not None:
+            tested.append((name, lag, res))
+    return tested
+
+
+def _tests_by_signal(base: AddedVariableTest, specs: list, a: np.ndarray, start: int) -> list:
+    """:func:`_tests_by_lag` for consecutive rows, the first filtered one being sample ``start``:
+    filtering commutes with the lag, so each signal's functions are filtered once as series and each
+    lag's block is a slice of them (no copy); a signal's lags are tested in one pass over the rows.
+    The same numbers as filtering each block, operation for operation."""
+    tested = []
+    for name in dict.fromkeys(name for name, *_ in specs):
+        mine = [(lag, x, signed) for n, x, lag, signed in specs if n == name]
+        series = _filtered_functions(mine[0][1], a, mine[0][2], start - max(lag for lag, *_ in mine))
+        got = base.tests([series[start - lag : start - lag + base.n] for lag, *_ in mine])
+        tested += [(name, lag, res) for (lag, *_), (res, _) in zip(mine, got, strict=True) if res is not None]
+    return tested
+
+
+def _filtered_functions(s: np.ndarray, a: np.ndarray, signed: bool, first: int) -> np.ndarray:
+    """The nonlinear functions of ``s`` (as :func:`_features`) filtered by the noise model,
+    ``g(t) = h(t) − Σ_j a_j h(t − 1 − j)``, for samples ``first`` on (rows before: NaN)."""
+    order, n = a.size, len(s)
+    out = np.full((n, 5 if signed else 3), np.nan)
+    for lo in range(first, n, DESIGN_ROWS):
+        hi = min(lo + DESIGN_ROWS, n)
+        h = _features(s, np.arange(lo - order, hi), 0, signed)
+        _filtered(h, a, np.arange(order, len(h)), out[lo:hi])
+    return out
 
 
 #: Rows of the design written at a time: a block stays in cache while its columns are written.
@@ -268,7 +303,12 @@ FILTER_ROWS = 4096
 def _filtered(v: np.ndarray, a: np.ndarray, use: np.ndarray, out: np.ndarray) -> np.ndarray:
     """``v(t) − Σ_j a_j v(t − j)`` at the positions ``use`` (whose ``a.size`` previous positions are
     the previous samples), written to ``out`` in order, a block of rows at a time (``out`` may be
-    ``v`` itself: a block is written only below the rows later blocks read)."""
+    ``v`` itself: a block is written only below the rows later blocks read). No coefficient: ``v``
+    itself (``use`` is then every position)."""
+    if a.size == 0:
+        if out is not v:
+            out[: len(use)] = v[: len(use)]
+        return out[: len(use)]
     for at, lo, hi in _runs(use, FILTER_ROWS):
         acc = a[0] * v[lo - 1 : hi - 1]
         for j in range(1, a.size):
@@ -277,63 +317,34 @@ def _filtered(v: np.ndarray, a: np.ndarray, use: np.ndarray, out: np.ndarray) ->
     return out[: len(use)]
 
 
-def _lagged_factor(r: np.ndarray, keep: np.ndarray, order: int) -> np.ndarray:
-    """R of [r(t−1) … r(t−P) | r(t)] over the positions ``keep``, summed or reduced one block of rows
-    at a time."""
-
-    def blocks():
-        for lo in range(0, len(keep), BLOCK_ROWS):
-            at = keep[lo : lo + BLOCK_ROWS]
-            block = np.empty((len(at), order + 1))
-            if at[-1] - at[0] == len(at) - 1:  # consecutive positions: the lags are slices
-                for j in range(1, order + 1):
-                    block[:, j - 1] = r[at[0] - j : at[-1] + 1 - j]
-                block[:, -1] = r[at[0] : at[-1] + 1]
-            else:
-                for j in range(1, order + 1):
-                    block[:, j - 1] = r[at - j]
-                block[:, -1] = r[at]
-            yield block
-
-    gram = np.zeros((order + 1, order + 1))
-    for block in blocks():
-        gram += block.T @ block
-    # A near-white remainder (the usual case): the Cholesky factor of the cross products, several
-    # times faster than the QR of every row and as accurate (about twelve digits); else the QR.
-    factor = cholesky_factor(gram, WELL_CONDITIONED)
-    return stacked_factor(blocks(), order + 1) if factor is None else factor
+def _lagged_factor(r: np.ndarray, rows: np.ndarray, order: int) -> np.ndarray:
+    """R of [r(t−1) … r(t−P) | r(t)] over the positions whose ``order`` previous positions are the
+    previous samples (:func:`_previous_rows`): the runs of consecutive samples, each from its
+    ``order``-th position on, reduced by Householder QR in the Rust core."""
+    breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+    runs = [(int(a), int(b)) for a, b in zip(np.r_[0, breaks], np.r_[breaks, len(rows)], strict=True)]
+    columns = [(0, 0, lag) for lag in range(1, order + 1)] + [(0, 0, 0)]
+    factor, _ = _core.lagged_r([r[:, None]], columns, runs, order, 0)
+    return np.asarray(factor)
 
 
-def _prewhitening(x: np.ndarray, y: np.ndarray, rows: np.ndarray):
-    """The Cochrane–Orcutt filter of the regression of ``y`` on ``x``: ``whiten(z, y=None)`` returns
-    ``(A(q) z, A(q) y)`` on the rows whose previous samples are rows too, A the AR model of the
-    least-squares remainder (order by AIC up to ``MAX_NOISE_ORDER``; identity for a white one)."""
-
-    def identity(z: np.ndarray, yy: np.ndarray | None = None, inplace: bool = False):
-        return z, yy
-
+def _noise_model(x: np.ndarray, y: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Coefficients a of the Cochrane–Orcutt filter A(q) = 1 − Σ a_j q^-j of the regression of ``y``
+    on ``x``: the AR model of the least-squares remainder, order by AIC up to ``MAX_NOISE_ORDER``
+    (empty for a white one, and when too few rows have their previous samples)."""
     r = y - x @ least_squares(x, y)
     keep = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
-        return identity
+        return np.zeros(0)
     now = r[keep]
     best_ic, a = math.log(max(float(np.mean(now * now)), 1e-300)), np.zeros(0)
-    rss_all, coefs = nested_from_factor(_lagged_factor(r, keep, MAX_NOISE_ORDER))  # every order from one factor
+    rss_all, coefs = nested_from_factor(_lagged_factor(r, rows, MAX_NOISE_ORDER))  # every order from one factor
     for p in range(1, MAX_NOISE_ORDER + 1):
         c = coefs[p]
         ic = math.log(max(float(rss_all[p]) / len(now), 1e-300)) + 2.0 * p / len(now)
         if ic < best_ic:
             best_ic, a = ic, c
-    if a.size == 0:
-        return identity
-    use = _previous_rows(rows, a.size)
-
-    def whiten(z: np.ndarray, yy: np.ndarray | None = None, inplace: bool = False):
-        # In place, the filtered rows overwrite the first ones once no later block reads them.
-        out = z if inplace else np.empty((len(use), *z.shape[1:]))
-        return _filtered(z, a, use, out), (None if yy is None else _filtered(yy, a, use, np.empty(len(use))))
-
-    return whiten
+    return a
 
 
 def dependence_sentence(found: tuple[NonlinearDependence, ...]) -> str:

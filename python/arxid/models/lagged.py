@@ -8,7 +8,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._base.nested import BLOCK_ROWS, stacked_factor
+from .._base import _core
+from .._base.nested import BLOCK_ROWS
 
 __all__ = ["lagged_columns", "lagged_factor", "lagged_gram", "filter_segments"]
 
@@ -72,9 +73,9 @@ def _blocks(
 def lagged_factor(
     columns: Sequence[tuple[np.ndarray, int]], segments: Sequence[tuple[int, int]], back: int, ahead: int = 0
 ) -> tuple[np.ndarray, int]:
-    """The triangular factor R (R'R = M'M) of the matrix M of :func:`lagged_columns`, built and reduced
-    by Householder QR one block of rows at a time: M is never held whole (a high-order model on a
-    long record has dozens of columns).
+    """The triangular factor R (R'R = M'M) of the matrix M of :func:`lagged_columns`, by Householder
+    QR of one block of rows at a time in the Rust core (on every core; the same R for any number):
+    M is never held whole (a high-order model on a long record has dozens of columns).
 
     Parameters
     ----------
@@ -86,10 +87,24 @@ def lagged_factor(
     r : ndarray of shape (min(n_rows, n_columns), n_columns)
     n_rows : int
         Rows of M (those touching a missing sample left out).
+
+    Examples
+    --------
+    >>> x = np.arange(6.0)
+    >>> r, n = lagged_factor([(x, 1), (x, 0)], [(0, 6)], 1)
+    >>> n, np.round(r.T @ r, 9).tolist()
+    (5, [[30.0, 40.0], [40.0, 55.0]])
     """
-    count = [0]
-    r = stacked_factor(_blocks(columns, segments, back, ahead, count), len(columns))
-    return r, count[0]
+    index: dict[int, int] = {}  # each signal passed once, however many of its lags are columns
+    sources = []
+    for signal, _ in columns:
+        if id(signal) not in index:
+            index[id(signal)] = len(sources)
+            x = np.asarray(signal, dtype=float)
+            sources.append((x if x.strides[0] >= 0 else np.ascontiguousarray(x))[:, None])
+    spec = [(index[id(signal)], 0, int(lag)) for signal, lag in columns]
+    r, n_rows = _core.lagged_r(sources, spec, [(int(a), int(b)) for a, b in segments], int(back), int(ahead))
+    return np.asarray(r)[: min(n_rows, len(columns))], int(n_rows)
 
 
 def lagged_gram(
