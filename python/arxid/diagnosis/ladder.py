@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from .._base import metrics
-from .._base.background import Background, one_blas_thread
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from ..checks import error_rms, prediction_error
 from ..data.iodata import IOData
@@ -29,7 +28,7 @@ from ..models.polynomial import PolynomialModel, check_initial
 from .candidates import physics
 from .restructure import linear_name, order_change, rechoose_structure
 from .result import Diagnosis, Suspect
-from .suspects import dependence_test, diagnose
+from .suspects import diagnose
 
 __all__ = ["Ladder", "LadderStep", "next_rung"]
 
@@ -271,7 +270,6 @@ class Ladder:
         return model, tuple(replaced)
 
     @classmethod
-    @one_blas_thread()  # the dependence tests run beside the next stages
     def run(
         cls,
         model: ArxModel,
@@ -321,21 +319,10 @@ class Ladder:
         """
         model = check_model(model)
         data = data if data is not None else model.data_
-        # Each diagnosis's nonlinear-dependence test (it decides no rung) runs beside the next stage.
-        dependence = diagnose_kwargs.pop("dependence", True)
-        tests: list[Background] = []
-
-        def diagnosed(model: ArxModel, horizon: int | None) -> Diagnosis:
-            d = diagnose(model, data, validation, horizon=horizon, initial=initial, dependence=False, **diagnose_kwargs)
-            if dependence:
-                tests.append(Background(dependence_test, d))
-            ladder.diagnoses.append(d)
-            return d
-
-        ladder = cls(None, horizon, initial)
-        d = diagnosed(model, horizon)
-        ladder.validation, ladder.horizon = d.validation, d.horizon
+        d = diagnose(model, data, validation, horizon=horizon, initial=initial, **diagnose_kwargs)
+        ladder = cls(d.validation, d.horizon, initial)
         ladder.add(model)
+        ladder.diagnoses.append(d)
         for _ in range(int(max_steps)):
             rung = next_rung(d)
             if rung is None:
@@ -357,9 +344,8 @@ class Ladder:
                 model, rung.effect, settle=True, min_improvement=d.min_improvement, rechosen_from=rechosen_from
             )
             model = step.model
-            d = diagnosed(model, d.horizon)
-        if dependence:
-            ladder.diagnoses = [replace(d, nonlinear_dependence=t.result()) for d, t in zip(ladder.diagnoses, tests)]
+            d = diagnose(model, data, validation, horizon=d.horizon, initial=initial, **diagnose_kwargs)
+            ladder.diagnoses.append(d)
         return ladder
 
     @property

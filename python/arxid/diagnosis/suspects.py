@@ -57,7 +57,7 @@ from .polynomial_scoring import score_polynomial
 from .result import Diagnosis, Suspect
 from .scoring import Scoring
 
-__all__ = ["diagnose", "dependence_test", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
+__all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
 
 #: k used for the validation error of a plant with an integrator (free run drifts).
 INTEGRATING_HORIZON = 10
@@ -78,7 +78,6 @@ def diagnose(
     residual_max_lag: int = 25,
     simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
     initial: str = "zero",
-    dependence: bool = True,
 ) -> Diagnosis:
     """Rank the physical effects (and structure changes) the model is missing.
 
@@ -120,11 +119,6 @@ def diagnose(
         (default) starts each free run from the measured outputs (a polynomial model from rest);
         ``"estimate"`` fits them first, so a validation record that starts mid-transient is not held
         against the models (see :func:`arxid.compare`).
-    dependence : bool
-        Run the nonlinear-dependence test (:func:`~arxid.diagnosis.nonlinearity.nonlinear_dependence`,
-        the last stage: about a quarter of the time on a long record). False leaves
-        ``nonlinear_dependence`` empty; :func:`dependence_test` runs it later (the ladder runs it
-        beside its next stage).
 
     Returns
     -------
@@ -173,10 +167,11 @@ def diagnose(
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
     suspects = finish_suspects(notes, cands, suspects, data)
-    # After the scoring, not beside it: its design (~0.4 GiB at 2M rows) on top of the scoring's
-    # arrays would take the analysis of a 4M-sample record past 1 GiB.
+    # In sequence, not beside the scoring: its design (~0.4 GiB at 2M rows) on top of the other
+    # stages' arrays would take the analysis of a 4M-sample record past 1 GiB.
     del scoring, judge  # their regressors and refit factors: not held while the dependence test builds its own
-    found = Diagnosis(
+    dependence = () if polynomial else _dependence(model, data, alpha)
+    return Diagnosis(
         model,
         data,
         validation,
@@ -190,29 +185,14 @@ def diagnose(
         min_improvement,
         len(scored),
         same,
-        (),
+        dependence,
         base.disturbance,
     )
-    return replace(found, nonlinear_dependence=dependence_test(found)) if dependence else found
 
 
-def dependence_test(d: Diagnosis) -> tuple[NonlinearDependence, ...]:
-    """The nonlinear-dependence test of a diagnosis's model on its estimation data, at its level
-    (what :func:`diagnose` puts in ``nonlinear_dependence``).
-
-    Parameters
-    ----------
-    d : Diagnosis
-
-    Returns
-    -------
-    tuple of NonlinearDependence
-        Empty for a polynomial model, or when the data are too short for the extra lags.
-    """
-    if isinstance(d.model, PolynomialModel):
-        return ()
+def _dependence(model: ArxModel, data: IOData, alpha: float) -> tuple[NonlinearDependence, ...]:
     try:
-        return nonlinear_dependence(d.model, d.data, d.alpha)
+        return nonlinear_dependence(model, data, alpha)
     except ArxidError:  # too few rows for the extra lags: nothing to say
         return ()
 
