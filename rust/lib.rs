@@ -1,6 +1,7 @@
 //! arxid core: exact ARX least squares by Householder QR (faer), exhaustive order sweeps from one
 //! factorization, and fast free-run simulation. Pure Rust; the Python boundary lives in `py`.
 
+pub mod ar_filter;
 pub mod column_products;
 pub mod columns;
 pub mod csv_read;

@@ -1,7 +1,9 @@
 //! Python binding of [`crate::lagged_qr`]: the triangular factor of a matrix of lagged signals; a
 //! child of `py`, so it shares its thread pool and its Ctrl-C handling.
 
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray2, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 use super::run;
@@ -53,4 +55,20 @@ fn source<'a>(a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<Source<'a>> {
     // entry is initialised memory; the read-only borrow keeps Rust writers away while it is held.
     let values = unsafe { std::slice::from_raw_parts(a.data() as *const f64, span) };
     Ok(Source { values, rows, columns, row_stride, col_stride })
+}
+
+/// Filters the rows of `v` (C-contiguous rows × columns) in place by `v(t) − Σ_j a_j v(t − 1 − j)`:
+/// each run `(at, first, end)` writes rows `first..end` filtered to rows `at..` (see
+/// [`crate::ar_filter::filter_rows_in_place`]; numpy's numbers to the last bit).
+#[pyfunction]
+pub(super) fn ar_filter_rows(
+    py: Python<'_>,
+    mut v: PyReadwriteArray2<'_, f64>,
+    a: PyReadonlyArray1<'_, f64>,
+    runs: Vec<(usize, usize, usize)>,
+) -> PyResult<()> {
+    let width = v.shape()[1];
+    let coefficients = a.as_slice()?.to_vec();
+    let values = v.as_slice_mut()?;
+    run(py, 1, |_| crate::ar_filter::filter_rows_in_place(values, width, &coefficients, &runs))
 }

@@ -179,10 +179,8 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     base = AddedVariableTest(_filtered(design, a, use, design), _filtered(y_kept, a, use, np.empty(len(use))))
     base.p += repeated
     del design  # filtered in place: the regressors of the tests
-    if kept[-1] - kept[0] == len(kept) - 1:
-        tested = _tests_by_signal(base, specs, a, int(kept[0]) + a.size)
-    else:
-        tested = _tests_by_lag(base, specs, a, kept, use)
+    by_signal = kept[-1] - kept[0] == len(kept) - 1  # consecutive rows
+    tested = (_tests_by_signal if by_signal else _tests_by_lag)(base, specs, a, kept, use)
     if not tested:
         return ()
     adj = holm(np.array([res.p_value for _, _, res in tested]))
@@ -212,25 +210,30 @@ def _tests_by_lag(base: AddedVariableTest, specs: list, a: np.ndarray, kept: np.
     return tested
 
 
-def _tests_by_signal(base: AddedVariableTest, specs: list, a: np.ndarray, start: int) -> list:
-    """:func:`_tests_by_lag` for consecutive rows, the first filtered one being sample ``start``:
-    filtering commutes with the lag, so each signal's functions are filtered once as series and each
-    lag's block is a slice of them (no copy); a signal's lags are tested in one pass over the rows.
-    The same numbers as filtering each block, operation for operation."""
+def _tests_by_signal(base: AddedVariableTest, specs: list, a: np.ndarray, kept: np.ndarray, use: np.ndarray) -> list:
+    """:func:`_tests_by_lag` for consecutive rows: filtering commutes with the lag, so each signal's
+    functions are filtered once as series and each lag's block is a slice of them (no copy); a
+    signal's lags are tested in one pass over the rows. The same numbers as filtering each block,
+    operation for operation."""
+    start = int(kept[use[0]]) if len(use) else int(kept[-1]) + 1  # the sample of the first filtered row
     tested = []
+    buffer = np.empty(len(specs[0][1]) * 5)  # one signal's functions at a time (its pages mapped once)
     for name in dict.fromkeys(name for name, *_ in specs):
         mine = [(lag, x, signed) for n, x, lag, signed in specs if n == name]
-        series = _filtered_functions(mine[0][1], a, mine[0][2], start - max(lag for lag, *_ in mine))
+        series = _filtered_functions(mine[0][1], a, mine[0][2], start - max(lag for lag, *_ in mine), buffer)
         got = base.tests([series[start - lag : start - lag + base.n] for lag, *_ in mine])
         tested += [(name, lag, res) for (lag, *_), (res, _) in zip(mine, got, strict=True) if res is not None]
     return tested
 
 
-def _filtered_functions(s: np.ndarray, a: np.ndarray, signed: bool, first: int) -> np.ndarray:
+def _filtered_functions(s: np.ndarray, a: np.ndarray, signed: bool, first: int, buffer: np.ndarray) -> np.ndarray:
     """The nonlinear functions of ``s`` (as :func:`_features`) filtered by the noise model,
-    ``g(t) = h(t) − Σ_j a_j h(t − 1 − j)``, for samples ``first`` on (rows before: NaN)."""
+    ``g(t) = h(t) − Σ_j a_j h(t − 1 − j)``, for samples ``first`` on (rows before: NaN), written
+    into the start of ``buffer``."""
     order, n = a.size, len(s)
-    out = np.full((n, 5 if signed else 3), np.nan)
+    shape = (n, 5 if signed else 3)
+    out = buffer[: shape[0] * shape[1]].reshape(shape)
+    out[:first] = np.nan
     for lo in range(first, n, DESIGN_ROWS):
         hi = min(lo + DESIGN_ROWS, n)
         h = _features(s, np.arange(lo - order, hi), 0, signed)
@@ -302,18 +305,18 @@ FILTER_ROWS = 4096
 
 def _filtered(v: np.ndarray, a: np.ndarray, use: np.ndarray, out: np.ndarray) -> np.ndarray:
     """``v(t) − Σ_j a_j v(t − j)`` at the positions ``use`` (whose ``a.size`` previous positions are
-    the previous samples), written to ``out`` in order, a block of rows at a time (``out`` may be
-    ``v`` itself: a block is written only below the rows later blocks read). No coefficient: ``v``
-    itself (``use`` is then every position)."""
+    the previous samples), written to ``out`` in order (``out`` may be ``v`` itself: the filtered
+    rows overwrite the first ones), by the Rust core. No coefficient: ``v`` itself (``use`` is then
+    every position)."""
     if a.size == 0:
         if out is not v:
             out[: len(use)] = v[: len(use)]
         return out[: len(use)]
-    for at, lo, hi in _runs(use, FILTER_ROWS):
-        acc = a[0] * v[lo - 1 : hi - 1]
-        for j in range(1, a.size):
-            acc += a[j] * v[lo - 1 - j : hi - 1 - j]
-        out[at : at + hi - lo] = v[lo:hi] - acc
+    work = v if out is v and v.flags.c_contiguous else np.array(v, order="C")
+    runs = [(at, lo, hi) for at, lo, hi in _runs(use, max(len(use), 1))]
+    _core.ar_filter_rows(work.reshape(len(work), -1), np.ascontiguousarray(a, dtype=float), runs)
+    if out is not work:
+        out[: len(use)] = work[: len(use)]
     return out[: len(use)]
 
 
