@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from arxid._base.background import Background
+from arxid._base.background import Background, in_two, one_blas_thread
 from arxid.exceptions import DataError
 
 
@@ -46,3 +46,45 @@ def test_a_diagnosis_says_what_is_wrong_with_the_validation_data_first():
     short = arxid.IOData(y[:2], u[:2], 0.01)  # too short for the prediction and for the scoring
     with pytest.raises(DataError, match="validation data .* too short for a prediction"):
         arxid.diagnose(model, short, short)
+
+
+def test_in_two_keeps_the_order_and_uses_both_threads():
+    threads = set()
+
+    def square(x):
+        threads.add(threading.current_thread().name)
+        time.sleep(0.01)  # long enough for the second thread to take items too
+        return x * x
+
+    assert in_two(square, list(range(12))) == [x * x for x in range(12)]
+    assert len(threads) == 2
+    assert in_two(square, []) == [] and in_two(square, [3]) == [9]
+
+
+def test_in_two_raises_the_error_of_the_first_failing_item_and_starts_none_after():
+    started = []
+
+    def check(x):
+        started.append(x)
+        time.sleep(0.01)
+        if x in (3, 5):
+            raise DataError(f"item {x} is bad")
+        return x
+
+    with pytest.raises(DataError, match="item 3"):
+        in_two(check, list(range(40)))
+    assert max(started) <= 6  # both threads stop at the first failure they see
+
+
+def test_blas_runs_on_one_thread_inside_the_block_only():
+    from threadpoolctl import threadpool_info
+
+    def blas_threads():
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):  # as outside an analysis on two cores
+        with one_blas_thread():
+            assert blas_threads() == {1}
+        assert blas_threads() == {2}  # restored

@@ -15,16 +15,18 @@ a quarter slower on two cores).
 
 from __future__ import annotations
 
+import itertools
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, Generic, TypeVar
 
 from threadpoolctl import threadpool_limits
 
-__all__ = ["Background", "one_blas_thread"]
+__all__ = ["Background", "in_two", "one_blas_thread"]
 
 T = TypeVar("T")
+X = TypeVar("X")
 
 #: Seconds between two looks at Ctrl-C while waiting for a stage.
 _POLL = 0.05
@@ -72,6 +74,43 @@ class Background(Generic[T]):
         if self._error is not None:
             raise self._error
         return self._value  # type: ignore[return-value]
+
+
+def in_two(fn: Callable[[X], T], items: Sequence[X]) -> list[T]:
+    """``[fn(x) for x in items]`` on this thread and a second one, each taking the next item when it
+    is done with its last (validations of refitted models: each a free run, which releases the GIL).
+
+    ``fn`` must read only immutable inputs. When calls fail, the error of the first failing item is
+    raised (as in the loop) once both threads have stopped; no item is started after a failure.
+
+    Examples
+    --------
+    >>> in_two(lambda x: x * x, [1, 2, 3])
+    [1, 4, 9]
+    """
+    out: list[Any] = [None] * len(items)
+    failed: dict[int, BaseException] = {}
+    taken = itertools.count()  # next() of a count is atomic under the GIL
+
+    def work() -> None:
+        for i in taken:
+            if i >= len(items) or failed:
+                return
+            try:
+                out[i] = fn(items[i])
+            except BaseException as exc:  # raised by the caller, first item first
+                failed[i] = exc
+                return
+
+    if len(items) > 1:
+        second = Background(work)
+        work()
+        second.result()
+    else:
+        work()
+    if failed:
+        raise failed[min(failed)]
+    return out
 
 
 @contextmanager

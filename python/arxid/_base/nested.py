@@ -255,5 +255,3 @@ def _readable(a: np.ndarray) -> np.ndarray:
     """``a`` as float, read in place by the core unless a stride is negative."""
     a = np.asarray(a, dtype=float)
     return a if all(s >= 0 for s in a.strides) else np.ascontiguousarray(a)
-
-

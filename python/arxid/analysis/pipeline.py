@@ -25,11 +25,12 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, TypedDict, cast
 
-from .._base.background import Background, one_blas_thread
+from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
@@ -463,29 +464,39 @@ def _structure(
 
 def _checks(
     model: ArxModel, final: ArxModel, val: IOData, horizon: int | None, initial: str = "zero"
-) -> tuple[Comparison, tuple[FailureAnalysis, ...]]:
+) -> tuple[
+    Comparison, tuple[FailureAnalysis, ...], tuple[FrequencyCheck, ...], tuple[ResponseBand, ...], tuple[str, ...]
+]:
+    """The comparison of the chosen and final models, where each fails, their frequency checks and
+    free-run bands: independent passes over the validation data, two at a time."""
     models = {model.structure_name(): model}
     if final is not model:
         models["+ " + ", ".join(final.effects)] = final
-    cmp = compare(models, val, horizon, initial)
-    return cmp, tuple(where_it_fails(m, val, horizon, initial=initial) for m in models.values())
+    tasks: list[Callable[[], Any]] = [lambda: compare(models, val, horizon, initial)]
+    tasks += [partial(where_it_fails, m, val, horizon, initial=initial) for m in models.values()]
+    tasks += [partial(_frequency, m, val, horizon) for m in models.values()]
+    cmp, *done = in_two(lambda task: task(), tasks)
+    failures, frequency = tuple(done[: len(models)]), done[len(models) :]
+    problem = next((f for f in frequency if isinstance(f, str)), None)
+    if problem is not None:
+        return cmp, failures, (), (), (problem,)
+    bands = tuple(band for _, band in frequency if band is not None)
+    return cmp, failures, tuple(check for check, _ in frequency), bands if len(bands) == len(models) else (), ()
 
 
-def _frequency(
-    models: Sequence[ArxModel], val: IOData, horizon: int | None
-) -> tuple[tuple[FrequencyCheck, ...], tuple[ResponseBand, ...], tuple[str, ...]]:
-    """Frequency checks and free-run bands of the compared models; a note when they cannot be made."""
+def _frequency(model: ArxModel, val: IOData, horizon: int | None) -> tuple[FrequencyCheck, ResponseBand | None] | str:
+    """A model's frequency check and free-run band (None for a k-step prediction, or when it cannot
+    be made); the note when the check cannot be made."""
     try:
-        checks = tuple(frequency_check(m, val) for m in models)
+        check = frequency_check(model, val)
     except ArxidError as exc:
-        return (), (), (f"No frequency check: {exc}",)
+        return f"No frequency check: {exc}"
     if horizon is not None:  # a k-step prediction has no free-run band
-        return checks, (), ()
+        return check, None
     try:
-        bands = tuple(free_run_band(m, val) for m in models)
+        return check, free_run_band(model, val)
     except ArxidError:
-        bands = ()
-    return checks, bands, ()
+        return check, None
 
 
 def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
@@ -653,10 +664,7 @@ def analyse(
     ladder = _ladder(chosen, est, val, res, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    checks = Background(_checks, chosen, ladder.final_model, val, ladder.horizon, initial)
-    compared = [chosen] if ladder.final_model is chosen else [chosen, ladder.final_model]
-    freq, bands, freq_notes = _frequency(compared, val, ladder.horizon)
-    cmp, failures = checks.result()
+    cmp, failures, freq, bands, freq_notes = _checks(chosen, ladder.final_model, val, ladder.horizon, initial)
     timings["checks and frequency"] = time.perf_counter() - t0
     fb = feedback.result()
     return Analysis(

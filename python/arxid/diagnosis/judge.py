@@ -9,6 +9,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import replace
 
+from .._base.background import in_two
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -82,7 +83,11 @@ class Judge:
             simple = [Candidate(n, (n,), m.na_, m.nb_, m.nk_, "effect") for n in SIMPLE_EXPLANATIONS]
             # from the factor of the last refits when it holds these candidates (the masked pairs')
             self.shared = Refits(m, self.data, [scored[i]["c"] for i in sorted(chosen)] + simple, self.shared)
-        return [self._suspect(s, notes.get(s["c"].label, ""), alpha, i in chosen) for i, s in enumerate(scored)]
+        # Each refit is validated by a free run of the validation data: two at a time.
+        return in_two(
+            lambda i: self._suspect(scored[i], notes.get(scored[i]["c"].label, ""), alpha, i in chosen),
+            range(len(scored)),
+        )
 
     def _suspect(self, s: dict, note: str, alpha: float, refit: bool) -> Suspect:
         c = s["c"]

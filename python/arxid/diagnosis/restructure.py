@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.background import in_two
 from ..checks import prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -178,6 +179,11 @@ class _Search:
         _, err, diverged = prediction_error(model, self.validation, self.horizon, self.initial)
         return np.full_like(err, np.inf) if diverged else err
 
+    def measured(self, model: ArxModel) -> tuple[float, ArxModel, np.ndarray]:
+        """(RMS, model, errors) of ``model`` on the validation data."""
+        err = self.errors(model)
+        return _rms(err), model, err
+
     def flags(self, model: ArxModel) -> set[str]:
         return set(step_sanity(model, self.validation, expect=self.expect).flags)
 
@@ -243,12 +249,8 @@ def rechoose_structure(
         else:
             err_base = search.errors(base)
             rms_base = _rms(err_base)
-        fitted = []
-        for m in models[1:]:
-            if m is None:
-                continue
-            err = search.errors(m)
-            fitted.append((_rms(err), m, err))
+        # Each neighbour is validated by a free run of the validation data: two at a time.
+        fitted = in_two(search.measured, [m for m in models[1:] if m is not None])
         tried += len(fitted)
         better = [f for f in fitted if _better(f[0], f[2], rms_base, err_base, min_improvement)]
         if not better:
