@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._base import _core
-from .._base.nested import least_squares, nested_from_factor
+from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -174,11 +174,16 @@ def nonlinear_dependence(model: ArxModel, data: IOData, alpha: float = 0.01) -> 
     if built is None:
         return ()
     design, y_kept, kept = built
-    a = _noise_model(design, y_kept, kept)
+    # The fit on the rows as they are gives the remainder the noise model is fitted to; with a white
+    # remainder (no filter) it is the fit the tests need too.
+    base = AddedVariableTest(design, y_kept)
+    a = _noise_model(base.e, kept)
     use = _previous_rows(kept, a.size)
-    base = AddedVariableTest(_filtered(design, a, use, design), _filtered(y_kept, a, use, np.empty(len(use))))
+    if a.size:
+        del base  # its regressors are about to be filtered in place
+        base = AddedVariableTest(_filtered(design, a, use, design), _filtered(y_kept, a, use, np.empty(len(use))))
     base.p += repeated
-    del design  # filtered in place: the regressors of the tests
+    del design  # the regressors of the tests (filtered in place)
     by_signal = kept[-1] - kept[0] == len(kept) - 1  # consecutive rows
     tested = (_tests_by_signal if by_signal else _tests_by_lag)(base, specs, a, kept, use)
     if not tested:
@@ -331,11 +336,10 @@ def _lagged_factor(r: np.ndarray, rows: np.ndarray, order: int) -> np.ndarray:
     return np.asarray(factor)
 
 
-def _noise_model(x: np.ndarray, y: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Coefficients a of the Cochrane–Orcutt filter A(q) = 1 − Σ a_j q^-j of the regression of ``y``
-    on ``x``: the AR model of the least-squares remainder, order by AIC up to ``MAX_NOISE_ORDER``
-    (empty for a white one, and when too few rows have their previous samples)."""
-    r = y - x @ least_squares(x, y)
+def _noise_model(r: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Coefficients a of the Cochrane–Orcutt filter A(q) = 1 − Σ a_j q^-j of a regression whose
+    least-squares remainder on ``rows`` is ``r``: its AR model, order by AIC up to
+    ``MAX_NOISE_ORDER`` (empty for a white one, and when too few rows have their previous samples)."""
     keep = _previous_rows(rows, MAX_NOISE_ORDER)
     if keep.size <= 4 * MAX_NOISE_ORDER + 10:
         return np.zeros(0)
