@@ -20,7 +20,7 @@ pub fn filter_rows_in_place(v: &mut [f64], width: usize, a: &[f64], runs: &[(usi
     if order == 0 {
         return Ok(());
     }
-    let rows = if width == 0 { 0 } else { v.len() / width };
+    let rows = v.len().checked_div(width).unwrap_or(0);
     let mut written = 0;
     for &(at, first, end) in runs {
         if first < order || at + order > first || end > rows || at < written || end < first {

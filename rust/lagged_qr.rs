@@ -122,9 +122,9 @@ fn check_reads(sources: &[Source<'_>], columns: &[LaggedColumn], rows: &[usize])
         return Ok(());
     };
     for c in columns {
-        let s = sources
-            .get(c.source)
-            .ok_or_else(|| ArxError::InvalidStructure(format!("a lagged column reads source {}, which is not given", c.source)))?;
+        let s = sources.get(c.source).ok_or_else(|| {
+            ArxError::InvalidStructure(format!("a lagged column reads source {}, which is not given", c.source))
+        })?;
         if c.column >= s.columns {
             return Err(ArxError::InvalidStructure(format!("source {} has no column {}", c.source, c.column)));
         }
@@ -137,7 +137,11 @@ fn check_reads(sources: &[Source<'_>], columns: &[LaggedColumn], rows: &[usize])
         }
         let end = last as usize * s.row_stride + c.column * s.col_stride;
         if end >= s.values.len() {
-            return Err(ArxError::ShapeMismatch { what: "a source's values".into(), expected: end + 1, got: s.values.len() });
+            return Err(ArxError::ShapeMismatch {
+                what: "a source's values".into(),
+                expected: end + 1,
+                got: s.values.len(),
+            });
         }
     }
     Ok(())

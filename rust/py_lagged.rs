@@ -17,6 +17,7 @@ use crate::lagged_qr::{lagged_r as factor, LaggedColumn, Source};
 /// when `skip_missing`. Runs with the GIL released on `n_threads` (0 = all cores), stops on Ctrl-C.
 #[pyfunction]
 #[pyo3(signature = (sources, columns, segments, back, ahead, skip_missing = true, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn lagged_r<'py>(
     py: Python<'py>,
     sources: Vec<PyReadonlyArray2<'py, f64>>,

@@ -42,6 +42,7 @@ __all__ = [
     "threshold_products",
     "tested_products",
     "lagged_r",
+    "ar_filter_rows",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -288,6 +289,7 @@ def lagged_r(
     skip_missing: bool = True,
     n_threads: int = 0,
 ) -> tuple[_F, int]: ...
+def ar_filter_rows(v: _F, a: _F, runs: Sequence[tuple[int, int, int]]) -> None: ...
 
 _Process = tuple[int, bool, bool, bool, bool]
 

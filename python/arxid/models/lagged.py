@@ -96,7 +96,7 @@ def lagged_factor(
     (5, [[30.0, 40.0], [40.0, 55.0]])
     """
     index: dict[int, int] = {}  # each signal passed once, however many of its lags are columns
-    sources = []
+    sources: list[np.ndarray] = []
     for signal, _ in columns:
         if id(signal) not in index:
             index[id(signal)] = len(sources)
