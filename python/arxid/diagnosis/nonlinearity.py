@@ -304,10 +304,6 @@ def _runs(use: np.ndarray, size: int):
             yield at, first, first + min(size, int(hi) - at)
 
 
-#: Rows filtered at a time: a block of the design stays in the processor's cache for the lags.
-FILTER_ROWS = 4096
-
-
 def _filtered(v: np.ndarray, a: np.ndarray, use: np.ndarray, out: np.ndarray) -> np.ndarray:
     """``v(t) − Σ_j a_j v(t − j)`` at the positions ``use`` (whose ``a.size`` previous positions are
     the previous samples), written to ``out`` in order (``out`` may be ``v`` itself: the filtered

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+import types
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal, overload
 
@@ -153,6 +154,48 @@ class ArxModel(FittedModel):
         names = regressor_names(sig.output_name, na, layout)
         res = solve_factor(r, n_rows, usable, na, layout, names)
         self._store(sig, (na, nb, nk), layout, names, 0, res, fit_percent=logs.fit_percent)
+        return self
+
+    def fit_from_factor(
+        self,
+        data: IOData,
+        r: np.ndarray,
+        n_rows: int,
+        envelope: tuple[int, Sequence[int], Sequence[int]],
+        first_lag: int,
+    ) -> ArxModel:
+        """The fit on the rows of a larger linear structure whose ``[Φ | y]`` has the triangular
+        factor ``r`` (a sweep's estimation factor, with ``envelope`` its orders per input and
+        ``n_rows`` its rows from ``first_lag``): the numbers the sweep solved, without another pass
+        over the data (to rounding, the fit on the same rows).
+
+        Parameters
+        ----------
+        data : IOData
+            The data the factor was reduced from.
+        r : ndarray of shape (q, q)
+        n_rows : int
+        envelope : (na, nb, nk)
+            Orders of the factor's columns (nb, nk per input); this model's must lie inside.
+        first_lag : int
+
+        Returns
+        -------
+        ArxModel
+            ``self``, fitted.
+        """
+        if self.effects:
+            raise ArxidError("a fit from a linear factor has no effect columns; fit the data")
+        m = data.n_inputs
+        na, nb, nk = check_order("na", self.na), per_input("nb", self.nb, m), per_input("nk", self.nk, m)
+        layout = compile_effects((), data, nb, nk)
+        _, usable = check_size(na, layout, data, first_lag)
+        env = (int(envelope[0]), [int(v) for v in envelope[1]], [int(v) for v in envelope[2]])
+        out = _core.fit_from_factor(r, n_rows, env, (na, list(nb), list(nk)), [])
+        res = types.SimpleNamespace(
+            theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows, inv_gram=out.inv_gram
+        )
+        self._store(data, (na, nb, nk), layout, regressor_names(data.output_name, na, layout), first_lag, res)
         return self
 
     def fit_in(self, envelope: EnvelopeFactor, i: int) -> ArxModel:

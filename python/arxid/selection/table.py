@@ -146,8 +146,9 @@ class SweepTable:
 
     # ------------------------------------------------------------------ models
     def model(self, i: int = 0) -> ArxModel:
-        """The ranked structure ``i`` as a fitted :class:`~arxid.ArxModel`, refitted on the sweep's rows
-        (``first_lag``), so its parameters equal the sweep's.
+        """The ranked structure ``i`` as a fitted :class:`~arxid.ArxModel` on the sweep's rows
+        (``first_lag``), so its parameters equal the sweep's: solved from the sweep's estimation
+        factor when it kept one, else refitted.
 
         Parameters
         ----------
@@ -174,8 +175,22 @@ class SweepTable:
                 model: ArxModel = IvModel(na=int(self.na[i]), nb=nb, nk=nk, instruments=instruments, iterations=0)
             else:
                 model = ArxModel(na=int(self.na[i]), nb=nb, nk=nk, effects=self.effects)
-            self._cache[key] = model.fit(self.estimation, first_lag=self.first_lag, rows_like=self.row_orders)
+            self._cache[key] = self._from_factor(model) or model.fit(
+                self.estimation, first_lag=self.first_lag, rows_like=self.row_orders
+            )
         return self._cache[key]
+
+    def _from_factor(self, model: ArxModel) -> ArxModel | None:
+        """``model`` solved from the sweep's estimation factor (its numbers, no pass over a long
+        record) when the sweep kept one for a linear least-squares grid; else None."""
+        if self.estimation_factor is None or self.effects or type(model) is not ArxModel:
+            return None
+        try:
+            return model.fit_from_factor(
+                self.estimation, self.estimation_factor, self.n_est, self.row_orders, self.first_lag
+            )
+        except ArxidError:  # the refit says why, in the user's words
+            return None
 
     def sanity(self, i: int) -> StepSanity:
         """Step sanity verdict of ranked structure ``i`` (computed on first use, then cached).
