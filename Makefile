@@ -90,7 +90,7 @@ bench: develop
 wheel:
 	@bash tests/smoke/wheel.sh
 
-# The wheel installed in fresh venvs without cargo on PATH: base (numpy, scipy) and full (arxid[all]).
+# The wheel installed in fresh venvs without cargo on PATH: base (numpy, scipy, threadpoolctl) and full (arxid[all]).
 smoke: wheel
 	@bash tests/smoke/run.sh dist/*.whl base
 	@bash tests/smoke/run.sh dist/*.whl full

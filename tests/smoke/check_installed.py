@@ -1,5 +1,5 @@
 """Smoke suite of an installed wheel: the core API, the CLI, and each optional extra either working
-(full install) or failing with a message that names it (base install: numpy and scipy only).
+(full install) or failing with a message that names it (base install: numpy, scipy and threadpoolctl only).
 
 Run by ``tests/smoke/run.sh`` in a fresh venv without cargo on PATH; it is not collected by the
 project's own test run (its files are ``check_*.py``, see ``tests/smoke/pytest.ini``).
@@ -56,7 +56,7 @@ def test_version_and_licence_come_from_the_one_place():
     meta = importlib.metadata.metadata("arxid")
     assert meta["License-Expression"] == "MIT"
     installed = {r.split(";")[0].split(">")[0].strip() for r in meta.get_all("Requires-Dist") if "extra" not in r}
-    assert installed == {"numpy", "scipy"}
+    assert installed == {"numpy", "scipy", "threadpoolctl"}
 
 
 def test_fit_recovers_the_parameters():

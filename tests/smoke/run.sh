@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Install a built wheel into a fresh venv whose PATH has no cargo, then run the smoke suite on it.
-#   tests/smoke/run.sh dist/arxid-*.whl base   # numpy and scipy only
+#   tests/smoke/run.sh dist/arxid-*.whl base   # numpy, scipy and threadpoolctl only
 #   tests/smoke/run.sh dist/arxid-*.whl full   # with every extra (arxid[all])
 set -euo pipefail
 wheel=$(realpath "$1"); kind=${2:-base}
