@@ -1,6 +1,6 @@
 """Optional dependencies: imported where they are used, never at ``import arxid``.
 
-The base install is numpy and scipy. A feature that needs more either raises
+The base install is numpy, scipy and threadpoolctl. A feature that needs more either raises
 :class:`~arxid.exceptions.MissingDependencyError` naming the extra that installs it
 (:func:`require`), or quietly does without, warning once per process (:func:`optional`).
 """
