@@ -164,20 +164,16 @@ class ArxModel(FittedModel):
         envelope: tuple[int, Sequence[int], Sequence[int]],
         first_lag: int,
     ) -> ArxModel:
-        """The fit on the rows of a larger linear structure whose ``[Φ | y]`` has the triangular
-        factor ``r`` (a sweep's estimation factor, with ``envelope`` its orders per input and
-        ``n_rows`` its rows from ``first_lag``): the numbers the sweep solved, without another pass
-        over the data (to rounding, the fit on the same rows).
+        """The fit from the triangular factor ``r`` of a larger linear structure's ``[Φ | y]`` on
+        ``data`` (a sweep's estimation factor: ``envelope`` its (na, nb, nk), ``n_rows`` its rows from
+        ``first_lag``): the sweep's numbers (to rounding, the refit on its rows), no pass over the data.
 
         Parameters
         ----------
         data : IOData
-            The data the factor was reduced from.
         r : ndarray of shape (q, q)
-        n_rows : int
+        n_rows, first_lag : int
         envelope : (na, nb, nk)
-            Orders of the factor's columns (nb, nk per input); this model's must lie inside.
-        first_lag : int
 
         Returns
         -------
@@ -190,11 +186,9 @@ class ArxModel(FittedModel):
         na, nb, nk = check_order("na", self.na), per_input("nb", self.nb, m), per_input("nk", self.nk, m)
         layout = compile_effects((), data, nb, nk)
         _, usable = check_size(na, layout, data, first_lag)
-        env = (int(envelope[0]), [int(v) for v in envelope[1]], [int(v) for v in envelope[2]])
-        out = _core.fit_from_factor(r, n_rows, env, (na, list(nb), list(nk)), [])
-        res = types.SimpleNamespace(
-            theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows, inv_gram=out.inv_gram
-        )
+        out = _core.fit_from_factor(r, n_rows, envelope, (na, list(nb), list(nk)), [])
+        res = types.SimpleNamespace(theta=out.theta, rss=out.rss, n_rows=n_rows, n_skipped=usable - n_rows)
+        res.inv_gram = out.inv_gram
         self._store(data, (na, nb, nk), layout, regressor_names(data.output_name, na, layout), first_lag, res)
         return self
 
