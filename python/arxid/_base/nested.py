@@ -23,6 +23,7 @@ __all__ = [
     "column_norms",
     "cholesky_factor",
     "BLOCK_ROWS",
+    "core_readable",
 ]
 
 #: Rows per block of the cross products summed in numpy (:func:`arxid.models.lagged.lagged_gram`): a
@@ -237,10 +238,10 @@ def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | No
     >>> bool(np.allclose(r.T @ r, x.T @ x))
     True
     """
-    x = _readable(x)
+    x = core_readable(x)
     sources, columns = [x], [(0, j, 0) for j in range(x.shape[1])]
     if y is not None:
-        sources.append(_readable(y)[:, None])
+        sources.append(core_readable(y)[:, None])
         columns.append((1, 0, 0))
     if not columns:
         return np.zeros((0, 0))
@@ -251,7 +252,7 @@ def blocked_r(x: np.ndarray, y: np.ndarray | None = None, scale: np.ndarray | No
     return r
 
 
-def _readable(a: np.ndarray) -> np.ndarray:
+def core_readable(a: np.ndarray) -> np.ndarray:
     """``a`` as float, read in place by the core unless a stride is negative."""
     a = np.asarray(a, dtype=float)
     return a if all(s >= 0 for s in a.strides) else np.ascontiguousarray(a)

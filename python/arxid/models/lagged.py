@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._base import _core
-from .._base.nested import BLOCK_ROWS
+from .._base.nested import BLOCK_ROWS, core_readable
 
 __all__ = ["lagged_columns", "lagged_factor", "lagged_gram", "filter_segments"]
 
@@ -100,8 +100,7 @@ def lagged_factor(
     for signal, _ in columns:
         if id(signal) not in index:
             index[id(signal)] = len(sources)
-            x = np.asarray(signal, dtype=float)
-            sources.append((x if x.strides[0] >= 0 else np.ascontiguousarray(x))[:, None])
+            sources.append(core_readable(signal)[:, None])
     spec = [(index[id(signal)], 0, int(lag)) for signal, lag in columns]
     r, n_rows = _core.lagged_r(sources, spec, [(int(a), int(b)) for a, b in segments], int(back), int(ahead))
     return np.asarray(r)[: min(n_rows, len(columns))], int(n_rows)
