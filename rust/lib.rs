@@ -20,6 +20,7 @@ pub mod srivc;
 pub mod structure;
 pub mod sweep;
 pub mod sweep_columns;
+pub mod term_free_run;
 pub mod threshold_scan;
 
 #[cfg(feature = "python")]

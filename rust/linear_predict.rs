@@ -17,7 +17,7 @@ use crate::structure::{Data, Structure};
 
 /// Samples per chunk: the chunk of predictions and the chunk's input columns stay in cache. The
 /// cancel flag is read once per chunk.
-const CHUNK: usize = 2048;
+pub(crate) const CHUNK: usize = 2048;
 
 /// Predictions computed side by side in registers by [`sums`].
 const WIDTH: usize = 8;
@@ -35,14 +35,14 @@ pub(crate) fn madd<const FMA: bool>(c: f64, x: f64, acc: f64) -> f64 {
 /// The input part's terms as `(b, offset)`: `b · column[τ + offset]` for the prediction τ of a
 /// chunk, where the columns of [`Chunk`] start `reach` samples before the chunk. Each input's
 /// terms in order j = 0, 1, ….
-struct Taps {
-    taps: Vec<(f64, usize)>,
+pub(crate) struct Taps {
+    pub(crate) taps: Vec<(f64, usize)>,
     /// Largest lag any input term reads (nk + nb − 1).
     reach: usize,
 }
 
 impl Taps {
-    fn new(s: &Structure, theta: &[f64]) -> Self {
+    pub(crate) fn new(s: &Structure, theta: &[f64]) -> Self {
         let reach = s.nb.iter().zip(&s.nk).filter(|(&b, _)| b > 0).map(|(&b, &k)| k + b - 1).max().unwrap_or(0);
         let stride = CHUNK + reach;
         let mut taps = Vec::with_capacity(theta.len());
@@ -58,7 +58,7 @@ impl Taps {
 
     /// The inputs of samples `[t0 − reach, t1)` as one column per input (`stride` apart in
     /// `scratch`), or the input itself when there is only one.
-    fn columns<'a>(&self, d: &'a Data, (t0, t1): (usize, usize), scratch: &'a mut Vec<f64>) -> &'a [f64] {
+    pub(crate) fn columns<'a>(&self, d: &'a Data, (t0, t1): (usize, usize), scratch: &'a mut Vec<f64>) -> &'a [f64] {
         let first = t0 - self.reach;
         if self.taps.is_empty() {
             return &[]; // a pure AR model reads no input
@@ -104,7 +104,13 @@ fn split<const M: usize>(rows: &[f64], stride: usize, cols: &mut [f64]) {
 /// `x[τ] = Σ c · u[τ + offset] + Σ c · y[τ + offset]` over `u_taps` then `y_taps`, in that order,
 /// [`WIDTH`] predictions at a time in registers (one store per prediction, not one per term).
 #[inline(always)]
-fn sums<const FMA: bool>(x: &mut [f64], u: &[f64], u_taps: &[(f64, usize)], y: &[f64], y_taps: &[(f64, usize)]) {
+pub(crate) fn sums<const FMA: bool>(
+    x: &mut [f64],
+    u: &[f64],
+    u_taps: &[(f64, usize)],
+    y: &[f64],
+    y_taps: &[(f64, usize)],
+) {
     let done = x.len() - x.len() % WIDTH;
     for (b, block) in x.chunks_exact_mut(WIDTH).enumerate() {
         let tau = b * WIDTH;

@@ -140,6 +140,10 @@ fn predict_paths(
             None if linear
                 && (crate::linear_predict::free_run(d, s, theta, (start, b), out, cancel)?
                     || complete(d, a, start, b)) => {}
+            // With output terms, complete data never restart the simulation: a plain recursion.
+            None if fast
+                && complete(d, a, start, b)
+                && crate::term_free_run::free_run(d, s, theta, (start, b), out, cancel)? => {}
             Some(k) if k <= 1 => {
                 for (t, o) in out.iter_mut().enumerate().take(b).skip(start) {
                     if stop(t, 1) {
