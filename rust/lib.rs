@@ -9,6 +9,7 @@ pub mod error;
 pub mod fit;
 pub mod iv;
 pub mod kstep;
+pub mod lagged_products;
 pub mod lagged_qr;
 pub mod linear_predict;
 pub mod one_step;

@@ -73,3 +73,18 @@ pub(super) fn ar_filter_rows(
     let values = v.as_slice_mut()?;
     run(py, 1, |_| crate::ar_filter::filter_rows_in_place(values, width, &coefficients, &runs))
 }
+
+/// `c(k) = Σ_t a(t) b(t − k)` for k = first..=last over the samples where both exist (see
+/// [`crate::lagged_products`]); with the GIL released on every core, stops on Ctrl-C.
+#[pyfunction]
+pub(super) fn lagged_products<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray1<'py, f64>,
+    b: PyReadonlyArray1<'py, f64>,
+    first: isize,
+    last: isize,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (a, b) = (a.as_slice()?, b.as_slice()?);
+    let out = run(py, 0, |cancel| crate::lagged_products::lagged_products(a, b, first, last, cancel))?;
+    Ok(PyArray1::from_vec(py, out))
+}

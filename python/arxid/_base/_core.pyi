@@ -41,6 +41,7 @@ __all__ = [
     "procest_simulate",
     "threshold_products",
     "tested_products",
+    "lagged_products",
     "lagged_r",
     "ar_filter_rows",
 ]
@@ -290,6 +291,7 @@ def lagged_r(
     n_threads: int = 0,
 ) -> tuple[_F, int]: ...
 def ar_filter_rows(v: _F, a: _F, runs: Sequence[tuple[int, int, int]]) -> None: ...
+def lagged_products(a: _F, b: _F, first: int, last: int) -> _F: ...
 
 _Process = tuple[int, bool, bool, bool, bool]
 

@@ -24,6 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._base import _core
 from .._base.nested import cholesky_factor, nested_from_factor
 from ..data.iodata import IOData
 from ..models.lagged import lagged_factor, lagged_gram
@@ -61,7 +62,7 @@ def centered(x: np.ndarray) -> np.ndarray:
 
 #: Lags up to which a correlation is summed lag by lag rather than by FFT.
 _DIRECT_LAGS = 128
-#: Samples per block of the blocked correlation (both series' blocks stay in the processor's cache).
+#: A record longer than four times this has its consecutive lags summed by the core (:func:`_blocked`).
 _CORRELATION_BLOCK = 8192
 
 
@@ -134,16 +135,10 @@ def zeroed_correlation(
 
 
 def _blocked(a: np.ndarray, b: np.ndarray, first: int, last: int) -> np.ndarray:
-    """Σ_t a(t) b(t − k) for k = first..last (consecutive), one block of samples of ``a`` at a time:
-    each block's lags are summed while it is in cache (``b`` padded with zeros beyond its ends)."""
-    before, after = max(last, 0), max(-first, 0)
-    padded = np.concatenate([np.zeros(before), b, np.zeros(after)])
-    out = np.zeros(last - first + 1)
-    for lo in range(0, len(a), _CORRELATION_BLOCK):
-        hi = min(lo + _CORRELATION_BLOCK, len(a))
-        window = padded[lo - last + before : hi - first + before]
-        out += np.correlate(window, a[lo:hi], "valid")[::-1]
-    return out
+    """Σ_t a(t) b(t − k) for k = first..last (consecutive), ``b`` zero beyond its ends: by the Rust
+    core, each block of samples summed against every lag while it is in cache, on every core."""
+    a, b = (np.ascontiguousarray(v, dtype=float) for v in (a, b))
+    return np.asarray(_core.lagged_products(a, b, first, last))
 
 
 def ar_filter(x: np.ndarray, segments: Sequence[tuple[int, int]], max_order: int) -> np.ndarray:
