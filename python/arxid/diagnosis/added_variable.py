@@ -13,6 +13,7 @@ the share of the residual energy the block removes is ΔRSS / RSS₀, its square
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -63,6 +64,7 @@ class AddedVariableTest:
         self.n, self.p = phi.shape
         self._phi, self._scale = np.ascontiguousarray(phi, dtype=float), scale
         self._q: np.ndarray | None = None
+        self._sums: tuple[np.ndarray, float] | None = None  # Φ'1 and e'1, for blocks tested with an offset
         self._keep: np.ndarray | None = None  # the independent columns (None: all)
         # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
         # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
@@ -225,13 +227,16 @@ class AddedVariableTest:
             return None, _EXACT
         return self._tested(z, *self._cross(z))
 
-    def tests(self, blocks: list[np.ndarray]) -> list[tuple[AddedVariableResult | None, str]]:
+    def tests(self, blocks: list[np.ndarray], offset: bool = False) -> list[tuple[AddedVariableResult | None, str]]:
         """:meth:`test` of several blocks, reading Φ once per block of rows for all of them (one
         product per block would read the regressors once per candidate).
 
         Parameters
         ----------
         blocks : list of ndarray of shape (n_rows, q_i)
+        offset : bool
+            Test each block with a column of ones beside it, ``[z | 1]``. The ones' products are
+            sums (Φ's columns, z's, the residual's), so the block is never copied to add the column.
 
         Returns
         -------
@@ -241,8 +246,28 @@ class AddedVariableTest:
         if self.exact:
             return [(None, _EXACT) for _ in blocks]
         if self._r is None:
-            return [self.test(z) for z in blocks]
-        return [self._tested(z, self._projected(pz), zz, ze) for z, (pz, zz, ze) in zip(blocks, self._products(blocks))]
+            return [self.test(_with_ones(z) if offset else z) for z in blocks]
+        products = self._products(blocks)
+        if not offset:
+            return [self._tested(z, self._projected(pz), zz, ze) for z, (pz, zz, ze) in zip(blocks, products)]
+        out = []
+        for z, (pz, zz, ze) in zip(blocks, products):
+            pz1, zz1, ze1 = self._with_ones(z, pz, zz, ze)
+            out.append(self._tested(functools.partial(_with_ones, z), self._projected(pz1), zz1, ze1))
+        return out
+
+    def _with_ones(
+        self, z: np.ndarray, pz: np.ndarray, zz: np.ndarray, ze: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Φ'[z | 1], [z | 1]'[z | 1] and [z | 1]'e from z's products and sums."""
+        if self._sums is None:
+            self._sums = (self._phi.sum(axis=0), float(self.e.sum()))
+        phi_ones, e_sum = self._sums
+        zs = np.array([float(z[:, j].sum()) for j in range(z.shape[1])])  # a lagged view's columns are slices
+        q = z.shape[1]
+        zz1 = np.empty((q + 1, q + 1))
+        zz1[:q, :q], zz1[:q, q], zz1[q, :q], zz1[q, q] = zz, zs, zs, float(self.n)
+        return np.column_stack([pz, phi_ones]), zz1, np.append(ze, e_sum)
 
     def _products(self, blocks: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Φ'z, z'z and z'e of every block, in one pass over the rows (Rust core): a z that is a
@@ -293,9 +318,10 @@ class AddedVariableTest:
         return solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
 
     def _tested(
-        self, z: np.ndarray, b: np.ndarray, zz: np.ndarray, ze: np.ndarray
+        self, z: np.ndarray | Callable[[], np.ndarray], b: np.ndarray, zz: np.ndarray, ze: np.ndarray
     ) -> tuple[AddedVariableResult | None, str]:
-        """The test of ``z`` from its cross-products Q'z, z'z and z'e."""
+        """The test of ``z`` from its cross-products Q'z, z'z and z'e (``z`` itself, or a function
+        that forms it, is read only when the block is ill-conditioned beside Φ)."""
         norms = np.sqrt(np.maximum(np.diag(zz), 0.0))
         keep = norms > 0
         if not keep.any():
@@ -303,7 +329,7 @@ class AddedVariableTest:
         fast = self._from_cross(b, zz, ze, keep, norms)
         if fast is not None:
             return fast, ""
-        return self._stripped(z, keep, norms)
+        return self._stripped(z() if callable(z) else z, keep, norms)
 
     def _stripped(self, z: np.ndarray, keep: np.ndarray, norms: np.ndarray) -> tuple[AddedVariableResult | None, str]:
         """Ill-conditioned beside Φ: the QR of the stripped, normalised block decides which columns count."""
@@ -402,6 +428,15 @@ def lagged_view(x: np.ndarray, first: int, width: int, n_rows: int) -> np.ndarra
         raise ValueError(f"rows {first - width + 1} to {first + n_rows - 1} are outside the {len(x)} samples")
     step = x.strides[0]
     return np.lib.stride_tricks.as_strided(x[first:], shape=(n_rows, width), strides=(step, -step), writeable=False)
+
+
+def _with_ones(z: np.ndarray) -> np.ndarray:
+    """``[z | 1]``, written column by column (a lagged view's columns are slices: fast to copy)."""
+    out = np.empty((z.shape[0], z.shape[1] + 1))
+    for j in range(z.shape[1]):
+        out[:, j] = z[:, j]
+    out[:, -1] = 1.0
+    return out
 
 
 def _as_block(z: np.ndarray) -> tuple[np.ndarray, int, bool]:

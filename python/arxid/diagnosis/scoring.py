@@ -150,24 +150,25 @@ class Scoring:
         return [s for s in slots if s is not None]
 
     def _grouped_tests(
-        self, blocks: Iterable[tuple[_Key, np.ndarray]]
+        self, blocks: Iterable[tuple[_Key, np.ndarray]], offset: bool = False
     ) -> Iterator[tuple[_Key, AddedVariableResult | None, str]]:
-        """Each block's test against the model's regressors, as ``(key, result, why)``: the blocks
-        are tested in groups that read the regressors once per block of rows
-        (:meth:`AddedVariableTest.tests`), each group's columns within :data:`_GROUP_BYTES`."""
+        """Each block's test against the model's regressors (with a column of ones beside it when
+        ``offset``), as ``(key, result, why)``: the blocks are tested in groups that read the
+        regressors once per block of rows (:meth:`AddedVariableTest.tests`), each group's columns
+        within :data:`_GROUP_BYTES`."""
         budget = max(1, _GROUP_BYTES // (8 * max(len(self.rows0), 1)))
         group: list[tuple[_Key, np.ndarray]] = []
         for key, z in blocks:
             group.append((key, z))
             if sum(g[1].shape[1] for g in group) >= budget:
-                yield from self._group_tested(group)
+                yield from self._group_tested(group, offset)
                 group = []
-        yield from self._group_tested(group)
+        yield from self._group_tested(group, offset)
 
     def _group_tested(
-        self, group: list[tuple[_Key, np.ndarray]]
+        self, group: list[tuple[_Key, np.ndarray]], offset: bool
     ) -> Iterator[tuple[_Key, AddedVariableResult | None, str]]:
-        for (key, _), (res, why) in zip(group, self.proj0.tests([z for _, z in group])):
+        for (key, _), (res, why) in zip(group, self.proj0.tests([z for _, z in group], offset)):
             yield key, res, why
 
     def _columns_of(self, c: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
@@ -395,9 +396,8 @@ class Scoring:
         )
         have = {s["c"].label for s in scored}
         pairs = [s["c"] for s in strong[:n_pairs] if f"{s['c'].label}+const" not in have]
-        blocks = ((c, np.column_stack([self.single_z[c.label], np.ones(len(self.rows0))])) for c in pairs)
         out = []
-        for c, res, _ in self._grouped_tests(blocks):
+        for c, res, _ in self._grouped_tests(((c, self.single_z[c.label]) for c in pairs), offset=True):
             if res is not None:
                 pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
                 out.append(scored_entry(pc, res))
