@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any, TypedDict, cast
 
-from .._base.allocator import return_large_frees
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
@@ -643,7 +642,6 @@ def analyse(
     >>> a.model.structure_name(), a.choice.rank, a.residual_tests.whiteness_expected
     ('OE(2,2,3)', None, False)
     """
-    return_large_frees()  # freed arrays back to the system: the two threads' heaps held ~200 MiB more
     if client is not None:
         if validation is not None or model is not None:
             raise ArxidError(
