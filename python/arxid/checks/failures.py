@@ -438,14 +438,19 @@ def _anova_p(es: np.ndarray, where: np.ndarray, counts: np.ndarray, centred: tup
 
 def _varies(es: np.ndarray, where: np.ndarray, counts: np.ndarray) -> bool:
     """Whether every non-empty group of ``es`` holds two different values (each sample compared
-    with its group's first)."""
+    with its group's first). The first samples usually settle it: the whole record is read only
+    for the groups they leave undecided."""
     filled = np.flatnonzero(counts)
     first = np.zeros(len(counts), dtype=np.intp)
     head = where[: 1 << 14]  # the first sample of each group is usually near the start
     for g in filled:
         at = head == g
         first[g] = int(np.argmax(at)) if at.any() else int(np.argmax(where == g))
-    differs = np.bincount(where, weights=es != es[first][where], minlength=len(counts))
+    ref = es[first]
+    differs = np.bincount(head, weights=es[: len(head)] != ref[head], minlength=len(counts))
+    if np.all(differs[filled] > 0):
+        return True
+    differs = np.bincount(where, weights=es != ref[where], minlength=len(counts))
     return bool(np.all(differs[filled] > 0))
 
 
