@@ -320,11 +320,25 @@ fn free_run_with<const FMA: bool>(
                 *xv = acc;
             }
         }
-        // 0 · v is NaN for an infinite or NaN v: a sum that vectorises, unlike a search.
-        finite &= x.iter().fold(0.0, |z, &v| z + 0.0 * v) == 0.0;
+        finite &= all_finite(x);
         t0 = t1;
     }
     Ok(finite)
+}
+
+/// Whether every value is finite: 0 · v is NaN for an infinite or NaN v, summed in [`WIDTH`] lanes
+/// that vectorise (one running sum would wait for each addition, a fifth of a free run's time).
+#[inline(always)]
+fn all_finite(x: &[f64]) -> bool {
+    let mut lanes = [0.0f64; WIDTH];
+    let chunks = x.chunks_exact(WIDTH);
+    let tail = chunks.remainder().iter().fold(0.0, |z, &v| z + 0.0 * v);
+    for c in chunks {
+        for l in 0..WIDTH {
+            lanes[l] += 0.0 * c[l];
+        }
+    }
+    lanes.iter().fold(tail, |z, &v| z + v) == 0.0
 }
 
 #[cfg(test)]
