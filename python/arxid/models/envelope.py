@@ -80,16 +80,7 @@ class EnvelopeFactor:
             for lay in self.layouts
             for text, (kind, power, carrier) in zip(lay.effect_of_term, lay.output_terms)
         }
-        u = np.empty((data.n_samples, len(self.labels)))
-        at = {label: j for j, label in enumerate(self.labels)}
-        for j, label in enumerate(self.labels):
-            if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
-                kind, power, by = terms[label]
-                u[:, j] = _term_series(kind, power, None if by is None else u[:, at[by]], data)
-            else:
-                u[:, j] = layout_column(label, data)
-        if not (np.isfinite(data.y).all() and np.isfinite(u).all()):
-            raise ArxidError("the envelope's fits need data without missing samples")
+        u = _envelope_inputs(data, self.labels, terms)
         self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
         lag = max(max_lag(na, lay) for (na, *_), lay, ok in zip(self.structures, self.layouts, self.inside) if ok)
@@ -193,6 +184,48 @@ _TERM = "term:"
 def _labels(layout: EffectLayout) -> list[str]:
     """The envelope columns a structure brings: its layout's, then one per output term."""
     return list(layout.column_labels) + [_TERM + text for text in layout.effect_of_term]
+
+
+#: Columns of the envelope's input matrix computed before they are written, a block of rows at a
+#: time: one pass over the row-major matrix per group (a column written alone touches every row).
+_COLUMNS_AT_ONCE = 4
+
+#: Rows per block of those writes.
+_ROWS_AT_ONCE = 1 << 14
+
+
+def _envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple]) -> np.ndarray:
+    """The envelope's input matrix, one column per label (row-major, as the core reads it): an
+    input or effect (:func:`layout_column`) or an output term's series (after its carrier's column,
+    as the labels list them). Raises ArxidError when a sample is missing."""
+    u = np.empty((data.n_samples, len(labels)))
+    at = {label: j for j, label in enumerate(labels)}
+    pending: dict[int, np.ndarray] = {}
+    ok = bool(np.isfinite(data.y).all())
+    for j, label in enumerate(labels):
+        if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
+            kind, power, by = terms[label]
+            carrier = None if by is None else pending.get(at[by], u[:, at[by]])
+            col = _term_series(kind, power, carrier, data)
+        else:
+            col = layout_column(label, data)
+        ok = ok and bool(np.isfinite(col).all())
+        pending[j] = col
+        if len(pending) == _COLUMNS_AT_ONCE:
+            _write_columns(u, pending)
+    _write_columns(u, pending)
+    if not ok:
+        raise ArxidError("the envelope's fits need data without missing samples")
+    return u
+
+
+def _write_columns(u: np.ndarray, columns: dict[int, np.ndarray]) -> None:
+    """Write ``columns`` (index: samples) into ``u`` a block of rows at a time, then forget them."""
+    for lo in range(0, len(u), _ROWS_AT_ONCE):
+        block = u[lo : lo + _ROWS_AT_ONCE]
+        for j, col in columns.items():
+            block[:, j] = col[lo : lo + _ROWS_AT_ONCE]
+    columns.clear()
 
 
 def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
