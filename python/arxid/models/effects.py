@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from .._base import _core
+from .._base.columns import write_columns
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 
@@ -514,15 +515,13 @@ class _Plan:
 
 def _stacked(cols: list[np.ndarray], n: int) -> np.ndarray:
     """The columns side by side as one C-ordered float64 array: the inputs themselves (already
-    C-ordered float64, read-only) when there is no effect column, else one array filled column by
-    column (no intermediate copies)."""
+    C-ordered float64, read-only) when there is no effect column, else one array filled a block of
+    rows at a time (no intermediate copies)."""
     if len(cols) == 1:
         return np.ascontiguousarray(cols[0], dtype=float)
     out = np.empty((n, sum(c.shape[1] for c in cols)))
-    at = 0
-    for c in cols:
-        out[:, at : at + c.shape[1]] = c
-        at += c.shape[1]
+    starts = np.cumsum([0] + [c.shape[1] for c in cols[:-1]])
+    write_columns(out, dict(zip(starts.tolist(), cols)))
     return out
 
 

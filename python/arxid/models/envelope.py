@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._base import _core
+from .._base.columns import write_columns
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from .effects import EffectLayout, compile_effects, effect_names, layout_column
@@ -186,12 +187,9 @@ def _labels(layout: EffectLayout) -> list[str]:
     return list(layout.column_labels) + [_TERM + text for text in layout.effect_of_term]
 
 
-#: Columns of the envelope's input matrix computed before they are written, a block of rows at a
-#: time: one pass over the row-major matrix per group (a column written alone touches every row).
+#: Columns of the envelope's input matrix computed before they are written together, a block of
+#: rows at a time (:func:`write_columns`): one pass over the matrix per group, not per column.
 _COLUMNS_AT_ONCE = 4
-
-#: Rows per block of those writes.
-_ROWS_AT_ONCE = 1 << 14
 
 
 def _envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple]) -> np.ndarray:
@@ -212,20 +210,12 @@ def _envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple]) -
         ok = ok and bool(np.isfinite(col).all())
         pending[j] = col
         if len(pending) == _COLUMNS_AT_ONCE:
-            _write_columns(u, pending)
-    _write_columns(u, pending)
+            write_columns(u, pending)
+            pending.clear()
+    write_columns(u, pending)
     if not ok:
         raise ArxidError("the envelope's fits need data without missing samples")
     return u
-
-
-def _write_columns(u: np.ndarray, columns: dict[int, np.ndarray]) -> None:
-    """Write ``columns`` (index: samples) into ``u`` a block of rows at a time, then forget them."""
-    for lo in range(0, len(u), _ROWS_AT_ONCE):
-        block = u[lo : lo + _ROWS_AT_ONCE]
-        for j, col in columns.items():
-            block[:, j] = col[lo : lo + _ROWS_AT_ONCE]
-    columns.clear()
 
 
 def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
