@@ -342,18 +342,18 @@ fn all_finite(x: &[f64]) -> bool {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::simulate::{predict, predict_cancellable, step_reference};
 
-    /// Uniform numbers in [-0.5, 0.5) from a fixed seed.
-    struct Lcg(u64);
+    /// Uniform numbers in [-0.5, 0.5) from a fixed seed (also the output-term free run's tests).
+    pub(crate) struct Lcg(pub(crate) u64);
     impl Lcg {
-        fn next(&mut self) -> f64 {
+        pub(crate) fn next(&mut self) -> f64 {
             self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((self.0 >> 11) as f64 / (1u64 << 53) as f64) - 0.5
         }
-        fn below(&mut self, n: usize) -> usize {
+        pub(crate) fn below(&mut self, n: usize) -> usize {
             ((self.next() + 0.5) * n as f64) as usize % n
         }
     }

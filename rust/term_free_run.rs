@@ -173,19 +173,8 @@ fn recursion<const FMA: bool, const H: usize, F: Fn(f64, f64, f64, usize) -> f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::linear_predict::tests::Lcg;
     use crate::simulate::{predict, step_reference};
-
-    /// Uniform numbers in [-0.5, 0.5) from a fixed seed.
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        }
-        fn below(&mut self, n: usize) -> usize {
-            ((self.next() + 0.5) * n as f64) as usize % n
-        }
-    }
 
     /// The free run with output terms agrees with the general step to 1e-12 of the output's scale
     /// on random stable structures (every kind of term, with and without a multiplier, several
