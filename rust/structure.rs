@@ -52,11 +52,15 @@ impl OutputTerm {
 }
 
 /// Sign with sign(0) = 0 (numpy's convention, so Python and the core build the same regressors).
-/// Without branches: the sign of a noisy output changes at random, and a mispredicted branch per
-/// sample would dominate a free run's step.
 #[inline]
 pub(crate) fn sign(x: f64) -> f64 {
-    f64::from(u8::from(x > 0.0)) - f64::from(u8::from(x < 0.0))
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
 }
 
 /// Orders of one ARX structure. `nb[i] == 0` means input `i` is not used.

@@ -252,11 +252,11 @@ class AddedVariableTest:
             return [self._tested(z, self._projected(pz), zz, ze) for z, (pz, zz, ze) in zip(blocks, products)]
         out = []
         for z, (pz, zz, ze) in zip(blocks, products):
-            pz1, zz1, ze1 = self._with_ones(z, pz, zz, ze)
+            pz1, zz1, ze1 = self._products_with_ones(z, pz, zz, ze)
             out.append(self._tested(functools.partial(_with_ones, z), self._projected(pz1), zz1, ze1))
         return out
 
-    def _with_ones(
+    def _products_with_ones(
         self, z: np.ndarray, pz: np.ndarray, zz: np.ndarray, ze: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Φ'[z | 1], [z | 1]'[z | 1] and [z | 1]'e from z's products and sums."""
