@@ -329,7 +329,7 @@ fn free_run_with<const FMA: bool>(
 /// Whether every value is finite: 0 · v is NaN for an infinite or NaN v, summed in [`WIDTH`] lanes
 /// that vectorise (one running sum would wait for each addition, a fifth of a free run's time).
 #[inline(always)]
-fn all_finite(x: &[f64]) -> bool {
+pub(crate) fn all_finite(x: &[f64]) -> bool {
     let mut lanes = [0.0f64; WIDTH];
     let chunks = x.chunks_exact(WIDTH);
     let tail = chunks.remainder().iter().fold(0.0, |z, &v| z + 0.0 * v);

@@ -577,6 +577,29 @@ fn divergence_limit(y: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
     Ok(crate::simulate::divergence_limit(y.as_slice()?))
 }
 
+/// `(Σ x², n)` over the `n` finite samples of a contiguous `x`, in one pass (GIL released).
+#[pyfunction]
+fn finite_squares(py: Python<'_>, x: PyReadonlyArray1<'_, f64>) -> PyResult<(f64, usize)> {
+    let x = x.as_slice()?;
+    Ok(py.detach(|| crate::finite_sums::finite_squares(x)))
+}
+
+/// Largest |x| over the samples of a contiguous `x` that are not NaN (inf when one is infinite,
+/// NaN when none is a number), in one pass (GIL released).
+#[pyfunction]
+fn peak_magnitude(py: Python<'_>, x: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
+    let x = x.as_slice()?;
+    Ok(py.detach(|| crate::finite_sums::peak_magnitude(x)))
+}
+
+/// Largest |x| over the finite samples of a contiguous `x` (0 when there are none), in one pass
+/// (GIL released).
+#[pyfunction]
+fn finite_peak(py: Python<'_>, x: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
+    let x = x.as_slice()?;
+    Ok(py.detach(|| crate::finite_sums::finite_peak(x)))
+}
+
 // ---- Sweeps at scale (issue 15): fleet partials, fits from factors, simulation of groups, limit kernel.
 
 /// `(R, n_rows)`: the triangular factor (q × q, output last) of the grid envelope's regressor on
@@ -941,6 +964,8 @@ mod core_module {
     use super::{
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
+    #[pymodule_export]
+    use super::{finite_peak, finite_squares, peak_magnitude};
     #[pymodule_export]
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]

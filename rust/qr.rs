@@ -117,23 +117,36 @@ pub fn reduce_with(
 /// Writes `[Φ | y]` of a linear structure for the rows `block` into `a`, one contiguous column at a
 /// time (the same values [`fill_row`] gives, without a per-element gather into a column-major matrix).
 fn fill_block_columns(d: &Data, s: &Structure, block: &[usize], a: &mut Mat<f64>) {
-    fn put(a: &mut Mat<f64>, c: usize, block: &[usize], f: impl Fn(usize) -> f64) {
-        for (dst, &t) in a.col_as_slice_mut(c).iter_mut().zip(block) {
-            *dst = f(t);
+    // Column c is sign · series[(t − lag) · stride] over the block's samples t: a strided copy when
+    // they are consecutive (a gap or an experiment's edge breaks them), else a gather.
+    let put = |a: &mut Mat<f64>, c: usize, series: &[f64], stride: usize, lag: usize, sign: f64| {
+        let dst = a.col_as_slice_mut(c);
+        match (block.first(), block.last()) {
+            (Some(&first), Some(&last)) if last - first + 1 == block.len() => {
+                let start = (first - lag) * stride;
+                for (i, v) in dst.iter_mut().enumerate() {
+                    *v = sign * series[start + i * stride];
+                }
+            }
+            _ => {
+                for (v, &t) in dst.iter_mut().zip(block) {
+                    *v = sign * series[(t - lag) * stride];
+                }
+            }
         }
-    }
+    };
     let mut c = 0;
     for i in 1..=s.na {
-        put(a, c, block, |t| -d.y[t - i]);
+        put(a, c, d.y, 1, i, -1.0);
         c += 1;
     }
     for (i, (&b, &k)) in s.nb.iter().zip(&s.nk).enumerate() {
         for j in 0..b {
-            put(a, c, block, |t| d.u[(t - k - j) * d.m + i]);
+            put(a, c, &d.u[i..], d.m, k + j, 1.0);
             c += 1;
         }
     }
-    put(a, c, block, |t| d.y[t]);
+    put(a, c, d.y, 1, 0, 1.0);
 }
 
 /// Stacks square upper-triangular factors and returns the R of the stack.

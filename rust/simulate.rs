@@ -804,8 +804,7 @@ pub const DIVERGENCE_FACTOR: f64 = 1e3;
 /// [`DIVERGENCE_FACTOR`] times the largest finite |y| (at least the smallest normal float, so that
 /// an all-zero or all-missing output still has a limit).
 pub fn divergence_limit(y: &[f64]) -> f64 {
-    let peak = y.iter().filter(|v| v.is_finite()).fold(0.0f64, |m, v| m.max(v.abs()));
-    DIVERGENCE_FACTOR * peak.max(f64::MIN_POSITIVE)
+    DIVERGENCE_FACTOR * crate::finite_sums::finite_peak(y).max(f64::MIN_POSITIVE)
 }
 
 /// RMS of measured − predicted over the samples where both are finite; diverged when a prediction

@@ -14,6 +14,9 @@ _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
     "divergence_limit",
+    "finite_peak",
+    "finite_squares",
+    "peak_magnitude",
     "iv_sweep",
     "fma_limit",
     "grid_factor",
@@ -157,6 +160,9 @@ def max_lag(na: int, nb: Sequence[int], nk: Sequence[int], output_terms: Sequenc
 def sweep_memory(n_structures: int, p_max: int, q: int, n_est: int, n_val: int, n_cols: int, n_threads: int) -> int: ...
 def fit_memory(n_rows: int, n_params: int, n_threads: int) -> int: ...
 def divergence_limit(y: _F) -> float: ...
+def finite_squares(x: _F) -> tuple[float, int]: ...
+def peak_magnitude(x: _F) -> float: ...
+def finite_peak(x: _F) -> float: ...
 
 # ---------------------------------------------------------------- prediction-error models
 _PolyOrders = tuple[int, Sequence[int], int, int, Sequence[int], Sequence[int]]

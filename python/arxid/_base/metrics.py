@@ -67,12 +67,10 @@ def divergence_limit(y: _ArrayLike) -> float:
 
 def diverged(y: _ArrayLike, pred: _ArrayLike) -> bool:
     """True when ``pred`` reaches inf or leaves ±:func:`divergence_limit` of ``y`` (NaN is missing data)."""
-    p = np.asarray(pred, dtype=float)
+    p = _flat(pred)
     if not p.size:
         return False
-    # The largest |pred| over the samples that have one, from two reductions (fmax/fmin skip NaN;
-    # ±inf wins), without the copies a mask of the finite samples would make.
-    top = max(float(np.fmax.reduce(p, axis=None)), -float(np.fmin.reduce(p, axis=None)))
+    top = _core.peak_magnitude(p)  # the largest |pred| over the samples that have one (±inf wins)
     if math.isnan(top):  # no sample has a prediction
         return False
     return math.isinf(top) or top > divergence_limit(y)
@@ -80,14 +78,13 @@ def diverged(y: _ArrayLike, pred: _ArrayLike) -> bool:
 
 def mean_square(e: _ArrayLike) -> float:
     """Mean of e² over the finite samples (NaN when there are none)."""
-    x = np.asarray(e, dtype=float)
-    ok = np.isfinite(x)
-    if not ok.all():  # every sample finite: the same values in the same order, without the copy
-        x = x[ok]
-    if not x.size:
-        return math.nan
-    with np.errstate(over="ignore"):
-        return float(np.mean(x * x))
+    total, n = _core.finite_squares(_flat(e))  # one pass: no mask, copy or array of squares
+    return total / n if n else math.nan
+
+
+def _flat(x: _ArrayLike) -> np.ndarray:
+    """``x`` as one contiguous, aligned row of floats for the core (a view when it already is one)."""
+    return np.require(np.asarray(x, dtype=float).reshape(-1), requirements=["C", "A"])
 
 
 def rms(e: _ArrayLike) -> float:
@@ -166,14 +163,14 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
     finite_y, finite_pred = np.isfinite(y), np.isfinite(pred)
     ok = finite_y & finite_pred
     n = int(np.count_nonzero(ok))
-    peak_y, peak_pred = finite_peak(y, finite_y), finite_peak(pred, finite_pred)
+    peak_y, peak_pred = finite_peak(y), finite_peak(pred)
     head = [n, peak_y, peak_pred, np.isinf(pred).any()]
     if n == 0:
         return np.array(head + [0.0, 0.0, 0.0, 0.0], dtype=float)
     yo, po = (y, pred) if n == len(y) else (y[ok], pred[ok])
     # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
     # or 1e-200 neither overflow nor underflow the sums of squares.
-    big = peak_y if n == len(y) else finite_peak(yo, np.ones(n, dtype=bool))
+    big = peak_y if n == len(y) else finite_peak(yo)
     scale = _unit_scale(big)
     with np.errstate(over="ignore", invalid="ignore"):
         # One scratch array, reused in place (the same values as (yo - po) * scale and so on).
@@ -186,11 +183,9 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
         return np.array(head + [big, sse, mean, np.dot(e, e)], dtype=float)
 
 
-def finite_peak(x: np.ndarray, finite: np.ndarray) -> float:
-    """Largest |x| over the samples where ``finite`` holds (0 when there are none); no copy of ``x``
-    when every sample is finite."""
-    x = x if finite.all() else x[finite]
-    return float(max(np.max(x), -np.min(x))) if x.size else 0.0  # max |x| without a copy
+def finite_peak(x: _ArrayLike) -> float:
+    """Largest |x| over the finite samples of ``x`` (0 when there are none), in one pass."""
+    return _core.finite_peak(_flat(x))
 
 
 def _unit_scale(big: float) -> float:

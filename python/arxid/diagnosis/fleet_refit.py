@@ -140,7 +140,7 @@ def share_scores(share: tuple, model: Any, specs: Sequence[tuple]) -> list[tuple
                     int(e.size),
                     float(np.max(np.abs(p))) if p.size else 0.0,
                     bool(np.isinf(pred).any()),
-                    metrics.finite_peak(d.y, np.isfinite(d.y)),
+                    metrics.finite_peak(d.y),
                     metrics.fit_percent_part(d.y, pred),
                 )
             )

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base import metrics
 from .._base.background import in_two
 from ..checks import prediction_error
 from ..data.iodata import IOData
@@ -175,22 +176,19 @@ class _Search:
                 out.append(None)
         return out
 
-    def errors(self, model: ArxModel) -> np.ndarray:
+    def errors(self, model: ArxModel) -> tuple[np.ndarray, float]:
+        """The model's validation errors and their RMS (every error and the RMS inf when its free
+        run diverged)."""
         _, err, diverged = prediction_error(model, self.validation, self.horizon, self.initial)
-        return np.full_like(err, np.inf) if diverged else err
+        return (np.full_like(err, np.inf), math.inf) if diverged else (err, metrics.rms(err))
 
     def measured(self, model: ArxModel) -> tuple[float, ArxModel, np.ndarray]:
         """(RMS, model, errors) of ``model`` on the validation data."""
-        err = self.errors(model)
-        return _rms(err), model, err
+        err, rms = self.errors(model)
+        return rms, model, err
 
     def flags(self, model: ArxModel) -> set[str]:
         return set(step_sanity(model, self.validation, expect=self.expect).flags)
-
-
-def _rms(err: np.ndarray) -> float:
-    e = err[~np.isnan(err)]
-    return float(np.sqrt(np.mean(e**2))) if e.size else math.nan
 
 
 def rechoose_structure(
@@ -232,8 +230,8 @@ def rechoose_structure(
     search = _Search(data, validation, horizon, initial, expect)
     terms = bool(model.layout_.output_terms)
     current, tried = model, 0
-    err_current = search.errors(current)
-    rms_first = rms_current = _rms(err_current)
+    err_current, rms_current = search.errors(current)
+    rms_first = rms_current
     for _ in range(int(max_rounds)):
         orders = (current.na_, tuple(current.nb_), tuple(current.nk_))
         cands = _neighbours(orders)
@@ -247,8 +245,7 @@ def rechoose_structure(
         if base is current:
             err_base, rms_base = err_current, rms_current
         else:
-            err_base = search.errors(base)
-            rms_base = _rms(err_base)
+            err_base, rms_base = search.errors(base)
         # Each neighbour is validated by a free run of the validation data: two at a time.
         fitted = in_two(search.measured, [m for m in models[1:] if m is not None])
         tried += len(fitted)

@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -167,10 +168,10 @@ def diagnose(
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
     suspects = finish_suspects(notes, cands, suspects, data)
-    # In sequence, not beside the scoring: its design (~0.4 GiB at 2M rows) on top of the other
-    # stages' arrays would take the analysis of a 4M-sample record past 1 GiB.
-    del scoring, judge  # their regressors and refit factors: not held while the dependence test builds its own
-    dependence = () if polynomial else _dependence(model, data, alpha)
+    # The dependence test runs when the diagnosis is first asked for it (a ladder asks its last
+    # diagnosis only), never beside the scoring: its design (~0.4 GiB at 2M rows) on top of the
+    # other stages' arrays would take the analysis of a 4M-sample record past 1 GiB.
+    dependence = () if polynomial else partial(_dependence, model, data, alpha)
     return Diagnosis(
         model,
         data,

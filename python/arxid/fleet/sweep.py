@@ -42,7 +42,7 @@ def _arrays(d: IOData) -> tuple[np.ndarray, np.ndarray, list[int]]:
 
 def _peak(d: IOData | None) -> float:
     """Largest measured |y| of a part (0 without one): its share of the fleet's divergence limit."""
-    return metrics.finite_peak(d.y, np.isfinite(d.y)) if d is not None else 0.0
+    return metrics.finite_peak(d.y) if d is not None else 0.0
 
 
 @dataclass(frozen=True)

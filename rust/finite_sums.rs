@@ -1,0 +1,98 @@
+//! One-pass sums over the samples of a long series that exist: the sum of squares behind every
+//! RMS of a validation error, and the largest magnitude behind the divergence rule.
+//!
+//! numpy takes each in two to four passes over the series (a finiteness mask, a copy of the
+//! finite samples, their squares, the mean); an analysis takes a hundred of them on the validation
+//! record. Here each is one pass, summed in [`LANES`] independent lanes so that the additions do not
+//! wait on each other (the sums then agree with numpy's pairwise sums to rounding, not to the bit).
+
+/// Independent partial sums: one running sum would wait on each addition.
+const LANES: usize = 8;
+
+/// `(Σ x², n)` over the `n` finite samples of `x` (an overflowing square sums to inf).
+pub fn finite_squares(x: &[f64]) -> (f64, usize) {
+    let mut sums = [0.0f64; LANES];
+    let mut counts = [0usize; LANES];
+    let chunks = x.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for l in 0..LANES {
+            let finite = c[l].abs() <= f64::MAX; // false for ±inf and NaN
+            sums[l] += if finite { c[l] * c[l] } else { 0.0 };
+            counts[l] += usize::from(finite);
+        }
+    }
+    for (l, &v) in tail.iter().enumerate() {
+        let finite = v.abs() <= f64::MAX;
+        sums[l] += if finite { v * v } else { 0.0 };
+        counts[l] += usize::from(finite);
+    }
+    (sums.iter().sum(), counts.iter().sum())
+}
+
+/// Largest |x| over the finite samples of `x` (0 when there are none).
+pub fn finite_peak(x: &[f64]) -> f64 {
+    lane_max(x, |v| if v.abs() <= f64::MAX { v.abs() } else { 0.0 }, 0.0)
+}
+
+/// Largest |x| over the samples of `x` that are not NaN (inf when one is infinite; NaN when every
+/// sample is NaN or there are none): `max(fmax.reduce(x), -fmin.reduce(x))` in numpy's words.
+pub fn peak_magnitude(x: &[f64]) -> f64 {
+    lane_max(x, f64::abs, f64::NAN) // f64::max ignores a NaN operand
+}
+
+#[inline(always)]
+fn lane_max(x: &[f64], magnitude: impl Fn(f64) -> f64, empty: f64) -> f64 {
+    let mut peaks = [empty; LANES];
+    let chunks = x.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for l in 0..LANES {
+            peaks[l] = peaks[l].max(magnitude(c[l]));
+        }
+    }
+    for (l, &v) in tail.iter().enumerate() {
+        peaks[l] = peaks[l].max(magnitude(v));
+    }
+    peaks.iter().fold(empty, |m, &p| m.max(p))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn series(n: usize) -> Vec<f64> {
+        (0..n).map(|t| ((t * 7919) % 1013) as f64 / 101.3 - 5.0).collect()
+    }
+
+    #[test]
+    fn sums_and_peaks_agree_with_the_plain_loops_at_every_length() {
+        for n in [0, 1, 7, 8, 9, 100, 1001] {
+            let mut x = series(n);
+            for t in (3..n).step_by(17) {
+                x[t] = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][t % 3];
+            }
+            let finite: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+            let (s, k) = finite_squares(&x);
+            let direct: f64 = finite.iter().map(|v| v * v).sum();
+            assert_eq!(k, finite.len());
+            assert!((s - direct).abs() <= 1e-12 * direct.max(1.0), "n = {n}");
+            assert_eq!(finite_peak(&x), finite.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+            let has_inf = x.iter().any(|v| v.is_infinite());
+            let expected = if has_inf { f64::INFINITY } else { finite.iter().fold(f64::NAN, |m, v| m.max(v.abs())) };
+            let got = peak_magnitude(&x);
+            assert!(got == expected || (got.is_nan() && expected.is_nan()), "n = {n}: {got} vs {expected}");
+        }
+    }
+
+    #[test]
+    fn missing_samples_are_left_out_and_an_all_missing_series_says_so() {
+        let x = [f64::NAN, 3.0, f64::NAN, -4.0];
+        assert_eq!(finite_squares(&x), (25.0, 2));
+        assert_eq!(finite_peak(&x), 4.0);
+        assert_eq!(peak_magnitude(&x), 4.0);
+        assert!(peak_magnitude(&[f64::NAN; 9]).is_nan());
+        assert_eq!(finite_peak(&[f64::NAN, f64::INFINITY]), 0.0);
+        assert_eq!(finite_squares(&[1e200, 1e200]).0, f64::INFINITY);
+    }
+}
