@@ -1,4 +1,5 @@
-"""Rolling RMS and mean square against direct references (numpy, window by window)."""
+"""Rolling RMS, mean square, peaks and the divergence rule against direct references (numpy, window
+by window)."""
 
 import math
 
@@ -31,9 +32,40 @@ def test_rolling_rms_is_the_rms_of_each_centred_window(seed):
 def test_mean_square_over_the_finite_samples():
     rng = np.random.default_rng(2)
     x = rng.standard_normal(1000)
-    assert metrics.mean_square(x) == np.mean(x * x)
+    # one pass in eight lanes in the core: numpy's pairwise sum to rounding
+    assert metrics.mean_square(x) == pytest.approx(np.mean(x * x), rel=1e-14)
     x[[3, 70]] = np.nan
     x[5] = np.inf
-    assert metrics.mean_square(x) == np.mean(x[np.isfinite(x)] ** 2)
+    assert metrics.mean_square(x) == pytest.approx(np.mean(x[np.isfinite(x)] ** 2), rel=1e-14)
     assert math.isnan(metrics.mean_square(np.array([np.nan])))
     assert math.isnan(metrics.mean_square(np.zeros(0)))
+    assert metrics.mean_square(np.array([1e200, 1.0])) == math.inf  # the square overflows, as in numpy
+
+
+def test_mean_square_and_peaks_read_any_layout():
+    """Strided, two-dimensional, integer and misaligned inputs give what their values give."""
+    rng = np.random.default_rng(3)
+    m = rng.standard_normal((300, 3))
+    m[7, 1] = np.nan
+    col = m[:, 1]  # strided view
+    finite = col[np.isfinite(col)]
+    assert metrics.mean_square(col) == pytest.approx(np.mean(finite**2), rel=1e-14)
+    assert metrics.mean_square(m) == pytest.approx(np.mean(m[np.isfinite(m)] ** 2), rel=1e-14)
+    assert metrics.mean_square([1, 2, 3]) == pytest.approx(14 / 3)
+    raw = np.zeros(8 * 300 + 1, dtype=np.uint8)[1:].view(np.float64)  # misaligned buffer
+    raw[:] = col
+    assert metrics.mean_square(raw) == metrics.mean_square(col)
+    assert metrics.finite_peak(col) == np.max(np.abs(finite))
+    col[9] = -np.inf
+    assert metrics.finite_peak(col) == np.max(np.abs(col[np.isfinite(col)]))
+    assert metrics.finite_peak(np.array([np.nan, np.inf])) == 0.0
+
+
+def test_divergence_rule_on_missing_and_infinite_predictions():
+    y = np.array([1.0, -2.0, np.nan, 0.5])
+    limit = metrics.divergence_limit(y)
+    assert limit == metrics.DIVERGENCE_FACTOR * 2.0
+    assert not metrics.diverged(y, np.array([np.nan, 1.0, -limit, 0.0]))
+    assert metrics.diverged(y, np.array([np.nan, 1.0, -limit * 1.001, 0.0]))
+    assert metrics.diverged(y, np.array([np.nan, np.inf, 0.0, 0.0]))
+    assert not metrics.diverged(y, np.full(4, np.nan))  # no prediction at all: nothing diverged
