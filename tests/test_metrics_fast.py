@@ -69,3 +69,11 @@ def test_divergence_rule_on_missing_and_infinite_predictions():
     assert metrics.diverged(y, np.array([np.nan, 1.0, -limit * 1.001, 0.0]))
     assert metrics.diverged(y, np.array([np.nan, np.inf, 0.0, 0.0]))
     assert not metrics.diverged(y, np.full(4, np.nan))  # no prediction at all: nothing diverged
+    # the limit comes from the largest |y| anywhere, not only from the first samples
+    long = np.full(10000, 0.1)
+    long[-1] = 100.0
+    near = np.zeros(10000)
+    near[5] = 50.0 * metrics.DIVERGENCE_FACTOR
+    assert not metrics.diverged(long, near)
+    near[5] = 100.0 * metrics.DIVERGENCE_FACTOR * 1.001
+    assert metrics.diverged(long, near)

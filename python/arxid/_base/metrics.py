@@ -23,6 +23,7 @@ Definitions (MATLAB's System Identification Toolbox where it has one):
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Sequence
 
 import numpy as np
@@ -56,6 +57,9 @@ __all__ = [
 #: A prediction beyond this many times the largest measured |y| has diverged (owned by the Rust core).
 DIVERGENCE_FACTOR: float = float(_core.DIVERGENCE_FACTOR)
 
+#: Samples of the measured output that bound the divergence limit from below (see :func:`diverged`).
+_HEAD = 4096
+
 _ArrayLike = npt.ArrayLike
 _Float = float | np.ndarray
 
@@ -72,6 +76,10 @@ def diverged(y: _ArrayLike, pred: _ArrayLike) -> bool:
         return False
     top = _core.peak_magnitude(p)  # the largest |pred| over the samples that have one (±inf wins)
     if math.isnan(top):  # no sample has a prediction
+        return False
+    # A few of y's samples bound the limit from below: a pass over all of y only when pred nears it.
+    head = finite_peak(np.asarray(y, dtype=float).reshape(-1)[:_HEAD])
+    if top <= DIVERGENCE_FACTOR * max(head, sys.float_info.min):
         return False
     return math.isinf(top) or top > divergence_limit(y)
 

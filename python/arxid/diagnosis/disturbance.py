@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base import metrics
 from .._base.formatting import finite_or_none
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
@@ -270,6 +271,4 @@ def remaining_disturbance(model: ArxModel, validation: IOData, error: np.ndarray
     if not math.isfinite(split):
         split, basis = 0.1 / (2.0 * ts), "a tenth of the Nyquist frequency"
     e = np.asarray(error, dtype=float)
-    finite = e[np.isfinite(e)]
-    rms = float(np.sqrt(np.mean(finite**2))) if finite.size else math.nan
-    return Disturbance(_low_share(e, validation.segments, ts, split), split, basis, bool(white), rms)
+    return Disturbance(_low_share(e, validation.segments, ts, split), split, basis, bool(white), metrics.rms(e))
