@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from arxid.diagnosis.added_variable import AddedVariableTest, lagged_view
+from arxid.diagnosis.added_variable import AddedVariableTest, held_columns, lagged_view
 
 
 def _data(seed, n=20000):
@@ -49,3 +49,14 @@ def test_an_offset_already_in_the_model_or_the_block_takes_the_exact_path():
         if g is not None:
             assert g.n_columns == w.n_columns
             assert g.score == pytest.approx(w.score, rel=1e-9)
+
+
+def test_a_lagged_view_holds_one_column_of_memory_a_matrix_its_width():
+    """The scoring's groups are bounded by the memory their blocks hold: the lags of one signal are
+    a view of it (one column), a formed matrix holds every column."""
+    x = np.arange(100.0)
+    assert held_columns(lagged_view(x, 5, 4, 90)) == 1
+    assert held_columns(np.ones((90, 4))) == 4
+    assert held_columns(np.ones((90, 1))) == 1
+    assert held_columns(np.ones((90, 0))) == 0
+    assert held_columns(np.ones((90, 4))[:, ::2]) == 2  # a strided matrix is copied when read

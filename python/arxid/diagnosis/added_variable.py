@@ -23,7 +23,7 @@ import numpy as np
 from .._base import _core
 from .._base.nested import blocked_r, column_norms
 
-__all__ = ["AddedVariableTest", "AddedVariableResult", "holm", "lagged_view", "stripped_test"]
+__all__ = ["AddedVariableTest", "AddedVariableResult", "held_columns", "holm", "lagged_view", "stripped_test"]
 
 
 @dataclass(frozen=True)
@@ -439,12 +439,24 @@ def _with_ones(z: np.ndarray) -> np.ndarray:
     return out
 
 
+def _is_lagged(z: np.ndarray) -> bool:
+    """``z`` is a :func:`lagged_view` of one signal (or a contiguous single column)."""
+    step, w = z.itemsize, z.shape[1]
+    return z.dtype == np.float64 and w > 0 and z.strides[0] == step and (w == 1 or z.strides[1] == -step)
+
+
+def held_columns(z: np.ndarray) -> int:
+    """Columns of the record's length that the block ``z`` holds in memory: one for a
+    :func:`lagged_view` (its columns are one signal read at other lags), else its width."""
+    return min(1, z.shape[1]) if _is_lagged(z) else z.shape[1]
+
+
 def _as_block(z: np.ndarray) -> tuple[np.ndarray, int, bool]:
     """A block as the core reads it: the signal behind a :func:`lagged_view` (or a contiguous single
     column), else the C-ordered values."""
     n, w = z.shape
     step = z.itemsize
-    if z.dtype == np.float64 and w and z.strides[0] == step and (w == 1 or z.strides[1] == -step):
+    if _is_lagged(z):
         series = np.lib.stride_tricks.as_strided(z[:, w - 1 :], shape=(n + w - 1,), strides=(step,), writeable=False)
         return series, w, True
     return np.ascontiguousarray(z, dtype=float).ravel(), w, False

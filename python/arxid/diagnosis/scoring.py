@@ -31,7 +31,7 @@ from ..models.effects import (
     thresholded_products,
 )
 from ..models.regressors import first_of_run, lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
-from .added_variable import AddedVariableResult, AddedVariableTest, holm, lagged_view
+from .added_variable import AddedVariableResult, AddedVariableTest, held_columns, holm, lagged_view
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
 
@@ -155,12 +155,12 @@ class Scoring:
         """Each block's test against the model's regressors (with a column of ones beside it when
         ``offset``), as ``(key, result, why)``: the blocks are tested in groups that read the
         regressors once per block of rows (:meth:`AddedVariableTest.tests`), each group's columns
-        within :data:`_GROUP_BYTES`."""
+        within :data:`_GROUP_BYTES` (a lagged view holds one column, whatever its width)."""
         budget = max(1, _GROUP_BYTES // (8 * max(len(self.rows0), 1)))
         group: list[tuple[_Key, np.ndarray]] = []
         for key, z in blocks:
             group.append((key, z))
-            if sum(g[1].shape[1] for g in group) >= budget:
+            if sum(held_columns(g[1]) for g in group) >= budget:
                 yield from self._group_tested(group, offset)
                 group = []
         yield from self._group_tested(group, offset)
