@@ -131,11 +131,51 @@ def lagged_gram(
     >>> n, g.tolist()
     (5, [[30.0, 40.0], [40.0, 55.0]])
     """
+    one = _lags_of_one_series(columns, segments, back, ahead)
+    if one is not None:
+        return one
     count = [0]
     gram = np.zeros((len(columns), len(columns)))
     for mat in _blocks(columns, segments, back, ahead, count):
         gram += mat.T @ mat
     return gram, count[0]
+
+
+def _lags_of_one_series(
+    columns: Sequence[tuple[np.ndarray, int]], segments: Sequence[tuple[int, int]], back: int, ahead: int
+) -> tuple[np.ndarray, int] | None:
+    """:func:`lagged_gram` when every column is a lag of one series, finite where the rows read it
+    (an AR model's regressors): entry (i, j) is the series' product with itself at lag |l_i − l_j|
+    over each experiment (the core's lagged products: one pass for every lag, not one per pair of
+    columns), less the few products at the experiment's ends that the rows do not reach. None when
+    the columns read other series or a missing sample."""
+    x = columns[0][0] if columns else None
+    if x is None or any(signal is not x for signal, _ in columns):
+        return None
+    lags = [int(lag) for _, lag in columns]
+    top, bottom = max(lags), min(lags)
+    q = len(lags)
+    gram, n_rows = np.zeros((q, q)), 0
+    for a, b in segments:
+        lo, hi = a + back, b - ahead  # the rows t, reading x(t − lag)
+        if hi <= lo:
+            continue
+        first = lo - top
+        seg = np.ascontiguousarray(x[first : hi - bottom], dtype=float)
+        if not bool(np.isfinite(seg).all()):
+            return None  # the rows that touch a missing sample drop out: the general path
+        # c[d] = Σ_s seg[s] seg[s − d] over every s >= d; the rows cover s in [top − l, hi − l − first)
+        c = np.asarray(_core.lagged_products(seg, seg, 0, top - bottom))
+        for i in range(q):
+            for j in range(i, q):
+                near, d = min(lags[i], lags[j]), abs(lags[i] - lags[j])
+                s0, s1 = top - near, hi - near - first
+                head = float(np.dot(seg[d:s0], seg[: s0 - d]))
+                tail = float(np.dot(seg[s1:], seg[s1 - d : len(seg) - d]))
+                gram[i, j] += c[d] - head - tail
+        n_rows += hi - lo
+    gram = np.triu(gram) + np.triu(gram, 1).T
+    return gram, n_rows
 
 
 def filter_segments(num: np.ndarray, den: np.ndarray, x: np.ndarray, segments: Sequence[tuple[int, int]]) -> np.ndarray:
