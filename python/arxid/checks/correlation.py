@@ -25,9 +25,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._base import _core
-from .._base.nested import cholesky_factor, nested_from_factor
+from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
-from ..models.lagged import lagged_factor, lagged_gram
+from ..models.lagged import ar_factor
 
 __all__ = [
     "centered",
@@ -157,14 +157,7 @@ def ar_filter(x: np.ndarray, segments: Sequence[tuple[int, int]], max_order: int
     -------
     ndarray of shape (p,)
     """
-    # [x(t-1) ... x(t-P) | x(t)] reduced to its factor block by block of rows (never held whole):
-    # the Cholesky factor of its cross products when they are well conditioned (a near-white series:
-    # R then keeps about twelve digits), else a Householder QR (a drifting or integrating signal).
-    columns = [*((x, k) for k in range(1, max_order + 1)), (x, 0)]
-    gram, m = lagged_gram(columns, segments, max_order)
-    r = cholesky_factor(gram, _WELL_CONDITIONED)
-    if r is None:
-        r, m = lagged_factor(columns, segments, max_order)
+    r, m = ar_factor(x, segments, max_order)
     if m <= 2 * max_order + 2:
         return np.zeros(0)
     best_aic, best = math.log(max(float(np.sum(r[:, -1] ** 2)) / m, 1e-300)), np.zeros(0)
@@ -175,11 +168,6 @@ def ar_filter(x: np.ndarray, segments: Sequence[tuple[int, int]], max_order: int
         if aic < best_aic:
             best_aic, best = aic, np.asarray(a)
     return best
-
-
-#: Smallest eigenvalue, relative to the largest, of the scaled cross products whose Cholesky factor
-#: stands for the QR's R in :func:`ar_filter` (rounding in R grows with the condition number).
-_WELL_CONDITIONED = 1e-4
 
 
 def ar_innovations(x: np.ndarray, segments: Sequence[tuple[int, int]], a: np.ndarray) -> np.ndarray:

@@ -33,6 +33,7 @@ from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
+from ..models.lagged import ar_factor
 from ..models.regressors import max_lag, regression_rows, regressor_names, write_regressors
 from .added_variable import AddedVariableTest, holm
 from .candidates import changes_sign
@@ -324,12 +325,10 @@ def _filtered(v: np.ndarray, a: np.ndarray, use: np.ndarray, out: np.ndarray) ->
 def _lagged_factor(r: np.ndarray, rows: np.ndarray, order: int) -> np.ndarray:
     """R of [r(t−1) … r(t−P) | r(t)] over the positions whose ``order`` previous positions are the
     previous samples (:func:`_previous_rows`): the runs of consecutive samples, each from its
-    ``order``-th position on, reduced by Householder QR in the Rust core."""
+    ``order``-th position on (:func:`arxid.models.lagged.ar_factor`)."""
     breaks = np.flatnonzero(np.diff(rows) != 1) + 1
     runs = [(int(a), int(b)) for a, b in zip(np.r_[0, breaks], np.r_[breaks, len(rows)], strict=True)]
-    columns = [(0, 0, lag) for lag in range(1, order + 1)] + [(0, 0, 0)]
-    factor, _ = _core.lagged_r([r[:, None]], columns, runs, order, 0)
-    return np.asarray(factor)
+    return ar_factor(r, runs, order)[0]
 
 
 def _noise_model(r: np.ndarray, rows: np.ndarray) -> np.ndarray:

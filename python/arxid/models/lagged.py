@@ -9,9 +9,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._base import _core
-from .._base.nested import BLOCK_ROWS, core_readable
+from .._base.nested import BLOCK_ROWS, cholesky_factor, core_readable
 
-__all__ = ["lagged_columns", "lagged_factor", "lagged_gram", "filter_segments"]
+__all__ = ["ar_factor", "lagged_columns", "lagged_factor", "lagged_gram", "filter_segments"]
 
 
 def lagged_columns(
@@ -176,6 +176,37 @@ def _lags_of_one_series(
         n_rows += hi - lo
     gram = np.triu(gram) + np.triu(gram, 1).T
     return gram, n_rows
+
+
+def ar_factor(x: np.ndarray, segments: Sequence[tuple[int, int]], order: int) -> tuple[np.ndarray, int]:
+    """R of ``[x(t−1) … x(t−order) | x(t)]`` (the regression of an AR model of ``x``) over the rows
+    of each segment from its ``order``-th sample, rows touching a missing sample left out; reduced
+    block by block of rows, never held whole: the Cholesky factor of its cross products when they
+    are well conditioned (a near-white series: R then keeps about twelve digits), else Householder
+    QR (a drifting or integrating series).
+
+    Parameters
+    ----------
+    x : ndarray of shape (n_samples,)
+    segments : sequence of (int, int)
+    order : int
+
+    Returns
+    -------
+    r : ndarray of shape (order + 1, order + 1)
+    n_rows : int
+    """
+    columns = [*((x, k) for k in range(1, order + 1)), (x, 0)]
+    gram, n_rows = lagged_gram(columns, segments, order)
+    r = cholesky_factor(gram, _WELL_CONDITIONED)
+    if r is None:
+        r, n_rows = lagged_factor(columns, segments, order)
+    return r, n_rows
+
+
+#: Smallest eigenvalue, relative to the largest, of the scaled cross products whose Cholesky factor
+#: stands for the QR's R in :func:`ar_factor` (rounding in R grows with the condition number).
+_WELL_CONDITIONED = 1e-4
 
 
 def filter_segments(num: np.ndarray, den: np.ndarray, x: np.ndarray, segments: Sequence[tuple[int, int]]) -> np.ndarray:
