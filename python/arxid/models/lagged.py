@@ -144,38 +144,74 @@ def lagged_gram(
 def _lags_of_one_series(
     columns: Sequence[tuple[np.ndarray, int]], segments: Sequence[tuple[int, int]], back: int, ahead: int
 ) -> tuple[np.ndarray, int] | None:
-    """:func:`lagged_gram` when every column is a lag of one series, finite where the rows read it
-    (an AR model's regressors): entry (i, j) is the series' product with itself at lag |l_i − l_j|
-    over each experiment (the core's lagged products: one pass for every lag, not one per pair of
-    columns), less the few products at the experiment's ends that the rows do not reach. None when
-    the columns read other series or a missing sample."""
+    """:func:`lagged_gram` when every column is a lag of one series (an AR model's regressors):
+    entry (i, j) is the series' product with itself at lag |l_i − l_j| over each stretch of rows
+    (the core's lagged products: one pass for every lag, not one per pair of columns), less the few
+    products at the stretch's ends that the rows do not reach. The rows that touch a missing sample
+    split an experiment into stretches; None (the general path) when the columns read other series
+    or the missing samples make more than :data:`_MAX_STRETCHES` stretches."""
     x = columns[0][0] if columns else None
     if x is None or any(signal is not x for signal, _ in columns):
         return None
     lags = [int(lag) for _, lag in columns]
     top, bottom = max(lags), min(lags)
-    q = len(lags)
-    gram, n_rows = np.zeros((q, q)), 0
+    # With every lag from bottom to top a column, a row drops out exactly when a sample it spans is
+    # missing (see _finite_stretches); with lags left out, only when every sample is there.
+    contiguous = set(lags) == set(range(bottom, top + 1))
+    stretches = []
     for a, b in segments:
         lo, hi = a + back, b - ahead  # the rows t, reading x(t − lag)
         if hi <= lo:
             continue
-        first = lo - top
-        seg = np.ascontiguousarray(x[first : hi - bottom], dtype=float)
-        if not bool(np.isfinite(seg).all()):
-            return None  # the rows that touch a missing sample drop out: the general path
-        # c[d] = Σ_s seg[s] seg[s − d] over every s >= d; the rows cover s in [top − l, hi − l − first)
-        c = np.asarray(_core.lagged_products(seg, seg, 0, top - bottom))
-        for i in range(q):
-            for j in range(i, q):
-                near, d = min(lags[i], lags[j]), abs(lags[i] - lags[j])
-                s0, s1 = top - near, hi - near - first
-                head = float(np.dot(seg[d:s0], seg[: s0 - d]))
-                tail = float(np.dot(seg[s1:], seg[s1 - d : len(seg) - d]))
-                gram[i, j] += c[d] - head - tail
-        n_rows += hi - lo
-    gram = np.triu(gram) + np.triu(gram, 1).T
-    return gram, n_rows
+        if lo - top < a or hi - bottom > b:
+            return None  # a lag beyond back or ahead reads outside the experiment
+        found = _finite_stretches(x, lo, hi, top, bottom)
+        if len(stretches) + len(found) > _MAX_STRETCHES or (found != [(lo, hi)] and not contiguous):
+            return None
+        stretches += found
+    gram = np.zeros((len(lags), len(lags)))
+    for lo, hi in stretches:
+        gram += _stretch_gram(x, lags, lo, hi)
+    return np.triu(gram) + np.triu(gram, 1).T, sum(hi - lo for lo, hi in stretches)
+
+
+#: Stretches of rows between missing samples beyond which the lagged products' shortcut is left to
+#: the general path (each stretch is one call into the core).
+_MAX_STRETCHES = 64
+
+
+def _finite_stretches(x: np.ndarray, lo: int, hi: int, top: int, bottom: int) -> list[tuple[int, int]]:
+    """The rows t in [lo, hi) whose samples x(t − top) … x(t − bottom) are all finite, as stretches
+    of consecutive rows (every sample a stretch's rows span is finite)."""
+    ok = np.isfinite(x[lo - top : hi - bottom])
+    if ok.all():
+        return [(lo, hi)]
+    edges = np.flatnonzero(np.diff(np.r_[False, ok, False].astype(np.int8)))
+    out = []
+    for c, d in zip(edges[::2], edges[1::2], strict=True):  # a finite run of samples lo − top + [c, d)
+        first, last = max(lo, lo + c), min(hi, lo - top + d + bottom)  # the rows reading only that run
+        if last > first:
+            out.append((first, last))
+    return out
+
+
+def _stretch_gram(x: np.ndarray, lags: list[int], lo: int, hi: int) -> np.ndarray:
+    """The upper triangle of M'M for the rows [lo, hi) of one stretch (every sample read finite)."""
+    top, bottom = max(lags), min(lags)
+    first = lo - top
+    seg = np.ascontiguousarray(x[first : hi - bottom], dtype=float)
+    # c[d] = Σ_s seg[s] seg[s − d] over every s >= d; the rows cover s in [top − l, hi − l − first)
+    c = np.asarray(_core.lagged_products(seg, seg, 0, top - bottom))
+    q = len(lags)
+    gram = np.zeros((q, q))
+    for i in range(q):
+        for j in range(i, q):
+            near, d = min(lags[i], lags[j]), abs(lags[i] - lags[j])
+            s0, s1 = top - near, hi - near - first
+            head = float(np.dot(seg[d:s0], seg[: s0 - d]))
+            tail = float(np.dot(seg[s1:], seg[s1 - d : len(seg) - d]))
+            gram[i, j] = c[d] - head - tail
+    return gram
 
 
 def ar_factor(x: np.ndarray, segments: Sequence[tuple[int, int]], order: int) -> tuple[np.ndarray, int]:
