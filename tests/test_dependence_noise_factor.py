@@ -1,6 +1,7 @@
-"""The dependence test's noise model reads its AR fits from one factor of the lagged remainder, the
-QR of its rows in the Rust core: R'R = M'M of the lagged matrix M, for a near-white remainder and for
-an ill-conditioned one (a drifting remainder), on rows with gaps."""
+"""The dependence test's noise model reads its AR fits from one factor of the lagged remainder
+(``ar_factor``: the Cholesky factor of its lagged products for a near-white remainder, the QR of its
+rows in the Rust core for an ill-conditioned, drifting one): R'R = M'M of the lagged matrix M, on
+rows with gaps."""
 
 from __future__ import annotations
 
