@@ -1,10 +1,13 @@
 """Model files under faults: a writer killed mid-write (SIGKILL, in a subprocess) leaves either the
-old file or the whole new one, never a half-written file; the folder holds nothing else."""
+old file or the whole new one, never a half-written file. A kill in the instant between naming the
+new file and moving it over the old one leaves it whole under its hidden name; the next write
+removes it."""
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -53,13 +56,32 @@ def test_a_writer_killed_mid_write_leaves_a_whole_model_file(tmp_path):
             time.sleep(float(rng.uniform(0.05, 0.4)))
             os.kill(proc.pid, signal.SIGKILL)
             proc.wait(timeout=30)
-        assert sorted(os.listdir(tmp_path)) in ([], ["model.json"])  # no temporary left behind
+        left = [n for n in os.listdir(tmp_path) if n != "model.json"]
+        for name in left:  # named only once whole (O_TMPFILE): a complete model file
+            assert re.fullmatch(r"\.model\.json\.\d+\.[0-9a-f]+\.tmp", name)
+            if hasattr(os, "O_TMPFILE"):
+                assert len(arxid.ArxModel.from_json(tmp_path / name).parameters_) == 100
         if path.exists():
             model = arxid.ArxModel.from_json(path)  # the whole file: the schema is checked
             assert len(model.parameters_) == 100
             assert json.loads(path.read_text())["na"] == 20
             loaded += 1
     assert loaded >= 4  # the writer got to save most times (each save takes about 30 ms)
+    arxid.ArxModel.from_json(path).to_json(path)  # a later write clears what killed writers left
+    assert os.listdir(tmp_path) == ["model.json"]
+
+
+def test_a_write_removes_the_temporaries_of_writers_that_are_gone(tmp_path):
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(200)
+    model = arxid.arx(arxid.IOData(np.convolve(u, [0, 1])[:200], u, 0.1), 1, 1, 1)
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead, alive = int(gone.stdout), os.getppid()  # a finished process; a running one (not ours)
+    for pid in (dead, alive):
+        (tmp_path / f".m.json.{pid}.0badc0de.tmp").write_text("partial")
+    (tmp_path / ".other.json.1.00.tmp").write_text("not this file's")
+    model.to_json(str(tmp_path / "m.json"))
+    assert sorted(os.listdir(tmp_path)) == sorted(["m.json", f".m.json.{alive}.0badc0de.tmp", ".other.json.1.00.tmp"])
 
 
 def test_a_failed_write_leaves_the_old_file_and_says_why(tmp_path):

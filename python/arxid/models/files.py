@@ -118,8 +118,11 @@ def write_atomically(path: Any, text: str) -> None:
     when the process is killed mid-write.
 
     The bytes go to an unnamed temporary file in the same folder (Linux ``O_TMPFILE``; a hidden
-    ``.name.*.tmp`` file elsewhere), which is flushed to disk, given a name and moved over ``path``
-    with :func:`os.replace` (atomic on POSIX and Windows).
+    ``.name.PID.*.tmp`` file elsewhere), which is flushed to disk, given that hidden name and moved
+    over ``path`` with :func:`os.replace` (atomic on POSIX and Windows). A kill between the naming
+    and the move leaves the whole new file under its hidden name (without ``O_TMPFILE``, a kill
+    mid-write leaves a partial one); the next write of ``path`` removes those of writers that are
+    gone.
 
     Parameters
     ----------
@@ -134,6 +137,7 @@ def write_atomically(path: Any, text: str) -> None:
     folder = os.path.dirname(os.path.abspath(path))
     data = text.encode("utf-8")
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    _remove_stale_temporaries(folder, os.path.basename(path))
     try:
         fd, named = _temporary(folder, tmp)
         try:
@@ -146,13 +150,47 @@ def write_atomically(path: Any, text: str) -> None:
                     os.link(str(fd), tmp, src_dir_fd=fds, follow_symlinks=True)
                 finally:
                     os.close(fds)
+                os.replace(tmp, path)  # at once: the name is visible only between these two calls
         finally:
             os.close(fd)
-        os.replace(tmp, path)
+        if named:  # after the close: Windows does not move an open file
+            os.replace(tmp, path)
     except OSError as exc:
         if os.path.lexists(tmp):
             os.unlink(tmp)
         raise DataError(f"cannot write model file {path!r}: {exc.strerror or exc}") from None
+
+
+def _remove_stale_temporaries(folder: str, name: str) -> None:
+    """Removes the hidden temporaries of ``name`` (``.name.PID.*.tmp``) whose writer is no longer
+    running: what a kill left behind. Those of running writers stay."""
+    pattern = re.compile(rf"\.{re.escape(name)}\.(\d+)\.[0-9a-f]+\.tmp")
+    try:
+        entries = os.listdir(folder)
+    except OSError:
+        return  # the write reports what is wrong with the folder
+    for entry in entries:
+        m = pattern.fullmatch(entry)
+        if m is None or _running(int(m[1])):
+            continue
+        try:
+            os.unlink(os.path.join(folder, entry))
+        except OSError:
+            pass  # another writer removed it first
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists (this process included; on Windows, always: its ``os.kill``
+    would end the process)."""
+    if pid == os.getpid() or os.name == "nt":
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True  # someone else's process, or a number that cannot be checked: keep the file
+    return True
 
 
 def _temporary(folder: str, tmp: str) -> tuple[int, bool]:
