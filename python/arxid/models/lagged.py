@@ -158,7 +158,7 @@ def _lags_of_one_series(
     # With every lag from bottom to top a column, a row drops out exactly when a sample it spans is
     # missing (see _finite_stretches); with lags left out, only when every sample is there.
     contiguous = set(lags) == set(range(bottom, top + 1))
-    stretches = []
+    stretches: list[tuple[int, int]] = []
     for a, b in segments:
         lo, hi = a + back, b - ahead  # the rows t, reading x(t − lag)
         if hi <= lo:
