@@ -1,5 +1,6 @@
-"""Lagged signals as regression rows, in numpy: rows never cross an experiment start and rows that
-touch a missing sample (NaN) are left out. Used by the feedback test and the Python reference of
+"""Lagged signals as regression rows: rows never cross an experiment start and rows that touch a
+missing sample (NaN) are left out. Used by the feedback test, the AR models of the residual tests'
+prewhitening and of the dependence test's noise (:func:`ar_factor`), and the Python reference of
 the instrumental-variable estimator."""
 
 from __future__ import annotations
@@ -189,7 +190,7 @@ def _finite_stretches(x: np.ndarray, lo: int, hi: int, top: int, bottom: int) ->
     edges = np.flatnonzero(np.diff(np.r_[False, ok, False].astype(np.int8)))
     out = []
     for c, d in zip(edges[::2], edges[1::2], strict=True):  # a finite run of samples lo − top + [c, d)
-        first, last = max(lo, lo + c), min(hi, lo - top + d + bottom)  # the rows reading only that run
+        first, last = lo + c, min(hi, lo - top + d + bottom)  # the rows reading only that run
         if last > first:
             out.append((first, last))
     return out
