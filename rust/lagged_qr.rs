@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use crate::error::{ensure_memory, ArxError, Result};
 use crate::linear_predict::all_finite;
-use crate::qr::{qr_r_in_place, reduce_memory, stack_and_reduce, take_r, BLOCK_ROWS};
+use crate::qr::{fill_from_samples, qr_r_in_place, reduce_memory, stack_and_reduce, take_r, BLOCK_ROWS};
 
 /// A two-dimensional array read through its strides (in elements): entry (t, c) is
 /// `values[t * row_stride + c * col_stride]`. A one-dimensional signal is one column.
@@ -73,7 +73,9 @@ pub fn lagged_r(
         }
         a.resize_with(block.len(), q, |_, _| 0.0);
         for (j, c) in columns.iter().enumerate() {
-            fill_column(a.col_as_slice_mut(j), &sources[c.source], c, block);
+            let s = &sources[c.source];
+            let at = |t: usize| (t as isize - c.lag) as usize * s.row_stride + c.column * s.col_stride;
+            fill_from_samples(a.col_as_slice_mut(j), s.values, block, s.row_stride, at);
         }
         let kept = if skip_missing { keep_finite_rows(a) } else { block.len() };
         a.resize_with(kept, q, |_, _| 0.0);
@@ -91,29 +93,6 @@ pub fn lagged_r(
     let factors: Vec<Mat<f64>> = blocks.into_iter().filter(|(_, n)| *n > 0).map(|(r, _)| r).collect();
     let r = stack_and_reduce(&factors, q);
     Ok(LaggedFactor { r: (0..q).flat_map(|j| (0..q).map(move |i| (i, j))).map(|(i, j)| r[(i, j)]).collect(), n_rows })
-}
-
-/// Writes column `c` read at the samples `block` into `dst`: a strided copy when the block's
-/// samples are consecutive (the usual case: a gap or a segment's edge breaks them), else a gather.
-fn fill_column(dst: &mut [f64], s: &Source<'_>, c: &LaggedColumn, block: &[usize]) {
-    let at = |t: usize| (t as isize - c.lag) as usize * s.row_stride + c.column * s.col_stride;
-    let (Some(&first), Some(&last)) = (block.first(), block.last()) else {
-        return;
-    };
-    if last - first + 1 == block.len() {
-        let start = at(first);
-        if s.row_stride == 1 {
-            dst.copy_from_slice(&s.values[start..start + block.len()]);
-        } else {
-            for (i, v) in dst.iter_mut().enumerate() {
-                *v = s.values[start + i * s.row_stride];
-            }
-        }
-    } else {
-        for (v, &t) in dst.iter_mut().zip(block) {
-            *v = s.values[at(t)];
-        }
-    }
 }
 
 /// Moves the rows of `a` whose entries are all finite to its top, in order; returns how many.

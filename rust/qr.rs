@@ -117,22 +117,12 @@ pub fn reduce_with(
 /// Writes `[Φ | y]` of a linear structure for the rows `block` into `a`, one contiguous column at a
 /// time (the same values [`fill_row`] gives, without a per-element gather into a column-major matrix).
 fn fill_block_columns(d: &Data, s: &Structure, block: &[usize], a: &mut Mat<f64>) {
-    // Column c is sign · series[(t − lag) · stride] over the block's samples t: a strided copy when
-    // they are consecutive (a gap or an experiment's edge breaks them), else a gather.
+    // Column c is sign · series[(t − lag) · stride] over the block's samples t.
     let put = |a: &mut Mat<f64>, c: usize, series: &[f64], stride: usize, lag: usize, sign: f64| {
         let dst = a.col_as_slice_mut(c);
-        match (block.first(), block.last()) {
-            (Some(&first), Some(&last)) if last - first + 1 == block.len() => {
-                let start = (first - lag) * stride;
-                for (i, v) in dst.iter_mut().enumerate() {
-                    *v = sign * series[start + i * stride];
-                }
-            }
-            _ => {
-                for (v, &t) in dst.iter_mut().zip(block) {
-                    *v = sign * series[(t - lag) * stride];
-                }
-            }
+        fill_from_samples(dst, series, block, stride, |t| (t - lag) * stride);
+        if sign < 0.0 {
+            dst.iter_mut().for_each(|v| *v = -*v);
         }
     };
     let mut c = 0;
@@ -147,6 +137,30 @@ fn fill_block_columns(d: &Data, s: &Structure, block: &[usize], a: &mut Mat<f64>
         }
     }
     put(a, c, d.y, 1, 0, 1.0);
+}
+
+/// Writes `values[at(t)]` for each of the block's samples t into `dst`, where the values of
+/// consecutive samples lie `stride` apart: a strided copy when the samples are consecutive (a gap
+/// or an experiment's edge breaks them), else a gather. The TSQR blocks of the regressors and of
+/// lagged signals are filled so.
+pub fn fill_from_samples(dst: &mut [f64], values: &[f64], block: &[usize], stride: usize, at: impl Fn(usize) -> usize) {
+    match (block.first(), block.last()) {
+        (Some(&first), Some(&last)) if last - first + 1 == block.len() => {
+            let start = at(first);
+            if stride == 1 {
+                dst.copy_from_slice(&values[start..start + block.len()]);
+            } else {
+                for (i, v) in dst.iter_mut().enumerate() {
+                    *v = values[start + i * stride];
+                }
+            }
+        }
+        _ => {
+            for (v, &t) in dst.iter_mut().zip(block) {
+                *v = values[at(t)];
+            }
+        }
+    }
 }
 
 /// Stacks square upper-triangular factors and returns the R of the stack.
