@@ -248,6 +248,18 @@ def test_non_convergence_warns_with_the_reason():
     assert any(issubclass(w.category, arxid.ArxidWarning) and "iteration limit" in str(w.message) for w in caught)
 
 
+def test_warn_false_keeps_the_outcome_and_drops_only_the_warning():
+    data = issue_plant(0, n=2000)
+    start = [0.1, 0.1, -0.5, 0.1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any warning fails the fit
+        quiet = arxid.oe(data, 2, 2, 3, start=start, max_iterations=1, warn=False)
+    with pytest.warns(arxid.ArxidWarning, match="iteration limit"):
+        loud = arxid.oe(data, 2, 2, 3, start=start, max_iterations=1)
+    assert not quiet.converged_ and quiet.termination_ == loud.termination_
+    np.testing.assert_array_equal(quiet.parameters_, loud.parameters_)
+
+
 # ----------------------------------------------------------------------------- real data
 def _scipy_oe_loss(data: arxid.IOData, model, start) -> float:
     """Loss a plain ``scipy.optimize.least_squares`` OE fit reaches on the samples arxid scores."""

@@ -25,14 +25,13 @@ stated.
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
 from .._base import _core
 from ..data.iodata import IOData
-from ..exceptions import ArxidWarning, OrderError
+from ..exceptions import OrderError
 from ..models.derived_inputs import DerivedInput, complete_inputs, derived_series, uses_output
 from ..models.effects import compile_effects
 from ..models.polynomial import PolynomialModel, finite_segments
@@ -234,13 +233,12 @@ def _gradient(aug: IOData, orders: tuple, theta: np.ndarray, first_lag: int, n_d
 
 def _fit(orders: tuple, data: IOData, start: np.ndarray | None, derived: Sequence[DerivedInput]) -> PolynomialModel:
     na, nb, nc, nd, nf, nk = orders
-    with warnings.catch_warnings():
-        # A candidate's refit that ends before converging is judged like any other, by its
-        # validation error; the warning would only repeat per candidate.
-        warnings.simplefilter("ignore", ArxidWarning)
-        fitted = PolynomialModel(na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk).fit(
-            data, start=None if start is None else start.tolist()
-        )
+    # A candidate's refit that ends before converging is judged like any other, by its validation
+    # error; the warning would only repeat per candidate. (Not catch_warnings: the judge refits in
+    # two threads, and restoring the process's filters in one would unmute the other.)
+    fitted = PolynomialModel(na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk).fit(
+        data, start=None if start is None else start.tolist(), warn=False
+    )
     fitted.derived_inputs_ = tuple(derived)
     return fitted
 

@@ -9,13 +9,12 @@ refinement of a sweep (:func:`arxid.refine`) is in :mod:`arxid.selection.refine`
 from __future__ import annotations
 
 import numbers
-import warnings
 from typing import Any
 
 import numpy as np
 
 from ..data.iodata import IOData
-from ..exceptions import ArxidWarning, DataError, OrderError
+from ..exceptions import DataError, OrderError
 from .arx_model import ArxModel
 from .polynomial import PolynomialModel
 
@@ -37,7 +36,7 @@ def oe(data: IOData, nb: Any, nf: Any, nk: Any, **options: Any) -> PolynomialMod
     nb, nf, nk : int or sequence of int
         Per input: numerator coefficients, poles (order of F) and delay in samples.
     **options
-        ``start``, ``max_iterations``, ``tolerance``, ``n_threads`` and ``initial`` (``"zero"`` or
+        ``start``, ``max_iterations``, ``tolerance``, ``n_threads``, ``warn`` and ``initial`` (``"zero"`` or
         ``"estimate"``: the initial state of each run estimated too) of :meth:`PolynomialModel.fit`.
 
     Returns
@@ -171,7 +170,5 @@ def delayest(
         return int(ranked[0])
     oe_losses = []
     for k in candidates:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ArxidWarning)
-            oe_losses.append(oe(data, nb, na, k).loss_ if na else losses[delays.index(k)])
+        oe_losses.append(oe(data, nb, na, k, warn=False).loss_ if na else losses[delays.index(k)])
     return int(candidates[int(np.argmin(oe_losses))])

@@ -102,6 +102,7 @@ class PolynomialModel(FittedModel):
         tolerance: float = 1e-6,
         n_threads: int = 0,
         initial: str = "zero",
+        warn: bool = True,
     ) -> PolynomialModel:
         """Minimise the sum of squared one-step prediction errors (Gauss–Newton, Levenberg–Marquardt).
 
@@ -124,6 +125,11 @@ class PolynomialModel(FittedModel):
             (they only feed the lags). ``"estimate"``: the initial state of each run is estimated
             with the parameters and every sample is scored; use it when a record starts
             mid-transient. The states are kept in ``initial_states_``.
+        warn : bool
+            Warn (:class:`ArxidWarning`) when the iterations end before converging. The outcome is
+            in ``converged_`` and ``termination_`` either way. Pass ``False`` where many fits are
+            judged by their own error: unlike ``warnings.catch_warnings``, which changes the
+            process's filters, it is safe when fits run in threads.
 
         Returns
         -------
@@ -160,7 +166,7 @@ class PolynomialModel(FittedModel):
                 f"noise model (nc, nd) was asked of noise-free data: lower the orders or use richer data"
             ) from None
         self._store(data, orders, lag, res, initial)
-        if not res.converged:
+        if warn and not res.converged:
             warnings.warn(
                 f"{self.structure_name()}: {res.termination} after {res.iterations} iterations; the estimate may be a "
                 f"local minimum: try another start or more iterations",

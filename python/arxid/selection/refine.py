@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 import numbers
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,7 +16,7 @@ import numpy as np
 from .._base import metrics
 from .._base.formatting import text_table
 from ..checks import prediction_error
-from ..exceptions import ArxidError, ArxidWarning, OrderError
+from ..exceptions import ArxidError, OrderError
 from ..models.pem import oe
 from ..models.polynomial import check_initial
 from .table import SweepTable
@@ -150,12 +149,10 @@ def _candidates(
             for nk in nks:
                 seen.add(((int(nb),) * est.n_inputs, (int(nf),) * est.n_inputs, (int(nk),) * est.n_inputs))
     for nb_, nf_, nk_ in sorted(seen):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ArxidWarning)
-            try:
-                out.append(("OE", oe(est, list(nb_), list(nf_), list(nk_), initial=initial)))
-            except ArxidError:
-                continue
+        try:
+            out.append(("OE", oe(est, list(nb_), list(nf_), list(nk_), initial=initial, warn=False)))
+        except ArxidError:
+            continue
     return out
 
 
