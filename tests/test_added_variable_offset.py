@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from arxid.diagnosis.added_variable import AddedVariableTest, held_columns, lagged_view
+from arxid.diagnosis.added_variable import AddedVariableTest, all_finite, held_columns, lagged_view
 
 
 def _data(seed, n=20000):
@@ -60,3 +60,21 @@ def test_a_lagged_view_holds_one_column_of_memory_a_matrix_its_width():
     assert held_columns(np.ones((90, 1))) == 1
     assert held_columns(np.ones((90, 0))) == 0
     assert held_columns(np.ones((90, 4))[:, ::2]) == 2  # a strided matrix is copied when read
+
+
+def test_all_finite_reads_a_lagged_view_as_the_samples_it_spans():
+    """A missing or infinite sample anywhere a lagged view reads (its first and last samples, the
+    corners only one column reaches) is found; samples just outside it are not read."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        n_rows, width = int(rng.integers(1, 40)), int(rng.integers(1, 6))
+        first = int(rng.integers(width - 1, width + 5))
+        x = rng.standard_normal(first + n_rows + int(rng.integers(0, 4)))
+        x[int(rng.integers(0, len(x)))] = rng.choice([np.nan, np.inf, -np.inf])
+        z = lagged_view(x, first, width, n_rows)
+        assert all_finite(z) == bool(np.isfinite(z).all())
+        assert all_finite(np.ascontiguousarray(z)) == bool(np.isfinite(z).all())
+    x = np.arange(10.0)
+    x[[0, 9]] = np.nan  # outside the view of samples 1..8
+    assert all_finite(lagged_view(x, 3, 3, 6)) and not all_finite(lagged_view(x, 2, 3, 7))
+    assert all_finite(np.zeros((0, 3))) and not all_finite(np.array([[1.0], [np.nan]]))

@@ -3,6 +3,10 @@
 The Rust core reads its inputs row-major (sample by sample). A column written alone into such a
 matrix touches every row, so each column is one more pass over the whole matrix; a block of rows
 with all its columns stays in cache while they are written, so the matrix is written once.
+
+A long matrix is written in two halves of its rows on two threads: numpy copies without holding
+the GIL, and the first writes into fresh memory (the kernel mapping and zeroing its pages) then
+run on both cores.
 """
 
 from __future__ import annotations
@@ -11,10 +15,14 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .background import in_two
+
 __all__ = ["write_columns"]
 
 #: Rows per block: the block of every column stays in the processor's cache.
 ROWS_AT_ONCE = 1 << 14
+#: Rows from which a matrix is written in two halves on two threads.
+ROWS_IN_HALVES = 1 << 18
 
 
 def write_columns(out: np.ndarray, columns: Mapping[int, np.ndarray]) -> None:
@@ -35,7 +43,17 @@ def write_columns(out: np.ndarray, columns: Mapping[int, np.ndarray]) -> None:
     [[0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [2.0, 1.0, 1.0]]
     """
     placed = [(j, c if c.ndim == 2 else c[:, None]) for j, c in columns.items()]
-    for lo in range(0, len(out), ROWS_AT_ONCE):
-        block = out[lo : lo + ROWS_AT_ONCE]
-        for j, c in placed:
-            block[:, j : j + c.shape[1]] = c[lo : lo + ROWS_AT_ONCE]
+
+    def rows(span: tuple[int, int]) -> None:
+        for lo in range(span[0], span[1], ROWS_AT_ONCE):
+            hi = min(lo + ROWS_AT_ONCE, span[1])
+            block = out[lo:hi]
+            for j, c in placed:
+                block[:, j : j + c.shape[1]] = c[lo:hi]
+
+    n = len(out)
+    if n < ROWS_IN_HALVES:
+        rows((0, n))
+        return
+    half = n // 2 // ROWS_AT_ONCE * ROWS_AT_ONCE
+    in_two(rows, [(0, half), (half, n)])

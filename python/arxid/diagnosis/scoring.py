@@ -31,7 +31,7 @@ from ..models.effects import (
     thresholded_products,
 )
 from ..models.regressors import first_of_run, lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
-from .added_variable import AddedVariableResult, AddedVariableTest, held_columns, holm, lagged_view
+from .added_variable import AddedVariableResult, AddedVariableTest, all_finite, held_columns, holm, lagged_view
 from .candidates import scan_threshold
 from .extension import Candidate, layout_for
 
@@ -102,7 +102,7 @@ class Scoring:
         new = [i for i, nm in enumerate(names) if nm not in self.base_names]
         if max_lag(c.na, lay) <= self.lag:  # only the new columns, on the model's rows
             z = regressor_columns(self.data, c.na, lay, self.rows0, new)
-            if np.isfinite(z).all():
+            if all_finite(z):
                 return z, self.rows0
         phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
         return phi[:, new], rows
@@ -125,7 +125,7 @@ class Scoring:
             if any(i < first_term or lay.output_terms[i - first_term][2] >= 0 for i in new):
                 return None
             z = regressor_columns(self.data, c.na, lay, self.rows0, new)
-        return z if np.isfinite(z).all() else None
+        return z if all_finite(z) else None
 
     def _score_all(self) -> list[dict]:
         """Every prepared candidate scored, in order; those on the model's rows in groups that
@@ -218,7 +218,7 @@ class Scoring:
         labels = [f"{op}({signal},{format_threshold(c)})" for c in cs]
         thresholds = [parse_effect(lab, self.data).factors[0].threshold for lab in labels]
         lagged = self._threshold_samples(signal, b, k)
-        if b and np.isfinite(lagged).all():
+        if b and all_finite(lagged):
             ts = np.array(thresholds, dtype=float)
             got = self.proj0.shares(lambda phi, e: thresholded_products(op, phi, e, lagged, ts), len(cs), b)
             if got is not None:
@@ -248,7 +248,7 @@ class Scoring:
 
     def _one_share(self, op: str, signal: str, c: float) -> float:
         z = self._threshold_columns(op, signal, c)[1]
-        return self.proj0.share(z) if z.shape[1] and np.isfinite(z).all() else math.nan
+        return self.proj0.share(z) if z.shape[1] and all_finite(z) else math.nan
 
     def _scan(self, signal: str, group: list[Candidate]) -> dict | None:
         """The threshold of ``dz`` / ``sat`` on ``signal`` by a grid scan (:func:`arxid.candidates.scan_threshold`).
@@ -320,7 +320,7 @@ class Scoring:
         lagged = self._threshold_samples(signal, b, k)
         threshold = parse_effect(f"{op}({signal},{format_threshold(c)})", self.data).factors[0].threshold
         r = None
-        if np.isfinite(lagged).all():
+        if all_finite(lagged):
             cross, zz = thresholded_products(op, self.phi0, self.y0, lagged, np.array([threshold]))
             gram = np.empty((p + b + 1, p + b + 1))  # [Φ | z | y]'[Φ | z | y]
             gram[np.ix_(range(p), range(p))] = self._gram[:p, :p]

@@ -12,6 +12,8 @@ from collections.abc import Callable, Iterator, Sequence
 import numpy as np
 
 from .._base import _core
+from .._base.background import in_two
+from .._base.columns import ROWS_IN_HALVES
 from ..data.iodata import IOData
 from .effects import EffectLayout
 
@@ -153,7 +155,8 @@ def write_regressors(
     out: np.ndarray, data: IOData, na: int, layout: EffectLayout, rows: np.ndarray, signs: bool = True
 ) -> None:
     """Write the regressors at ``rows`` into the first columns of ``out``, one column at a time (a
-    list of columns stacked at the end would hold the matrix twice).
+    list of columns stacked at the end would hold the matrix twice); a long matrix in two halves of
+    its rows on two threads, as :func:`arxid._base.columns.write_columns`.
 
     Parameters
     ----------
@@ -163,10 +166,21 @@ def write_regressors(
     rows : ndarray of int
         Sample index of each row (each at least the model's largest lag into its experiment).
     """
-    for lo in range(0, len(rows), _BLOCK_ROWS):  # a block of rows at a time: the lags of a column share its cache lines
-        block = out[lo : lo + _BLOCK_ROWS]
-        for j, col in enumerate(_columns(data, na, layout, rows[lo : lo + _BLOCK_ROWS], None, signs)):
-            block[:, j] = col
+
+    def write(span: tuple[int, int]) -> None:
+        # A block of rows at a time: the lags of a column share its cache lines.
+        for lo in range(span[0], span[1], _BLOCK_ROWS):
+            hi = min(lo + _BLOCK_ROWS, span[1])
+            block = out[lo:hi]
+            for j, col in enumerate(_columns(data, na, layout, rows[lo:hi], None, signs)):
+                block[:, j] = col
+
+    n = len(rows)
+    if n < ROWS_IN_HALVES:
+        write((0, n))
+    else:  # two halves on two threads, as write_columns
+        half = n // 2 // _BLOCK_ROWS * _BLOCK_ROWS
+        in_two(write, [(0, half), (half, n)])
 
 
 def regressor_columns(
