@@ -23,7 +23,7 @@ from typing import Any, Generic, TypeVar
 
 from threadpoolctl import threadpool_limits
 
-__all__ = ["Background", "in_two", "one_blas_thread"]
+__all__ = ["Background", "in_two", "in_row_halves", "one_blas_thread"]
 
 T = TypeVar("T")
 X = TypeVar("X")
@@ -111,6 +111,25 @@ def in_two(fn: Callable[[X], T], items: Sequence[X]) -> list[T]:
     if failed:
         raise failed[min(failed)]
     return out
+
+
+def in_row_halves(fill: Callable[[tuple[int, int]], None], n_rows: int, block: int) -> None:
+    """``fill((lo, hi))`` over the rows 0 to ``n_rows``: the two halves (split at a multiple of
+    ``block``) on two threads, or all of them at once when there are fewer than two blocks.
+
+    For writing a long matrix: numpy copies without holding the GIL, and the first writes into
+    fresh memory (the kernel mapping and zeroing its pages) run on both cores. Each half must
+    write only its own rows.
+
+    Examples
+    --------
+    >>> spans = []
+    >>> in_row_halves(spans.append, 10, 4)
+    >>> sorted(spans)
+    [(0, 4), (4, 10)]
+    """
+    half = n_rows // 2 // block * block
+    in_two(fill, [(0, half), (half, n_rows)] if half else [(0, n_rows)])
 
 
 @contextmanager

@@ -4,9 +4,8 @@ The Rust core reads its inputs row-major (sample by sample). A column written al
 matrix touches every row, so each column is one more pass over the whole matrix; a block of rows
 with all its columns stays in cache while they are written, so the matrix is written once.
 
-A long matrix is written in two halves of its rows on two threads: numpy copies without holding
-the GIL, and the first writes into fresh memory (the kernel mapping and zeroing its pages) then
-run on both cores.
+A long matrix is written in two halves of its rows on two threads
+(:func:`arxid._base.background.in_row_halves`).
 """
 
 from __future__ import annotations
@@ -15,7 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .background import in_two
+from .background import in_row_halves
 
 __all__ = ["write_columns"]
 
@@ -51,9 +50,7 @@ def write_columns(out: np.ndarray, columns: Mapping[int, np.ndarray]) -> None:
             for j, c in placed:
                 block[:, j : j + c.shape[1]] = c[lo:hi]
 
-    n = len(out)
-    if n < ROWS_IN_HALVES:
-        rows((0, n))
-        return
-    half = n // 2 // ROWS_AT_ONCE * ROWS_AT_ONCE
-    in_two(rows, [(0, half), (half, n)])
+    if len(out) < ROWS_IN_HALVES:
+        rows((0, len(out)))
+    else:
+        in_row_halves(rows, len(out), ROWS_AT_ONCE)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._base import _core
-from .._base.background import in_two
+from .._base.background import in_row_halves
 from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
@@ -284,9 +284,7 @@ def _design(data: IOData, na: int, layout, first: int, lin_specs: list, specs: l
                 good &= np.isfinite(x[at - lag]) & np.isfinite(x[at - lag - 1])
             ok[lo:hi] = good
 
-    # Two halves of the rows on two threads (numpy writes without the GIL), as write_regressors.
-    half = len(rows) // 2 // DESIGN_ROWS * DESIGN_ROWS
-    in_two(write, [(0, half), (half, len(rows))] if half else [(0, len(rows))])
+    in_row_halves(write, len(rows), DESIGN_ROWS)  # the halves of the rows on two threads
     if ok.sum() <= design.shape[1] + repeated + 9:
         return None
     if not ok.all():

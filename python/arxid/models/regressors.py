@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator, Sequence
 import numpy as np
 
 from .._base import _core
-from .._base.background import in_two
+from .._base.background import in_row_halves
 from .._base.columns import ROWS_IN_HALVES
 from ..data.iodata import IOData
 from .effects import EffectLayout
@@ -175,12 +175,10 @@ def write_regressors(
             for j, col in enumerate(_columns(data, na, layout, rows[lo:hi], None, signs)):
                 block[:, j] = col
 
-    n = len(rows)
-    if n < ROWS_IN_HALVES:
-        write((0, n))
-    else:  # two halves on two threads, as write_columns
-        half = n // 2 // _BLOCK_ROWS * _BLOCK_ROWS
-        in_two(write, [(0, half), (half, n)])
+    if len(rows) < ROWS_IN_HALVES:
+        write((0, len(rows)))
+    else:
+        in_row_halves(write, len(rows), _BLOCK_ROWS)
 
 
 def regressor_columns(
