@@ -11,21 +11,34 @@ const LANES: usize = 8;
 
 /// `(Σ x², n)` over the `n` finite samples of `x` (an overflowing square sums to inf).
 pub fn finite_squares(x: &[f64]) -> (f64, usize) {
+    lane_squares(x, x, |a, _| a)
+}
+
+/// [`finite_squares`] of `y − p` (equal length), without forming the difference: the same lanes
+/// and the same sum to the bit as over the array of differences.
+pub fn finite_squares_of_difference(y: &[f64], p: &[f64]) -> (f64, usize) {
+    assert_eq!(y.len(), p.len(), "the two series differ in length");
+    lane_squares(y, p, |a, b| a - b)
+}
+
+#[inline(always)]
+fn lane_squares(a: &[f64], b: &[f64], value: impl Fn(f64, f64) -> f64) -> (f64, usize) {
     let mut sums = [0.0f64; LANES];
     let mut counts = [0usize; LANES];
-    let chunks = x.chunks_exact(LANES);
-    let tail = chunks.remainder();
-    for c in chunks {
-        for l in 0..LANES {
-            let finite = c[l].abs() <= f64::MAX; // false for ±inf and NaN
-            sums[l] += if finite { c[l] * c[l] } else { 0.0 };
-            counts[l] += usize::from(finite);
-        }
-    }
-    for (l, &v) in tail.iter().enumerate() {
-        let finite = v.abs() <= f64::MAX;
+    let mut add = |l: usize, v: f64| {
+        let finite = v.abs() <= f64::MAX; // false for ±inf and NaN
         sums[l] += if finite { v * v } else { 0.0 };
         counts[l] += usize::from(finite);
+    };
+    let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let (ta, tb) = (ca.remainder(), cb.remainder());
+    for (x, z) in ca.zip(cb) {
+        for l in 0..LANES {
+            add(l, value(x[l], z[l]));
+        }
+    }
+    for (l, (&x, &z)) in ta.iter().zip(tb).enumerate() {
+        add(l, value(x, z));
     }
     (sums.iter().sum(), counts.iter().sum())
 }
@@ -78,6 +91,10 @@ mod tests {
             assert_eq!(k, finite.len());
             assert!((s - direct).abs() <= 1e-12 * direct.max(1.0), "n = {n}");
             assert_eq!(finite_peak(&x), finite.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+            let p: Vec<f64> = series(n).iter().map(|v| 0.5 * v + 1.0).collect();
+            let d: Vec<f64> = x.iter().zip(&p).map(|(a, b)| a - b).collect();
+            let (sd, kd) = finite_squares_of_difference(&x, &p);
+            assert_eq!((sd.to_bits(), kd), (finite_squares(&d).0.to_bits(), finite_squares(&d).1), "n = {n}");
             let has_inf = x.iter().any(|v| v.is_infinite());
             let expected = if has_inf { f64::INFINITY } else { finite.iter().fold(f64::NAN, |m, v| m.max(v.abs())) };
             let got = peak_magnitude(&x);

@@ -584,6 +584,25 @@ fn finite_squares(py: Python<'_>, x: PyReadonlyArray1<'_, f64>) -> PyResult<(f64
     Ok(py.detach(|| crate::finite_sums::finite_squares(x)))
 }
 
+/// `(Σ (y − p)², n)` over the `n` samples where the difference of two contiguous series of equal
+/// length is finite, in one pass without forming it (GIL released).
+#[pyfunction]
+fn finite_squares_of_difference(
+    py: Python<'_>,
+    y: PyReadonlyArray1<'_, f64>,
+    p: PyReadonlyArray1<'_, f64>,
+) -> PyResult<(f64, usize)> {
+    let (y, p) = (y.as_slice()?, p.as_slice()?);
+    if y.len() != p.len() {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "the two series differ in length ({} and {} samples)",
+            y.len(),
+            p.len()
+        )));
+    }
+    Ok(py.detach(|| crate::finite_sums::finite_squares_of_difference(y, p)))
+}
+
 /// Largest |x| over the samples of a contiguous `x` that are not NaN (inf when one is infinite,
 /// NaN when none is a number), in one pass (GIL released).
 #[pyfunction]
@@ -965,7 +984,7 @@ mod core_module {
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
     #[pymodule_export]
-    use super::{finite_peak, finite_squares, peak_magnitude};
+    use super::{finite_peak, finite_squares, finite_squares_of_difference, peak_magnitude};
     #[pymodule_export]
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]

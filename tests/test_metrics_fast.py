@@ -77,3 +77,22 @@ def test_divergence_rule_on_missing_and_infinite_predictions():
     assert not metrics.diverged(long, near)
     near[5] = 100.0 * metrics.DIVERGENCE_FACTOR * 1.001
     assert metrics.diverged(long, near)
+
+
+def test_prediction_rms_is_the_rms_of_the_differences_to_the_bit():
+    """The core sums (y - pred)² without forming the differences, in the lanes of ``rms``: the same
+    number as the RMS of the array of differences, for any length, missing samples on either side,
+    strided inputs, and a difference that overflows."""
+    rng = np.random.default_rng(11)
+    for n in (0, 1, 7, 8, 9, 63, 1000, 100_003):
+        y, pred = rng.standard_normal(2 * n)[::2], 0.5 * rng.standard_normal(n)  # y strided
+        if n > 4:
+            y[rng.integers(0, n, 3)] = np.nan
+            pred[rng.integers(0, n, 3)] = np.nan
+        with np.errstate(invalid="ignore"):
+            expected = metrics.rms(y - pred)
+        got = metrics.prediction_rms(y, pred)
+        assert got == expected or (np.isnan(got) and np.isnan(expected)), n
+    big = np.array([1e300, 0.0])
+    assert metrics.prediction_rms(big, -big) == metrics.rms(big + big)  # (2e300)² overflows: inf
+    assert metrics.prediction_rms(np.array([1.0, 2.0]), np.array([np.inf, 0.0])) == np.inf  # diverged

@@ -131,8 +131,12 @@ def prediction_rms(y: _ArrayLike, pred: _ArrayLike) -> float:
     """RMS of ``y − pred`` where both exist; ``inf`` when the prediction diverged."""
     if diverged(y, pred):
         return math.inf
-    with np.errstate(invalid="ignore", over="ignore"):
-        return rms(np.asarray(y, dtype=float) - np.asarray(pred, dtype=float))
+    yf, pf = _flat(y), _flat(pred)
+    if yf.shape != pf.shape:  # broadcasting, as numpy's difference would
+        with np.errstate(invalid="ignore", over="ignore"):
+            return rms(np.asarray(y, dtype=float) - np.asarray(pred, dtype=float))
+    total, n = _core.finite_squares_of_difference(yf, pf)  # one pass, no array of differences
+    return math.sqrt(total / n) if n else math.nan
 
 
 def fit_percent_from_norms(error_norm: _Float, centred_norm: _Float) -> _Float:
