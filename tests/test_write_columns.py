@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arxid._base import columns
+from arxid._base import background, columns
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 40, 41, 100])
 def test_blocks_and_halves_write_what_the_column_assignments_write(monkeypatch, n):
     monkeypatch.setattr(columns, "ROWS_AT_ONCE", 4)
-    monkeypatch.setattr(columns, "ROWS_IN_HALVES", 9)  # small: the two-thread path at these sizes
+    monkeypatch.setattr(background, "ROWS_IN_HALVES", 9)  # small: the two-thread path at these sizes
     rng = np.random.default_rng(n)
     parts = {0: rng.standard_normal(n), 1: rng.standard_normal((n, 3)), 5: rng.standard_normal((n, 2))[:, ::-1]}
     expected = np.full((n, 8), np.nan)
@@ -37,9 +37,9 @@ def test_regressors_written_in_halves_equal_those_written_in_one_pass(monkeypatc
     data = arxid.IOData(y, u, ts=0.1, extra={"vbat": 11 + rng.standard_normal(n)})
     layout = compile_effects(("u1*vbat", "y^2", "sign(dy)"), data, (2,), (1,))
     monkeypatch.setattr(regressors, "_BLOCK_ROWS", 8)
-    monkeypatch.setattr(regressors, "ROWS_IN_HALVES", 10**9)
+    monkeypatch.setattr(background, "ROWS_IN_HALVES", 10**9)
     whole = regressors.regressor_matrix(data, 2, layout, 3)
-    monkeypatch.setattr(regressors, "ROWS_IN_HALVES", 16)
+    monkeypatch.setattr(background, "ROWS_IN_HALVES", 16)
     halves = regressors.regressor_matrix(data, 2, layout, 3)
     for a, b in zip(whole, halves, strict=True):
         np.testing.assert_array_equal(a, b)

@@ -113,9 +113,13 @@ def in_two(fn: Callable[[X], T], items: Sequence[X]) -> list[T]:
     return out
 
 
+#: Rows from which :func:`in_row_halves` splits the work over two threads.
+ROWS_IN_HALVES = 1 << 18
+
+
 def in_row_halves(fill: Callable[[tuple[int, int]], None], n_rows: int, block: int) -> None:
-    """``fill((lo, hi))`` over the rows 0 to ``n_rows``: the two halves (split at a multiple of
-    ``block``) on two threads, or all of them at once when there are fewer than two blocks.
+    """``fill((lo, hi))`` over the rows 0 to ``n_rows``: from :data:`ROWS_IN_HALVES` rows on, the
+    two halves (split at a multiple of ``block``) on two threads; fewer, all of them at once.
 
     For writing a long matrix: numpy copies without holding the GIL, and the first writes into
     fresh memory (the kernel mapping and zeroing its pages) run on both cores. Each half must
@@ -125,11 +129,14 @@ def in_row_halves(fill: Callable[[tuple[int, int]], None], n_rows: int, block: i
     --------
     >>> spans = []
     >>> in_row_halves(spans.append, 10, 4)
-    >>> sorted(spans)
-    [(0, 4), (4, 10)]
+    >>> spans
+    [(0, 10)]
     """
     half = n_rows // 2 // block * block
-    in_two(fill, [(0, half), (half, n_rows)] if half else [(0, n_rows)])
+    if n_rows < ROWS_IN_HALVES or not half:
+        fill((0, n_rows))
+    else:
+        in_two(fill, [(0, half), (half, n_rows)])
 
 
 @contextmanager

@@ -20,8 +20,6 @@ __all__ = ["write_columns"]
 
 #: Rows per block: the block of every column stays in the processor's cache.
 ROWS_AT_ONCE = 1 << 14
-#: Rows from which a matrix is written in two halves on two threads.
-ROWS_IN_HALVES = 1 << 18
 
 
 def write_columns(out: np.ndarray, columns: Mapping[int, np.ndarray]) -> None:
@@ -50,7 +48,4 @@ def write_columns(out: np.ndarray, columns: Mapping[int, np.ndarray]) -> None:
             for j, c in placed:
                 block[:, j : j + c.shape[1]] = c[lo:hi]
 
-    if len(out) < ROWS_IN_HALVES:
-        rows((0, len(out)))
-    else:
-        in_row_halves(rows, len(out), ROWS_AT_ONCE)
+    in_row_halves(rows, len(out), ROWS_AT_ONCE)

@@ -13,7 +13,6 @@ import numpy as np
 
 from .._base import _core
 from .._base.background import in_row_halves
-from .._base.columns import ROWS_IN_HALVES
 from ..data.iodata import IOData
 from .effects import EffectLayout
 
@@ -175,10 +174,7 @@ def write_regressors(
             for j, col in enumerate(_columns(data, na, layout, rows[lo:hi], None, signs)):
                 block[:, j] = col
 
-    if len(rows) < ROWS_IN_HALVES:
-        write((0, len(rows)))
-    else:
-        in_row_halves(write, len(rows), _BLOCK_ROWS)
+    in_row_halves(write, len(rows), _BLOCK_ROWS)
 
 
 def regressor_columns(
