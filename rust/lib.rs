@@ -8,6 +8,7 @@ pub mod csv_read;
 pub mod error;
 pub mod finite_sums;
 pub mod fit;
+pub mod fit_residual;
 pub mod iv;
 pub mod kstep;
 pub mod lagged_products;

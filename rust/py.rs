@@ -976,7 +976,7 @@ mod core_module {
     #[pymodule_export]
     use super::py_procest::{procest_refine, procest_simulate};
     #[pymodule_export]
-    use super::py_scoring::{tested_products, threshold_products};
+    use super::py_scoring::{fit_residual, refine_fit_residual, tested_products, threshold_products};
     #[pymodule_export]
     use super::py_srivc::srivc_filter;
     #[pymodule_export]

@@ -2,12 +2,16 @@
 //! [`crate::column_products`]); a child of `py`, so they share its thread pool and its Ctrl-C
 //! handling.
 
-use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 use super::run;
 use super::DataError;
 use crate::column_products::{column_products, Block};
+use crate::fit_residual::{refine_residual, residual_products};
 use crate::threshold_scan::{scan_products, ScanRows, Shape};
 
 /// `(cross, zz)`: see [`threshold_products`].
@@ -80,4 +84,42 @@ pub(super) fn tested_products<'py>(
             Ok((cross, zz))
         })
         .collect()
+}
+
+/// `(e, a'e)`: see [`fit_residual`].
+type Residual<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// `(e, a'e)`: the residual `y − aθ` of a linear fit and its products with the regressors `a`
+/// (C-contiguous rows × k), in one pass over the rows. Runs with the GIL released on `n_threads`
+/// (0 = all cores) and stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (a, y, theta, n_threads = 0))]
+pub(super) fn fit_residual<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    y: PyReadonlyArray1<'py, f64>,
+    theta: PyReadonlyArray1<'py, f64>,
+    n_threads: usize,
+) -> PyResult<Residual<'py>> {
+    let k = a.shape()[1];
+    let (av, yv, tv) = (a.as_slice()?, y.as_slice()?, theta.as_slice()?);
+    let (e, products) = run(py, n_threads, |cancel| residual_products(av, k, yv, tv, n_threads != 1, cancel))?;
+    Ok((PyArray1::from_vec(py, e), PyArray1::from_vec(py, products)))
+}
+
+/// `e ← e − aδ` in place (a residual of [`fit_residual`] refined by a correction δ of the
+/// coefficients) and the new `e'e`, in one pass; as [`fit_residual`].
+#[pyfunction]
+#[pyo3(signature = (a, e, delta, n_threads = 0))]
+pub(super) fn refine_fit_residual<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    mut e: PyReadwriteArray1<'py, f64>,
+    delta: PyReadonlyArray1<'py, f64>,
+    n_threads: usize,
+) -> PyResult<f64> {
+    let k = a.shape()[1];
+    let (av, dv) = (a.as_slice()?, delta.as_slice()?);
+    let ev = e.as_slice_mut()?;
+    run(py, n_threads, |cancel| refine_residual(av, k, ev, dv, n_threads != 1, cancel))
 }

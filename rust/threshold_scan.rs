@@ -638,7 +638,7 @@ mod tests {
         let lagged: Vec<f64> = (0..n).map(|r| 1000.0 + (r % 7) as f64 * 1e-6).collect();
         let (a, e) = (vec![1.0; n], vec![0.0; n]);
         let rows = ScanRows { a: &a, k: 1, e: &e, lagged: &lagged, b: 1 };
-        let cs = [0.0, 10.0, 999.0, 1000.0, 1000.000_002, 1000.000_005];
+        let cs = [0.0, 10.0, 999.0, 1000.0, 1000.000002, 1000.000005];
         let got = scan_products(&rows, &cs, Shape::DeadZone, false, &AtomicBool::new(false)).unwrap();
         let want = |c: f64| lagged.iter().map(|x| (x - c).max(0.0)).sum::<f64>();
         for (t, &c) in cs.iter().enumerate() {

@@ -55,6 +55,29 @@ class AddedVariableResult:
     n_columns: int
 
 
+def _gram_with(phi: np.ndarray, y: np.ndarray) -> np.ndarray | None:
+    """[Φ | y]'[Φ | y] (by BLAS: a blocked product beats dot products for a wide Φ); None when Φ
+    has no column, no more rows than columns, or a product that is not finite."""
+    n, p = phi.shape
+    if p == 0 or n <= p:
+        return None
+    gram = np.empty((p + 1, p + 1))
+    gram[:p, :p] = phi.T @ phi
+    gram[p, :p] = gram[:p, p] = phi.T @ y
+    gram[p, p] = float(y @ y)
+    return gram if np.isfinite(gram).all() else None
+
+
+def _cholesky(g: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
+    """R with R'R = the Gram matrix ``g`` scaled by ``scale`` on both sides; None when it is
+    (nearly) singular."""
+    g = g / np.outer(scale, scale)
+    w = np.linalg.eigvalsh(g)
+    if w.min() <= 1e-10 * w.max():
+        return None
+    return np.linalg.cholesky(g).T
+
+
 class AddedVariableTest:
     """Added-variable statistics against fixed regressors on fixed rows.
 
@@ -67,46 +90,42 @@ class AddedVariableTest:
     """
 
     def __init__(self, phi: np.ndarray, y: np.ndarray):
-        scale = column_norms(phi)
-        scale[scale == 0] = 1.0
         self.n, self.p = phi.shape
-        self._phi, self._scale = np.ascontiguousarray(phi, dtype=float), scale
+        self._phi = np.ascontiguousarray(phi, dtype=float)
+        y = np.ascontiguousarray(y, dtype=float)
         self._q: np.ndarray | None = None
         self._sums: tuple[np.ndarray, float] | None = None  # Φ'1 and e'1, for blocks tested with an offset
         self._keep: np.ndarray | None = None  # the independent columns (None: all)
-        # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
-        # matrix stands for Q = Φ R⁻¹, which is never formed (one pass over Φ, no n × p copies);
-        # the residual is refined once. Otherwise Householder QR, as accurate as it gets.
-        self._r = self._cholesky(phi, scale)
         self._theta: np.ndarray | None = None
-        if self._r is not None:
-            first = self._solve(phi.T @ y)
-            self.e = y - phi @ first
-            refined = self._solve(phi.T @ self.e)
-            self.e = self.e - phi @ refined
+        #: [Φ | y]'[Φ | y] (None when the regressors are ill-conditioned or not finite).
+        self.gram = _gram_with(self._phi, y)
+        # Well-conditioned regressors (the usual case): the Cholesky factor R of the scaled Gram
+        # matrix stands for Q = Φ R⁻¹, which is never formed (no n × p copies); the residual is
+        # refined once, each step one pass over Φ (Rust core). Otherwise Householder QR, as
+        # accurate as it gets.
+        p = self.p
+        self._scale = np.sqrt(np.diag(self.gram)[:p]) if self.gram is not None else column_norms(phi)
+        self._scale[self._scale == 0] = 1.0
+        self._r = None if self.gram is None else _cholesky(self.gram[:p, :p], self._scale)
+        if self.gram is not None and self._r is not None:
+            first = self._solve(self.gram[:p, p])
+            self.e, products = _core.fit_residual(self._phi, y, first)
+            refined = self._solve(products)
+            self.rss0 = _core.refine_fit_residual(self._phi, self.e, refined)
             self._theta = first + refined
+            energy = float(self.gram[p, p])
         else:  # ill-conditioned: R of [Φ | y] by Householder QR in blocks of rows (no n × p copy)
-            self._keep, self._r, theta = _independent(blocked_r(phi, y, scale), phi.shape[1])
+            self.gram = None
+            self._keep, self._r, theta = _independent(blocked_r(phi, y, self._scale), phi.shape[1])
             if self._r is not None:
-                self.e = y - phi @ (theta / scale)
+                self.e = y - phi @ (theta / self._scale)
             else:
                 self.e = y - self.q @ (self.q.T @ y)
-        self.rss0 = float(self.e @ self.e)
+            self.rss0 = float(self.e @ self.e)
+            energy = float(y @ y)
         # Noise-free data a model fits exactly leave a residual at rounding level: testing columns
         # against it would find effects in rounding noise (and its F-ratio can divide by zero).
-        self.exact = self.rss0 <= _ROUNDING**2 * float(y @ y)
-
-    @staticmethod
-    def _cholesky(phi: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
-        if phi.shape[1] == 0 or phi.shape[0] <= phi.shape[1]:
-            return None
-        g = (phi.T @ phi) / np.outer(scale, scale)
-        if not np.isfinite(g).all():
-            return None
-        w = np.linalg.eigvalsh(g)
-        if w.min() <= 1e-10 * w.max():
-            return None
-        return np.linalg.cholesky(g).T
+        self.exact = self.rss0 <= _ROUNDING**2 * energy
 
     def _solve(self, v: np.ndarray) -> np.ndarray:
         """θ with R'R (θ scale) = v / scale: least-squares coefficients from Φ'v."""

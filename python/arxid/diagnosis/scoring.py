@@ -339,6 +339,8 @@ class Scoring:
     @property
     def _gram(self) -> np.ndarray:
         """``[Φ | y]'[Φ | y]`` of the model's rows (formed when first asked for)."""
+        if self._phi_y_gram is None and self.proj0.gram is not None:  # formed by the base fit
+            self._phi_y_gram = self.proj0.gram
         if self._phi_y_gram is None:
             p = self.phi0.shape[1]
             g = np.empty((p + 1, p + 1))
