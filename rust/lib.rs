@@ -9,6 +9,7 @@ pub mod error;
 pub mod finite_sums;
 pub mod fit;
 pub mod fit_residual;
+pub mod group_sums;
 pub mod iv;
 pub mod kstep;
 pub mod lagged_products;

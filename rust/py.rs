@@ -603,6 +603,26 @@ fn finite_squares_of_difference(
     Ok(py.detach(|| crate::finite_sums::finite_squares_of_difference(y, p)))
 }
 
+/// `(counts, sums, varies)` per group of `group` (uint8, below `groups`): the samples, the sum of
+/// each series (`sums[s, g]`, in sample order as `numpy.bincount`) and whether a group holds two
+/// different values of the first series; one pass (GIL released).
+#[pyfunction]
+fn group_sums<'py>(
+    py: Python<'py>,
+    group: PyReadonlyArray1<'py, u8>,
+    groups: usize,
+    series: Vec<PyReadonlyArray1<'py, f64>>,
+) -> PyResult<GroupSumsOutput<'py>> {
+    let group = group.as_slice()?;
+    let views = series.iter().map(|s| s.as_slice()).collect::<Result<Vec<_>, _>>()?;
+    let out = py.detach(|| crate::group_sums::group_sums(group, groups, &views)).map_err(|e| to_pyerr(py, e))?;
+    let sums = PyArray1::from_vec(py, out.sums).reshape([series.len(), groups])?;
+    Ok((PyArray1::from_vec(py, out.counts), sums, PyArray1::from_vec(py, out.varies)))
+}
+
+/// `(counts, sums, varies)`: see [`group_sums`].
+type GroupSumsOutput<'py> = (Bound<'py, PyArray1<u64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<bool>>);
+
 /// Largest |x| over the samples of a contiguous `x` that are not NaN (inf when one is infinite,
 /// NaN when none is a number), in one pass (GIL released).
 #[pyfunction]
@@ -984,7 +1004,7 @@ mod core_module {
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
     #[pymodule_export]
-    use super::{finite_peak, finite_squares, finite_squares_of_difference, peak_magnitude};
+    use super::{finite_peak, finite_squares, finite_squares_of_difference, group_sums, peak_magnitude};
     #[pymodule_export]
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]

@@ -130,3 +130,26 @@ def test_argsort_of_nonnegative_values_sorts_them():
         order = _argsort_nonnegative(v)
         assert np.array_equal(np.sort(order), np.arange(len(v)))
         assert np.array_equal(v[order], np.sort(v))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_sums_per_group_in_one_pass_are_numpys_bincounts_to_the_bit(seed):
+    """The core's one pass over the bins gives bincount's counts and sums bit for bit, and says
+    whether each group holds two different values as _varies does."""
+    from arxid._base import _core
+
+    es, where, counts = _groups(seed, nb=9, n=30_011)
+    where[where == 4] = 5  # an empty group
+    es[where == 7] = 1.5  # a constant one
+    series = [es, es * es, np.arange(1.0, len(es) + 1.0), es - es.mean()]
+    got_counts, sums, varies = _core.group_sums(where, 10, series)
+    np.testing.assert_array_equal(got_counts, np.bincount(where, minlength=10))
+    for s, got in zip(series, sums, strict=True):
+        assert np.array_equal(got, np.bincount(where, weights=s, minlength=10))
+    filled = got_counts > 0
+    assert not varies[7] and varies[[0, 1, 2, 3, 5, 6, 8]].all() and not varies[~filled].any()
+    assert bool(varies[filled].all()) == _varies(es, where, np.bincount(where, minlength=10))
+    with pytest.raises(arxid.ArxidError, match="not below the number of groups"):
+        _core.group_sums(where, 8, series)
+    with pytest.raises(arxid.DataError, match="grouped series"):
+        _core.group_sums(where, 10, [es[:-1]])

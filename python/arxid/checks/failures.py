@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .._base import metrics
+from .._base import _core, metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -419,17 +419,19 @@ def _centred(es: np.ndarray) -> tuple[np.ndarray, float, float]:
     return d, normalized, float(np.einsum("i,i->", d, d)) - normalized
 
 
-def _anova_p(es: np.ndarray, where: np.ndarray, counts: np.ndarray, centred: tuple | None = None) -> float:
+def _anova_p(
+    es: np.ndarray, where: np.ndarray, counts: np.ndarray, centred: tuple | None = None, sums: np.ndarray | None = None
+) -> float:
     """One-way ANOVA p-value of ``es`` between the groups ``where`` (every group with >= 2 samples
     and not constant), from per-group sums: scipy.stats.f_oneway's formula (sums of squares about
     the overall mean) without splitting the samples into groups. ``centred``: :func:`_centred` of
-    ``es`` when known."""
+    ``es`` when known; ``sums``: its centred values summed per group, when known."""
     from scipy import stats
 
     nb, have = len(counts), counts > 0
     k, n = int(np.count_nonzero(have)), len(es)
     d, normalized, sstot = _centred(es) if centred is None else centred
-    sums = np.bincount(where, weights=d, minlength=nb)[have]
+    sums = (np.bincount(where, weights=d, minlength=nb) if sums is None else sums)[have]
     ssbn = float(np.sum(sums**2 / counts[have])) - normalized
     with np.errstate(divide="ignore", invalid="ignore"):
         f = (ssbn / (k - 1)) / ((sstot - ssbn) / (n - k))
@@ -465,6 +467,19 @@ def _grouped(es: np.ndarray, where: np.ndarray, counts: np.ndarray):
     return rms, mean, [g for g in groups if len(g) >= 2]
 
 
+class _BinSums:
+    """Per bin, in one pass over the binned samples (Rust core, numpy's bincount sums to the bit),
+    of every finite residual: the count, the sums of the residual, of its square, of its ranks and
+    of its centred values, and whether each non-empty bin holds two different residuals."""
+
+    def __init__(self, where: np.ndarray, nb: int, ranked: _SquaredRanks):
+        d = ranked.centred()[0]
+        counts, sums, varies = _core.group_sums(where, nb, [ranked.values, ranked.squared, ranked.ranks, d])
+        self.counts = counts.astype(np.intp)
+        self.values, self.squares, self.ranks, self.centred = sums
+        self.varies = bool(np.all(varies[counts > 0]))
+
+
 def _bin_signal(
     name: str, x: np.ndarray, e: np.ndarray, n_bins: int, ranked: _SquaredRanks, memo: dict | None, tag: tuple
 ) -> SignalBins | None:
@@ -486,14 +501,18 @@ def _bin_signal(
         return None
     edges, where = binned
     nb = len(edges) - 1
-    counts = np.bincount(where, minlength=nb)
+    shared = _BinSums(where, nb, ranked) if full and where.dtype == np.uint8 else None
+    counts = np.bincount(where, minlength=nb) if shared is None else shared.counts
     every = not np.any(counts == 1)  # every sample in a group of two or more
     whole = every and full
     overall = ranked.rms if whole else metrics.rms(es)
     if every:
         with np.errstate(divide="ignore", invalid="ignore"):
-            mean = np.bincount(where, weights=es, minlength=nb) / counts
-            rms = np.sqrt(np.bincount(where, weights=ranked.squared if full else es * es, minlength=nb) / counts)
+            if shared is not None:
+                mean, rms = shared.values / counts, np.sqrt(shared.squares / counts)
+            else:
+                mean = np.bincount(where, weights=es, minlength=nb) / counts
+                rms = np.sqrt(np.bincount(where, weights=ranked.squared if full else es * es, minlength=nb) / counts)
         n_used, used = int(np.count_nonzero(counts)), None
     else:
         rms, mean, used = _grouped(es, where, counts)
@@ -509,10 +528,12 @@ def _bin_signal(
     if spread <= 0:
         p_kw = 1.0
     elif used is None:  # every sample in a group of two or more: the shared ranks
-        p_kw = _kruskal(ok, where, nb, e, ranked)
+        p_kw = _kruskal(ok, where, nb, e, ranked, shared)
     else:
         p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
-    if used is None:
+    if used is None and shared is not None:
+        p_an = _anova_p(es, where, counts, ranked.centred(), shared.centred) if shared.varies else 1.0
+    elif used is None:
         p_an = _anova_p(es, where, counts, ranked.centred() if full else None) if _varies(es, where, counts) else 1.0
     else:
         p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
@@ -523,15 +544,21 @@ def _bin_signal(
     return SignalBins(name, edges, centers, rms, mean, counts, float(np.nanmax(rms) / overall), p)
 
 
-def _kruskal(ok: np.ndarray, where: np.ndarray, nb: int, e: np.ndarray, ranked: _SquaredRanks) -> float:
+def _kruskal(
+    ok: np.ndarray, where: np.ndarray, nb: int, e: np.ndarray, ranked: _SquaredRanks, shared: _BinSums | None = None
+) -> float:
     """Kruskal–Wallis p-value of e² between the bins ``where`` of the samples ``ok``: from the shared
-    ranks when ``ok`` holds every finite residual, else from the ranks of those samples."""
+    ranks when ``ok`` holds every finite residual (their sums per bin from ``shared`` when given),
+    else from the ranks of those samples."""
     from scipy import stats
 
     if len(where) == len(ranked.finite):  # the same samples: the ranks are the shared ones
         n = len(where)
-        sums = np.bincount(where, weights=ranked.ranks, minlength=nb)
-        sizes = np.bincount(where, minlength=nb).astype(float)
+        if shared is None:
+            sums, sizes = np.bincount(where, weights=ranked.ranks, minlength=nb), np.bincount(where, minlength=nb)
+        else:
+            sums, sizes = shared.ranks, shared.counts
+        sizes = sizes.astype(float)
         have = sizes > 0
         h = 12.0 / (n * (n + 1.0)) * float(np.sum(sums[have] ** 2 / sizes[have])) - 3.0 * (n + 1.0)
         h /= 1.0 - ranked.ties / (float(n) ** 3 - n)

@@ -22,6 +22,7 @@ is linear in its parameter (the limited signal depends on its own past), so it i
 from __future__ import annotations
 
 import re
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -143,6 +144,13 @@ def output_integrates(model: ArxModel, free_run_fit: float | None = None) -> boo
     return structure_integrates(model.parameters_, model.covariance_, model.na_, model.n_rows_, free_run_fit)
 
 
+#: The thresholds of read-only signals, by the array whose memory they view (an entry goes with
+#: that array; arrays are not hashable, so by id with a weak reference): a diagnosis asks for them
+#: when it lists its candidates and again when it scans, and a ladder diagnoses the same data again
+#: (a sort of the record each time).
+_GRIDS: dict[int, tuple[weakref.ref, dict]] = {}
+
+
 def threshold_grid(x: np.ndarray) -> np.ndarray:
     """Thresholds tried for ``dz(x,c)`` and ``sat(x,c)``: the 5 %, …, 95 % quantiles of |x|.
 
@@ -157,6 +165,21 @@ def threshold_grid(x: np.ndarray) -> np.ndarray:
         Distinct positive thresholds, ascending (empty when |x| takes fewer than
         ``MIN_THRESHOLD_LEVELS`` values).
     """
+    owner = x if x.base is None else x.base
+    if x.flags.writeable or not isinstance(owner, np.ndarray) or owner.flags.writeable:
+        return _threshold_grid(x)
+    held = _GRIDS.get(id(owner))
+    if held is None or held[0]() is not owner:
+        ident = id(owner)
+        held = _GRIDS[ident] = (weakref.ref(owner, lambda _: _GRIDS.pop(ident, None)), {})
+    memo = held[1]
+    key = (x.__array_interface__["data"][0], x.shape, x.strides, x.dtype.str)
+    if key not in memo:
+        memo[key] = _threshold_grid(x)
+    return memo[key].copy()
+
+
+def _threshold_grid(x: np.ndarray) -> np.ndarray:
     a = np.sort(np.abs(x[np.isfinite(x)]))  # one sort serves the count of levels and the quantiles
     if a.size == 0 or 1 + np.count_nonzero(a[1:] != a[:-1]) < MIN_THRESHOLD_LEVELS:
         return np.zeros(0)
