@@ -1,7 +1,7 @@
 """Checking a model against measurements.
 
 * :mod:`~arxid.checks.comparison` -- free-run comparison (:func:`compare`) and the prediction error
-  the other checks start from (:func:`prediction_error`, :func:`error_rms`)
+  the other checks start from (:func:`prediction_error`, :func:`prediction`, :func:`error_rms`)
 * :mod:`~arxid.checks.residual_analysis` -- residual tests: whiteness and independence
   (:func:`residuals`); :mod:`~arxid.checks.correlation` -- its lagged correlations and
   prewhitening filters (a signal's filter fitted once per record)
@@ -12,7 +12,7 @@
 * :mod:`~arxid.checks.feedback` -- is there feedback from the output to the input (:func:`feedback`)
 """
 
-from .comparison import Comparison, compare, error_rms, prediction_error
+from .comparison import Comparison, compare, error_rms, prediction, prediction_error
 from .failures import FailureAnalysis, SignalBins, WorstSegment, where_it_fails
 from .feedback import FeedbackTest, feedback
 from .frequency import FrequencyCheck, frequency_check
@@ -21,6 +21,7 @@ from .residual_analysis import ResidualAnalysis, residuals
 __all__ = [
     "compare",
     "Comparison",
+    "prediction",
     "prediction_error",
     "error_rms",
     "residuals",

@@ -3,7 +3,9 @@
 * :func:`compare` — fit percent and RMS of one or more models on measured data (MATLAB ``compare``),
   as a :class:`Comparison`.
 * :func:`prediction_error` — a model's prediction, error and divergence flag at a horizon: the
-  error the residual tests, the failure analysis and the diagnosis start from.
+  error the residual tests, the failure analysis and the diagnosis start from;
+  :func:`prediction` the same without the error (an array the size of the record), for a caller
+  who needs only the prediction or its RMS.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
 from .initial_state import estimated_free_run
 
-__all__ = ["compare", "Comparison", "prediction_error", "error_rms"]
+__all__ = ["compare", "Comparison", "prediction", "prediction_error", "error_rms"]
 
 
 def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, initial: str = "zero"):
@@ -53,6 +55,31 @@ def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, 
         The prediction diverged (see :mod:`arxid._metrics`: inf, or beyond
         ``DIVERGENCE_FACTOR`` times the largest measured |y|); its RMS is reported as infinite.
     """
+    pred, diverged = prediction(model, data, horizon, initial)
+    with np.errstate(all="ignore"):
+        err = data.y - pred
+    return pred, err, diverged
+
+
+def prediction(
+    model: ArxModel, data: IOData, horizon: int | None = None, initial: str = "zero"
+) -> tuple[np.ndarray, bool]:
+    """The prediction and divergence flag of :func:`prediction_error`, without its error array.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+    horizon : int or None
+        None: free-run simulation; k: k-step-ahead prediction.
+    initial : {"zero", "estimate"}
+        As :func:`prediction_error`.
+
+    Returns
+    -------
+    pred : ndarray of shape (n_samples,)
+    diverged : bool
+    """
     with np.errstate(all="ignore"):
         if check_initial(initial) == "estimate" and isinstance(model, PolynomialModel):
             pred = np.asarray(model.predict(data, horizon, initial="estimate"), dtype=float)
@@ -60,8 +87,7 @@ def prediction_error(model: ArxModel, data: IOData, horizon: int | None = None, 
             pred = estimated_free_run(model, data, horizon)
         else:
             pred = np.asarray(model.predict(data, horizon), dtype=float)
-        err = data.y - pred
-    return pred, err, metrics.diverged(data.y, pred)
+    return pred, metrics.diverged(data.y, pred)
 
 
 def error_rms(model: ArxModel, data: IOData, horizon: int | None = None, initial: str = "zero") -> float:
@@ -82,7 +108,7 @@ def error_rms(model: ArxModel, data: IOData, horizon: int | None = None, initial
     """
     if check_initial(initial) == "zero":
         return model.rms(data, horizon)
-    return metrics.prediction_rms(data.y, prediction_error(model, data, horizon, initial)[0])  # inf when it diverged
+    return metrics.prediction_rms(data.y, prediction(model, data, horizon, initial)[0])  # inf when it diverged
 
 
 @dataclass(frozen=True, eq=False)
@@ -264,7 +290,7 @@ def compare(models, data: IOData, horizon: int | None = None, initial: str = "ze
         check_same_signals(m.ts, m.output_name, inputs, data, "the data to compare with")
     fits, rmss, preds, divs = [], [], [], []
     for m in ms:
-        pred, _, diverged = prediction_error(m, data, horizon, initial)
+        pred, diverged = prediction(m, data, horizon, initial)
         fits.append(metrics.fit_percent(data.y, pred))
         rmss.append(metrics.prediction_rms(data.y, pred))
         preds.append(pred)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
-from ..checks import error_rms, prediction_error
+from ..checks import error_rms, prediction
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model
@@ -225,7 +225,7 @@ class Ladder:
         return step
 
     def _step(self, model: ArxModel, added: str, val: IOData, replaces: tuple[str, ...]) -> LadderStep:
-        pred, _, _ = prediction_error(model, val, self.horizon, self.initial)
+        pred, _ = prediction(model, val, self.horizon, self.initial)
         data = model.data_ if model.data_ is not None else val
         return LadderStep(
             added,

@@ -29,12 +29,13 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from .._base import metrics
 from .._base.background import in_two
-from ..checks import prediction_error
+from ..checks import prediction, prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -182,10 +183,15 @@ class _Search:
         _, err, diverged = prediction_error(model, self.validation, self.horizon, self.initial)
         return (np.full_like(err, np.inf), math.inf) if diverged else (err, metrics.rms(err))
 
-    def measured(self, model: ArxModel) -> tuple[float, ArxModel, np.ndarray]:
-        """(RMS, model, errors) of ``model`` on the validation data."""
-        err, rms = self.errors(model)
-        return rms, model, err
+    def measured(self, model: ArxModel, keep_below: float = math.inf) -> tuple[float, ArxModel, np.ndarray | None]:
+        """(RMS, model, errors) of ``model`` on the validation data; the errors (an array the size
+        of the record) only when the RMS is at most ``keep_below``, else None."""
+        pred, _ = prediction(model, self.validation, self.horizon, self.initial)
+        rms = metrics.prediction_rms(self.validation.y, pred)  # inf when it diverged, as errors()
+        if not rms <= keep_below:
+            return rms, model, None
+        with np.errstate(all="ignore"):
+            return rms, model, self.validation.y - pred
 
     def flags(self, model: ArxModel) -> set[str]:
         return set(step_sanity(model, self.validation, expect=self.expect).flags)
@@ -246,10 +252,12 @@ def rechoose_structure(
             err_base, rms_base = err_current, rms_current
         else:
             err_base, rms_base = search.errors(base)
-        # Each neighbour is validated by a free run of the validation data: two at a time.
-        fitted = in_two(search.measured, [m for m in models[1:] if m is not None])
+        # Each neighbour is validated by a free run of the validation data: two at a time. Only one
+        # that can be better (its RMS low enough) keeps its errors, for the paired test.
+        screen = partial(search.measured, keep_below=(1.0 - min_improvement) * rms_base)
+        fitted = in_two(screen, [m for m in models[1:] if m is not None])
         tried += len(fitted)
-        better = [f for f in fitted if _better(f[0], f[2], rms_base, err_base, min_improvement)]
+        better = [f for f in fitted if f[2] is not None and _better(f[0], f[2], rms_base, err_base, min_improvement)]
         if not better:
             break
         lowest = min(better, key=lambda f: f[0])

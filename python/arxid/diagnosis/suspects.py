@@ -43,7 +43,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.background import Background, one_blas_thread
-from ..checks import ResidualAnalysis, prediction_error, residuals
+from ..checks import ResidualAnalysis, prediction, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model
@@ -237,7 +237,7 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
 
     def predicted(k: int | None, init: str) -> tuple[np.ndarray, bool]:
         if (k, init) not in made:
-            pred, _, diverged = prediction_error(model, validation, k, init)
+            pred, diverged = prediction(model, validation, k, init)
             made[k, init] = (pred, diverged)
         return made[k, init]
 

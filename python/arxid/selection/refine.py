@@ -15,7 +15,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import text_table
-from ..checks import prediction_error
+from ..checks import prediction
 from ..exceptions import ArxidError, OrderError
 from ..models.pem import oe
 from ..models.polynomial import check_initial
@@ -201,7 +201,7 @@ def refine(
     val = result.validation if result.validation is not None else result.estimation
     initial = check_initial(initial)
     cands = _candidates(result, top, grid, initial)
-    preds = [prediction_error(m, val, None, initial)[0] for _, m in cands]
+    preds = [prediction(m, val, None, initial)[0] for _, m in cands]
     ok = np.isfinite(val.y)
     for p in preds:
         ok &= np.isfinite(p) | ~np.isfinite(p).any()
