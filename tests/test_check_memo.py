@@ -83,13 +83,13 @@ def test_shared_ranks_of_the_squared_residual_give_scipy_kruskal(digits):
     with ties (midranks, tie correction) or without."""
     from scipy import stats
 
-    from arxid.checks.failures import _kruskal, _SquaredRanks
+    from arxid.checks.binning import SquaredRanks, _kruskal
 
     rng = np.random.default_rng(5)
     e = rng.standard_normal(4000)
     e = np.round(e, digits) if digits else e
     e[:3] = np.nan
-    ranked = _SquaredRanks(e)
+    ranked = SquaredRanks(e)
     ok = np.isfinite(e)
     for subset in (False, True):
         use = ok.copy()
@@ -102,11 +102,11 @@ def test_shared_ranks_of_the_squared_residual_give_scipy_kruskal(digits):
 
 
 def test_what_the_checks_keep_per_data_is_bounded():
-    from arxid.checks import correlation, failures
+    from arxid.checks import binning, correlation, failures
 
     est, val = _record(6, n=3000), _record(7, n=3000)
     for na in range(1, 8):  # each structure's residual starts at another sample: new bins, new filters
         m = arxid.arx(est, na, 1, 1)
         where_it_fails(m, val), residuals(m, val)
-    assert 0 < len(failures._BINS[val]) <= failures._MAX_BINNED
+    assert 0 < len(failures._BINS[val]) <= binning._MAX_BINNED
     assert 0 < len(correlation._MEMO[val]) <= correlation._MAX_SIGNALS

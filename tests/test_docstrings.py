@@ -49,6 +49,7 @@ PUBLIC_MODULES = (
     "arxid.checks.comparison",
     "arxid.checks.residual_analysis",
     "arxid.checks.failures",
+    "arxid.checks.binning",
     "arxid.selection.grid",
     "arxid.selection.engine",
     "arxid.selection.ranking",

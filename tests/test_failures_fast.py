@@ -8,7 +8,8 @@ import pytest
 from scipy import stats
 
 import arxid
-from arxid.checks.failures import _anova_p, _segment_p_value, _varies
+from arxid.checks.binning import _anova_p, _varies
+from arxid.checks.failures import _segment_p_value
 
 
 def _groups(seed, nb=6, n=5000):
@@ -94,7 +95,7 @@ def test_binned_statistics_match_the_bins_samples(seed):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_bin_index_is_quantile_bins_by_searchsorted(seed):
-    from arxid.checks.failures import _bin_index
+    from arxid.checks.binning import _bin_index
 
     rng = np.random.default_rng(seed)
     for xs in [rng.standard_normal(5001), np.round(rng.standard_normal(3000), 1), rng.integers(0, 5, 999) * 0.5]:
@@ -110,7 +111,7 @@ def test_bin_index_is_quantile_bins_by_searchsorted(seed):
 
 
 def test_sorted_quantiles_are_numpys_to_the_bit():
-    from arxid.checks.failures import _sorted_quantiles
+    from arxid.checks.binning import _sorted_quantiles
 
     rng = np.random.default_rng(7)
     for n in [1, 2, 3, 7, 8, 9, 100, 1001, 40000]:
@@ -121,7 +122,7 @@ def test_sorted_quantiles_are_numpys_to_the_bit():
 
 
 def test_argsort_of_nonnegative_values_sorts_them():
-    from arxid.checks.failures import _argsort_nonnegative
+    from arxid.checks.binning import _argsort_nonnegative
 
     rng = np.random.default_rng(8)
     base = rng.standard_normal(300000) ** 2

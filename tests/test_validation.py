@@ -346,7 +346,7 @@ def test_where_it_fails_kruskal_wallis_from_one_sort_matches_scipy():
     p-value equals scipy.stats.kruskal on the groups, with ties (midranks, tie correction)."""
     from scipy import stats
 
-    from arxid.checks.failures import _kruskal_sorted
+    from arxid.checks.binning import _kruskal_sorted
 
     rng = np.random.default_rng(11)
     for trial in range(12):
