@@ -70,6 +70,64 @@ fn lane_max(x: &[f64], magnitude: impl Fn(f64) -> f64, empty: f64) -> f64 {
     peaks.iter().fold(empty, |m, &p| m.max(p))
 }
 
+/// What the fit percent of a prediction needs of one pass over `y` and `p` (equal length).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitPass {
+    /// Samples where both are finite.
+    pub n: usize,
+    /// Largest finite |y| and |p| ([`finite_peak`]).
+    pub peak_y: f64,
+    pub peak_p: f64,
+    /// Whether `p` is infinite somewhere.
+    pub p_infinite: bool,
+    /// Largest |y| and the sum of y where both are finite.
+    pub peak_both: f64,
+    pub sum_both: f64,
+}
+
+/// [`FitPass`] of `y` and `p`, in one pass.
+pub fn fit_pass(y: &[f64], p: &[f64]) -> FitPass {
+    assert_eq!(y.len(), p.len(), "the two series differ in length");
+    let finite = |v: f64| v.abs() <= f64::MAX;
+    let (mut n, mut py, mut pp, mut pb, mut sum) =
+        ([0usize; LANES], [0.0f64; LANES], [0.0f64; LANES], [0.0f64; LANES], [0.0f64; LANES]);
+    let mut infinite = false;
+    for (i, (&a, &b)) in y.iter().zip(p).enumerate() {
+        let l = i % LANES;
+        let (fa, fb) = (finite(a), finite(b));
+        py[l] = py[l].max(if fa { a.abs() } else { 0.0 });
+        pp[l] = pp[l].max(if fb { b.abs() } else { 0.0 });
+        infinite |= b.is_infinite();
+        let both = fa && fb;
+        n[l] += usize::from(both);
+        pb[l] = pb[l].max(if both { a.abs() } else { 0.0 });
+        sum[l] += if both { a } else { 0.0 };
+    }
+    let max = |v: [f64; LANES]| v.iter().fold(0.0f64, |m, &x| m.max(x));
+    FitPass {
+        n: n.iter().sum(),
+        peak_y: max(py),
+        peak_p: max(pp),
+        p_infinite: infinite,
+        peak_both: max(pb),
+        sum_both: sum.iter().sum(),
+    }
+}
+
+/// `(Σ ((y − p)·scale)², Σ ((y − mean)·scale)²)` over the samples where `y` and `p` are both finite.
+pub fn fit_squares(y: &[f64], p: &[f64], mean: f64, scale: f64) -> (f64, f64) {
+    assert_eq!(y.len(), p.len(), "the two series differ in length");
+    let (mut error, mut spread) = ([0.0f64; LANES], [0.0f64; LANES]);
+    for (i, (&a, &b)) in y.iter().zip(p).enumerate() {
+        let l = i % LANES;
+        let both = a.abs() <= f64::MAX && b.abs() <= f64::MAX;
+        let (e, d) = ((a - b) * scale, (a - mean) * scale);
+        error[l] += if both { e * e } else { 0.0 };
+        spread[l] += if both { d * d } else { 0.0 };
+    }
+    (error.iter().sum(), spread.iter().sum())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -99,6 +157,33 @@ mod tests {
             let expected = if has_inf { f64::INFINITY } else { finite.iter().fold(f64::NAN, |m, v| m.max(v.abs())) };
             let got = peak_magnitude(&x);
             assert!(got == expected || (got.is_nan() && expected.is_nan()), "n = {n}: {got} vs {expected}");
+        }
+    }
+
+    #[test]
+    fn the_fit_passes_agree_with_the_plain_loops() {
+        for n in [0, 1, 9, 1001] {
+            let mut y = series(n);
+            let mut p: Vec<f64> = series(n).iter().map(|v| 0.9 * v + 0.1).collect();
+            for t in (2..n).step_by(13) {
+                y[t] = [f64::NAN, f64::INFINITY, 2.0][t % 3];
+                p[(t + 5) % n] = [f64::NAN, f64::NEG_INFINITY, 1.0][t % 3];
+            }
+            let both: Vec<(f64, f64)> =
+                y.iter().zip(&p).filter(|(a, b)| a.is_finite() && b.is_finite()).map(|(&a, &b)| (a, b)).collect();
+            let got = fit_pass(&y, &p);
+            assert_eq!(got.n, both.len());
+            assert_eq!(got.peak_y, finite_peak(&y));
+            assert_eq!(got.peak_p, finite_peak(&p));
+            assert_eq!(got.p_infinite, p.iter().any(|v| v.is_infinite()));
+            assert_eq!(got.peak_both, both.iter().fold(0.0f64, |m, (a, _)| m.max(a.abs())));
+            let sum: f64 = both.iter().map(|(a, _)| a).sum();
+            assert!((got.sum_both - sum).abs() <= 1e-12 * (1.0 + sum.abs()));
+            let (mean, scale) = (0.25, 0.5);
+            let (e, d) = fit_squares(&y, &p, mean, scale);
+            let we: f64 = both.iter().map(|(a, b)| ((a - b) * scale).powi(2)).sum();
+            let wd: f64 = both.iter().map(|(a, _)| ((a - mean) * scale).powi(2)).sum();
+            assert!((e - we).abs() <= 1e-12 * we.max(1.0) && (d - wd).abs() <= 1e-12 * wd.max(1.0), "n = {n}");
         }
     }
 

@@ -593,13 +593,7 @@ fn finite_squares_of_difference(
     p: PyReadonlyArray1<'_, f64>,
 ) -> PyResult<(f64, usize)> {
     let (y, p) = (y.as_slice()?, p.as_slice()?);
-    if y.len() != p.len() {
-        return Err(pyo3::exceptions::PyValueError::new_err(format!(
-            "the two series differ in length ({} and {} samples)",
-            y.len(),
-            p.len()
-        )));
-    }
+    same_length(y, p)?;
     Ok(py.detach(|| crate::finite_sums::finite_squares_of_difference(y, p)))
 }
 
@@ -622,6 +616,45 @@ fn group_sums<'py>(
 
 /// `(counts, sums, varies)`: see [`group_sums`].
 type GroupSumsOutput<'py> = (Bound<'py, PyArray1<u64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<bool>>);
+
+/// `(n, peak_y, peak_p, p_infinite, peak_both, sum_both)` of a prediction `p` of `y` (contiguous,
+/// equal length) in one pass (see [`crate::finite_sums::FitPass`]; GIL released).
+#[pyfunction]
+fn fit_pass(
+    py: Python<'_>,
+    y: PyReadonlyArray1<'_, f64>,
+    p: PyReadonlyArray1<'_, f64>,
+) -> PyResult<(usize, f64, f64, bool, f64, f64)> {
+    let (y, p) = (y.as_slice()?, p.as_slice()?);
+    same_length(y, p)?;
+    let f = py.detach(|| crate::finite_sums::fit_pass(y, p));
+    Ok((f.n, f.peak_y, f.peak_p, f.p_infinite, f.peak_both, f.sum_both))
+}
+
+/// `(Σ ((y − p)·scale)², Σ ((y − mean)·scale)²)` where both are finite, in one pass (GIL released).
+#[pyfunction]
+fn fit_squares(
+    py: Python<'_>,
+    y: PyReadonlyArray1<'_, f64>,
+    p: PyReadonlyArray1<'_, f64>,
+    mean: f64,
+    scale: f64,
+) -> PyResult<(f64, f64)> {
+    let (y, p) = (y.as_slice()?, p.as_slice()?);
+    same_length(y, p)?;
+    Ok(py.detach(|| crate::finite_sums::fit_squares(y, p, mean, scale)))
+}
+
+fn same_length(y: &[f64], p: &[f64]) -> PyResult<()> {
+    if y.len() != p.len() {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "the two series differ in length ({} and {} samples)",
+            y.len(),
+            p.len()
+        )));
+    }
+    Ok(())
+}
 
 /// Largest |x| over the samples of a contiguous `x` that are not NaN (inf when one is infinite,
 /// NaN when none is a number), in one pass (GIL released).
@@ -1004,7 +1037,9 @@ mod core_module {
         divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
     };
     #[pymodule_export]
-    use super::{finite_peak, finite_squares, finite_squares_of_difference, group_sums, peak_magnitude};
+    use super::{
+        finite_peak, finite_squares, finite_squares_of_difference, fit_pass, fit_squares, group_sums, peak_magnitude,
+    };
     #[pymodule_export]
     use super::{fit_from_factor, fma_limit, grid_factor, simulate_structures, sweep_factors};
     #[pymodule_export]

@@ -96,3 +96,26 @@ def test_prediction_rms_is_the_rms_of_the_differences_to_the_bit():
     big = np.array([1e300, 0.0])
     assert metrics.prediction_rms(big, -big) == metrics.rms(big + big)  # (2e300)² overflows: inf
     assert metrics.prediction_rms(np.array([1.0, 2.0]), np.array([np.inf, 0.0])) == np.inf  # diverged
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fit_percent_is_the_nrmse_fit_over_the_samples_where_both_exist(seed):
+    """The core's two passes give 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) over the samples where both exist,
+    at any scale of the output, with missing samples, and for a scalar prediction."""
+    rng = np.random.default_rng(seed)
+    for n, scale in [(5, 1.0), (1001, 1e-200), (100_003, 1e150)]:
+        y = rng.standard_normal(n) * scale
+        pred = y + 0.3 * scale * rng.standard_normal(n)
+        pred[0] = np.nan
+        y[-1] = np.nan
+        both = np.isfinite(y) & np.isfinite(pred)
+        yo, po = y[both] / scale, pred[both] / scale
+        want = 100 * (1 - np.linalg.norm(yo - po) / np.linalg.norm(yo - yo.mean()))
+        assert metrics.fit_percent(y, pred) == pytest.approx(want, rel=1e-12, abs=1e-10)
+        finite = y[np.isfinite(y)] / scale
+        want = 100 * (1 - np.linalg.norm(finite - 0.5) / np.linalg.norm(finite - finite.mean()))
+        assert metrics.fit_percent(y, 0.5 * scale) == pytest.approx(want, rel=1e-12, abs=1e-10)
+    y = np.array([1.0, 2.0, 3.0, 4.0])
+    assert metrics.fit_percent(y, np.array([1.0, 2.0, np.inf, 4.0])) == -math.inf  # a diverged prediction
+    assert metrics.fit_percent(y, y) == 100.0
+    assert math.isnan(metrics.fit_percent(y, np.full(4, np.nan)))

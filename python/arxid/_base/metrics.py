@@ -170,29 +170,21 @@ def fit_percent_part(y: _ArrayLike, pred: _ArrayLike) -> np.ndarray:
         somewhere, largest |y| where both exist, and the scaled squared error, mean and squared
         deviation from the mean there (combine parts with :func:`fit_percent_of_parts`).
     """
-    y = np.asarray(y, dtype=float)
-    pred = np.asarray(pred, dtype=float)
-    finite_y, finite_pred = np.isfinite(y), np.isfinite(pred)
-    ok = finite_y & finite_pred
-    n = int(np.count_nonzero(ok))
-    peak_y, peak_pred = finite_peak(y), finite_peak(pred)
-    head = [n, peak_y, peak_pred, np.isinf(pred).any()]
+    yf, pf = _flat(y), _flat(pred)
+    if yf.shape != pf.shape:  # broadcasting, as numpy's difference would
+        yb, pb = np.broadcast_arrays(np.asarray(y, dtype=float), np.asarray(pred, dtype=float))
+        yf, pf = _flat(yb), _flat(pb)
+    # One pass finds the samples where both exist, the peaks and the sum of y there; a second the
+    # two sums of squares (the Rust core: no mask, no copy of the samples used).
+    n, peak_y, peak_pred, infinite, big, total = _core.fit_pass(yf, pf)
+    head = [n, peak_y, peak_pred, infinite]
     if n == 0:
         return np.array(head + [0.0, 0.0, 0.0, 0.0], dtype=float)
-    yo, po = (y, pred) if n == len(y) else (y[ok], pred[ok])
+    mean = total / n
     # The ratio of norms does not depend on the unit: scaled to max |y| = 1, outputs near 1e154
     # or 1e-200 neither overflow nor underflow the sums of squares.
-    big = peak_y if n == len(y) else finite_peak(yo)
-    scale = _unit_scale(big)
-    with np.errstate(over="ignore", invalid="ignore"):
-        # One scratch array, reused in place (the same values as (yo - po) * scale and so on).
-        e = np.subtract(yo, po)
-        e *= scale
-        sse = np.dot(e, e)
-        mean = yo.mean()
-        np.subtract(yo, mean, out=e)
-        e *= scale
-        return np.array(head + [big, sse, mean, np.dot(e, e)], dtype=float)
+    sse, spread = _core.fit_squares(yf, pf, mean, _unit_scale(big))
+    return np.array(head + [big, sse, mean, spread], dtype=float)
 
 
 def finite_peak(x: _ArrayLike) -> float:
