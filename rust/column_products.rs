@@ -3,23 +3,21 @@
 //!
 //! A block is either a matrix (row-major, as numpy builds it) or the lags of one series: column j
 //! of row r is `series[r + width − 1 − j]`, the usual shape of a lagged candidate, which is never
-//! written out. The rows are taken a chunk at a time: the chunk of `A` is transposed once into
-//! columns, and every product is then a dot product of two contiguous runs, summed eight lanes at
-//! a time. Chunks are summed in order, so the result does not depend on the threads; it agrees
-//! with numpy's products to rounding, not to the last bit.
+//! written out. The rows are taken a chunk at a time, each operand read where it lies (a lagged
+//! block is a view with a column stride of −1), and the products of a chunk are faer's
+//! register-blocked matrix products. Chunks are summed in order, so the result does not depend on
+//! the threads; it agrees with numpy's products to rounding, not to the last bit.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
 use crate::error::{ArxError, Result};
-use crate::linear_predict::{avx2_fma, madd};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 
-/// Rows per chunk (its columns of `A` and of a matrix block stay in cache).
-const CHUNK: usize = 2048;
-
-/// Lanes of a dot product's partial sums.
-const LANES: usize = 8;
+/// Rows per chunk: long enough for the matrix products to pay for packing their operands.
+const CHUNK: usize = 8192;
 
 /// One block of candidate columns over the rows.
 pub enum Block<'a> {
@@ -106,102 +104,34 @@ pub fn column_products(
 }
 
 fn chunk_products(a: &[f64], k: usize, e: &[f64], blocks: &[Block<'_>], lo: usize, hi: usize) -> Vec<Products> {
-    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
-    if avx2_fma() {
-        // SAFETY: the CPU supports the features the function is compiled for.
-        return unsafe { chunk_products_avx2(a, k, e, blocks, lo, hi) };
-    }
-    chunk_products_with::<false>(a, k, e, blocks, lo, hi)
-}
-
-#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn chunk_products_avx2(
-    a: &[f64],
-    k: usize,
-    e: &[f64],
-    blocks: &[Block<'_>],
-    lo: usize,
-    hi: usize,
-) -> Vec<Products> {
-    chunk_products_with::<true>(a, k, e, blocks, lo, hi)
-}
-
-#[inline(always)]
-fn chunk_products_with<const FMA: bool>(
-    a: &[f64],
-    k: usize,
-    e: &[f64],
-    blocks: &[Block<'_>],
-    lo: usize,
-    hi: usize,
-) -> Vec<Products> {
     let len = hi - lo;
-    // The chunk of [A | e] as columns.
-    let mut left = vec![0.0; (k + 1) * len];
-    for (r, row) in a[lo * k..hi * k].chunks_exact(k.max(1)).enumerate() {
-        for (i, &v) in row.iter().enumerate() {
-            left[i * len + r] = v;
-        }
-    }
-    left[k * len..].copy_from_slice(&e[lo..hi]);
-    // A loop, not a closure: a closure would not inherit the caller's target features, and its
-    // multiply-adds would become calls to libm's fma.
-    let mut scratch = Vec::new();
+    // The chunk of [A | e] where it is (A row-major), and each block's columns where they are:
+    // the products are register-blocked matrix products that read each value once for many sums.
+    let am = MatRef::from_row_major_slice(&a[lo * k..hi * k], len, k);
+    let em = MatRef::from_column_major_slice(&e[lo..hi], len, 1);
     let mut out = Vec::with_capacity(blocks.len());
     for b in blocks {
         let w = b.width();
-        let cols: Vec<&[f64]> = match b {
-            Block::Lagged { series, width } => {
-                (0..*width).map(|j| &series[lo + width - 1 - j..hi + width - 1 - j]).collect()
-            }
+        let zm = match b {
+            // column j of row r is series[r + w − 1 − j]: a column stride of −1
+            // SAFETY: rows lo..hi of every column lie inside `series` (checked by `fits`).
+            Block::Lagged { series, width } => unsafe {
+                MatRef::from_raw_parts(series.as_ptr().add(lo + width - 1), len, *width, 1, -1)
+            },
             Block::Matrix { values, width } => {
-                scratch.clear();
-                scratch.resize(width * len, 0.0);
-                for (r, row) in values[lo * width..hi * width].chunks_exact(*width).enumerate() {
-                    for (j, &v) in row.iter().enumerate() {
-                        scratch[j * len + r] = v;
-                    }
-                }
-                scratch.chunks_exact(len).collect()
+                MatRef::from_row_major_slice(&values[lo * width..hi * width], len, *width)
             }
         };
-        let mut cross = vec![0.0; (k + 1) * w];
-        for (i, li) in left.chunks_exact(len).enumerate() {
-            for (j, zj) in cols.iter().enumerate() {
-                cross[i * w + j] = dot::<FMA>(li, zj);
-            }
-        }
-        let mut zz = vec![0.0; w * w];
-        for j in 0..w {
-            for l in j..w {
-                let v = dot::<FMA>(cols[j], cols[l]);
-                zz[j * w + l] = v;
-                zz[l * w + j] = v;
-            }
-        }
+        let mut cross = Mat::<f64>::zeros(k + 1, w);
+        matmul(cross.as_mut().subrows_mut(0, k), Accum::Replace, am.transpose(), zm, 1.0, Par::Seq);
+        matmul(cross.as_mut().subrows_mut(k, 1), Accum::Replace, em.transpose(), zm, 1.0, Par::Seq);
+        let mut zz = Mat::<f64>::zeros(w, w);
+        matmul(zz.as_mut(), Accum::Replace, zm.transpose(), zm, 1.0, Par::Seq);
+        let cross = (0..(k + 1) * w).map(|q| cross[(q / w, q % w)]).collect();
+        let zz = (0..w * w).map(|q| zz[(q / w, q % w)]).collect();
         out.push(Products { cross, zz });
     }
     out
-}
-
-/// `x · y` with [`LANES`] partial sums (vectorised), added in a fixed order.
-#[inline(always)]
-fn dot<const FMA: bool>(x: &[f64], y: &[f64]) -> f64 {
-    let mut acc = [0.0; LANES];
-    let (xc, yc) = (x.chunks_exact(LANES), y.chunks_exact(LANES));
-    let (xr, yr) = (xc.remainder(), yc.remainder());
-    for (xs, ys) in xc.zip(yc) {
-        for q in 0..LANES {
-            acc[q] = madd::<FMA>(xs[q], ys[q], acc[q]);
-        }
-    }
-    let mut tail = 0.0;
-    for (&p, &q) in xr.iter().zip(yr) {
-        tail = madd::<FMA>(p, q, tail);
-    }
-    let half = [acc[0] + acc[4], acc[1] + acc[5], acc[2] + acc[6], acc[3] + acc[7]];
-    (half[0] + half[2]) + (half[1] + half[3]) + tail
 }
 
 #[cfg(test)]

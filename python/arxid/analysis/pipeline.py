@@ -472,10 +472,13 @@ def _checks(
     models = {model.structure_name(): model}
     if final is not model:
         models["+ " + ", ".join(final.effects)] = final
-    tasks: list[Callable[[], Any]] = [lambda: compare(models, val, horizon, initial)]
-    tasks += [partial(where_it_fails, m, val, horizon, initial=initial) for m in models.values()]
+    # The longest first, the comparison (a free run per model) last: the two threads end together.
+    tasks: list[Callable[[], Any]] = [
+        partial(where_it_fails, m, val, horizon, initial=initial) for m in models.values()
+    ]
     tasks += [partial(_frequency, m, val, horizon) for m in models.values()]
-    cmp, *done = in_two(lambda task: task(), tasks)
+    tasks.append(lambda: compare(models, val, horizon, initial))
+    *done, cmp = in_two(lambda task: task(), tasks)
     failures, frequency = tuple(done[: len(models)]), done[len(models) :]
     problem = next((f for f in frequency if isinstance(f, str)), None)
     if problem is not None:
