@@ -1,4 +1,4 @@
-"""The thresholds of a scan are computed once per read-only signal and follow the data."""
+"""The thresholds of a scan are found once per signal of a data set and follow the data."""
 
 import gc
 
@@ -6,7 +6,7 @@ import numpy as np
 
 import arxid
 from arxid.diagnosis import candidates
-from arxid.diagnosis.candidates import threshold_grid
+from arxid.diagnosis.candidates import signal_thresholds, threshold_grid
 
 
 def _quantile_grid(x):
@@ -17,23 +17,23 @@ def _quantile_grid(x):
 
 def test_the_grid_of_each_signal_is_its_quantiles_and_kept_while_its_data_live():
     rng = np.random.default_rng(0)
-    data = arxid.IOData(rng.standard_normal(5000), rng.standard_normal((5000, 2)), 0.01)
-    first, second = threshold_grid(data.u[:, 0]), threshold_grid(data.u[:, 1])
+    before = len(candidates._GRIDS)
+    data = arxid.IOData(
+        rng.standard_normal(5000), rng.standard_normal((5000, 2)), 0.01, extra={"v": rng.uniform(0, 3, 5000)}
+    )
+    first, second = signal_thresholds(data, "u1"), signal_thresholds(data, "u2")
     np.testing.assert_array_equal(first, _quantile_grid(data.u[:, 0]))
     np.testing.assert_array_equal(second, _quantile_grid(data.u[:, 1]))
+    np.testing.assert_array_equal(signal_thresholds(data, "v"), threshold_grid(data.extra["v"]))
     first[:] = 0.0  # a caller's copy: the kept grid is not changed through it
-    np.testing.assert_array_equal(threshold_grid(data.u[:, 0]), _quantile_grid(data.u[:, 0]))
-    assert id(data.u) in candidates._GRIDS
-    key = id(data.u)
+    np.testing.assert_array_equal(signal_thresholds(data, "u1"), _quantile_grid(data.u[:, 0]))
+    assert set(candidates._GRIDS[data]) == {"u1", "u2", "v"}
     del data
     gc.collect()
-    assert key not in candidates._GRIDS
+    assert len(candidates._GRIDS) == before
 
 
-def test_a_writable_signal_is_read_each_time():
+def test_a_signal_with_a_single_level_has_no_threshold_to_scan():
     x = np.random.default_rng(1).uniform(-2, 2, 3000)
-    before = threshold_grid(x)
-    x *= 2.0
-    np.testing.assert_allclose(threshold_grid(x), 2.0 * before)
-    x[:] = 1.0  # a single level: no threshold to scan
-    assert threshold_grid(x).size == 0
+    np.testing.assert_array_equal(threshold_grid(x), _quantile_grid(x))
+    assert threshold_grid(np.ones(3000)).size == 0

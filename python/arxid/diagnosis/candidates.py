@@ -144,13 +144,6 @@ def output_integrates(model: ArxModel, free_run_fit: float | None = None) -> boo
     return structure_integrates(model.parameters_, model.covariance_, model.na_, model.n_rows_, free_run_fit)
 
 
-#: The thresholds of read-only signals, by the array whose memory they view (an entry goes with
-#: that array; arrays are not hashable, so by id with a weak reference): a diagnosis asks for them
-#: when it lists its candidates and again when it scans, and a ladder diagnoses the same data again
-#: (a sort of the record each time).
-_GRIDS: dict[int, tuple[weakref.ref, dict]] = {}
-
-
 def threshold_grid(x: np.ndarray) -> np.ndarray:
     """Thresholds tried for ``dz(x,c)`` and ``sat(x,c)``: the 5 %, …, 95 % quantiles of |x|.
 
@@ -165,26 +158,37 @@ def threshold_grid(x: np.ndarray) -> np.ndarray:
         Distinct positive thresholds, ascending (empty when |x| takes fewer than
         ``MIN_THRESHOLD_LEVELS`` values).
     """
-    owner = x if x.base is None else x.base
-    if x.flags.writeable or not isinstance(owner, np.ndarray) or owner.flags.writeable:
-        return _threshold_grid(x)
-    held = _GRIDS.get(id(owner))
-    if held is None or held[0]() is not owner:
-        ident = id(owner)
-        held = _GRIDS[ident] = (weakref.ref(owner, lambda _: _GRIDS.pop(ident, None)), {})
-    memo = held[1]
-    key = (x.__array_interface__["data"][0], x.shape, x.strides, x.dtype.str)
-    if key not in memo:
-        memo[key] = _threshold_grid(x)
-    return memo[key].copy()
-
-
-def _threshold_grid(x: np.ndarray) -> np.ndarray:
     a = np.sort(np.abs(x[np.isfinite(x)]))  # one sort serves the count of levels and the quantiles
     if a.size == 0 or 1 + np.count_nonzero(a[1:] != a[:-1]) < MIN_THRESHOLD_LEVELS:
         return np.zeros(0)
     q = np.unique(np.quantile(a, np.linspace(0.05, 0.95, 19)))
     return q[q > 0]
+
+
+#: The thresholds of each signal of a data set (weakly held: an entry goes with its data).
+_GRIDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def signal_thresholds(data: IOData, name: str) -> np.ndarray:
+    """:func:`threshold_grid` of the signal ``name`` of ``data``, found once per data set: a
+    diagnosis asks for it when it lists its candidates and again when it scans, and a ladder
+    diagnoses the same data again (each a sort of the record).
+
+    Parameters
+    ----------
+    data : IOData
+    name : str
+        A signal of ``data`` (as :meth:`IOData.signal` reads it).
+
+    Returns
+    -------
+    ndarray
+        As :func:`threshold_grid` (a copy: the kept grid is not changed through it).
+    """
+    memo = _GRIDS.setdefault(data, {})
+    if name not in memo:
+        memo[name] = threshold_grid(np.asarray(data.signal(name), dtype=float))
+    return memo[name].copy()
 
 
 def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
@@ -233,7 +237,7 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     out.append("sign(dy)")
     out += [f"sign(d{a})" for a in ins]
     for i, a in enumerate(ins):
-        if threshold_grid(data.u[:, i]).size:
+        if signal_thresholds(data, a).size:
             out += [f"dz({a})", f"sat({a})"]
         if changes_sign(data.u[:, i]):
             out.append(f"pos({a})")
@@ -352,7 +356,9 @@ def _entry_text(written: str, signal: str, c: str) -> str:
     return text.replace("|u|", f"|{signal}|").replace("< c", f"< {c}").replace("> c", f"> {c}")
 
 
-def scan_threshold(x: np.ndarray, scores: Callable[[np.ndarray], np.ndarray]) -> tuple[float, int]:
+def scan_threshold(
+    x: np.ndarray, scores: Callable[[np.ndarray], np.ndarray], grid: np.ndarray | None = None
+) -> tuple[float, int]:
     """The threshold c of the best score: the grid of :func:`threshold_grid`, then a grid ten times
     finer between the best value's neighbours.
 
@@ -363,6 +369,8 @@ def scan_threshold(x: np.ndarray, scores: Callable[[np.ndarray], np.ndarray]) ->
     scores : callable
         The scores of an array of thresholds, one call per grid (NaN where one cannot be tested);
         the added-variable score in the diagnosis.
+    grid : ndarray, optional
+        The coarse grid, when known (:func:`signal_thresholds`); default :func:`threshold_grid` of ``x``.
 
     Returns
     -------
@@ -372,7 +380,7 @@ def scan_threshold(x: np.ndarray, scores: Callable[[np.ndarray], np.ndarray]) ->
         Number of values on the coarse grid (0 when |x| takes too few values): the Bonferroni factor
         for the chosen threshold's p-value.
     """
-    grid = threshold_grid(x)
+    grid = threshold_grid(x) if grid is None else grid
     coarse = np.asarray(scores(grid), dtype=float) if grid.size else np.zeros(0)
     if not grid.size or np.isnan(coarse).all():
         return float("nan"), int(grid.size)

@@ -32,7 +32,7 @@ from ..models.effects import (
 )
 from ..models.regressors import first_of_run, lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
 from .added_variable import AddedVariableResult, AddedVariableTest, all_finite, held_columns, holm, lagged_view
-from .candidates import scan_threshold
+from .candidates import scan_threshold, signal_thresholds
 from .extension import Candidate, layout_for
 
 __all__ = ["Scoring", "scored_entry"]
@@ -258,7 +258,9 @@ class Scoring:
         """
         ops = [c.label[: c.label.index("(")] for c in group]
         x = np.asarray(self.data.signal(signal), dtype=float)
-        c, n = scan_threshold(x, lambda cs: self._threshold_shares(ops[0], signal, cs))
+        c, n = scan_threshold(
+            x, lambda cs: self._threshold_shares(ops[0], signal, cs), signal_thresholds(self.data, signal)
+        )
         if not math.isfinite(c):
             for cand in group:
                 why = "no threshold could be tested" if n else f"|{signal}| takes too few distinct values to scan"
