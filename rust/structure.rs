@@ -268,6 +268,34 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_power_term_is_squaring_and_multiplying() {
+        // The Python layer writes y^p regressors the same way (arxid.models.effects.integer_power),
+        // so a term has the same bits in the regression and in the simulation.
+        let square_and_multiply = |mut a: f64, mut p: i32| {
+            let mut r = 1.0;
+            loop {
+                if p & 1 == 1 {
+                    r *= a;
+                }
+                p /= 2;
+                if p == 0 {
+                    return r;
+                }
+                a *= a;
+            }
+        };
+        let mut state = 7u64;
+        for _ in 0..10_000 {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let x = ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 9.7;
+            for p in 1..8 {
+                let p = std::hint::black_box(p);
+                assert_eq!(x.powi(p).to_bits(), square_and_multiply(x, p).to_bits(), "{x}^{p}");
+            }
+        }
+    }
+
+    #[test]
     fn sign_terms_follow_numpy_sign_with_zero_at_zero() {
         let t = |kind| OutputTerm { kind, multiplier: None };
         assert_eq!(t(OutputKind::Sign).eval(-0.3, 5.0, 1.0), -1.0);

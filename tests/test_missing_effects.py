@@ -354,3 +354,26 @@ def test_coefficients_from_cross_products_equal_the_least_squares_fit(collinear)
     want = np.linalg.lstsq(np.column_stack([phi, z]), y, rcond=None)[0]
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
     assert test.coefficients(np.column_stack([phi[:, 1], z[:, 0]])) is None  # a column the model has
+
+
+def test_a_power_is_squared_and_multiplied_as_the_core_does():
+    """Regressors y^p and u^p are written by squaring and multiplying, the order of the core's
+    powi (its Rust test holds it to that): the same bits in the regression and in the simulation."""
+    from arxid.models.effects import integer_power
+
+    x = np.random.default_rng(8).standard_normal(5000) * 4.0
+    for p in range(1, 8):
+        want = np.empty_like(x)
+        for i, v in enumerate(x):
+            r, a, b = 1.0, float(v), p
+            while True:
+                if b & 1:
+                    r *= a
+                b >>= 1
+                if b == 0:
+                    break
+                a *= a
+            want[i] = r
+        got = integer_power(x, p)
+        assert np.array_equal(got, want) and got is not x
+        np.testing.assert_allclose(got, x**p, rtol=1e-15 * p)

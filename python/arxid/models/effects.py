@@ -321,9 +321,40 @@ def thresholded_products(
     return cross.transpose(0, 2, 1).reshape(k, m * width), zz.transpose(2, 0, 1)
 
 
+def integer_power(x: np.ndarray, power: int) -> np.ndarray:
+    """``x ** power`` for an integer ``power >= 1`` by squaring and multiplying, as the Rust core's
+    ``powi`` evaluates an output term: the same bits in the regressors and in the simulation (numpy's
+    ``pow`` rounds once, and is eight times slower for a cube).
+
+    Parameters
+    ----------
+    x : ndarray
+    power : int
+
+    Returns
+    -------
+    ndarray
+        A new array.
+
+    Examples
+    --------
+    >>> integer_power(np.array([2.0, -1.5]), 3).tolist()
+    [8.0, -3.375]
+    """
+    result, given = None, np.asarray(x, dtype=float)
+    base = given
+    while True:
+        if power & 1:
+            result = (base.copy() if base is given else base) if result is None else result * base
+        power >>= 1
+        if power == 0:
+            return result
+        base = base * base
+
+
 def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     if f.op == "pow":
-        return x**f.power
+        return integer_power(x, f.power)
     if f.op == "abs":
         return np.abs(x)
     if f.op == "sign":

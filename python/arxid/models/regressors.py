@@ -14,7 +14,7 @@ import numpy as np
 from .._base import _core
 from .._base.background import in_row_halves
 from ..data.iodata import IOData
-from .effects import EffectLayout
+from .effects import EffectLayout, integer_power
 
 __all__ = [
     "regression_rows",
@@ -272,7 +272,7 @@ def output_term_values(kind: str, power: int, y1: np.ndarray, y2: Callable[[], n
     [1.0, -1.0]
     """
     if kind == "pow":
-        return y1**power
+        return integer_power(y1, power)
     if kind == "abs":
         return np.abs(y1)
     if kind == "sign":
