@@ -152,9 +152,13 @@ def _first_order(model: ArxModel, curve: Callable[[ArxModel], np.ndarray]) -> tu
     theta = model.parameters_
     with np.errstate(all="ignore"):
         for d in dirs:
-            hi = curve(_with_parameters(model, theta + _STEP * d))
+            hi = np.asarray(curve(_with_parameters(model, theta + _STEP * d)), dtype=float)
             lo = curve(_with_parameters(model, theta - _STEP * d))
-            var += ((hi - lo) / (2.0 * _STEP)) ** 2
+            # ((hi − lo) / 2h)², in place: no temporaries the size of the curve
+            np.subtract(hi, lo, out=hi)
+            np.divide(hi, 2.0 * _STEP, out=hi)
+            np.multiply(hi, hi, out=hi)
+            var += hi
     return nominal, np.sqrt(var), 2 * len(dirs)
 
 
