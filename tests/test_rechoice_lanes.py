@@ -10,6 +10,7 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid.diagnosis.restructure import _neighbours, _Search
+from arxid.models.lanes import lane_rms
 
 
 def _record(seed, n=6000, gap=False):
@@ -33,7 +34,7 @@ def _neighbourhood(effects, gap=False, initial="zero"):
 @pytest.mark.parametrize("effects", [[], ["u1*v"], ["u1*v", "const"]])
 def test_lanes_give_each_models_rms_and_keep_the_same_models(effects):
     search, models = _neighbourhood(effects)
-    lanes = search._lane_rms(models)
+    lanes = lane_rms(models, search.validation, None)
     assert lanes is not None
     exact = np.array([search.measured(m)[0] for m in models])
     np.testing.assert_allclose(lanes, exact, rtol=1e-12)
@@ -52,7 +53,25 @@ def test_lanes_give_each_models_rms_and_keep_the_same_models(effects):
 )
 def test_output_terms_missing_samples_and_estimated_starts_use_each_prediction(effects, gap, initial):
     search, models = _neighbourhood(effects, gap=gap, initial=initial)
-    assert search._lane_rms(models) is None
+    assert (lane_rms(models, search.validation, None) if initial == "zero" else None) is None
     got = search.screened(models, math.inf)
     assert all(err is not None for _, _, err in got)
     assert [rms for rms, _, _ in got] == [search.measured(m)[0] for m in models]
+
+
+def test_the_judges_refits_are_validated_together_as_one_by_one():
+    """Candidates with different effects share lanes through the union of their columns; each gets
+    the validation error of its own prediction (to rounding), an output term its own free run."""
+    from arxid.checks import error_rms
+    from arxid.diagnosis.extension import Candidate, Refits
+
+    est, val = _record(3), _record(4)
+    model = arxid.arx(est, 2, 2, 1)
+    cands = [Candidate(e, (e,), 2, model.nb_, model.nk_, "effect") for e in ("u1*v", "v", "const", "time", "y^2")]
+    shared = Refits(model, est, cands)
+    shared.validate_all(cands, val, None)
+    assert len(shared._validated) == 4  # all but the output term
+    for c in cands:
+        fitted, rms = shared.validated(c, val, None)
+        assert rms == pytest.approx(error_rms(fitted, val), rel=1e-12)
+        assert fitted.effects == (c.label,)

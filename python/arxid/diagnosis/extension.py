@@ -18,6 +18,7 @@ from ..exceptions import ArxidError, OrderError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects, parse_effect
 from ..models.envelope import EnvelopeFactor
+from ..models.lanes import lane_rms
 from ..models.polynomial import PolynomialModel
 from .candidates import auto_candidates, candidate_input_names
 from .polynomial import refit_structure, refit_with_effects
@@ -171,6 +172,7 @@ class Refits:
     def __init__(self, model: ArxModel, data: IOData, cands: Sequence[Candidate], reuse: Refits | None = None):
         self.model, self.data = model, data
         self.index: dict[str, int] = {}
+        self._validated: dict[tuple, tuple[ArxModel, float]] = {}  # found by validate_all
         self.envelope: EnvelopeFactor | None = None
         if isinstance(model, PolynomialModel):
             return
@@ -214,6 +216,36 @@ class Refits:
         i = self.index.get(getattr(c, "label", ""))
         return self.envelope is not None and i is not None and self.envelope.has(i)
 
+    def validate_all(self, cands: Sequence, validation: IOData, horizon: int | None, initial: str = "zero") -> None:
+        """Fit every candidate of ``cands`` the shared factor holds and find their validation errors
+        together, in one pass of the core's lanes over the validation data (:mod:`arxid.models.lanes`;
+        each the error of its own prediction to rounding); :meth:`validated` then returns them.
+        Nothing is found when the candidates cannot share lanes (they are validated one by one).
+
+        Parameters
+        ----------
+        cands : sequence of Candidate
+        validation : IOData
+        horizon : int or None
+        initial : {"zero", "estimate"}
+            Lanes start every free run from the measured outputs: ``"zero"`` only.
+        """
+        if self.envelope is None or initial != "zero":
+            return
+        fitted: dict[str, ArxModel] = {}
+        for c in cands:
+            if self.has(c) and c.label not in fitted:
+                try:
+                    m = ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(self.model, c))
+                    fitted[c.label] = m.fit_in(self.envelope, self.index[c.label])
+                except ArxidError:
+                    continue
+        fitted = {label: m for label, m in fitted.items() if not m.layout_.output_terms}  # those run alone
+        rms = lane_rms(list(fitted.values()), validation, horizon) if len(fitted) > 1 else None
+        if rms is not None:
+            for (label, m), r in zip(fitted.items(), rms, strict=True):
+                self._validated[label, id(validation), horizon, initial] = (m, float(r))
+
     def validated(self, c, validation: IOData, horizon: int | None, initial: str = "zero") -> tuple[ArxModel, float]:
         """As :func:`refit_and_validate`, from the envelope's factor when ``c`` is in it.
 
@@ -231,6 +263,9 @@ class Refits:
         """
         if not self.has(c) or self.envelope is None:
             return refit_and_validate(self.model, self.data, validation, c, horizon, initial)
+        known = self._validated.get((c.label, id(validation), horizon, initial))
+        if known is not None:
+            return known
         i = self.index[c.label]
         fitted = ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(self.model, c)).fit_in(self.envelope, i)
         return fitted, error_rms(fitted, validation, horizon, initial)

@@ -83,6 +83,10 @@ class Judge:
             simple = [Candidate(n, (n,), m.na_, m.nb_, m.nk_, "effect") for n in SIMPLE_EXPLANATIONS]
             # from the factor of the last refits when it holds these candidates (the masked pairs')
             self.shared = Refits(m, self.data, [scored[i]["c"] for i in sorted(chosen)] + simple, self.shared)
+            # every refit's validation error from one pass over the validation data, where they can
+            self.shared.validate_all(
+                [scored[i]["c"] for i in sorted(chosen)], self.validation, self.horizon, self.initial
+            )
         # Each refit is validated by a free run of the validation data: two at a time.
         return in_two(
             lambda i: self._suspect(scored[i], notes.get(scored[i]["c"].label, ""), alpha, i in chosen),

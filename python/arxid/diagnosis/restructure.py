@@ -33,13 +33,14 @@ from functools import partial
 
 import numpy as np
 
-from .._base import _core, metrics
+from .._base import metrics
 from .._base.background import in_two
 from ..checks import prediction, prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.envelope import EnvelopeFactor
+from ..models.lanes import lane_rms
 from ..selection.parsimony import diebold_mariano
 from ..selection.sanity import step_sanity
 
@@ -198,34 +199,12 @@ class _Search:
         in the output, on complete data: every RMS from one pass of the core's lanes over the
         validation data (as a sweep scores its structures, to rounding), then the errors and the
         RMS of its own prediction only for a model that can pass ``keep_below``."""
-        lanes = self._lane_rms(models)
+        lanes = None if self.initial != "zero" else lane_rms(models, self.validation, self.horizon)
         if lanes is None:  # each by its own prediction, two at a time
             return in_two(partial(self.measured, keep_below=keep_below), models)
         near = [m for m, rms in zip(models, lanes, strict=True) if rms <= keep_below]
         exact = {id(m): got for m, got in zip(near, in_two(partial(self.measured, keep_below=keep_below), near))}
         return [exact.get(id(m), (rms, m, None)) for m, rms in zip(models, lanes, strict=True)]
-
-    def _lane_rms(self, models: list[ArxModel]) -> np.ndarray | None:
-        """The validation RMS of each model by the core's simulation of many structures side by
-        side (inf where it diverged); None when the models or the data do not allow it."""
-        val = self.validation
-        if not models or self.initial != "zero" or len({m.first_lag_ for m in models}) != 1:
-            return None
-        if any(m.layout_.output_terms or m.effects != models[0].effects for m in models):
-            return None
-        lay = models[0]._layout(val)
-        if not (np.isfinite(val.y).all() and np.isfinite(lay.u).all()):
-            return None
-        rows = np.array([[m.na_, *m.layout_.nb, *m.layout_.nk] for m in models], dtype=np.int64)
-        theta = np.full((len(models), max(m.n_params for m in models)), np.nan)
-        for i, m in enumerate(models):
-            theta[i, : m.n_params] = m.parameters_
-        y = np.require(val.y, requirements=["C", "A"])
-        starts = list(val.experiment_starts)
-        rms, _, _, _, diverged = _core.simulate_structures(
-            y, lay.u, starts, rows, [], theta, models[0].first_lag_, self.horizon
-        )
-        return np.where(diverged, math.inf, rms)
 
     def flags(self, model: ArxModel) -> set[str]:
         return set(step_sanity(model, self.validation, expect=self.expect).flags)

@@ -25,7 +25,7 @@ from ..exceptions import ArxidError
 from .effects import EffectLayout, compile_effects, effect_names, layout_column
 from .regressors import max_lag, output_term_values, regressor_names
 
-__all__ = ["EnvelopeFactor"]
+__all__ = ["EnvelopeFactor", "envelope_inputs"]
 
 #: (na, nb, nk, effects) of one structure, nb and nk one per input.
 Spec = tuple[int, Sequence[int], Sequence[int], Sequence[str]]
@@ -81,7 +81,7 @@ class EnvelopeFactor:
             for lay in self.layouts
             for text, (kind, power, carrier) in zip(lay.effect_of_term, lay.output_terms)
         }
-        u = _envelope_inputs(data, self.labels, terms)
+        u = envelope_inputs(data, self.labels, terms)
         self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
         lag = max(max_lag(na, lay) for (na, *_), lay, ok in zip(self.structures, self.layouts, self.inside) if ok)
@@ -192,10 +192,24 @@ def _labels(layout: EffectLayout) -> list[str]:
 _COLUMNS_AT_ONCE = 4
 
 
-def _envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple]) -> np.ndarray:
+def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | None = None) -> np.ndarray:
     """The envelope's input matrix, one column per label (row-major, as the core reads it): an
     input or effect (:func:`layout_column`) or an output term's series (after its carrier's column,
-    as the labels list them). Raises ArxidError when a sample is missing."""
+    as the labels list them). Raises ArxidError when a sample is missing.
+
+    Parameters
+    ----------
+    data : IOData
+    labels : list of str
+        Column labels (inputs, effects, output terms).
+    terms : dict, optional
+        ``label → (kind, power, carrier label or None)`` of the output terms among ``labels``.
+
+    Returns
+    -------
+    ndarray of shape (n_samples, len(labels))
+    """
+    terms = terms or {}
     u = np.empty((data.n_samples, len(labels)))
     at = {label: j for j, label in enumerate(labels)}
     pending: dict[int, np.ndarray] = {}
