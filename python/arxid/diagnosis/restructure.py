@@ -269,7 +269,8 @@ def rechoose_structure(
         # that can be better (its RMS low enough) keeps its errors, for the paired test.
         fitted = search.screened([m for m in models[1:] if m is not None], (1.0 - min_improvement) * rms_base)
         tried += len(fitted)
-        better = [f for f in fitted if f[2] is not None and _better(f[0], f[2], rms_base, err_base, min_improvement)]
+        kept = [(rms, m, err) for rms, m, err in fitted if err is not None]
+        better = [f for f in kept if _better(f[0], f[2], rms_base, err_base, min_improvement)]
         if not better:
             break
         lowest = min(better, key=lambda f: f[0])

@@ -348,6 +348,7 @@ def integer_power(x: np.ndarray, power: int) -> np.ndarray:
             result = (base.copy() if base is given else base) if result is None else result * base
         power >>= 1
         if power == 0:
+            assert result is not None  # power >= 1 sets it
             return result
         base = base * base
 
