@@ -2,6 +2,7 @@
 //! factorization, and fast free-run simulation. Pure Rust; the Python boundary lives in `py`.
 
 pub mod ar_filter;
+pub mod band;
 pub mod column_products;
 pub mod columns;
 pub mod csv_read;

@@ -282,6 +282,34 @@ fn fit<'py>(
     })
 }
 
+/// The first-order band's variance of a free run (see [`crate::band::free_run_variance`]): `thetas`
+/// holds θ⁺_0, θ⁻_0, θ⁺_1, … one per row; None when an experiment has a missing sample. Runs with the
+/// GIL released and stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (y, u, starts, na, nb, nk, thetas, step, first_lag = 0))]
+#[allow(clippy::too_many_arguments)]
+fn free_run_variance<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    starts: Vec<usize>,
+    na: usize,
+    nb: Vec<usize>,
+    nk: Vec<usize>,
+    thetas: PyReadonlyArray2<'py, f64>,
+    step: f64,
+    first_lag: usize,
+) -> PyResult<Option<Bound<'py, PyArray1<f64>>>> {
+    let s = structure(py, na, nb, nk, Vec::new())?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
+    s.check(m).map_err(|e| to_pyerr(py, e))?;
+    let th = thetas.as_array();
+    let rows: Vec<Vec<f64>> = th.rows().into_iter().map(|r| r.to_vec()).collect();
+    let out = run(py, 1, |cancel| crate::band::free_run_variance(&d, &s, &rows, step, first_lag, cancel))?;
+    Ok(out.map(|v| v.into_pyarray(py)))
+}
+
 /// Prediction with `horizon` steps (None = free-run simulation); NaN where no prediction exists.
 #[pyfunction]
 #[pyo3(signature = (y, u, starts, na, nb, nk, output_terms, theta, horizon = None, first_lag = 0))]
@@ -1034,7 +1062,8 @@ mod core_module {
     use super::py_srivc::srivc_filter;
     #[pymodule_export]
     use super::{
-        divergence_limit, fit, fit_memory, grid_envelope, max_lag, predict, sweep, sweep_memory, FitOutput, SweepOutput,
+        divergence_limit, fit, fit_memory, free_run_variance, grid_envelope, max_lag, predict, sweep, sweep_memory,
+        FitOutput, SweepOutput,
     };
     #[pymodule_export]
     use super::{

@@ -215,3 +215,28 @@ def test_frequency_response_of_polynomial_models_is_b_over_a_f(index):
         var = np.einsum("fi,ij,fj->f", jac.real, cov, jac.real) + np.einsum("fi,ij,fj->f", jac.imag, cov, jac.imag)
         ref = np.sqrt(var)
         np.testing.assert_allclose(sd, ref, rtol=1e-5)
+
+
+@pytest.mark.parametrize("effects", [[], ["u1*v"], ["y^2"]])
+@pytest.mark.parametrize("gap", [False, True])
+def test_a_free_run_band_summed_in_the_core_is_the_band_of_each_pair_of_runs(effects, gap):
+    """The core sums the central differences of each pair of free runs: the band of the generic
+    path to the bit; a model with an output term, or inputs with a missing sample, take that path."""
+    from arxid.checks.bands import _free_run_first_order, response_band
+
+    rng = np.random.default_rng(12)
+    n = 2000
+    u, v = rng.standard_normal(n), 1.0 + 0.1 * rng.standard_normal(n)
+    y = lfilter([0, 0.5, 0.3], [1, -1.5, 0.7], u * v) + 0.05 * rng.standard_normal(n)
+    if gap:
+        u[1500] = np.nan  # in the validation half
+    data = arxid.IOData(y, u, 0.01, extra={"v": v})
+    est, val = data.split(0.5)
+    model = arxid.arx(est, 2, 2, 1, effects=effects)
+    band = free_run_band(model, val)
+    generic = response_band(model, lambda m: m.predict(val, None), val.time)
+    for got, want in ((band.sd, generic.sd), (band.response, generic.response), (band.upper, generic.upper)):
+        assert np.array_equal(got, want, equal_nan=True)
+    assert band.n_draws == generic.n_draws and np.isfinite(band.sd[10:]).any()
+    in_core = _free_run_first_order(model, val) is not None
+    assert in_core == (not gap and "y^2" not in effects)

@@ -29,6 +29,7 @@ __all__ = [
     "fit",
     "fit_from_factor",
     "fit_memory",
+    "free_run_variance",
     "grid_envelope",
     "max_lag",
     "predict",
@@ -133,6 +134,17 @@ def fit_from_factor(
     structure: tuple[int, Sequence[int], Sequence[int]],
     output_terms: Sequence[_Term],
 ) -> FitOutput: ...
+def free_run_variance(
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    na: int,
+    nb: Sequence[int],
+    nk: Sequence[int],
+    thetas: _F,
+    step: float,
+    first_lag: int = 0,
+) -> _F | None: ...
 def predict(
     y: _F,
     u: _F,
