@@ -1,6 +1,7 @@
 """The thresholds of a scan are found once per signal of a data set and follow the data."""
 
 import gc
+import weakref
 
 import numpy as np
 
@@ -17,7 +18,6 @@ def _quantile_grid(x):
 
 def test_the_grid_of_each_signal_is_its_quantiles_and_kept_while_its_data_live():
     rng = np.random.default_rng(0)
-    before = len(candidates._GRIDS)
     data = arxid.IOData(
         rng.standard_normal(5000), rng.standard_normal((5000, 2)), 0.01, extra={"v": rng.uniform(0, 3, 5000)}
     )
@@ -28,9 +28,10 @@ def test_the_grid_of_each_signal_is_its_quantiles_and_kept_while_its_data_live()
     first[:] = 0.0  # a caller's copy: the kept grid is not changed through it
     np.testing.assert_array_equal(signal_thresholds(data, "u1"), _quantile_grid(data.u[:, 0]))
     assert set(candidates._GRIDS[data]) == {"u1", "u2", "v"}
+    held = weakref.ref(data)
     del data
     gc.collect()
-    assert len(candidates._GRIDS) == before
+    assert held() is None  # the kept grids do not keep their data alive (their entry goes with them)
 
 
 def test_a_signal_with_a_single_level_has_no_threshold_to_scan():
