@@ -8,6 +8,7 @@ use std::sync::atomic::AtomicBool;
 
 use crate::error::{ArxError, Result};
 use crate::linear_predict::free_run;
+use crate::simulate::complete;
 use crate::structure::{Data, Structure};
 
 /// `Σ_k ((ŷ(θ⁺_k) − ŷ(θ⁻_k)) / (2·step))²` per sample, `thetas` holding θ⁺_0, θ⁻_0, θ⁺_1, …; NaN
@@ -42,9 +43,7 @@ pub fn free_run_variance(
         if start >= b {
             continue;
         }
-        let complete =
-            d.y[a..start].iter().all(|v| v.is_finite()) && d.u[a * d.m..b * d.m].iter().all(|v| v.is_finite());
-        if !complete {
+        if !complete(d, a, start, b) {
             return Ok(None);
         }
         rows.push((start, b));

@@ -59,7 +59,7 @@ pub fn predict(d: &Data, s: &Structure, theta: &[f64], horizon: Option<usize>, f
 
 /// Whether experiment `[a, b)` has finite inputs and finite initial outputs `[a, start)`: then the
 /// free run never restarts from measurements and is a plain recursion.
-fn complete(d: &Data, a: usize, start: usize, b: usize) -> bool {
+pub(crate) fn complete(d: &Data, a: usize, start: usize, b: usize) -> bool {
     d.y[a..start].iter().all(|v| v.is_finite()) && d.u[a * d.m..b * d.m].iter().all(|v| v.is_finite())
 }
 
