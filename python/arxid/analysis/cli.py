@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 import time
 from collections.abc import Sequence
@@ -188,6 +189,13 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
     p.add_argument("--output", required=True, metavar="COL", help="output column")
     p.add_argument("--inputs", required=True, metavar="A[,B]", help="input column(s), comma separated")
     p.add_argument("--extra", metavar="C[,D]", default="", help="logged signals kept for diagnostics (e.g. vbat)")
+    p.add_argument(
+        "--reference",
+        metavar="C",
+        default=None,
+        help="the setpoint the controller tracks (closed-loop data: the plant is identified with it as instrument; "
+        "default: recognised from the names, e.g. roll_sp, setpoint)",
+    )
     g = p.add_mutually_exclusive_group()
     g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
     g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
@@ -274,6 +282,9 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def _load(args, need_validation: bool = True):
     inputs, extra = _names(args.inputs), _names(args.extra)
+    reference = getattr(args, "reference", None)
+    if reference and reference not in extra:  # the reference is read with the other logged signals
+        extra = [*extra, reference]
     units = parse_units(args.units)
     data = load_data(args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
     val = None
@@ -439,7 +450,13 @@ def _analyse(args) -> Analysis:
         max_steps=args.max_steps,
         progress=_progress(args),
         initial=args.initial,
+        reference=_reference_name(args.reference),
     )
+
+
+def _reference_name(name: str | None) -> str | None:
+    """The reference as the data name it: a ULog selector's ``.`` and brackets become ``_``."""
+    return None if not name else re.sub(r"[.\[\]]+", "_", name).strip("_")
 
 
 def cmd_diagnose(args) -> int:

@@ -1,15 +1,70 @@
-"""What the analysis says about feedback: the test of :func:`arxid.feedback` on the estimation data,
-and the notes the CLI, the report and the JSON carry (which estimators stay consistent, what to do)."""
+"""What the analysis does once the data are known to be closed loop.
+
+The feedback test of :func:`arxid.feedback` runs on the estimation data, and its verdict steers
+the chain (Forssell & Ljung, "Closed-loop identification revisited", Automatica 35, 1999):
+
+* **no feedback**: the open-loop chain (least-squares sweep, free-run validation);
+* **feedback and a logged reference** (named with ``reference=``, or recognised from its name:
+  ``setpoint``, ``_sp``, ``ref``, ``des`` ...): every structure is fitted by instrumental variables
+  whose instruments come from the reference (consistent for any noise colour), and judged by the
+  free run of the plant on the reference-driven part of the input (the two-stage input ``û``, see
+  :mod:`arxid.models.two_stage`), which the noise did not pass through. The chosen structure is
+  refitted by IV4 (:func:`arxid.iv`); the diagnosis refits candidates on the two-stage data;
+* **feedback, no reference**: the direct method, a Box–Jenkins model fitted by prediction error on
+  the measured signals, consistent when its noise model can describe the noise. The validation can
+  only use the measured input, which carries the noise fed back: the plant may still be biased.
+
+In closed loop the default grid starts the delay at one sample (a controller that reads the output
+and writes the input within one sample makes a direct feedthrough indistinguishable from the
+loop), and the operating point (the estimation record's means of the output and inputs) is part of
+every structure, so that the offsets of a raw log are not left to be found later.
+
+Loop signals, the reference and any logged signal the controller computes from the output (PID
+terms, motor and actuator commands), are never proposed as extra inputs: such a signal explains the
+error because the loop closes through it, not because the plant misses an effect.
+"""
 
 from __future__ import annotations
 
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
 from ..checks.feedback import FeedbackTest, feedback
 from ..data.iodata import IOData
-from ..exceptions import DataError
+from ..exceptions import ArxidError, DataError
+from ..models.iv import instrument_names, iv
+from ..models.pem import bj
+from ..models.two_stage import reference_driven
 
-__all__ = ["feedback_check", "feedback_notes", "reference_candidates"]
+__all__ = [
+    "ClosedLoopMethod",
+    "feedback_check",
+    "feedback_notes",
+    "reference_candidates",
+    "reference_names",
+    "loop_signal_names",
+    "closed_loop_grid",
+    "operating_point",
+    "remove_operating_point",
+    "iv_refit",
+    "direct_refit",
+    "NOISE_ORDERS",
+]
 
-_REFERENCE_HINTS = ("setpoint", "_sp", "sp_", "ref", "command", "target")
+# Words of a reference or setpoint in the names firmware and users give them.
+_REFERENCE = re.compile(r"(setpoint|_sp(_|$)|(^|_)sp_|ref|command|target|(^|_)des|des($|_)|rdes|pdes|ydes)", re.I)
+# Signals a controller computes from the output: PID terms, its outputs to motors and actuators.
+_CONTROLLER = re.compile(
+    r"(axis[pidf](_|$)|pid|(^|_)[pidf]term|rout$|pout$|yout$|(^|_)out(_|$)|actuator|motor|servo|rcou|control)", re.I
+)
+
+#: Orders (nc, nd) of the Box–Jenkins noise model of the direct method: a noise spectrum with two
+#: resonances or slopes, enough for vibration and gusts seen by a gyro.
+NOISE_ORDERS = (2, 2)
 
 
 def reference_candidates(data: IOData) -> list[str]:
@@ -23,7 +78,45 @@ def reference_candidates(data: IOData) -> list[str]:
     -------
     list of str
     """
-    return [n for n in data.extra if any(h in n.lower() for h in _REFERENCE_HINTS)]
+    return [n for n in data.extra if _REFERENCE.search(n) and not _CONTROLLER.search(n)]
+
+
+def reference_names(data: IOData, reference: str | Sequence[str] | None) -> tuple[str, ...]:
+    """The references of the analysis: those named (checked), else those recognised by name.
+
+    Parameters
+    ----------
+    data : IOData
+    reference : None, str or sequence of str
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    DataError
+        When a named reference is not an extra signal of the data, or is the output or an input.
+    """
+    if reference is None:
+        return tuple(reference_candidates(data))
+    return instrument_names(data, reference)
+
+
+def loop_signal_names(data: IOData, references: Sequence[str]) -> tuple[str, ...]:
+    """The extra signals that belong to the loop: the references and the controller's signals.
+
+    Parameters
+    ----------
+    data : IOData
+    references : sequence of str
+
+    Returns
+    -------
+    tuple of str
+    """
+    named = set(references) | set(reference_candidates(data))
+    return tuple(n for n in data.extra if n in named or _CONTROLLER.search(n))
 
 
 def feedback_check(data: IOData) -> FeedbackTest | None:
@@ -43,14 +136,272 @@ def feedback_check(data: IOData) -> FeedbackTest | None:
         return None
 
 
-def feedback_notes(test: FeedbackTest | None, data: IOData) -> tuple[str, ...]:
-    """One or two sentences for the reader: was there feedback, and what it means for the model.
+def closed_loop_grid(grid: Mapping[str, Any]) -> dict[str, tuple[int, ...]]:
+    """The default grid of a closed-loop analysis: the delays from one sample on.
+
+    Parameters
+    ----------
+    grid : mapping with keys na, nb, nk (each a tuple of int)
+
+    Returns
+    -------
+    dict
+    """
+    nk = tuple(k for k in grid["nk"] if k >= 1) or (1,)
+    return {"na": tuple(grid["na"]), "nb": tuple(grid["nb"]), "nk": nk}
+
+
+def operating_point(data: IOData) -> dict[str, float]:
+    """The means of the output and of each input over the samples present (the operating point).
+
+    Parameters
+    ----------
+    data : IOData
+
+    Returns
+    -------
+    dict of str to float
+    """
+    point = {data.output_name: float(np.nanmean(data.y))}
+    point.update({n: float(np.nanmean(data.u[:, i])) for i, n in enumerate(data.input_names)})
+    return point
+
+
+def remove_operating_point(data: IOData, point: Mapping[str, float]) -> IOData:
+    """``data`` with the operating point subtracted from its output and inputs.
+
+    Parameters
+    ----------
+    data : IOData
+    point : mapping of str to float
+        As :func:`operating_point` returns it.
+
+    Returns
+    -------
+    IOData
+    """
+    from dataclasses import replace
+
+    offsets = np.array([point[n] for n in data.input_names])
+    return replace(data, y=data.y - point[data.output_name], u=data.u - offsets)
+
+
+def iv_refit(model: Any, data: IOData, references: Sequence[str], validation: IOData, horizon: int | None) -> Any:
+    """The chosen structure refitted by IV4 with the references as instruments, unless the refit
+    validates worse than the sweep's basic IV fit on the closed-loop criterion, or cannot
+    determine every parameter (then the sweep's fit).
+
+    Parameters
+    ----------
+    model : ArxModel
+        The structure the sweep chose, as the sweep fitted it.
+    data : IOData
+        Estimation data.
+    references : sequence of str
+    validation : IOData
+        The two-stage validation data.
+    horizon : int or None
+        The validation measure.
+
+    Returns
+    -------
+    ArxModel
+    """
+    from ..checks.comparison import error_rms
+
+    try:
+        refit = iv(data, model.na, list(model.nb_), list(model.nk_), instruments=list(references))
+    except ArxidError:
+        return model
+    new, old = error_rms(refit, validation, horizon), error_rms(model, validation, horizon)
+    return refit if np.isfinite(new) and not new > old else model
+
+
+def direct_refit(model: Any, data: IOData) -> Any:
+    """The chosen structure refitted as a Box–Jenkins model by prediction error (the direct
+    method), its plant poles those of the ARX structure, its noise model of :data:`NOISE_ORDERS`.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+
+    Returns
+    -------
+    PolynomialModel
+    """
+    nc, nd = NOISE_ORDERS
+    nf = [model.na] * data.n_inputs
+    return bj(data, list(model.nb_), nc, nd, nf, list(model.nk_))
+
+
+@dataclass(frozen=True)
+class ClosedLoopMethod:
+    """How the plant was identified, given the feedback verdict, and why.
+
+    Attributes
+    ----------
+    key : {"open-loop", "iv-reference", "direct"}
+    method : str
+        The method in words.
+    reason : str
+        Why this method.
+    criterion : str
+        The validation criterion every validation error of the analysis uses.
+    references : tuple of str
+        The logged references used (empty without).
+    loop_signals : tuple of str
+        Logged signals never proposed as extra inputs (the references and the controller's).
+    operating_point : dict of str to float
+        The means removed from the output and the inputs (empty in open loop).
+    loop_closing : tuple of str
+        Loop signals that would "explain" the error if taken as inputs, with what they would
+        remove: the loop closing, not a missing effect.
+    """
+
+    key: str
+    method: str
+    reason: str
+    criterion: str
+    references: tuple[str, ...] = ()
+    loop_signals: tuple[str, ...] = ()
+    operating_point: dict[str, float] = field(default_factory=dict)
+    loop_closing: tuple[str, ...] = ()
+
+    @property
+    def closed(self) -> bool:
+        """Whether the chain ran a closed-loop method."""
+        return self.key != "open-loop"
+
+    def sentences(self) -> tuple[str, ...]:
+        """What the reader should know, in plain sentences.
+
+        Returns
+        -------
+        tuple of str
+        """
+        if not self.closed:
+            return ()
+        out = [f"Closed-loop method: {self.method}. {self.reason}", f"Validation criterion: {self.criterion}."]
+        if self.operating_point:
+            point = ", ".join(f"{k} {v:.4g}" for k, v in self.operating_point.items())
+            out.append(
+                f"The operating point is part of the model: the estimation record's means ({point}) were "
+                "removed from the output and inputs of both records before fitting."
+            )
+        out += list(self.loop_closing)
+        return tuple(out)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: key, method, reason, criterion, references, loop_signals, operating_point,
+        loop_closing.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "key": self.key,
+            "method": self.method,
+            "reason": self.reason,
+            "criterion": self.criterion,
+            "references": list(self.references),
+            "loop_signals": list(self.loop_signals),
+            "operating_point": dict(self.operating_point),
+            "loop_closing": list(self.loop_closing),
+        }
+
+
+OPEN_LOOP = ClosedLoopMethod(
+    "open-loop",
+    "least squares (open loop)",
+    "No feedback was found.",
+    "free-run simulation on the measured validation input",
+)
+
+
+def iv_method(references: Sequence[str], loop: Sequence[str], point: Mapping[str, float]) -> ClosedLoopMethod:
+    """The method of closed-loop data with a logged reference.
+
+    Parameters
+    ----------
+    references, loop : sequence of str
+    point : mapping of str to float
+
+    Returns
+    -------
+    ClosedLoopMethod
+    """
+    refs = ", ".join(references)
+    return ClosedLoopMethod(
+        "iv-reference",
+        f"instrumental variables with the reference {refs} as instrument, structures judged on the "
+        "two-stage input",
+        f"The data were logged in closed loop and the reference {refs} is logged: it is the one signal the "
+        "output noise does not reach, so instruments built from it keep the plant estimate consistent, where "
+        "least squares and output error learn part of the controller.",
+        "free-run simulation of the plant on the reference-driven part of the validation input (the two-stage "
+        "input û, the input projected on the reference), against the measured output; the noise the controller "
+        "feeds back into the input does not pass through û",
+        tuple(references),
+        tuple(loop),
+        dict(point),
+    )
+
+
+def direct_method(loop: Sequence[str], point: Mapping[str, float]) -> ClosedLoopMethod:
+    """The method of closed-loop data without a logged reference.
+
+    Parameters
+    ----------
+    loop : sequence of str
+    point : mapping of str to float
+
+    Returns
+    -------
+    ClosedLoopMethod
+    """
+    nc, nd = NOISE_ORDERS
+    return ClosedLoopMethod(
+        "direct",
+        f"direct prediction-error method, Box-Jenkins with a noise model of orders nc={nc}, nd={nd}",
+        "The data were logged in closed loop and no reference is logged (give reference=<setpoint signal>). The "
+        "direct method is consistent only when its noise model can describe the real noise; if it cannot, the "
+        "controller's feedback of the noise biases the plant estimate. Treat the plant's gain and poles with "
+        "care, and log the setpoint to remove the doubt.",
+        "free-run simulation on the measured validation input, which carries the noise fed back by the "
+        "controller: it can favour a biased model",
+        (),
+        tuple(loop),
+        dict(point),
+    )
+
+
+def reference_driven_pair(est: IOData, val: IOData, references: Sequence[str]) -> tuple[IOData, IOData]:
+    """The two-stage estimation and validation data (each input replaced by its reference-driven part).
+
+    Parameters
+    ----------
+    est, val : IOData
+    references : sequence of str
+
+    Returns
+    -------
+    tuple of IOData
+    """
+    return reference_driven(est, references), reference_driven(val, references)
+
+
+def feedback_notes(test: FeedbackTest | None, data: IOData, method: ClosedLoopMethod | None = None) -> tuple[str, ...]:
+    """The feedback test's sentence, and what it meant for the analysis.
 
     Parameters
     ----------
     test : FeedbackTest or None
     data : IOData
         The estimation data (for the names of candidate references).
+    method : ClosedLoopMethod, optional
+        The method the analysis used (None: the model was given, so no method was chosen).
 
     Returns
     -------
@@ -60,6 +411,8 @@ def feedback_notes(test: FeedbackTest | None, data: IOData) -> tuple[str, ...]:
         return ()
     if not test.feedback:
         return (test.sentence,)
+    if method is not None and method.closed:
+        return (test.sentence, *method.sentences())
     refs = reference_candidates(data)
     if refs:
         todo = (

@@ -26,9 +26,9 @@ import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
-from typing import Any, TypedDict, cast
+from typing import Any, cast
 
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
@@ -45,129 +45,23 @@ from ..models.arx_model import ArxModel, arx
 from ..models.polynomial import PolynomialModel, check_initial
 from ..models.spec import parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS, GridGrowth, grid_text
-from ..selection.search import DEFAULT_GRID, SweepResult, sweep
-from .closed_loop import feedback_check, feedback_notes
-from .verdicts import ladder_headline, negative_fit_note, residual_sentences
+from ..selection.search import SweepResult, sweep
+from .choice import Choice, OrderGrid, choose, grid_lists, grid_of
+from .closed_loop import (
+    OPEN_LOOP,
+    ClosedLoopMethod,
+    feedback_check,
+    feedback_notes,
+    loop_signal_names,
+    reference_names,
+)
+from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
+from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
 
-__all__ = ["Analysis", "Choice", "analyse", "choose", "grid_of", "DEFAULT_SPLIT"]
+__all__ = ["Analysis", "Choice", "OrderGrid", "analyse", "choose", "grid_of", "DEFAULT_SPLIT"]
 
 #: Share of the data used for estimation when no separate validation data are given (the rest validates).
 DEFAULT_SPLIT = 0.7
-
-
-@dataclass(frozen=True)
-class Choice:
-    """Which structure was chosen and why.
-
-    Attributes
-    ----------
-    structure : str
-        The chosen structure, e.g. ``ARX(2,1,3)``.
-    rank : int or None
-        Its 0-based rank in the sweep (None when the orders or the model were given).
-    reason : str
-        One sentence: how it was chosen.
-    skipped : tuple of (str, str)
-        Better-ranked structures the step sanity check rejected, with the reason.
-    grid_edge : str
-        When the structure sits on an edge of the swept grid: which, and the ranges to try.
-    """
-
-    structure: str
-    rank: int | None
-    reason: str
-    skipped: tuple[tuple[str, str], ...] = ()
-    grid_edge: str = ""
-
-    def to_dict(self) -> dict:
-        """JSON-ready: structure, rank (1-based, or None), reason, skipped (structure, why).
-
-        Returns
-        -------
-        dict
-        """
-        return {
-            "structure": self.structure,
-            "rank": None if self.rank is None else self.rank + 1,
-            "reason": self.reason,
-            "skipped": [{"structure": s, "why": w} for s, w in self.skipped],
-            "grid_edge": self.grid_edge or None,
-        }
-
-
-class OrderGrid(TypedDict):
-    """The order ranges of a sweep, every key present."""
-
-    na: tuple[int, ...]
-    nb: tuple[int, ...]
-    nk: tuple[int, ...]
-
-
-def grid_of(grid: Mapping[str, Any] | None = None) -> OrderGrid:
-    """The order grid with every key present: ``grid`` completed from :data:`arxid.DEFAULT_GRID`.
-
-    Parameters
-    ----------
-    grid : mapping with keys among na, nb, nk, optional
-        Order ranges; missing keys take the default.
-
-    Returns
-    -------
-    dict of str to tuple of int
-    """
-    g = dict(grid or {})
-    unknown = set(g) - {"na", "nb", "nk"}
-    if unknown:
-        raise OrderError(f"grid keys must be na, nb, nk; got {sorted(unknown)}")
-    na, nb, nk = (tuple(int(v) for v in _as_range(g.get(k, DEFAULT_GRID[k]))) for k in ("na", "nb", "nk"))
-    return OrderGrid(na=na, nb=nb, nk=nk)
-
-
-def _grid_lists(g: OrderGrid) -> dict[str, list[int]]:
-    return {"na": list(g["na"]), "nb": list(g["nb"]), "nk": list(g["nk"])}
-
-
-def _as_range(v: Any) -> Sequence[int]:
-    return [v] if isinstance(v, int) else list(v)
-
-
-def choose(result: SweepResult, rule: str = "lowest") -> tuple[ArxModel, Choice]:
-    """The best-ranked structure of a sweep that passes the step sanity check, and why.
-
-    The step sanity check includes stability for a plant the sweep does not call integrating, so
-    the choice never has a pole outside the unit circle there; every better-ranked structure it
-    passed over is listed with its reasons, and a choice on an edge of the grid says so. When no
-    structure passes, the best one by validation error is chosen and the reason says what it fails:
-    valid data always get an answer.
-
-    Parameters
-    ----------
-    result : SweepResult
-    rule : {"lowest", "smallest-within-noise"}
-        See :meth:`SweepResult.select`. ``"lowest"`` (MATLAB's pick) is the default.
-
-    Returns
-    -------
-    model : ArxModel
-        The structure refitted on the sweep's rows (its parameters equal the sweep's).
-    choice : Choice
-    """
-    try:
-        sel = result.select(sane=True, rule=rule)
-        among = "among those whose step response passes the sanity check"
-    except ArxidError:  # valid data deserve an answer: the best one, with what it fails
-        sel = result.select(sane=False, rule=rule)
-        failed = "; ".join(result.sanity(sel.rank).reasons) or "its free run diverged"
-        among = (
-            f"although no structure's step response passes the sanity check (this one's: {failed}); "
-            f"check the data, or say what the plant does with expect='stable' or expect='integrating'"
-        )
-    model = result.model(sel.rank)
-    reason = f"the lowest {result.ranking_text} of {len(result)} structures {among}"
-    if sel.note:
-        reason = f"{sel.note}, {among}"
-    skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
-    return model, Choice(sel.structure, sel.rank, reason, skipped, sel.grid_edge)
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,6 +108,11 @@ class Analysis:
     feedback : FeedbackTest or None
         The feedback test of the estimation data (:func:`arxid.feedback`; None when too short);
         its meaning for the model is in ``notes``.
+    closed_loop : ClosedLoopMethod or None
+        How the plant was identified given that verdict (open loop, IV with the reference, or the
+        direct method), why, and the validation criterion; None when the model was given. In
+        closed loop ``estimation`` and ``validation`` are the data the analysis read: without the
+        operating point, and with a reference, each input replaced by its reference-driven part.
     """
 
     estimation: IOData
@@ -233,6 +132,7 @@ class Analysis:
     bands: tuple[ResponseBand, ...] = ()
     initial: str = "zero"
     feedback: FeedbackTest | None = None
+    closed_loop: ClosedLoopMethod | None = None
 
     @property
     def final_model(self) -> ArxModel:
@@ -247,7 +147,7 @@ class Analysis:
             return ""
         if self.sweep is not None and self.sweep.grid:
             return grid_text(self.sweep.grid)
-        return ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in _grid_lists(self.grid).items())
+        return ", ".join(f"{k} {min(v)}..{max(v)}" for k, v in grid_lists(self.grid).items())
 
     @property
     def grid_growth(self) -> GridGrowth | None:
@@ -292,7 +192,7 @@ class Analysis:
         out.update(
             {
                 "choice": self.choice.to_dict(),
-                "grid": None if self.grid is None else _grid_lists(self.grid),
+                "grid": None if self.grid is None else grid_lists(self.grid),
                 "grid_growth": None if self.grid_growth is None else self.grid_growth.to_dict(),
                 "sweep": None if self.sweep is None else self.sweep.summary(),
                 "comparison": self.comparison.to_dict(),
@@ -301,6 +201,7 @@ class Analysis:
                 "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
                 "error_fall": self.ladder.error_fall(),
                 "feedback": None if self.feedback is None else json.loads(self.feedback.to_json()),
+                "closed_loop": None if self.closed_loop is None else self.closed_loop.to_dict(),
             }
         )
         return out
@@ -564,6 +465,7 @@ def analyse(
     max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
     client: Any = None,
     read: Any = None,
+    reference: str | Sequence[str] | None = None,
     **diagnose_kwargs: Any,
 ) -> Analysis:
     """Sweep (unless ``orders`` or a ``model`` are given), choose, compare, test, diagnose and climb the ladder.
@@ -616,6 +518,14 @@ def analyse(
         returns a :class:`~arxid.analysis.fleet_analysis.FleetAnalysis`).
     read : dict or callable, optional
         How the workers read file paths (see :func:`arxid.data.logs.load_experiment`).
+    reference : str or sequence of str, optional
+        The logged reference or setpoint of a feedback loop (an extra signal, e.g. ``"roll_sp"``).
+        Default: recognised from the extra signals' names (``setpoint``, ``_sp``, ``ref``, ``des``
+        ...). When the feedback test finds the data closed loop, the chain identifies the plant by
+        a method that stays consistent (:mod:`arxid.analysis.closed_loop`): with a reference,
+        instrumental variables from it and validation on the reference-driven input; without one,
+        the direct Box–Jenkins method. A reference, and any logged signal the controller computes,
+        is never proposed as an extra input. ``Analysis.closed_loop`` says which method ran and why.
     **diagnose_kwargs
         Passed to :func:`arxid.diagnose` (``alpha``, ``min_improvement``, ``candidates`` ...).
 
@@ -655,21 +565,41 @@ def analyse(
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)
     initial = check_initial(initial)
-    feedback = Background(feedback_check, est)  # the estimation data alone: beside everything else
+    refs = reference_names(est, reference)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    res, chosen, choice, g = _structure(
-        est, val, orders, grid, requested, expect, progress, model, grow=grow, max_seconds=max_seconds
-    )
+    # The verdict steers the chain: with a reference it is awaited before any sweep; without one it
+    # runs beside the least-squares sweep (open-loop data pay nothing), which closed loop redoes.
+    pending = Background(feedback_check, est)
+    fb = pending.result() if refs and model is None else None
+    loop = _loop_structure(fb, est, val, refs, orders, grid, requested, expect, progress, model)
+    if loop is None:
+        res, chosen, choice, g = _structure(
+            est, val, orders, grid, requested, expect, progress, model, grow=grow, max_seconds=max_seconds
+        )
+        fb = pending.result() if fb is None else fb
+        loop = _loop_structure(fb, est, val, (), orders, grid, requested, expect, progress, model)
+    if loop is not None:
+        res, chosen, choice, g = loop.sweep, loop.model, loop.choice, loop.grid
+        est, val, method = loop.estimation, loop.validation, loop.method
+    else:
+        method = OPEN_LOOP if fb is not None and model is None else None
+    if refs and reference is not None:  # a named reference is never a plant input, whatever the verdict
+        diagnose_kwargs.setdefault("loop_signals", loop_signal_names(est, refs))
+    elif method is not None and method.closed:
+        diagnose_kwargs.setdefault("loop_signals", method.loop_signals)
     measure = res.horizon if res is not None else requested
     timings["sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ladder = _ladder(chosen, est, val, res, max_steps, measure, initial, diagnose_kwargs)
+    ladder = _ladder(chosen, est, val, None if loop else res, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     cmp, failures, freq, bands, freq_notes = _checks(chosen, ladder.final_model, val, ladder.horizon, initial)
     timings["checks and frequency"] = time.perf_counter() - t0
-    fb = feedback.result()
+    if method is not None and method.closed:
+        closing = loop_closing_sentences(chosen, est, val, method, ladder.horizon, initial)
+        method = replace(method, loop_closing=closing)
+    notes = _notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
     return Analysis(
         est,
         val,
@@ -683,9 +613,28 @@ def analyse(
         cmp,
         failures,
         timings,
-        _notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est),
+        notes + delay_notes(chosen, est, fb),
         freq,
         bands,
         initial,
         fb,
+        method,
     )
+
+
+def _loop_structure(
+    fb: FeedbackTest | None,
+    est: IOData,
+    val: IOData,
+    refs: Sequence[str],
+    orders: Sequence | None,
+    grid: Mapping | None,
+    horizon: int | None,
+    expect: str | None,
+    progress: bool,
+    given: Any,
+) -> LoopStructure | None:
+    """The closed-loop structure when feedback was found and the structure is not given (else None)."""
+    if fb is None or not fb.feedback or given is not None:
+        return None
+    return closed_loop_structure(est, val, refs, orders, grid, horizon, expect, progress)

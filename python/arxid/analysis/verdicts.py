@@ -26,7 +26,49 @@ __all__ = [
     "residual_sentences",
     "ladder_headline",
     "percent",
+    "delay_notes",
 ]
+
+#: Sampling intervals [s] at or below which no actuator answers within one sample (1 kHz and faster
+#: gyro loops: motors and their propellers take milliseconds to change their thrust).
+FAST_SAMPLING = 0.002
+
+
+def delay_notes(model: Any, data: Any, feedback: Any = None) -> tuple[str, ...]:
+    """A warning when the chosen model has no delay from an input while that is implausible.
+
+    A delay of zero samples says the input acts on the output within the same sample. At kHz
+    sampling no motor does that, and in closed loop a controller that reads the output and writes
+    the input within the sample produces exactly this dependence: the model has learned the
+    controller, not the plant.
+
+    Parameters
+    ----------
+    model : ArxModel or PolynomialModel
+        The chosen model (its delays ``nk_``).
+    data : IOData
+        The estimation data (its sampling time and input names).
+    feedback : FeedbackTest, optional
+        The feedback test of the data.
+
+    Returns
+    -------
+    tuple of str
+    """
+    nk = list(getattr(model, "nk_", ()) or ())
+    zero = [n for n, k in zip(data.input_names, nk) if int(k) == 0]
+    closed = bool(getattr(feedback, "feedback", False))
+    if not zero or not (closed or data.ts <= FAST_SAMPLING):
+        return ()
+    why = (
+        "in closed loop this is the controller reacting to the output within the sample, not the plant"
+        if closed
+        else f"at {1 / data.ts:.0f} Hz no actuator responds within one sample"
+    )
+    return (
+        f"Warning: the chosen model has no delay from {', '.join(zero)} to {data.output_name} (nk = 0): {why}. "
+        "Check the delay, or sweep with nk from 1.",
+    )
 
 
 def percent(share: float | None) -> str:

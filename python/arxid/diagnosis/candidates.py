@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import re
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -191,7 +191,7 @@ def signal_thresholds(data: IOData, name: str) -> np.ndarray:
     return memo[name].copy()
 
 
-def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
+def auto_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] = ()) -> list[str]:
     """Candidate effects and structure changes built from the signals of ``data``.
 
     Effects (grammar of :mod:`arxid.effects`, physics in :data:`CATALOGUE`): each extra signal as
@@ -210,6 +210,9 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
         The fitted model to extend (its effects and orders ``nb_``, ``nk_``).
     data : IOData
         The data whose input, output and extra signals the candidates are built from.
+    loop_signals : sequence of str
+        Extra signals that belong to a feedback loop (its reference, the controller's terms): never
+        candidates, alone or in products, since they explain the output through the loop.
 
     Returns
     -------
@@ -220,7 +223,8 @@ def auto_candidates(model: ArxModel, data: IOData) -> list[str]:
     # Effects are written in the grammar's words: a name that is not an identifier (``rpm[1/min]``)
     # is called u1, u2, ... for an input and left out for an extra signal.
     ins = candidate_input_names(data)
-    extras = [k for k in data.extra if k.isidentifier() and k not in ins and k not in ("y", data.output_name)]
+    skip = {*ins, "y", data.output_name, *loop_signals}
+    extras = [k for k in data.extra if k.isidentifier() and k not in skip]
     out: list[str] = list(extras)
     for i, a in enumerate(ins):
         out += [f"{a}*{x}" for x in extras]

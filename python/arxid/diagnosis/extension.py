@@ -102,13 +102,16 @@ def layout_for(c: Candidate, model: ArxModel, data: IOData, samples: bool = True
     return effects, layout
 
 
-def candidate_list(candidates, model: ArxModel, data: IOData) -> tuple[list[Candidate], bool]:
-    """The candidates to test, without those the model already has, and whether they were ``"auto"``."""
+def candidate_list(
+    candidates, model: ArxModel, data: IOData, loop_signals: Sequence[str] = ()
+) -> tuple[list[Candidate], bool]:
+    """The candidates to test, without those the model already has, and whether they were ``"auto"``
+    (automatic candidates leave out the ``loop_signals``, see :func:`auto_candidates`)."""
     auto = isinstance(candidates, str)
     if auto:
         if candidates != "auto":
             raise ArxidError(f"candidates must be 'auto' or a list of effect strings, got {candidates!r}")
-        labels = auto_candidates(model, data)
+        labels = auto_candidates(model, data, loop_signals)
     else:
         labels = list(candidates)
         if not labels:

@@ -79,6 +79,7 @@ def diagnose(
     residual_max_lag: int = 25,
     simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
     initial: str = "zero",
+    loop_signals: Sequence[str] = (),
 ) -> Diagnosis:
     """Rank the physical effects (and structure changes) the model is missing.
 
@@ -120,6 +121,10 @@ def diagnose(
         (default) starts each free run from the measured outputs (a polynomial model from rest);
         ``"estimate"`` fits them first, so a validation record that starts mid-transient is not held
         against the models (see :func:`arxid.compare`).
+    loop_signals : sequence of str
+        Logged signals of a feedback loop (its reference or setpoint, the controller's terms) that
+        ``"auto"`` never proposes as extra inputs: they explain the output because the loop closes
+        through them, not because the plant misses an effect.
 
     Returns
     -------
@@ -151,7 +156,7 @@ def diagnose(
     # The baseline reads the validation data only: beside the scoring, on the second core.
     baseline = Background(_baseline, model, validation, horizon, residual_max_lag, initial)
     try:
-        cands, auto = candidate_list(candidates, model, data)
+        cands, auto = candidate_list(candidates, model, data, tuple(loop_signals))
         scoring = None if polynomial else Scoring(model, data, cands)
         scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
     except Exception:

@@ -69,6 +69,7 @@ def pi_loop(
     ts: float = 0.01,
     closed: bool = True,
     plant: PiLoopPlant | None = None,
+    band: float = 0.1,
 ) -> IOData:
     """Simulate the plant of :class:`PiLoopPlant` under a PI controller (or in open loop).
 
@@ -85,6 +86,10 @@ def pi_loop(
         False: ``u = r`` is applied straight to the plant (open loop; the noise is the same).
     plant : PiLoopPlant, optional
         True parameters (default :class:`PiLoopPlant()`).
+    band : float
+        Bandwidth of the PRBS reference as a fraction of the Nyquist frequency: each bit is held
+        for ``round(1 / band)`` samples (default 0.1, bits of 10 samples; 0.5 excites the plant up to
+        half the Nyquist frequency, where its zero shows).
 
     Returns
     -------
@@ -103,8 +108,9 @@ def pi_loop(
         raise DataError(f"n_samples must be at least 200, got {n_samples}")
     p = plant or PiLoopPlant()
     rng = np.random.default_rng(seed)
-    # a PRBS with bits of 10 samples, started at a random point of its period
-    x = prbs(10, band=0.1, levels=(-p.reference, p.reference), ts=ts, periods=n_samples // 10230 + 2)
+    # a PRBS with bits of round(1 / band) samples, started at a random point of its period
+    hold = max(1, round(1 / band))
+    x = prbs(10, band=band, levels=(-p.reference, p.reference), ts=ts, periods=n_samples // (1023 * hold) + 2)
     r = np.roll(x.values, -int(rng.integers(0, x.period)))[:n_samples]
     e = rng.normal(0.0, p.noise_std, n_samples)
     v = np.zeros(n_samples)

@@ -1,0 +1,176 @@
+"""The structure of a closed-loop analysis: sweep, choice and refit by a method that stays
+consistent under feedback (see :mod:`arxid.analysis.closed_loop` for the methods and why).
+
+:func:`closed_loop_structure` returns the chosen plant with the data the rest of the analysis
+(the diagnosis, its ladder and the checks) must read: with a reference, the two-stage data, whose
+inputs are the reference-driven parts; without, the measured data.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..data.iodata import IOData
+from ..diagnosis.suspects import diagnose
+from ..exceptions import ArxidError, OrderError
+from ..selection.search import SweepResult, sweep
+from .choice import Choice, OrderGrid, choose, grid_of
+from .closed_loop import (
+    ClosedLoopMethod,
+    closed_loop_grid,
+    direct_method,
+    direct_refit,
+    iv_method,
+    iv_refit,
+    loop_signal_names,
+    operating_point,
+    reference_driven_pair,
+    remove_operating_point,
+)
+
+__all__ = ["LoopStructure", "closed_loop_structure", "loop_closing_sentences"]
+
+#: The choice rule in closed loop: the IV fits of neighbouring structures differ by their variance
+#: more than by their bias, so the fewest parameters within the noise of the best is taken.
+LOOP_RULE = "smallest-within-noise"
+
+
+@dataclass(frozen=True, eq=False)
+class LoopStructure:
+    """The chosen plant of a closed-loop analysis and the data the analysis goes on with.
+
+    Attributes
+    ----------
+    sweep : SweepResult
+    model : ArxModel or PolynomialModel
+        The plant refitted by the method (IV4, or Box–Jenkins by prediction error).
+    choice : Choice
+    grid : dict
+        The grid swept.
+    estimation, validation : IOData
+        The data of the diagnosis and the checks (two-stage data with a reference).
+    method : ClosedLoopMethod
+    """
+
+    sweep: SweepResult
+    model: Any
+    choice: Choice
+    grid: OrderGrid
+    estimation: IOData
+    validation: IOData
+    method: ClosedLoopMethod
+
+
+def _grid(orders: Sequence | None, grid: Mapping | None) -> OrderGrid:
+    if orders is None:
+        g = grid_of(grid)
+        return g if grid is not None else OrderGrid(**closed_loop_grid(g))  # type: ignore[typeddict-item]
+    try:
+        na, nb, nk = orders
+    except (TypeError, ValueError):
+        raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
+    return grid_of({"na": [na], "nb": [nb], "nk": [nk]})
+
+
+def closed_loop_structure(
+    est: IOData,
+    val: IOData,
+    references: Sequence[str],
+    orders: Sequence | None,
+    grid: Mapping | None,
+    horizon: int | None,
+    expect: str | None,
+    progress: bool,
+) -> LoopStructure:
+    """Sweep, choose and refit the plant of closed-loop data.
+
+    Parameters
+    ----------
+    est, val : IOData
+        Estimation and validation data, logged in closed loop.
+    references : sequence of str
+        The logged references (empty: the direct method).
+    orders : (na, nb, nk) or None
+        A fixed structure (then only it is fitted).
+    grid : mapping or None
+        The grid to sweep (None: the default grid with delays from one sample).
+    horizon : int or None
+    expect : str or None
+    progress : bool
+
+    Returns
+    -------
+    LoopStructure
+    """
+    point = operating_point(est)
+    est, val = remove_operating_point(est, point), remove_operating_point(val, point)
+    loop = loop_signal_names(est, references)
+    g = _grid(orders, grid)
+    kw: dict[str, Any] = {"horizon": horizon, "expect": expect, "progress": progress}
+    if references:
+        est_hat, val_hat = reference_driven_pair(est, val, references)
+        res = sweep(est, validation=val_hat, method="iv", instruments=list(references), **kw, **g)
+        chosen, choice = choose(res, LOOP_RULE)
+        model = iv_refit(chosen, est, references, val_hat, res.horizon)
+        how = (
+            "refitted by IV4 with the reference as instrument"
+            if model is not chosen
+            else "fitted by basic IV with the reference as instrument (IV4 did not validate better)"
+        )
+        return LoopStructure(res, model, _said(choice, how), g, est_hat, val_hat, iv_method(references, loop, point))
+    res = sweep(est, validation=val, **kw, **g)
+    chosen, choice = choose(res, LOOP_RULE)
+    try:
+        model = direct_refit(chosen, est)
+        how = "refitted as a Box-Jenkins model by prediction error (the direct method)"
+    except ArxidError as exc:
+        model, how = chosen, f"kept as least squares fitted it: the Box-Jenkins refit failed ({exc})"
+    return LoopStructure(res, model, _said(choice, how), g, est, val, direct_method(loop, point))
+
+
+def _said(choice: Choice, how: str) -> Choice:
+    from dataclasses import replace
+
+    return replace(choice, reason=f"{choice.reason}; {how}")
+
+
+def loop_closing_sentences(
+    model: Any, est: IOData, val: IOData, method: ClosedLoopMethod, horizon: int | None, initial: str
+) -> tuple[str, ...]:
+    """The loop signals that would "explain" the model's error if taken as extra inputs.
+
+    Parameters
+    ----------
+    model : ArxModel or PolynomialModel
+    est, val : IOData
+    method : ClosedLoopMethod
+    horizon : int or None
+    initial : str
+
+    Returns
+    -------
+    tuple of str
+        One sentence per such signal: how much error it would remove, and that this is the loop
+        closing through it, not a missing effect.
+    """
+    names = [n for n in method.loop_signals if n.isidentifier()]
+    if not names:
+        return ()
+    try:
+        d = diagnose(model, est, val, candidates=names, horizon=horizon, initial=initial)
+    except ArxidError:
+        return ()
+    out = []
+    for s in d.suspects:
+        if not s.significant or not d.rms_sim_val > 0:
+            continue
+        fall = 100.0 * (1.0 - s.rms_sim_val_after / d.rms_sim_val)
+        out.append(
+            f"The logged signal {s.effect} would remove {fall:.0f} % of the validation error as an extra input. "
+            "It is not proposed: it belongs to the loop (a reference, or a signal the controller computes from "
+            "the output), so it explains the output because the loop closes through it, not because the plant "
+            "misses an effect."
+        )
+    return tuple(out)
