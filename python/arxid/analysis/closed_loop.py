@@ -335,8 +335,7 @@ def iv_method(references: Sequence[str], loop: Sequence[str], point: Mapping[str
     refs = ", ".join(references)
     return ClosedLoopMethod(
         "iv-reference",
-        f"instrumental variables with the reference {refs} as instrument, structures judged on the "
-        "two-stage input",
+        f"instrumental variables with the reference {refs} as instrument, structures judged on the two-stage input",
         f"The data were logged in closed loop and the reference {refs} is logged: it is the one signal the "
         "output noise does not reach, so instruments built from it keep the plant estimate consistent, where "
         "least squares and output error learn part of the controller.",

@@ -20,7 +20,7 @@ from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..inputs import prbs
 
-__all__ = ["PiLoopPlant", "pi_loop"]
+__all__ = ["PiLoopPlant", "pi_loop", "RateLoopPlant", "pid_rate_loop"]
 
 
 @dataclass(frozen=True)
@@ -143,3 +143,136 @@ def pi_loop(
         extra={"r": r},
         extra_units={"r": "rad/s" if closed else "1"},
     )
+
+
+@dataclass(frozen=True)
+class RateLoopPlant:
+    """True parameters of :func:`pid_rate_loop`: a rate axis behind a motor lag and a delay.
+
+    The plant from the command ``u`` to the rate ``y`` is
+
+    .. math:: y(t) = \\frac{b (1 - m) q^{-(d + 1)}}{(1 - a q^{-1})(1 - m q^{-1})} u(t) + v(t),
+       \\qquad v(t) = \\frac{1}{1 - c q^{-1}} e(t)
+
+    (``nk = d + 1``, ``nb = 1``, ``na = 2``): a first-order motor of pole ``m`` after ``d`` samples of
+    transport delay, then a damped rate of pole ``a``.
+
+    Parameters
+    ----------
+    rate_pole, rate_gain : float
+        ``a`` and ``b`` of the rate dynamics.
+    motor_pole : float
+        ``m``, the motor lag's pole.
+    delay : int
+        ``d``, samples of delay before the motor (2 to 4 in the flight controllers of small drones).
+    noise_pole, noise_std : float
+        ``c`` and the standard deviation of ``e``.
+    kp, ki, kd : float
+        PID gains (``ki`` per second, ``kd`` in seconds).
+    derivative_pole : float
+        Pole of the first-order filter on the derivative term.
+    reference : float
+        Amplitude of the PRBS rate setpoint.
+    """
+
+    rate_pole: float = 0.9
+    rate_gain: float = 0.2
+    motor_pole: float = 0.6
+    delay: int = 2
+    noise_pole: float = 0.9
+    noise_std: float = 0.05
+    kp: float = 0.6
+    ki: float = 2.0
+    kd: float = 0.002
+    derivative_pole: float = 0.5
+    reference: float = 1.0
+
+    @property
+    def gain(self) -> float:
+        """Static gain of the plant ``b / (1 - a)``."""
+        return float(self.rate_gain / (1.0 - self.rate_pole))
+
+    @property
+    def poles(self) -> np.ndarray:
+        """Poles of the plant (the rate's and the motor's)."""
+        return np.array([self.rate_pole, self.motor_pole])
+
+    @property
+    def nk(self) -> int:
+        """Delay of the plant in samples (the transport delay and one for the motor)."""
+        return self.delay + 1
+
+
+def pid_rate_loop(
+    seed: int = 0, n_samples: int = 20000, *, ts: float = 0.002, plant: RateLoopPlant | None = None, band: float = 0.3
+) -> IOData:
+    """Simulate the rate axis of :class:`RateLoopPlant` under a PID controller with a filtered derivative.
+
+    Parameters
+    ----------
+    seed : int
+        Seeds the reference's start and the noise.
+    n_samples : int
+        Length, >= 200.
+    ts : float
+        Sampling time [s].
+    plant : RateLoopPlant, optional
+        True parameters (default :class:`RateLoopPlant()`).
+    band : float
+        Bandwidth of the PRBS setpoint as a fraction of the Nyquist frequency.
+
+    Returns
+    -------
+    IOData
+        Output ``rate`` [rad/s], input ``command`` [1] (the PID sum), extra signals ``rate_sp`` (the
+        logged setpoint [rad/s]) and ``pid_d`` (the controller's derivative term [1]).
+
+    Examples
+    --------
+    >>> from arxid.datasets import pid_rate_loop
+    >>> d = pid_rate_loop(seed=1, n_samples=500)
+    >>> d.input_names, sorted(d.extra)
+    (('command',), ['pid_d', 'rate_sp'])
+    """
+    if n_samples < 200:
+        raise DataError(f"n_samples must be at least 200, got {n_samples}")
+    p = plant or RateLoopPlant()
+    rng = np.random.default_rng(seed)
+    hold = max(1, round(1 / band))
+    x = prbs(10, band=band, levels=(-p.reference, p.reference), ts=ts, periods=n_samples // (1023 * hold) + 2)
+    r = np.roll(x.values, -int(rng.integers(0, x.period)))[:n_samples]
+    v = np.zeros(n_samples)
+    e = rng.normal(0.0, p.noise_std, n_samples)
+    for t in range(n_samples):
+        v[t] = e[t] + (p.noise_pole * v[t - 1] if t else 0.0)
+    y, u, d_term = _fly_pid(r, v, p, ts)
+    return IOData(
+        y,
+        u,
+        ts,
+        output_name="rate",
+        input_names=("command",),
+        output_unit="rad/s",
+        input_units=("1",),
+        extra={"rate_sp": r, "pid_d": d_term},
+        extra_units={"rate_sp": "rad/s", "pid_d": "1"},
+    )
+
+
+def _fly_pid(r: np.ndarray, v: np.ndarray, p: RateLoopPlant, ts: float) -> tuple[np.ndarray, ...]:
+    """The loop sample by sample: the plant's state, the measured rate, the PID command."""
+    n = r.shape[0]
+    y, u, d_term = np.zeros(n), np.zeros(n), np.zeros(n)
+    rate = torque = integral = derivative = last_error = 0.0
+    for t in range(n):
+        command = u[t - p.delay] if t >= p.delay else 0.0
+        rate = p.rate_pole * rate + p.rate_gain * torque  # the torque of the last sample
+        torque = p.motor_pole * torque + (1.0 - p.motor_pole) * command
+        y[t] = rate + v[t]
+        error = r[t] - y[t]
+        integral += error * ts
+        derivative = p.derivative_pole * derivative + (1.0 - p.derivative_pole) * (error - last_error) / ts
+        last_error = error
+        d_term[t] = p.kd * derivative
+        u[t] = p.kp * error + p.ki * integral + d_term[t]
+    return y, u, d_term

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..data.iodata import IOData
 from ..exceptions import DataError
-from .closed_loop import PiLoopPlant, pi_loop
+from .closed_loop import PiLoopPlant, RateLoopPlant, pi_loop, pid_rate_loop
 from .flight_sim import DEFAULT_EFFECTS, QuadrotorParameters, quadrotor_flight
 from .flight_sim import MAX_SAMPLES as MAX_SAMPLES
 from .stand_sim import PWM_FULL_SCALE as PWM_FULL_SCALE
@@ -45,6 +45,8 @@ __all__ = [
     "quadrotor_flight",
     "PiLoopPlant",
     "pi_loop",
+    "RateLoopPlant",
+    "pid_rate_loop",
     "quadrotor_axis",
     "thrust_stand",
     "thrust_stand_static",
