@@ -170,3 +170,17 @@ def test_real_px4_log_names_its_method_and_never_proposes_the_setpoint(shared_da
     assert "vehicle_rates_setpoint_roll" not in {f for e in _loop_effects(a) for f in e.replace("*", " ").split()}
     assert min(a.model.nk_) >= 1
     assert a.diagnosis.fit_val > 0
+
+
+def test_readme_closed_loop_walkthrough_runs_and_says_what_it_claims():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    example = re.search(r"## Flight data in closed loop\n.*?```python\n(.*?)```", text, re.S).group(1)
+    namespace: dict = {"arxid": arxid}
+    exec(compile(example, "README closed-loop example", "exec"), namespace)
+    a = namespace["a"]
+    assert a.closed_loop.method.startswith("instrumental variables with the reference rate_sp")
+    gain, pole = _gain_and_pole_error(a.model.a, a.model.b[0], RateLoopPlant())
+    assert abs(gain) < 0.03 and pole < 0.01
