@@ -158,7 +158,9 @@ def test_cli_diagnoses_a_closed_loop_flight_log(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["feedback"]["feedback"] is True
     notes = " ".join(out["notes"])
-    assert "closed loop" in notes and "instruments='vehicle_rates_setpoint_roll'" in notes
+    assert "closed loop" in notes and "reference vehicle_rates_setpoint_roll" in notes
+    assert out["closed_loop"]["key"] == "iv-reference"
+    assert out["closed_loop"]["references"] == ["vehicle_rates_setpoint_roll"]
 
 
 @pytest.mark.realdata

@@ -364,10 +364,10 @@ def direct_method(loop: Sequence[str], point: Mapping[str, float]) -> ClosedLoop
     return ClosedLoopMethod(
         "direct",
         f"direct prediction-error method, Box-Jenkins with a noise model of orders nc={nc}, nd={nd}",
-        "The data were logged in closed loop and no reference is logged (give reference=<setpoint signal>). The "
-        "direct method is consistent only when its noise model can describe the real noise; if it cannot, the "
-        "controller's feedback of the noise biases the plant estimate. Treat the plant's gain and poles with "
-        "care, and log the setpoint to remove the doubt.",
+        "The data were logged in closed loop and no reference is logged (name the setpoint with "
+        "reference=<signal> to identify the plant by instrumental variables built from it). The direct method is "
+        "consistent only when its noise model can describe the real noise; otherwise the controller's feedback of "
+        "the noise biases it, so the plant estimate may be biased: treat its gain and poles with care.",
         "free-run simulation on the measured validation input, which carries the noise fed back by the "
         "controller: it can favour a biased model",
         (),
