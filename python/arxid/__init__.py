@@ -42,6 +42,7 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
+from .frequency import FrequencyResponse, frf
 from .models.arx_model import ArxModel, arx
 from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
@@ -68,6 +69,8 @@ __all__ = [
     "delayest",
     "tfest",
     "procest",
+    "frf",
+    "FrequencyResponse",
     "refine",
     "RefinedSweep",
     "compare",

@@ -1,0 +1,11 @@
+"""Frequency-domain identification: the frequency response from data (:func:`frf`, Welch's H1 or
+Blackman–Tukey, in open or closed loop), the step response of a rate loop by regularised
+deconvolution (:func:`step_by_deconvolution`, as PIDtoolbox) and a continuous transfer function
+fitted to a frequency response (:func:`tf_from_frequency`, MATLAB's ``tfest`` on an ``idfrd``)."""
+
+from __future__ import annotations
+
+from ._frf import frf
+from ._response import FrequencyResponse
+
+__all__ = ["frf", "FrequencyResponse"]
