@@ -42,7 +42,7 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
-from .frequency import FrequencyResponse, frf
+from .frequency import DeconvolvedStep, FrequencyResponse, frf, step_by_deconvolution
 from .models.arx_model import ArxModel, arx
 from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
@@ -71,6 +71,8 @@ __all__ = [
     "procest",
     "frf",
     "FrequencyResponse",
+    "step_by_deconvolution",
+    "DeconvolvedStep",
     "refine",
     "RefinedSweep",
     "compare",

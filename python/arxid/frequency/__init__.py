@@ -7,5 +7,6 @@ from __future__ import annotations
 
 from ._frf import frf
 from ._response import FrequencyResponse
+from ._step import DeconvolvedStep, step_by_deconvolution
 
-__all__ = ["frf", "FrequencyResponse"]
+__all__ = ["frf", "FrequencyResponse", "step_by_deconvolution", "DeconvolvedStep"]
