@@ -42,7 +42,7 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
-from .frequency import DeconvolvedStep, FrequencyResponse, frf, step_by_deconvolution
+from .frequency import DeconvolvedStep, FrequencyResponse, frf, step_by_deconvolution, tf_from_frequency
 from .models.arx_model import ArxModel, arx
 from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
@@ -73,6 +73,7 @@ __all__ = [
     "FrequencyResponse",
     "step_by_deconvolution",
     "DeconvolvedStep",
+    "tf_from_frequency",
     "refine",
     "RefinedSweep",
     "compare",

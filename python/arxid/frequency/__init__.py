@@ -8,5 +8,6 @@ from __future__ import annotations
 from ._frf import frf
 from ._response import FrequencyResponse
 from ._step import DeconvolvedStep, step_by_deconvolution
+from ._tf_fit import tf_from_frequency
 
-__all__ = ["frf", "FrequencyResponse", "step_by_deconvolution", "DeconvolvedStep"]
+__all__ = ["frf", "FrequencyResponse", "step_by_deconvolution", "DeconvolvedStep", "tf_from_frequency"]
