@@ -159,8 +159,12 @@ def _selected(fr: FrequencyResponse, i: int, frequency_range: Sequence[float] | 
 
 
 def _start(omega, h, w, n, m, ts, zoh, w0, tau, max_delay):
-    """SK start at the given dead time, or the best of whole samples 0 .. max_delay."""
+    """SK start at the given dead time, or the best of whole samples 0 .. max_delay (with a hold:
+    on the frequencies below fs/8, where the hold is nearly a half-sample lag)."""
     taus = [tau] if tau is not None else [k * ts for k in range(int(max_delay / ts + 1e-9) + 1)]
+    low = omega * ts < np.pi / 4  # below fs/8 a half-sample lag is the hold's effect, to within 3 %
+    if zoh and low.sum() >= n + m + 2:
+        omega, h, w = omega[low], h[low], w[low]
     best: tuple[float, np.ndarray, float, int] | None = None
     for t in taus:
         # the hold's half-sample lag taken off the data for the linear start (the refinement is exact)
@@ -286,11 +290,18 @@ def tf_from_frequency(
     x0 = theta if tau is not None else np.append(theta, tau0)
     fun = _residual_function(omega, h, w, ts, zoh, n, m, w0, tau)
     converged, jac = True, None
+    x = x0
     if refine:
         x, converged, jac, extra = _refined(fun, x0, tau is None)
         iterations += extra
-    else:
-        x = x0
+        if np.any(np.roots(_unscaled(x, n, m, w0)[0]).real >= 0):
+            warnings.warn(
+                "tf_from_frequency: the refinement ended at unstable poles; the Sanathanan–Koerner fit is returned. "
+                f"{n} poles and {m} zeros may not describe this response: try other orders or a frequency_range",
+                ArxidWarning,
+                stacklevel=2,
+            )
+            x, converged, jac = x0, False, None
     delay_s = float(x[-1]) if tau is None else float(tau)
     den, num = _unscaled(x, n, m, w0)
     scale = np.concatenate([w0 ** np.arange(1, n + 1), w0 ** (n - m + np.arange(m + 1))])
