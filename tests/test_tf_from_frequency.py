@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.signal import cont2discrete, lfilter
+from scipy.signal import cont2discrete, freqz, lfilter
 
 import arxid
 from arxid.exceptions import ArxidError, DataError, OrderError
@@ -124,3 +124,22 @@ def test_bad_input_gives_typed_errors():
         arxid.tf_from_frequency(fr, 3, 1, frequency_range=(1.0, 1.5))
     with pytest.raises(DataError, match="no input named"):
         arxid.tf_from_frequency(fr, 2, input="u9")
+
+
+def test_bode_figure_shades_where_the_model_misses():
+    pytest.importorskip("matplotlib")
+    from arxid.frequency._model_response import model_response
+    from arxid.plots.bode import misses
+
+    fr = arxid.frf(_simulate(5), segment_length=1024)
+    right = arxid.tf_from_frequency(fr, 3, 1)
+    wrong = arxid.tf_from_frequency(fr, 1, 0)
+    b, a, _ = cont2discrete((right.num_, right.den_), TS, method="zoh")
+    g = model_response(right, fr.frequency)
+    np.testing.assert_allclose(g, freqz(np.ravel(b), a, worN=fr.frequency, fs=1 / TS)[1], rtol=1e-8)
+    good = fr.coherence > 0.9
+    assert misses(fr, g)[good].mean() < 0.05
+    assert misses(fr, model_response(wrong, fr.frequency))[good].mean() > 0.5
+    fig = fr.plot(wrong)
+    assert len(fig.axes) == 3 and "model outside the band" in [t.get_text() for t in fig.axes[0].get_legend().texts]
+    assert len(fr.plot().axes) == 3

@@ -212,6 +212,28 @@ class FrequencyResponse:
         """
         return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
 
+    def plot(self, model: Any = None, input: int = 0) -> Any:
+        """Bode figure (:func:`arxid.plots.plot_bode`): the estimate with its band and coherence, and
+        a fitted model's response, the frequencies where it leaves the band shaded red.
+
+        Parameters
+        ----------
+        model : fitted arxid model, optional
+            ``arx``, ``oe``, ``tfest``, :func:`arxid.tf_from_frequency`, ...
+        input : int
+            Which input.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plots.bode import plot_bode
+        from ._model_response import model_response
+
+        g = None if model is None else model_response(model, self.frequency, input)
+        name = "model" if model is None else model.structure_name()
+        return plot_bode(self, g, input=input, model_name=name)
+
     def to_pandas(self) -> Any:
         """One row per frequency: ``coherence``, and per input ``magnitude_db``, ``phase_deg`` and
         the band (columns suffixed ``[input]`` when there are several inputs).
