@@ -232,4 +232,3 @@ def frf(
         ts=data.ts,
         data=data,
     )
-

@@ -269,7 +269,8 @@ def step_by_deconvolution(
     n_t = int(round(duration / ts_)) + 1
     if length < 4 or n_t > length:
         raise ArxidError(
-            f"segment_seconds ({segment_seconds} s) must hold several samples and be longer than duration ({duration} s)"
+            f"segment_seconds ({segment_seconds} s) must hold several samples and be longer than "
+            f"duration ({duration} s)"
         )
     starts = segment_starts(sp.size, segments, length)
     idx = starts[:, None] + np.arange(length + 1)

@@ -54,7 +54,8 @@ def _sanathanan_koerner(s: np.ndarray, h: np.ndarray, w: np.ndarray, n: int, m: 
     target = -(s**n) * h
     num = np.zeros(m + 1)
     it = 0
-    for it in range(1, _SK_ITERATIONS + 1):
+    while it < _SK_ITERATIONS:
+        it += 1
         scale = np.sqrt(w) / np.abs(np.polyval(den, s))
         a = cols * scale[:, None]
         b = target * scale
@@ -329,9 +330,7 @@ def _refined(fun: Callable, x0: np.ndarray, free_delay: bool) -> tuple[np.ndarra
 
 
 def _build(fr, i, den, num, delay_s, cov, n, m, weighting, iterations, converged) -> ContinuousTransferFunction:
-    data = fr.data.with_signals(
-        u=fr.data.u[:, [i]], input_names=[fr.input_names[i]], input_units=[fr.input_units[i]]
-    )
+    data = fr.data.with_signals(u=fr.data.u[:, [i]], input_names=[fr.input_names[i]], input_units=[fr.input_units[i]])
     names = [f"a{k}" for k in range(1, n + 1)] + [f"b{k}" for k in range(m + 1)]
 
     def unpack(theta: np.ndarray) -> tuple[list, list, list]:
