@@ -146,7 +146,8 @@ class FrequencyResponse:
         k = int(np.nanargmax(np.where(good, mag, -np.inf))) if good.any() else int(np.nanargmax(mag))
         lo, hi = self.magnitude_band_db
         width = np.nanmedian((hi[:, i] - lo[:, i])[good]) / 2 if good.any() else math.nan
-        unit = f" [{self.output_unit}/{self.input_units[i]}]" if self.output_unit or self.input_units[i] else ""
+        out, inp = self.output_unit, self.input_units[i]
+        unit = f" [{out}/{inp}]" if out and inp else f" [{out} per input unit]" if out else ""
         return (
             f"  from {self.input_names[i]}{unit}: {mag[0]:.3g} dB at {self.frequency[0]:.3g} Hz, "
             f"peak {mag[k]:.3g} dB at {self.frequency[k]:.3g} Hz; band ±{width:.2g} dB "

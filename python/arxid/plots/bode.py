@@ -46,7 +46,7 @@ def _shade(axes: Any, fr: Any, missed: np.ndarray) -> None:
     for ax in axes:
         for lo, hi in _spans(fr.coherence < _LOW_COHERENCE, fr.frequency):
             ax.axvspan(lo, hi, color="0.85", lw=0)
-        for lo, hi in _spans(missed, fr.frequency):
+        for lo, hi in _spans(missed & (fr.coherence >= _LOW_COHERENCE), fr.frequency):
             ax.axvspan(lo, hi, color="C3", alpha=0.15, lw=0)
 
 
@@ -60,7 +60,8 @@ def _gain(ax: Any, fr: Any, model: np.ndarray | None, i: int, name: str) -> None
     if model is not None:
         ax.plot(f, 20 * np.log10(np.abs(model)), color="C0", lw=1.3, label=name)
     ax.set_ylim(floor + 10.0, np.nanmax(hi[:, i]) + 5.0)
-    unit = f" [{fr.output_unit}/{fr.input_units[i]}]" if fr.output_unit or fr.input_units[i] else ""
+    out, inp = fr.output_unit, fr.input_units[i]
+    unit = f" [{out}/{inp}]" if out and inp else f" [{out} per unit]" if out else ""
     ax.set_ylabel("gain [dB]" + unit, fontsize=8)
 
 
@@ -95,7 +96,8 @@ def plot_bode(fr: Any, model: np.ndarray | None = None, *, input: int = 0, model
     matplotlib.figure.Figure
         Gain [dB] with the band at ``fr.confidence`` (grey), phase (wrapped), coherence. Grey
         shading: coherence below 0.5 (the estimate says little there); red shading: the model
-        leaves the band (it misses the data beyond the estimate's uncertainty).
+        leaves the band where the coherence is at least 0.5 (it misses the data beyond the
+        estimate's uncertainty).
     """
     fig, axes = new_figure(3, 1, height=1.8, sharex=True)
     ax = axes[:, 0]
