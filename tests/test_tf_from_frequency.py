@@ -128,7 +128,7 @@ def test_bad_input_gives_typed_errors():
 
 def test_bode_figure_shades_where_the_model_misses():
     pytest.importorskip("matplotlib")
-    from arxid.frequency._model_response import model_response
+    from arxid.frequency_domain._model_response import model_response
     from arxid.plots.bode import misses
 
     fr = arxid.frf(_simulate(5), segment_length=1024)

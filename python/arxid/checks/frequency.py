@@ -46,7 +46,7 @@ import numpy as np
 from .._base.formatting import finite_or_none
 from ..data.iodata import IOData
 from ..exceptions import DataError
-from ..frequency._spectra import default_segment_length, effective_averages, finite_runs, spectra
+from ..frequency_domain._spectra import default_segment_length, effective_averages, finite_runs, spectra
 from ..models.arguments import check_data, check_model
 from ..models.arx_model import ArxModel
 from .bands import frequency_response, normal_quantile
