@@ -12,6 +12,8 @@ The map (one subpackage per layer, top to bottom; docs/architecture.md has the r
 * :mod:`arxid.selection` — :func:`sweep`, :class:`SweepResult`, :data:`DEFAULT_GRID`, :func:`refine`;
 * :mod:`arxid.checks` — :func:`compare`, :func:`residuals`, :func:`where_it_fails`,
   :func:`frequency_check`, confidence bands; :mod:`arxid.fleet` — many logs, Dask;
+* :mod:`arxid.frequency_domain` — :func:`frf`, :class:`FrequencyResponse`,
+  :func:`step_by_deconvolution`, :func:`tf_from_frequency`;
 * :mod:`arxid.models` — :func:`arx`, :class:`ArxModel`, :class:`PolynomialModel`, :func:`oe`,
   :func:`armax`, :func:`bj`, :func:`polyest`, :func:`delayest`, continuous-time models
   (:func:`tfest`, :func:`procest`), effects, conversion, model files;
@@ -42,6 +44,7 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
+from .frequency_domain import DeconvolvedStep, FrequencyResponse, frf, step_by_deconvolution, tf_from_frequency
 from .models.arx_model import ArxModel, arx
 from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
@@ -68,6 +71,11 @@ __all__ = [
     "delayest",
     "tfest",
     "procest",
+    "frf",
+    "FrequencyResponse",
+    "step_by_deconvolution",
+    "DeconvolvedStep",
+    "tf_from_frequency",
     "refine",
     "RefinedSweep",
     "compare",

@@ -6,6 +6,7 @@ one panel take ``ax=`` to draw into an existing axes instead.
 
 from __future__ import annotations
 
+from .bode import plot_bode
 from .data import data_overview, figure_to_data_uri, step_checks
 from .diagnostics import (
     plot_comparison,
@@ -28,4 +29,5 @@ __all__ = [
     "plot_ladder",
     "plot_residuals",
     "plot_sweep",
+    "plot_bode",
 ]
