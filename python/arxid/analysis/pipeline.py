@@ -579,11 +579,10 @@ def analyse(
         )
         fb = pending.result() if fb is None else fb
         loop = _loop_structure(fb, est, val, (), orders, grid, requested, expect, progress, model)
+    method: ClosedLoopMethod | None = OPEN_LOOP if fb is not None and model is None else None
     if loop is not None:
         res, chosen, choice, g = loop.sweep, loop.model, loop.choice, loop.grid
         est, val, method = loop.estimation, loop.validation, loop.method
-    else:
-        method = OPEN_LOOP if fb is not None and model is None else None
     if refs and reference is not None:  # a named reference is never a plant input, whatever the verdict
         diagnose_kwargs.setdefault("loop_signals", loop_signal_names(est, refs))
     elif method is not None and method.closed:
