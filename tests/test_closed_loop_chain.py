@@ -184,3 +184,20 @@ def test_readme_closed_loop_walkthrough_runs_and_says_what_it_claims():
     assert a.closed_loop.method.startswith("instrumental variables with the reference rate_sp")
     gain, pole = _gain_and_pole_error(a.model.a, a.model.b[0], RateLoopPlant())
     assert abs(gain) < 0.03 and pole < 0.01
+
+
+def test_bode_view_is_the_plant_from_the_reference_and_the_report_shows_it():
+    from arxid.analysis.report.html import render_html
+
+    plant = RateLoopPlant()
+    a = arxid.analyse(pid_rate_loop(seed=6, n_samples=16000), reference="rate_sp", max_steps=1)
+    fr = a.bode
+    assert "reference" in fr.method_text
+    zinv = np.exp(-2j * np.pi * fr.frequency * a.validation.ts)
+    true = plant.rate_gain * (1 - plant.motor_pole) * zinv ** (plant.delay + 1)
+    true = true / ((1 - plant.rate_pole * zinv) * (1 - plant.motor_pole * zinv))
+    good = fr.coherence > 0.9
+    assert good.sum() > 10
+    assert np.max(np.abs(20 * np.log10(np.abs(fr.response[good, 0] / true[good])))) < 1.0
+    html = render_html(a)
+    assert 'id="bode"' in html and "Bode view" in html

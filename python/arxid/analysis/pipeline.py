@@ -27,7 +27,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from functools import partial
+from functools import cached_property, partial
 from typing import Any, cast
 
 from .._base.background import Background, in_two, one_blas_thread
@@ -40,6 +40,7 @@ from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.suspects import Diagnosis
 from ..exceptions import ArxidError, DataError, OrderError
+from ..frequency_domain import FrequencyResponse, frf
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel, arx
 from ..models.polynomial import PolynomialModel, check_initial
@@ -133,6 +134,20 @@ class Analysis:
     initial: str = "zero"
     feedback: FeedbackTest | None = None
     closed_loop: ClosedLoopMethod | None = None
+
+    @cached_property
+    def bode(self) -> FrequencyResponse | None:
+        """The plant's frequency response measured on the validation data (:func:`arxid.frf`), for
+        the Bode view: from the reference in closed loop (S_ry / S_ru), else H1 = S_uy / S_uu.
+
+        Computed when first asked for (the report asks); None when it cannot be estimated (data
+        too short, or several inputs without a reference each).
+        """
+        refs = list(self.closed_loop.references) if self.closed_loop is not None else []
+        try:
+            return frf(self.validation, reference=refs or None)
+        except ArxidError:
+            return None
 
     @property
     def final_model(self) -> ArxModel:

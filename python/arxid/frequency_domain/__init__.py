@@ -9,8 +9,16 @@ Not named ``arxid.frequency``: that path still imports the frequency check
 from __future__ import annotations
 
 from ._frf import frf
+from ._model_response import model_response
 from ._response import FrequencyResponse
 from ._step import DeconvolvedStep, step_by_deconvolution
 from ._tf_fit import tf_from_frequency
 
-__all__ = ["frf", "FrequencyResponse", "step_by_deconvolution", "DeconvolvedStep", "tf_from_frequency"]
+__all__ = [
+    "frf",
+    "model_response",
+    "FrequencyResponse",
+    "step_by_deconvolution",
+    "DeconvolvedStep",
+    "tf_from_frequency",
+]

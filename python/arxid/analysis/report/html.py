@@ -480,6 +480,41 @@ def _frequency_section(a: Analysis) -> Raw:
     return _join([sentences, _img(fc.plot(), "frequency check", f"Frequency check of {fc.model_name}."), how])
 
 
+def _bode_section(a: Analysis) -> Raw:
+    from ...frequency_domain import model_response
+    from ...plots.bode import misses, plot_bode
+
+    fr = a.bode
+    if fr is None:
+        return _p(
+            "No Bode view: the validation data are too short for a frequency response, or several inputs "
+            "have no reference each."
+        )
+    model = a.final_model
+    g = model_response(model, fr.frequency)
+    missed = misses(fr, g) & (fr.coherence >= 0.5)
+    where = _miss_bands(fr.frequency, missed)
+    verdict = (
+        f"The model {model.structure_name()} leaves the measured response's band at {where}."
+        if where
+        else f"The model {model.structure_name()} stays inside the measured response's band wherever the "
+        "coherence is at least 0.5."
+    )
+    how = _p(
+        f"Black: {fr.method_text}, with its {100 * fr.confidence:g} % band (grey). Blue: the model. Grey shading: "
+        "coherence below 0.5 (the data say little there). Red shading: where the model leaves the band.",
+        cls="small",
+    )
+    return _join([_p(verdict), _img(plot_bode(fr, g, model_name=model.structure_name()), "Bode view"), how])
+
+
+def _miss_bands(f: np.ndarray, missed: np.ndarray) -> str:
+    """Runs of missed frequencies as ``1.2–3.4 Hz, 10 Hz`` (empty when none)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], missed.astype(np.int8), [0]])))
+    runs = [(f[a], f[b - 1]) for a, b in zip(edges[::2], edges[1::2])]
+    return ", ".join(f"{lo:.3g} Hz" if lo == hi else f"{lo:.3g}–{hi:.3g} Hz" for lo, hi in runs)
+
+
 def _suspect_section(a: Analysis) -> Raw:
     d = a.diagnosis
     top = d.top
@@ -574,6 +609,7 @@ _SECTIONS = (
     ("residuals", "Residual tests", _residual_section),
     ("fails", "Where it fails", _failure_section),
     ("frequency", "Where it fails in frequency", _frequency_section),
+    ("bode", "Bode view", _bode_section),
     ("suspects", "Which effect is missing", _suspect_section),
     ("ladder", "Error ladder", _ladder_section),
 )
