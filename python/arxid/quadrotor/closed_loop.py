@@ -108,14 +108,7 @@ def pi_loop(
         raise DataError(f"n_samples must be at least 200, got {n_samples}")
     p = plant or PiLoopPlant()
     rng = np.random.default_rng(seed)
-    # a PRBS with bits of round(1 / band) samples, started at a random point of its period
-    hold = max(1, round(1 / band))
-    x = prbs(10, band=band, levels=(-p.reference, p.reference), ts=ts, periods=n_samples // (1023 * hold) + 2)
-    r = np.roll(x.values, -int(rng.integers(0, x.period)))[:n_samples]
-    e = rng.normal(0.0, p.noise_std, n_samples)
-    v = np.zeros(n_samples)
-    for t in range(n_samples):
-        v[t] = e[t] + (p.noise_pole * v[t - 1] if t else 0.0)
+    r, v = _reference_and_noise(rng, n_samples, band, p.reference, p.noise_pole, p.noise_std)
     (a1, a2), (b1, b2) = p.a, p.b
     y, u, clean = np.zeros(n_samples), np.zeros(n_samples), np.zeros(n_samples)
     integral = 0.0
@@ -238,13 +231,7 @@ def pid_rate_loop(
         raise DataError(f"n_samples must be at least 200, got {n_samples}")
     p = plant or RateLoopPlant()
     rng = np.random.default_rng(seed)
-    hold = max(1, round(1 / band))
-    x = prbs(10, band=band, levels=(-p.reference, p.reference), ts=ts, periods=n_samples // (1023 * hold) + 2)
-    r = np.roll(x.values, -int(rng.integers(0, x.period)))[:n_samples]
-    v = np.zeros(n_samples)
-    e = rng.normal(0.0, p.noise_std, n_samples)
-    for t in range(n_samples):
-        v[t] = e[t] + (p.noise_pole * v[t - 1] if t else 0.0)
+    r, v = _reference_and_noise(rng, n_samples, band, p.reference, p.noise_pole, p.noise_std)
     y, u, d_term = _fly_pid(r, v, p, ts)
     return IOData(
         y,
@@ -257,6 +244,21 @@ def pid_rate_loop(
         extra={"rate_sp": r, "pid_d": d_term},
         extra_units={"rate_sp": "rad/s", "pid_d": "1"},
     )
+
+
+def _reference_and_noise(
+    rng: np.random.Generator, n: int, band: float, amplitude: float, pole: float, std: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A PRBS reference of ±``amplitude`` with bits of ``round(1 / band)`` samples, started at a random
+    point of its period, and the coloured output noise ``e / (1 - pole q^-1)``, e of ``std``."""
+    hold = max(1, round(1 / band))
+    x = prbs(10, band=band, levels=(-amplitude, amplitude), periods=n // (1023 * hold) + 2)
+    r = np.roll(x.values, -int(rng.integers(0, x.period)))[:n]
+    e = rng.normal(0.0, std, n)
+    v = np.zeros(n)
+    for t in range(n):
+        v[t] = e[t] + (pole * v[t - 1] if t else 0.0)
+    return r, v
 
 
 def _fly_pid(r: np.ndarray, v: np.ndarray, p: RateLoopPlant, ts: float) -> tuple[np.ndarray, ...]:
