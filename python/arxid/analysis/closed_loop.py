@@ -81,13 +81,22 @@ def reference_candidates(data: IOData) -> list[str]:
     return [n for n in data.extra if _REFERENCE.search(n) and not _CONTROLLER.search(n)]
 
 
-def reference_names(data: IOData, reference: str | Sequence[str] | None) -> tuple[str, ...]:
+def reference_names(
+    data: IOData, reference: str | Sequence[str] | None, validation: IOData | None = None
+) -> tuple[str, ...]:
     """The references of the analysis: those named (checked), else those recognised by name.
+
+    Recognised references that do not move (in the estimation or the validation data) are left
+    out; of the rest, the analysis keeps as many as there are inputs, those the output follows most
+    closely (largest correlation: a loop makes its output track its reference), so that a roll
+    analysis takes the roll setpoint and not the throttle's.
 
     Parameters
     ----------
     data : IOData
+        The estimation data.
     reference : None, str or sequence of str
+    validation : IOData, optional
 
     Returns
     -------
@@ -98,9 +107,28 @@ def reference_names(data: IOData, reference: str | Sequence[str] | None) -> tupl
     DataError
         When a named reference is not an extra signal of the data, or is the output or an input.
     """
-    if reference is None:
-        return tuple(reference_candidates(data))
-    return instrument_names(data, reference)
+    if reference is not None:
+        return instrument_names(data, reference)
+    records = [data] if validation is None else [data, validation]
+    moving = [n for n in reference_candidates(data) if all(_moves(r.extra.get(n)) for r in records)]
+    if len(moving) <= data.n_inputs:
+        return tuple(moving)
+    tracked = sorted(moving, key=lambda n: -_correlation(data.extra[n], data.y))
+    return tuple(tracked[: data.n_inputs])
+
+
+def _moves(x: np.ndarray | None) -> bool:
+    if x is None:
+        return False
+    finite = x[np.isfinite(x)]
+    return finite.size > 1 and float(np.ptp(finite)) > 0
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 3 or np.ptp(a[ok]) == 0 or np.ptp(b[ok]) == 0:
+        return 0.0
+    return abs(float(np.corrcoef(a[ok], b[ok])[0, 1]))
 
 
 def loop_signal_names(data: IOData, references: Sequence[str]) -> tuple[str, ...]:
@@ -348,13 +376,15 @@ def iv_method(references: Sequence[str], loop: Sequence[str], point: Mapping[str
     )
 
 
-def direct_method(loop: Sequence[str], point: Mapping[str, float]) -> ClosedLoopMethod:
-    """The method of closed-loop data without a logged reference.
+def direct_method(loop: Sequence[str], point: Mapping[str, float], still: Sequence[str] = ()) -> ClosedLoopMethod:
+    """The method of closed-loop data without a usable reference.
 
     Parameters
     ----------
     loop : sequence of str
     point : mapping of str to float
+    still : sequence of str
+        Logged references that do not move (they excite nothing, so they cannot be instruments).
 
     Returns
     -------
@@ -364,8 +394,14 @@ def direct_method(loop: Sequence[str], point: Mapping[str, float]) -> ClosedLoop
     return ClosedLoopMethod(
         "direct",
         f"direct prediction-error method, Box-Jenkins with a noise model of orders nc={nc}, nd={nd}",
-        "The data were logged in closed loop and no reference is logged (name the setpoint with "
-        "reference=<signal> to identify the plant by instrumental variables built from it). The direct method is "
+        (
+            f"The data were logged in closed loop and the setpoint {', '.join(still)} does not move in the "
+            "estimation or validation record, so it excites nothing and cannot be an instrument. "
+            if still
+            else "The data were logged in closed loop and no reference is logged (name the setpoint with "
+            "reference=<signal> to identify the plant by instrumental variables built from it). "
+        )
+        + "The direct method is "
         "consistent only when its noise model can describe the real noise; otherwise the controller's feedback of "
         "the noise biases it, so the plant estimate may be biased: treat its gain and poles with care.",
         "free-run simulation on the measured validation input, which carries the noise fed back by the "

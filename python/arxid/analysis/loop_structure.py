@@ -26,6 +26,7 @@ from .closed_loop import (
     iv_refit,
     loop_signal_names,
     operating_point,
+    reference_candidates,
     reference_driven_pair,
     remove_operating_point,
 )
@@ -127,7 +128,8 @@ def closed_loop_structure(
         how = "refitted as a Box-Jenkins model by prediction error (the direct method)"
     except ArxidError as exc:
         model, how = chosen, f"kept as least squares fitted it: the Box-Jenkins refit failed ({exc})"
-    return LoopStructure(res, model, _said(choice, how), g, est, val, direct_method(loop, point))
+    still = reference_candidates(est)  # logged setpoints that did not move, if any
+    return LoopStructure(res, model, _said(choice, how), g, est, val, direct_method(loop, point, still))
 
 
 def _said(choice: Choice, how: str) -> Choice:

@@ -580,7 +580,7 @@ def analyse(
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)
     initial = check_initial(initial)
-    refs = reference_names(est, reference)
+    refs = reference_names(est, reference, val)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     # The verdict steers the chain: with a reference it is awaited before any sweep; without one it
