@@ -8,6 +8,7 @@ pub mod columns;
 pub mod csv_read;
 pub mod error;
 pub mod finite_sums;
+pub mod flight_log;
 pub mod fit;
 pub mod fit_residual;
 pub mod group_sums;
@@ -32,6 +33,8 @@ pub mod threshold_scan;
 mod py;
 #[cfg(feature = "python")]
 mod py_csv;
+#[cfg(feature = "python")]
+mod py_flight_log;
 
 pub use error::{ArxError, Result};
 pub use fit::{fit, Fit};

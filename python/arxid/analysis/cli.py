@@ -115,6 +115,7 @@ def load_data(  # noqa: C901
     ts: float | None = None,
     time_col: str | None = None,
     units: dict[str, str] | None = None,
+    resample: bool = False,
 ):
     """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
 
@@ -132,6 +133,9 @@ def load_data(  # noqa: C901
         Time column (uniformly sampled seconds), instead of ``ts``.
     units : dict of str to str, optional
         Unit of each signal by name (``--units``); overrides units in a CSV header.
+    resample : bool
+        Put a time column with jitter on a uniform grid (``--resample``, see
+        :meth:`~arxid.IOData.from_csv`).
 
     In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
@@ -164,13 +168,21 @@ def load_data(  # noqa: C901
             time=time_col,
             units=units,
             source=p.name,
+            resample=resample,
         )
     else:
         try:
             if ts is None and time_col is None:
                 raise UsageError("give the sampling time with --ts SECONDS or a time column with --time COL")
             data = IOData.from_csv(
-                p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col, units=units
+                p,
+                output=output,
+                inputs=list(inputs),
+                extra=list(extra),
+                ts=ts,
+                time=time_col,
+                units=units,
+                resample=resample,
             )
         except UnicodeDecodeError:
             raise DataError(
@@ -191,6 +203,12 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
     g = p.add_mutually_exclusive_group()
     g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
     g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
+    p.add_argument(
+        "--resample",
+        action="store_true",
+        help="put a --time column with jitter on a uniform grid (inputs held, other signals interpolated, "
+        "gaps longer than 3 steps missing)",
+    )
     p.add_argument(
         "--units",
         metavar="NAME=UNIT,...",
@@ -275,10 +293,15 @@ def _common(p: argparse.ArgumentParser) -> None:
 def _load(args, need_validation: bool = True):
     inputs, extra = _names(args.inputs), _names(args.extra)
     units = parse_units(args.units)
-    data = load_data(args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
+    resample = getattr(args, "resample", False)
+    data = load_data(
+        args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units, resample=resample
+    )
     val = None
     if getattr(args, "validation", None):
-        val = load_data(args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
+        val = load_data(
+            args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units, resample=resample
+        )
         if abs(val.ts - data.ts) > 1e-9 * data.ts:
             raise UsageError(f"the validation data are sampled at {val.ts:g} s but DATA at {data.ts:g} s")
         return data, val

@@ -17,6 +17,15 @@ from .samples import as_float_samples, check_sampling_time, freeze_owned
 __all__ = ["IOData"]
 
 
+def _selectors(inputs, extra) -> tuple[list[str], list[str]]:
+    """Inputs and extra signals as lists (a single string is one name); at least one input."""
+    inputs = [inputs] if isinstance(inputs, str) else list(inputs)
+    extra = [extra] if isinstance(extra, str) else list(extra)
+    if not inputs:
+        raise DataError("name at least one input field")
+    return inputs, extra
+
+
 def _sample_at(time: float, ts: float, n: int) -> int:
     """The first sample at or after ``time`` seconds, clamped to ``[0, n]``."""
     k = time / ts - 1e-9
@@ -173,6 +182,7 @@ class IOData:
         ts: float | None = None,
         time: str | None = None,
         units: Mapping[str, str] | None = None,
+        resample: bool = False,
     ) -> IOData:
         """Build from a pandas DataFrame by column names.
 
@@ -191,6 +201,10 @@ class IOData:
             Time column (seconds).
         units : mapping of str to str, optional
             Unit of each column, by name.
+        resample : bool
+            Put jittered samples onto a uniform grid of step ``ts`` (default: the median step of
+            ``time``): inputs held between samples, the other columns interpolated linearly, gaps
+            longer than 3 steps NaN (see :func:`arxid.data.resample.resample`). Needs ``time``.
 
         Returns
         -------
@@ -198,7 +212,15 @@ class IOData:
         """
         columns = {str(c): np.asarray(df[c]) for c in df.columns}
         return cls._from_columns(
-            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source="DataFrame"
+            columns,
+            output=output,
+            inputs=inputs,
+            extra=extra,
+            ts=ts,
+            time=time,
+            units=units,
+            source="DataFrame",
+            resample=resample,
         )
 
     @classmethod
@@ -213,6 +235,7 @@ class IOData:
         time: str | None = None,
         delimiter: str | None = None,
         units: Mapping[str, str] | None = None,
+        resample: bool = False,
     ) -> IOData:
         """Read a CSV file with a header row.
 
@@ -229,10 +252,24 @@ class IOData:
             Column separator; sniffed from the header when omitted.
         units : mapping of str to str, optional
             Unit of each column, by name.
+        resample : bool
+            Put a time column with jitter onto a uniform grid, as in :meth:`from_pandas`.
 
         Returns
         -------
         IOData
+
+        Examples
+        --------
+        A log whose time stamps jitter by a tenth of a step:
+
+        >>> import numpy as np, tempfile, os
+        >>> t = np.arange(500) * 0.01 + np.random.default_rng(1).uniform(-1e-3, 1e-3, 500)
+        >>> path = os.path.join(tempfile.mkdtemp(), "log.csv")
+        >>> np.savetxt(path, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,y,u", comments="")
+        >>> d = IOData.from_csv(path, output="y", inputs=["u"], time="t", resample=True)
+        >>> round(d.ts, 3), d.n_samples > 490
+        (0.01, True)
         """
         table = CsvFile.open(path, delimiter, check=False)  # read() checks the whole file in the same pass
         # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
@@ -245,7 +282,15 @@ class IOData:
         units = {**table.units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
         columns = table.read([output, *inputs, *extra] + ([time] if time else []))
         return cls._from_columns(
-            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source=table.path.name
+            columns,
+            output=output,
+            inputs=inputs,
+            extra=extra,
+            ts=ts,
+            time=time,
+            units=units,
+            source=table.path.name,
+            resample=resample,
         )
 
     @classmethod
@@ -308,7 +353,128 @@ class IOData:
         )
 
     @classmethod
-    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source) -> IOData:
+    def from_blackbox(
+        cls,
+        path,
+        *,
+        output: str,
+        inputs: Sequence[str],
+        extra: Sequence[str] = (),
+        log: int = 1,
+        ts: float | None = None,
+        max_gap: float | None = None,
+    ) -> IOData:
+        """Read a Betaflight or INAV blackbox log (``.bbl``, ``.bfl``, ``.txt``) onto one time grid.
+
+        Fields are named as the firmware writes them, in its units (see
+        :mod:`arxid.data.blackbox`): gyro and setpoints in deg/s, ``vbatLatest`` in V, motors in
+        the header's ``motorOutput`` range; ``pidsum[i]`` is the PID output of axis ``i`` (P + I +
+        D + feedforward). Commands (setpoints, PID terms, motors and the inputs) are held between
+        frames, measurements interpolated, gaps longer than ``max_gap`` are NaN. Signal names are
+        the selectors with brackets replaced by ``_`` (``gyroADC_0``).
+
+        Parameters
+        ----------
+        path : str or Path
+        output : str
+            E.g. ``"gyroADC[0]"`` (roll rate).
+        inputs : sequence of str
+            E.g. ``["pidsum[0]"]`` or ``["axisP[0]", "axisI[0]", "axisD[0]"]``.
+        extra : sequence of str
+            Signals kept for diagnostics (``"setpoint[0]"``, ``"vbatLatest"``, ``"motor[0]"``).
+        log : int
+            Which log of the file (one per arming), from 1.
+        ts : float, optional
+            Grid step [s]; default the median frame interval.
+        max_gap : float, optional
+            Longest interval between frames bridged [s]; default 3 frame intervals.
+
+        Returns
+        -------
+        IOData
+
+        Raises
+        ------
+        DataError
+            A missing or unreadable file, no such log or field (the message names the file).
+        """
+        from .blackbox import read_blackbox
+
+        inputs, extra = _selectors(inputs, extra)
+        sig = read_blackbox(path, [output, *inputs, *extra], log=log, hold=inputs, ts=ts, max_gap=max_gap)
+        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs))
+
+    @classmethod
+    def from_dataflash(
+        cls,
+        path,
+        *,
+        output: str,
+        inputs: Sequence[str],
+        extra: Sequence[str] = (),
+        instance: int | None = None,
+        ts: float | None = None,
+        max_gap: float | None = None,
+    ) -> IOData:
+        """Read an ArduPilot DataFlash log (``.bin``) onto one time grid.
+
+        Fields are ``MESSAGE.Field`` as ArduPilot logs them, in its units (see
+        :mod:`arxid.data.dataflash`). Commands (the inputs, ``*Des*``, ``*Out``, ``RCOU``) are
+        held between samples, measurements interpolated, gaps longer than ``max_gap`` are NaN.
+        Signal names are the selectors with ``.`` replaced by ``_`` (``RATE_R``).
+
+        Parameters
+        ----------
+        path : str or Path
+        output : str
+            E.g. ``"RATE.R"`` (ArduCopter's roll rate, deg/s).
+        inputs : sequence of str
+            E.g. ``["RATE.ROut"]`` (the roll rate controller's output).
+        extra : sequence of str
+            Signals kept for diagnostics (``"RATE.RDes"``, ``"BAT.Volt"``).
+        instance : int, optional
+            Instance of messages logged for several units (batteries); default the lowest.
+        ts : float, optional
+            Grid step [s]; default the output message's median interval.
+        max_gap : float, optional
+            Longest interval between samples bridged [s]; default 3 times each message's.
+
+        Returns
+        -------
+        IOData
+
+        Raises
+        ------
+        DataError
+            A missing or unreadable file, no such message or field (the message names the file).
+        """
+        from .dataflash import read_dataflash
+
+        inputs, extra = _selectors(inputs, extra)
+        sig = read_dataflash(
+            path, [output, *inputs, *extra], instance=instance, hold=inputs, ts=ts, max_gap=max_gap
+        )
+        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs))
+
+    @classmethod
+    def _from_grid(cls, values: Mapping[str, np.ndarray], units: Mapping[str, str], ts: float, n_inputs: int) -> IOData:
+        """An IOData of signals on one grid: the output first, then ``n_inputs`` inputs, then extras."""
+        names = list(values)
+        out, ins, ext = names[0], names[1 : 1 + n_inputs], names[1 + n_inputs :]
+        return cls(
+            values[out],
+            np.column_stack([values[c] for c in ins]),
+            ts,
+            output_name=out,
+            input_names=tuple(ins),
+            output_unit=units[out],
+            input_units=tuple(units[c] for c in ins),
+            extra={c: values[c] for c in ext},
+            extra_units={c: units[c] for c in ext},
+        )
+
+    @classmethod
+    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source, resample=False) -> IOData:
         if isinstance(inputs, str):
             inputs = [inputs]
         if isinstance(extra, str):
@@ -319,6 +485,8 @@ class IOData:
             raise DataError(f"{source} has no column(s) {missing}; available: {sorted(columns)}")
         if not inputs:
             raise DataError("name at least one input column")
+        if resample:
+            return cls._resampled(columns, output, inputs, extra, ts, time, dict(units or {}), source)
         if ts is None:
             if not time:
                 raise DataError("give the sampling time ts=... or the name of a time column time=...")
@@ -336,7 +504,8 @@ class IOData:
             if ts <= 0 or np.max(np.abs(dt - ts)) > 1e-6 * max(abs(ts), 1.0) + 1e-3 * ts:
                 raise DataError(
                     f"time column {time!r} is not uniformly sampled (steps from {dt.min():g} to {dt.max():g}); "
-                    "resample the data first"
+                    "pass resample=True (CLI: --resample) to put it on a uniform grid (inputs held, the other "
+                    "signals interpolated, long gaps missing)"
                 )
         units = dict(units or {})
         return cls(
@@ -350,6 +519,18 @@ class IOData:
             extra={c: columns[c] for c in extra},
             extra_units={c: units[c] for c in extra if c in units},
         )
+
+    @classmethod
+    def _resampled(cls, columns, output, inputs, extra, ts, time, units, source) -> IOData:
+        """Columns sampled at the times of column ``time`` (with jitter) on a uniform grid."""
+        from .resample import resample
+
+        if not time:
+            raise DataError("resample=True needs the time column: pass time=... (CLI: --time COL)")
+        t = np.asarray(columns[time], dtype=np.float64)
+        names = [output, *inputs, *extra]
+        grid = resample({c: (t, columns[c]) for c in names}, hold=inputs, ts=ts, source=source)
+        return cls._from_grid(grid.values, {c: units.get(c, "") for c in names}, grid.ts, len(inputs))
 
     # ------------------------------------------------------------------ shape and lookup
     @property
