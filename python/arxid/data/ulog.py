@@ -9,6 +9,7 @@ fields on one grid of step ``ts``:
 * a grid point farther than ``max_gap`` from the topic's samples (a dropout longer than a few
   samples) is a missing sample (NaN), never interpolated or held across.
 
+The grid is :func:`arxid.data.resample.resample`'s, the same for every kind of log.
 Times are the topic's ``timestamp_sample`` (when the sample was taken) where it has one, else its
 ``timestamp`` (microseconds since boot). The grid runs where every chosen topic has samples.
 """
