@@ -28,7 +28,7 @@ type MessageOut<'py> =
     (Bound<'py, PyArray1<f64>>, Option<Bound<'py, PyArray1<f64>>>, Vec<Bound<'py, PyArray1<f64>>>, Vec<String>);
 
 /// What `dataflash_read` returns.
-type DataflashOut<'py> = (Vec<(String, MessageOut<'py>)>, usize, usize, usize, Vec<(String, Vec<String>)>);
+type DataflashOut<'py> = (Vec<(String, MessageOut<'py>)>, usize, usize, usize, Vec<(String, Vec<String>, usize)>);
 
 fn name_of(path: &Path) -> String {
     path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
@@ -75,7 +75,7 @@ pub fn blackbox_fields(
 
 /// Fields `wanted` (`(message, field)` pairs) of the DataFlash log at `path`: the messages by
 /// name, the bytes that could not be decoded, the messages decoded, the file's size and the
-/// message types the log defines (with their fields).
+/// message types the log defines (with their fields and how many it holds).
 #[pyfunction]
 pub fn dataflash_read<'py>(
     py: Python<'py>,

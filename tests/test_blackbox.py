@@ -178,7 +178,7 @@ def test_iodata_from_blackbox_with_units_pid_sum_and_a_uniform_grid(blackbox_dir
 
 
 @pytest.mark.realdata
-def test_a_cut_short_log_warns_and_yaw_pid_sum_skips_the_unlogged_d_term(blackbox_dir):
+def test_yaw_pid_sum_skips_the_unlogged_d_term(blackbox_dir):
     path = blackbox_dir / "btfl_001.bbl"
     sig = read_blackbox(path, ["gyroADC[2]", "pidsum[2]"], log=2)
     assert "axisD[2]" not in sig.header.fields and sig.frames == 24893

@@ -14,6 +14,7 @@ import pytest
 from arxid import IOData
 from arxid._base import _core
 from arxid.data.dataflash import dataflash_formats, read_dataflash
+from arxid.data.presets import log_preset
 from arxid.exceptions import ArxidWarning, DataError
 
 HEAD = b"\xa3\x95"
@@ -135,7 +136,7 @@ def test_raw_columns_equal_the_values_written(copter):
     bat_t, bat_inst, (volt,), bat_units = dict(messages)["BAT"]
     assert bat_units == ["V"] and set(bat_inst) == {0.0, 1.0}
     np.testing.assert_array_equal(volt[bat_inst == 0], truth["volt"])
-    assert dict(formats)["RATE"] == RATE_LABELS.split(",")
+    assert {name: (fields, count) for name, fields, count in formats}["RATE"] == (RATE_LABELS.split(","), 4000)
 
 
 def test_iodata_from_a_copter_log_is_read_back_exactly(copter):
@@ -268,3 +269,20 @@ def test_reader_speed_is_recorded(plane_log, capsys):
     dt = time.perf_counter() - t0
     with capsys.disabled():
         print(f"\nDataFlash reader: {dt / (plane_log.stat().st_size / 1e6):.3f} s/MB")
+
+
+# ---------------------------------------------------------------- axis presets on DataFlash logs
+def test_copter_axis_preset_reads_rate_loop_and_battery(copter):
+    path, truth = copter
+    p = log_preset(path, "roll")
+    assert (p.output, p.inputs, p.reference) == ("RATE.R", ("RATE.ROut",), "RATE.RDes")
+    assert p.extra == ("BAT.Volt", "RATE.AOut")
+    d = IOData.from_dataflash(path, **p.read_arguments())
+    assert d.output_name == "RATE_R" and d.input_names == ("RATE_ROut",) and list(d.extra)[0] == "RATE_RDes"
+    assert log_preset(path, "yaw").inputs == ("RATE.YOut",)
+
+
+@pytest.mark.realdata
+def test_axis_preset_on_the_real_plane_log_says_what_is_missing(plane_log):
+    with pytest.raises(DataError, match=r"pilot_0004\.BIN holds no roll rate \(output\).*no RATE message but PIDR"):
+        log_preset(plane_log, "roll")

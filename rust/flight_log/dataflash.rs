@@ -89,8 +89,9 @@ pub struct DataflashLog {
     pub bytes_lost: usize,
     /// Messages decoded (all types).
     pub n_messages: usize,
-    /// Every message type the log defines, with its field names, sorted by name.
-    pub formats: Vec<(String, Vec<String>)>,
+    /// Every message type the log defines, with its field names and how many messages of it the
+    /// log holds (0: defined, never logged), sorted by name.
+    pub formats: Vec<(String, Vec<String>, usize)>,
 }
 
 /// Reads the fields `wanted` (`(message, field)` pairs such as `("RATE", "R")`) from the
@@ -127,11 +128,13 @@ fn decode(data: &[u8], wanted: &[(String, String)]) -> Result<DataflashLog, Data
     let mut unit_names: HashMap<char, String> = HashMap::new();
     let mut unit_ids: HashMap<u8, String> = HashMap::new();
     let mut candidates: HashMap<String, (String, Vec<f64>)> = HashMap::new();
+    let mut counts: HashMap<u8, usize> = HashMap::new();
     let mut reader = Reader::new(Cursor::new(data));
     let (mut decoded_bytes, mut n_messages) = (0usize, 0usize);
     while let Some(entry) = reader.next() {
         let Ok(entry) = entry else { continue };
         n_messages += 1;
+        *counts.entry(entry.msg_type).or_insert(0usize) += 1;
         decoded_bytes += reader.formats().get(&entry.msg_type).map_or(0, |f| usize::from(f.msg_len));
         match entry.name.as_str() {
             "UNIT" => {
@@ -208,8 +211,11 @@ fn decode(data: &[u8], wanted: &[(String, String)]) -> Result<DataflashLog, Data
                 .collect();
         }
     }
-    let mut formats: Vec<(String, Vec<String>)> =
-        formats.values().filter(|f| f.name != "FMT").map(|f| (f.name.clone(), f.labels.to_vec())).collect();
+    let mut formats: Vec<(String, Vec<String>, usize)> = formats
+        .values()
+        .filter(|f| f.name != "FMT")
+        .map(|f| (f.name.clone(), f.labels.to_vec(), counts.get(&f.msg_type).copied().unwrap_or(0)))
+        .collect();
     formats.sort();
     Ok(DataflashLog { messages, bytes_lost: data.len().saturating_sub(decoded_bytes), n_messages, formats })
 }

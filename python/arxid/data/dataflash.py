@@ -79,12 +79,15 @@ def _parse(selector: str) -> tuple[str, str]:
     return m[1], m[2]
 
 
-def dataflash_formats(path) -> dict[str, tuple[str, ...]]:
-    """The message types a DataFlash log defines, with their fields.
+def dataflash_formats(path, logged: bool = True) -> dict[str, tuple[str, ...]]:
+    """The message types a DataFlash log holds, with their fields.
 
     Parameters
     ----------
     path : str or Path
+    logged : bool
+        Only the types with at least one message (ArduPilot defines many it never logs); False:
+        every type the log's ``FMT`` messages define.
 
     Returns
     -------
@@ -98,7 +101,7 @@ def dataflash_formats(path) -> dict[str, tuple[str, ...]]:
     """
     path = _check_path(path)
     formats = _core.dataflash_read(path, [])[4]
-    return {name: tuple(fields) for name, fields in formats}
+    return {name: tuple(fields) for name, fields, count in formats if count or not logged}
 
 
 def read_dataflash(
