@@ -168,7 +168,11 @@ def test_iodata_from_blackbox_with_units_pid_sum_and_a_uniform_grid(blackbox_dir
         path, output="gyroADC[0]", inputs=["pidsum[0]"], extra=["setpoint[0]", "vbatLatest", "motor[2]"]
     )
     assert d.ts == pytest.approx(1e-3, rel=1e-6)  # P interval 8 of an 8 kHz loop: 1 kHz
-    assert d.output_unit == "deg/s" and d.extra_units == {"setpoint_0": "deg/s", "vbatLatest": "V", "motor_2": "158..2047"}
+    assert d.output_unit == "deg/s" and d.extra_units == {
+        "setpoint_0": "deg/s",
+        "vbatLatest": "V",
+        "motor_2": "158..2047",
+    }
     assert d.n_samples > 16000 and d.n_missing == 0
     vbat = d.extra["vbatLatest"]
     assert 17.0 < vbat.min() < 18.5 and 22.0 < vbat.max() < 23.0  # the 6S sag of SOURCE.md

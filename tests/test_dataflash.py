@@ -64,7 +64,9 @@ def decode(data: bytes) -> dict[str, dict[str, list]]:
 
 def fmt_record(mtype: int, name: str, fmt: str, labels: str) -> bytes:
     length = 3 + struct.calcsize("<" + "".join(_CODES[c][0] for c in fmt))
-    return HEAD + bytes([FMT_ID]) + struct.pack("<BB4s16s64s", mtype, length, name.encode(), fmt.encode(), labels.encode())
+    return (
+        HEAD + bytes([FMT_ID]) + struct.pack("<BB4s16s64s", mtype, length, name.encode(), fmt.encode(), labels.encode())
+    )
 
 
 def message(mtype: int, fmt: str, *values) -> bytes:

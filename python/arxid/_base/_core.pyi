@@ -300,6 +300,7 @@ _CsvProblem = tuple[str, int, int, int, int, str]
 def csv_read(
     path: str | os.PathLike[str], delimiter: str, n_fields: int, wanted: Sequence[int]
 ) -> tuple[list[_F] | None, bool, _CsvProblem | None]: ...
+
 # flight logs: see rust/py_flight_log.rs
 def blackbox_fields(path: str | os.PathLike[str], log: int) -> tuple[int, list[tuple[str, str]], list[str]]: ...
 def blackbox_read(

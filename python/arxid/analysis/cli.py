@@ -174,16 +174,8 @@ def load_data(  # noqa: C901
         try:
             if ts is None and time_col is None:
                 raise UsageError("give the sampling time with --ts SECONDS or a time column with --time COL")
-            data = IOData.from_csv(
-                p,
-                output=output,
-                inputs=list(inputs),
-                extra=list(extra),
-                ts=ts,
-                time=time_col,
-                units=units,
-                resample=resample,
-            )
+            grid: dict[str, Any] = dict(ts=ts, time=time_col, units=units, resample=resample)
+            data = IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), **grid)
         except UnicodeDecodeError:
             raise DataError(
                 f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
@@ -203,12 +195,8 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
     g = p.add_mutually_exclusive_group()
     g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
     g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
-    p.add_argument(
-        "--resample",
-        action="store_true",
-        help="put a --time column with jitter on a uniform grid (inputs held, other signals interpolated, "
-        "gaps longer than 3 steps missing)",
-    )
+    jitter = "put a --time column with jitter on a uniform grid (inputs held, other signals interpolated)"
+    p.add_argument("--resample", action="store_true", help=jitter)
     p.add_argument(
         "--units",
         metavar="NAME=UNIT,...",
@@ -293,15 +281,11 @@ def _common(p: argparse.ArgumentParser) -> None:
 def _load(args, need_validation: bool = True):
     inputs, extra = _names(args.inputs), _names(args.extra)
     units = parse_units(args.units)
-    resample = getattr(args, "resample", False)
-    data = load_data(
-        args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units, resample=resample
-    )
+    grid: dict[str, Any] = dict(ts=args.ts, time_col=args.time, units=units, resample=getattr(args, "resample", False))
+    data = load_data(args.data, args.output, inputs, extra, **grid)
     val = None
     if getattr(args, "validation", None):
-        val = load_data(
-            args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units, resample=resample
-        )
+        val = load_data(args.validation, args.output, inputs, extra, **grid)
         if abs(val.ts - data.ts) > 1e-9 * data.ts:
             raise UsageError(f"the validation data are sampled at {val.ts:g} s but DATA at {data.ts:g} s")
         return data, val

@@ -235,11 +235,13 @@ def read_blackbox(
     raw = dict(zip(wanted, columns, strict=True))
     raw_units = dict(zip(wanted, units, strict=True))
     t = time_us * 1e-6
-    samples, unit = {}, {}
+    samples: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    unit: dict[str, str] = {}
     for f in fields:
         m = re.fullmatch(r"pidsum\[(\d)\]", f)
         if m:
-            samples[f] = (t, sum(raw[f"{x}[{m[1]}]"] for x in _PID_TERMS if f"{x}[{m[1]}]" in raw))
+            parts = [raw[f"{x}[{m[1]}]"] for x in _PID_TERMS if f"{x}[{m[1]}]" in raw]
+            samples[f] = (t, np.sum(parts, axis=0))
             unit[f] = ""
         else:
             samples[f] = (t, raw[f])

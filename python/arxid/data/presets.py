@@ -253,7 +253,7 @@ def _ulog_fields(path) -> set[str]:
         ulog = pyulog.ULog(str(path))
     except Exception as exc:  # pyulog raises its own and struct errors on a damaged file
         raise DataError(f"{Path(path).name} is not a readable ULog file ({exc})") from None
-    out = set()
+    out: set[str] = set()
     for d in ulog.data_list:
         prefix = d.name if d.multi_id == 0 else f"{d.name}:{d.multi_id}"
         out.update(f"{prefix}.{f}" for f in d.data if not f.startswith("timestamp"))

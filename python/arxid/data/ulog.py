@@ -210,7 +210,9 @@ def read_ulog(
     for s in selectors:
         if samples[s.text][0].shape[0] < 2:
             raise DataError(f"{s.text} has fewer than 2 samples in {path.name}")
-    held_names = {s.text for s in selectors if s.text in set(hold) or "setpoint" in s.topic or s.topic.startswith("actuator")}
+    held_names = {
+        s.text for s in selectors if s.text in set(hold) or "setpoint" in s.topic or s.topic.startswith("actuator")
+    }
     grid = resample(samples, hold=held_names, ts=ts, max_gap=max_gap, source=path.name)
     values = {s.name: grid.values[s.text] for s in selectors}
     units = {s.name: px4_unit(s.topic, s.field) for s in selectors}
