@@ -23,6 +23,9 @@ type BlackboxOut<'py> = (
     bool,
 );
 
+/// What `blackbox_fields` returns: `(n_logs, headers, fields)`.
+type BlackboxHeader = (usize, Vec<(String, String)>, Vec<String>);
+
 /// One message of `dataflash_read`: `(time_us, instance or None, columns, units)`.
 type MessageOut<'py> =
     (Bound<'py, PyArray1<f64>>, Option<Bound<'py, PyArray1<f64>>>, Vec<Bound<'py, PyArray1<f64>>>, Vec<String>);
@@ -63,14 +66,11 @@ pub fn blackbox_read<'py>(
 
 /// The header of log `log` (1-based) of the blackbox file at `path`: `(n_logs, headers, fields)`.
 #[pyfunction]
-pub fn blackbox_fields(
-    py: Python<'_>,
-    path: PathBuf,
-    log: usize,
-) -> PyResult<(usize, Vec<(String, String)>, Vec<String>)> {
+pub fn blackbox_fields(py: Python<'_>, path: PathBuf, log: usize) -> PyResult<BlackboxHeader> {
     let bytes = read_bytes(&path)?;
     let out = crate::py::run(py, 1, |_| Ok(blackbox::fields(&bytes, log)))?;
-    out.map_err(|e| DataError::new_err(format!("{} {e}", name_of(&path))))
+    let out = out.map_err(|e| DataError::new_err(format!("{} {e}", name_of(&path))))?;
+    Ok((out.n_logs, out.headers, out.fields))
 }
 
 /// Fields `wanted` (`(message, field)` pairs) of the DataFlash log at `path`: the messages by

@@ -40,16 +40,19 @@ pub enum BlackboxError {
 impl fmt::Display for BlackboxError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            BlackboxError::NotBlackbox => write!(
-                f,
-                "is not a Betaflight/INAV blackbox log (no line 'H Product:Blackbox flight data recorder')"
-            ),
+            BlackboxError::NotBlackbox => {
+                write!(f, "is not a Betaflight/INAV blackbox log (no line 'H Product:Blackbox flight data recorder')")
+            }
             BlackboxError::NoSuchLog { log, n_logs } => {
                 write!(f, "holds {n_logs} log(s) (one per arming); there is no log {log} (log counts from 1)")
             }
             BlackboxError::Header { log, reason } => write!(f, "log {log}: its header cannot be read ({reason})"),
             BlackboxError::UnknownField { field, available } => {
-                write!(f, "has no field '{field}' in its main frames; they hold {}", super::dataflash::quoted(available))
+                write!(
+                    f,
+                    "has no field '{field}' in its main frames; they hold {}",
+                    super::dataflash::quoted(available)
+                )
             }
             BlackboxError::NoFrames { log } => write!(f, "log {log} holds no readable frame"),
             BlackboxError::Corrupt { log, reason } => write!(f, "log {log} is corrupt ({reason})"),
@@ -81,6 +84,17 @@ pub struct BlackboxLog {
     pub complete: bool,
 }
 
+/// The `H name:value` lines of a log's text header, in file order.
+pub type TextHeader = Vec<(String, String)>;
+
+/// The header of one log: how many logs the file holds, its text header and its main-frame fields.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogHeader {
+    pub n_logs: usize,
+    pub headers: TextHeader,
+    pub fields: Vec<String>,
+}
+
 /// Byte offsets of the logs in `data`.
 fn log_starts(data: &[u8]) -> Vec<usize> {
     let mut starts = Vec::new();
@@ -98,7 +112,7 @@ fn log_starts(data: &[u8]) -> Vec<usize> {
 }
 
 /// The `H name:value` lines at the start of a log.
-fn text_headers(log: &[u8]) -> Vec<(String, String)> {
+fn text_headers(log: &[u8]) -> TextHeader {
     let mut out = Vec::new();
     for line in log.split(|&b| b == b'\n') {
         let Some(rest) = line.strip_prefix(b"H ") else { break };
@@ -159,7 +173,7 @@ pub fn read(data: &[u8], log: usize, wanted: &[String]) -> Result<BlackboxLog, B
 ///
 /// # Errors
 /// As [`read`], for the header.
-pub fn fields(data: &[u8], log: usize) -> Result<(usize, Vec<(String, String)>, Vec<String>), BlackboxError> {
+pub fn fields(data: &[u8], log: usize) -> Result<LogHeader, BlackboxError> {
     let (n_logs, bytes, text) = select_log(data, log)?;
     let parsed = without_panic(|| match blackbox_log::File::new(bytes).parse(0) {
         Some(Ok(h)) => Ok(h.main_frame_def().iter().map(|d| d.name.to_string()).collect()),
@@ -167,11 +181,11 @@ pub fn fields(data: &[u8], log: usize) -> Result<(usize, Vec<(String, String)>, 
         None => Err(BlackboxError::NotBlackbox),
     });
     let names = parsed.unwrap_or_else(|reason| Err(BlackboxError::Corrupt { log, reason }))?;
-    Ok((n_logs, text, names))
+    Ok(LogHeader { n_logs, headers: text, fields: names })
 }
 
 /// The bytes of log `log` (1-based), the number of logs and the log's text header.
-fn select_log(data: &[u8], log: usize) -> Result<(usize, &[u8], Vec<(String, String)>), BlackboxError> {
+fn select_log(data: &[u8], log: usize) -> Result<(usize, &[u8], TextHeader), BlackboxError> {
     let starts = log_starts(data);
     if starts.is_empty() {
         return Err(BlackboxError::NotBlackbox);

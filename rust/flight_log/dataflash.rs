@@ -179,8 +179,7 @@ fn decode(data: &[u8], wanted: &[(String, String)]) -> Result<DataflashLog, Data
     let formats = reader.formats();
     for (name, fields) in &by_message {
         let Some(format) = formats.values().find(|f| &f.name == name) else {
-            let mut available: Vec<String> =
-                formats.values().map(|f| f.name.clone()).filter(|n| n != "FMT").collect();
+            let mut available: Vec<String> = formats.values().map(|f| f.name.clone()).filter(|n| n != "FMT").collect();
             available.sort();
             available.dedup();
             return Err(DataflashError::UnknownMessage { message: name.clone(), available });
