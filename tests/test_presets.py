@@ -54,6 +54,16 @@ def test_log_kind_by_suffix():
         log_kind("flight.csv")
 
 
+def test_a_txt_file_is_a_blackbox_log_only_when_it_starts_as_one(tmp_path):
+    export = tmp_path / "export.txt"
+    export.write_text("t,y,u\n0,1,2\n")
+    with pytest.raises(DataError, match=r"export\.txt is a text file, not a blackbox log"):
+        log_kind(export)
+    log = tmp_path / "LOG00001.TXT"
+    log.write_bytes(b"H Product:Blackbox flight data recorder by Nicholas Sherlock\n")
+    assert log_kind(log) == "blackbox"
+
+
 @pytest.mark.realdata
 def test_ulog_preset_on_the_real_px4_log_reads(shared_data):
     path = shared_data / "px4-ulog" / "sample_log_small.ulg"

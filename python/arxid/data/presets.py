@@ -31,6 +31,7 @@ __all__ = ["AxisPreset", "AXES", "LOG_KINDS", "axis_preset", "log_kind", "log_pr
 
 AXES = ("roll", "pitch", "yaw")
 LOG_KINDS = ("blackbox", "dataflash", "ulog")
+_BLACKBOX_START = b"H Product:Blackbox flight data recorder"
 _SUFFIXES = {".bbl": "blackbox", ".bfl": "blackbox", ".txt": "blackbox", ".bin": "dataflash", ".ulg": "ulog"}
 
 
@@ -187,13 +188,13 @@ def log_kind(path) -> str:
     Returns
     -------
     str
-        ``"blackbox"`` (``.bbl``, ``.bfl``, ``.txt``), ``"dataflash"`` (``.bin``) or ``"ulog"``
-        (``.ulg``).
+        ``"blackbox"`` (``.bbl``, ``.bfl``, and ``.txt`` when it starts as a blackbox log does),
+        ``"dataflash"`` (``.bin``) or ``"ulog"`` (``.ulg``).
 
     Raises
     ------
     DataError
-        Another suffix.
+        Another suffix, or a ``.txt`` file that is not a blackbox log.
 
     Examples
     --------
@@ -201,6 +202,12 @@ def log_kind(path) -> str:
     ('blackbox', 'dataflash')
     """
     suffix = Path(path).suffix.lower()
+    if suffix == ".txt" and Path(path).is_file():  # a blackbox log, or a text export such as a CSV
+        with Path(path).open("rb") as handle:
+            if not handle.read(len(_BLACKBOX_START)) == _BLACKBOX_START:
+                raise DataError(
+                    f"{Path(path).name} is a text file, not a blackbox log; read a CSV with IOData.from_csv"
+                )
     if suffix not in _SUFFIXES:
         raise DataError(
             f"{Path(path).name} is not a flight log arxid knows by its suffix "
