@@ -288,3 +288,10 @@ def test_copter_axis_preset_reads_rate_loop_and_battery(copter):
 def test_axis_preset_on_the_real_plane_log_says_what_is_missing(plane_log):
     with pytest.raises(DataError, match=r"pilot_0004\.BIN holds no roll rate \(output\).*no RATE message but PIDR"):
         log_preset(plane_log, "roll")
+
+
+@pytest.mark.realdata
+def test_a_message_defined_but_never_logged_is_named(plane_log):
+    with pytest.warns(ArxidWarning, match="bytes"), pytest.raises(DataError, match="defines RATE but logs no RATE"):
+        IOData.from_dataflash(plane_log, output="RATE.R", inputs=["RATE.ROut"])
+    assert "RATE" in dataflash_formats(plane_log, logged=False) and "RATE" not in dataflash_formats(plane_log)
