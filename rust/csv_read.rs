@@ -133,7 +133,7 @@ pub fn read_columns(
             Err(e) => return Err(CsvError::Malformed { line: line_of(text, start), what: e.to_string() }),
         }
         count += 1;
-        if count % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed) {
+        if count.is_multiple_of(CANCEL_EVERY) && cancel.load(Ordering::Relaxed) {
             return Err(CsvError::Interrupted);
         }
         if first {

@@ -10,6 +10,7 @@ pub mod error;
 pub mod finite_sums;
 pub mod fit;
 pub mod fit_residual;
+pub mod flight_log;
 pub mod group_sums;
 pub mod iv;
 pub mod kstep;
@@ -32,6 +33,8 @@ pub mod threshold_scan;
 mod py;
 #[cfg(feature = "python")]
 mod py_csv;
+#[cfg(feature = "python")]
+mod py_flight_log;
 
 pub use error::{ArxError, Result};
 pub use fit::{fit, Fit};

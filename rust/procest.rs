@@ -219,7 +219,7 @@ pub fn expm(a: &[f64], n: usize) -> Option<Vec<f64>> {
     let a4 = matmul(&a2, &a2, n);
     let a6 = matmul(&a4, &a2, n);
     let b = &PADE13;
-    let eye = |i: usize| if i % (n + 1) == 0 { 1.0 } else { 0.0 };
+    let eye = |i: usize| if i.is_multiple_of(n + 1) { 1.0 } else { 0.0 };
     let inner_u: Vec<f64> = (0..n * n).map(|i| b[13] * a6[i] + b[11] * a4[i] + b[9] * a2[i]).collect();
     let mut u_arg = matmul(&a6, &inner_u, n);
     for (i, v) in u_arg.iter_mut().enumerate() {

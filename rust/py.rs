@@ -1075,6 +1075,8 @@ mod core_module {
     use super::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
     #[pymodule_export]
     use crate::py_csv::csv_read;
+    #[pymodule_export]
+    use crate::py_flight_log::{blackbox_fields, blackbox_read, dataflash_read};
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

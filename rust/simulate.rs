@@ -120,7 +120,7 @@ fn predict_paths(
 ) -> Result<()> {
     assert_eq!(out.len(), d.len(), "one prediction per sample");
     let stop = |t: usize, work: usize| {
-        t % (CANCEL_EVERY / work.clamp(1, CANCEL_EVERY)).max(1) == 0 && cancel.load(Ordering::Relaxed)
+        t.is_multiple_of((CANCEL_EVERY / work.clamp(1, CANCEL_EVERY)).max(1)) && cancel.load(Ordering::Relaxed)
     };
     let lag = first_lag.max(s.max_lag());
     // Every path below writes each sample it predicts; the samples before each experiment's first

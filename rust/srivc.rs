@@ -84,7 +84,7 @@ pub fn state_filter(
             std::mem::swap(&mut x, &mut nx);
             (vp, vc) = (vc, vn);
             done += 1;
-            if done % POLL == 0 && cancel.load(Ordering::Relaxed) {
+            if done.is_multiple_of(POLL) && cancel.load(Ordering::Relaxed) {
                 return Err(ArxError::Interrupted);
             }
         }

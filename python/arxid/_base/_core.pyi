@@ -44,6 +44,9 @@ __all__ = [
     "pem_max_lag",
     "PemOutput",
     "csv_read",
+    "blackbox_fields",
+    "blackbox_read",
+    "dataflash_read",
     "srivc_filter",
     "procest_refine",
     "procest_simulate",
@@ -300,6 +303,19 @@ _CsvProblem = tuple[str, int, int, int, int, str]
 def csv_read(
     path: str | os.PathLike[str], delimiter: str, n_fields: int, wanted: Sequence[int]
 ) -> tuple[list[_F] | None, bool, _CsvProblem | None]: ...
+
+# flight logs: see rust/py_flight_log.rs
+def blackbox_fields(path: str | os.PathLike[str], log: int) -> tuple[int, list[tuple[str, str]], list[str]]: ...
+def blackbox_read(
+    path: str | os.PathLike[str], log: int, wanted: Sequence[str]
+) -> tuple[int, list[tuple[str, str]], list[str], _F, _F, list[_F], list[str], bool]: ...
+
+# (time_us, instance or None, columns, units) of one message
+_Message = tuple[_F, _F | None, list[_F], list[str]]
+
+def dataflash_read(
+    path: str | os.PathLike[str], wanted: Sequence[tuple[str, str]]
+) -> tuple[list[tuple[str, _Message]], int, int, int, list[tuple[str, list[str], int]]]: ...
 def srivc_filter(
     signal: _F, segments: Sequence[tuple[int, int]], phi: _F, prev: _F, cur: _F, next: _F, shift: int = 0
 ) -> _F: ...

@@ -116,6 +116,7 @@ def load_data(  # noqa: C901
     ts: float | None = None,
     time_col: str | None = None,
     units: dict[str, str] | None = None,
+    resample: bool = False,
 ):
     """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
 
@@ -133,6 +134,9 @@ def load_data(  # noqa: C901
         Time column (uniformly sampled seconds), instead of ``ts``.
     units : dict of str to str, optional
         Unit of each signal by name (``--units``); overrides units in a CSV header.
+    resample : bool
+        Put a time column with jitter on a uniform grid (``--resample``, see
+        :meth:`~arxid.IOData.from_csv`).
 
     In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
@@ -165,14 +169,14 @@ def load_data(  # noqa: C901
             time=time_col,
             units=units,
             source=p.name,
+            resample=resample,
         )
     else:
         try:
             if ts is None and time_col is None:
                 raise UsageError("give the sampling time with --ts SECONDS or a time column with --time COL")
-            data = IOData.from_csv(
-                p, output=output, inputs=list(inputs), extra=list(extra), ts=ts, time=time_col, units=units
-            )
+            grid: dict[str, Any] = dict(ts=ts, time=time_col, units=units, resample=resample)
+            data = IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), **grid)
         except UnicodeDecodeError:
             raise DataError(
                 f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
@@ -199,6 +203,8 @@ def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_defaul
     g = p.add_mutually_exclusive_group()
     g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
     g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
+    jitter = "put a --time column with jitter on a uniform grid (inputs held, other signals interpolated)"
+    p.add_argument("--resample", action="store_true", help=jitter)
     p.add_argument(
         "--units",
         metavar="NAME=UNIT,...",
@@ -286,10 +292,11 @@ def _load(args, need_validation: bool = True):
     if reference and reference not in extra:  # the reference is read with the other logged signals
         extra = [*extra, reference]
     units = parse_units(args.units)
-    data = load_data(args.data, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
+    grid: dict[str, Any] = dict(ts=args.ts, time_col=args.time, units=units, resample=getattr(args, "resample", False))
+    data = load_data(args.data, args.output, inputs, extra, **grid)
     val = None
     if getattr(args, "validation", None):
-        val = load_data(args.validation, args.output, inputs, extra, ts=args.ts, time_col=args.time, units=units)
+        val = load_data(args.validation, args.output, inputs, extra, **grid)
         if abs(val.ts - data.ts) > 1e-9 * data.ts:
             raise UsageError(f"the validation data are sampled at {val.ts:g} s but DATA at {data.ts:g} s")
         return data, val

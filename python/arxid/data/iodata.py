@@ -12,6 +12,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from .csvio import CsvFile
+from .flight_logs import FlightLogReaders, selector_lists
 from .samples import as_float_samples, check_sampling_time, freeze_owned
 
 __all__ = ["IOData"]
@@ -24,7 +25,7 @@ def _sample_at(time: float, ts: float, n: int) -> int:
 
 
 @dataclass(frozen=True, eq=False)
-class IOData:
+class IOData(FlightLogReaders):
     """Sampled output and inputs of one or more experiments.
 
     Parameters
@@ -173,6 +174,7 @@ class IOData:
         ts: float | None = None,
         time: str | None = None,
         units: Mapping[str, str] | None = None,
+        resample: bool = False,
     ) -> IOData:
         """Build from a pandas DataFrame by column names.
 
@@ -191,6 +193,10 @@ class IOData:
             Time column (seconds).
         units : mapping of str to str, optional
             Unit of each column, by name.
+        resample : bool
+            Put jittered samples onto a uniform grid of step ``ts`` (default: the median step of
+            ``time``): inputs held between samples, the other columns interpolated linearly, gaps
+            longer than 3 steps NaN (see :func:`arxid.data.resample.resample`). Needs ``time``.
 
         Returns
         -------
@@ -198,7 +204,15 @@ class IOData:
         """
         columns = {str(c): np.asarray(df[c]) for c in df.columns}
         return cls._from_columns(
-            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source="DataFrame"
+            columns,
+            output=output,
+            inputs=inputs,
+            extra=extra,
+            ts=ts,
+            time=time,
+            units=units,
+            source="DataFrame",
+            resample=resample,
         )
 
     @classmethod
@@ -213,6 +227,7 @@ class IOData:
         time: str | None = None,
         delimiter: str | None = None,
         units: Mapping[str, str] | None = None,
+        resample: bool = False,
     ) -> IOData:
         """Read a CSV file with a header row.
 
@@ -229,10 +244,24 @@ class IOData:
             Column separator; sniffed from the header when omitted.
         units : mapping of str to str, optional
             Unit of each column, by name.
+        resample : bool
+            Put a time column with jitter onto a uniform grid, as in :meth:`from_pandas`.
 
         Returns
         -------
         IOData
+
+        Examples
+        --------
+        A log whose time stamps jitter by a tenth of a step:
+
+        >>> import numpy as np, tempfile, os
+        >>> t = np.arange(500) * 0.01 + np.random.default_rng(1).uniform(-1e-3, 1e-3, 500)
+        >>> path = os.path.join(tempfile.mkdtemp(), "log.csv")
+        >>> np.savetxt(path, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,y,u", comments="")
+        >>> d = IOData.from_csv(path, output="y", inputs=["u"], time="t", resample=True)
+        >>> round(d.ts, 3), d.n_samples > 490
+        (0.01, True)
         """
         table = CsvFile.open(path, delimiter, check=False)  # read() checks the whole file in the same pass
         # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
@@ -245,7 +274,15 @@ class IOData:
         units = {**table.units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
         columns = table.read([output, *inputs, *extra] + ([time] if time else []))
         return cls._from_columns(
-            columns, output=output, inputs=inputs, extra=extra, ts=ts, time=time, units=units, source=table.path.name
+            columns,
+            output=output,
+            inputs=inputs,
+            extra=extra,
+            ts=ts,
+            time=time,
+            units=units,
+            source=table.path.name,
+            resample=resample,
         )
 
     @classmethod
@@ -288,27 +325,29 @@ class IOData:
         """
         from .ulog import read_ulog
 
-        inputs = [inputs] if isinstance(inputs, str) else list(inputs)
-        extra = [extra] if isinstance(extra, str) else list(extra)
-        if not inputs:
-            raise DataError("name at least one input field (topic.field)")
+        inputs, extra = selector_lists(inputs, extra)
         sig = read_ulog(path, [output, *inputs, *extra], hold=inputs, ts=ts, max_gap=max_gap)
-        names = list(sig.values)
-        out, ins, ext = names[0], names[1 : 1 + len(inputs)], names[1 + len(inputs) :]
+        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs))
+
+    @classmethod
+    def _from_grid(cls, values: Mapping[str, np.ndarray], units: Mapping[str, str], ts: float, n_inputs: int) -> IOData:
+        """An IOData of signals on one grid: the output first, then ``n_inputs`` inputs, then extras."""
+        names = list(values)
+        out, ins, ext = names[0], names[1 : 1 + n_inputs], names[1 + n_inputs :]
         return cls(
-            sig.values[out],
-            np.column_stack([sig.values[c] for c in ins]),
-            sig.ts,
+            values[out],
+            np.column_stack([values[c] for c in ins]),
+            ts,
             output_name=out,
             input_names=tuple(ins),
-            output_unit=sig.units[out],
-            input_units=tuple(sig.units[c] for c in ins),
-            extra={c: sig.values[c] for c in ext},
-            extra_units={c: sig.units[c] for c in ext},
+            output_unit=units[out],
+            input_units=tuple(units[c] for c in ins),
+            extra={c: values[c] for c in ext},
+            extra_units={c: units[c] for c in ext},
         )
 
     @classmethod
-    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source) -> IOData:
+    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source, resample=False) -> IOData:
         if isinstance(inputs, str):
             inputs = [inputs]
         if isinstance(extra, str):
@@ -319,6 +358,8 @@ class IOData:
             raise DataError(f"{source} has no column(s) {missing}; available: {sorted(columns)}")
         if not inputs:
             raise DataError("name at least one input column")
+        if resample:
+            return cls._resampled(columns, output, inputs, extra, ts, time, dict(units or {}), source)
         if ts is None:
             if not time:
                 raise DataError("give the sampling time ts=... or the name of a time column time=...")
@@ -336,7 +377,8 @@ class IOData:
             if ts <= 0 or np.max(np.abs(dt - ts)) > 1e-6 * max(abs(ts), 1.0) + 1e-3 * ts:
                 raise DataError(
                     f"time column {time!r} is not uniformly sampled (steps from {dt.min():g} to {dt.max():g}); "
-                    "resample the data first"
+                    "pass resample=True (CLI: --resample) to put it on a uniform grid (inputs held, the other "
+                    "signals interpolated, long gaps missing)"
                 )
         units = dict(units or {})
         return cls(
@@ -350,6 +392,18 @@ class IOData:
             extra={c: columns[c] for c in extra},
             extra_units={c: units[c] for c in extra if c in units},
         )
+
+    @classmethod
+    def _resampled(cls, columns, output, inputs, extra, ts, time, units, source) -> IOData:
+        """Columns sampled at the times of column ``time`` (with jitter) on a uniform grid."""
+        from .resample import resample
+
+        if not time:
+            raise DataError("resample=True needs the time column: pass time=... (CLI: --time COL)")
+        t = np.asarray(columns[time], dtype=np.float64)
+        names = [output, *inputs, *extra]
+        grid = resample({c: (t, columns[c]) for c in names}, hold=inputs, ts=ts, source=source)
+        return cls._from_grid(grid.values, {c: units.get(c, "") for c in names}, grid.ts, len(inputs))
 
     # ------------------------------------------------------------------ shape and lookup
     @property

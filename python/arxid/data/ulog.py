@@ -9,6 +9,7 @@ fields on one grid of step ``ts``:
 * a grid point farther than ``max_gap`` from the topic's samples (a dropout longer than a few
   samples) is a missing sample (NaN), never interpolated or held across.
 
+The grid is :func:`arxid.data.resample.resample`'s, the same for every kind of log.
 Times are the topic's ``timestamp_sample`` (when the sample was taken) where it has one, else its
 ``timestamp`` (microseconds since boot). The grid runs where every chosen topic has samples.
 """
@@ -24,6 +25,7 @@ import numpy as np
 
 from .._base.optional import require
 from ..exceptions import DataError
+from .resample import resample
 
 __all__ = ["UlogSignals", "read_ulog", "px4_unit"]
 
@@ -152,18 +154,6 @@ def _topic_samples(ulog, sel: _Selector, path: Path) -> tuple[np.ndarray, np.nda
     return t[order], v[order]
 
 
-def _on_grid(t: np.ndarray, v: np.ndarray, grid: np.ndarray, hold: bool, max_gap: float) -> np.ndarray:
-    """``v(t)`` on ``grid``: held or interpolated, NaN where the samples are more than ``max_gap`` apart."""
-    after = np.searchsorted(t, grid, side="right")  # first sample after each grid time
-    before = np.clip(after - 1, 0, len(t) - 1)
-    nxt = np.clip(after, 0, len(t) - 1)
-    out = v[before].copy() if hold else np.interp(grid, t, v)
-    # inside a dropout (next sample more than max_gap after the last): unknown, neither held nor bridged
-    out[(t[nxt] - t[before] > max_gap) & (grid > t[before])] = np.nan
-    out[(grid < t[0]) | (grid > t[-1])] = np.nan
-    return out
-
-
 def read_ulog(
     path,
     fields: Sequence[str],
@@ -220,22 +210,11 @@ def read_ulog(
     for s in selectors:
         if samples[s.text][0].shape[0] < 2:
             raise DataError(f"{s.text} has fewer than 2 samples in {path.name}")
-    steps = {s.text: float(np.median(np.diff(samples[s.text][0]))) for s in selectors}
-    step = float(ts) if ts is not None else steps[selectors[0].text]
-    if not np.isfinite(step) or step <= 0:
-        raise DataError(f"ts must be a positive number of seconds, got {ts!r}")
-    start = max(t[0] for t, _ in samples.values())
-    stop = min(t[-1] for t, _ in samples.values())
-    if stop - start < step:
-        raise DataError(f"the chosen topics of {path.name} were never logged at the same time; choose others")
-    grid = start + step * np.arange(int(np.floor((stop - start) / step)) + 1)
-    held_names = set(hold)
-    values, units, held = {}, {}, {}
-    for s in selectors:
-        t, v = samples[s.text]
-        is_held = s.text in held_names or "setpoint" in s.topic or s.topic.startswith("actuator")
-        gap = float(max_gap) if max_gap is not None else 3.0 * max(steps[s.text], step)
-        values[s.name] = _on_grid(t, v, grid, is_held, gap)
-        units[s.name] = px4_unit(s.topic, s.field)
-        held[s.name] = is_held
-    return UlogSignals(grid, values, units, held, step)
+    held_names = {
+        s.text for s in selectors if s.text in set(hold) or "setpoint" in s.topic or s.topic.startswith("actuator")
+    }
+    grid = resample(samples, hold=held_names, ts=ts, max_gap=max_gap, source=path.name)
+    values = {s.name: grid.values[s.text] for s in selectors}
+    units = {s.name: px4_unit(s.topic, s.field) for s in selectors}
+    held = {s.name: grid.held[s.text] for s in selectors}
+    return UlogSignals(grid.time, values, units, held, grid.ts)
