@@ -43,6 +43,7 @@ from ..models.two_stage import reference_driven
 __all__ = [
     "ClosedLoopMethod",
     "feedback_check",
+    "beyond_the_sample",
     "feedback_notes",
     "reference_candidates",
     "reference_names",
@@ -162,6 +163,34 @@ def feedback_check(data: IOData) -> FeedbackTest | None:
         return feedback(data)
     except DataError:
         return None
+
+
+def beyond_the_sample(data: IOData, test: FeedbackTest | None) -> bool:
+    """Whether feedback shows in the later inputs, not only within the sample.
+
+    The default test counts a dependence of ``u(t)`` on ``y(t)`` as feedback (MATLAB's ``fbck0``).
+    A plant with a direct feedthrough (an accelerometer answering a torque in the same sample)
+    shows the same dependence, so the chain changes its method only when the later inputs
+    ``u(t+1), u(t+2), ...`` predict the output too (``direct=True``, MATLAB's ``fbck``): a digital
+    controller's integral or derivative makes its next commands depend on the output.
+
+    Parameters
+    ----------
+    data : IOData
+        The estimation data.
+    test : FeedbackTest or None
+        The default test of ``data``.
+
+    Returns
+    -------
+    bool
+    """
+    if test is None or not test.feedback:
+        return False
+    try:
+        return feedback(data, direct=True).feedback
+    except DataError:
+        return False
 
 
 def closed_loop_grid(grid: Mapping[str, Any]) -> dict[str, tuple[int, ...]]:
@@ -448,6 +477,14 @@ def feedback_notes(test: FeedbackTest | None, data: IOData, method: ClosedLoopMe
         return (test.sentence,)
     if method is not None and method.closed:
         return (test.sentence, *method.sentences())
+    if method is not None:  # the open-loop chain ran: the dependence showed within the sample only
+        return (
+            test.sentence,
+            "Only the input of the same sample follows the output (the later inputs do not): a controller that "
+            "reacts within the sample, or a plant with a direct feedthrough, which the data cannot tell apart. "
+            "The open-loop chain was kept; if a controller closes the loop here, give its setpoint with "
+            "reference=<signal>.",
+        )
     refs = reference_candidates(data)
     if refs:
         todo = (

@@ -51,6 +51,7 @@ from .choice import Choice, OrderGrid, choose, grid_lists, grid_of
 from .closed_loop import (
     OPEN_LOOP,
     ClosedLoopMethod,
+    beyond_the_sample,
     feedback_check,
     feedback_notes,
     loop_signal_names,
@@ -648,7 +649,8 @@ def _loop_structure(
     progress: bool,
     given: Any,
 ) -> LoopStructure | None:
-    """The closed-loop structure when feedback was found and the structure is not given (else None)."""
-    if fb is None or not fb.feedback or given is not None:
+    """The closed-loop structure when feedback was found beyond the sample and the structure is not
+    given (else None)."""
+    if given is not None or not beyond_the_sample(est, fb):
         return None
     return closed_loop_structure(est, val, refs, orders, grid, horizon, expect, progress)
