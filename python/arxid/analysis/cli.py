@@ -30,7 +30,7 @@ from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import DEFAULT_GRID, sweep
 from .benchmark import add_bench_command
 from .fleet_cli import add_fleet_command
-from .flight_log import flight_log_data, is_flight_log
+from .flight_log import axis_signals, flight_log_data, is_flight_log
 from .npz_data import read_npz
 from .pipeline import DEFAULT_SPLIT, Analysis, analyse, choose
 from .report.html import render_html
@@ -117,6 +117,7 @@ def load_data(  # noqa: C901
     time_col: str | None = None,
     units: dict[str, str] | None = None,
     resample: bool = False,
+    log: int = 1,
 ):
     """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
 
@@ -137,6 +138,8 @@ def load_data(  # noqa: C901
     resample : bool
         Put a time column with jitter on a uniform grid (``--resample``, see
         :meth:`~arxid.IOData.from_csv`).
+    log : int
+        Which log of a blackbox file, from 1.
 
     In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
@@ -152,7 +155,7 @@ def load_data(  # noqa: C901
         raise UsageError("name the output column with --output COL")
     wanted = [output, *inputs, *extra] + ([time_col] if time_col else [])
     if is_flight_log(p):  # a PX4 ULog: topic.field selectors, grid from the log (analysis/flight_log.py)
-        return flight_log_data(p, output, inputs, extra, ts, units)
+        return flight_log_data(p, output, inputs, extra, ts, units, log)
     if p.suffix.lower() == ".npy":
         raise DataError(
             f"{p.name} holds one unnamed array; save the signals by name with "
@@ -189,9 +192,21 @@ def load_data(  # noqa: C901
 
 
 def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_default: bool = True) -> None:
-    p.add_argument("data", metavar="DATA", help="CSV file with a header row, .npz archive, or PX4 .ulg (topic.field)")
-    p.add_argument("--output", required=True, metavar="COL", help="output column")
-    p.add_argument("--inputs", required=True, metavar="A[,B]", help="input column(s), comma separated")
+    p.add_argument(
+        "data",
+        metavar="DATA",
+        help="CSV file with a header row, .npz archive, or a flight log: PX4 .ulg (topic.field), "
+        "Betaflight/INAV .bbl/.bfl/.txt (gyroADC[0]), ArduPilot .bin (RATE.R)",
+    )
+    p.add_argument("--output", metavar="COL", help="output column (not with --axis)")
+    p.add_argument("--inputs", metavar="A[,B]", help="input column(s), comma separated (not with --axis)")
+    p.add_argument(
+        "--axis",
+        choices=("roll", "pitch", "yaw"),
+        help="a flight log's rate loop on this axis: the gyro as output, the controller's output as input, the "
+        "setpoint as reference, battery, throttle and motors as extra signals",
+    )
+    p.add_argument("--log", type=int, default=1, metavar="N", help="which log of a blackbox file (from 1)")
     p.add_argument("--extra", metavar="C[,D]", default="", help="logged signals kept for diagnostics (e.g. vbat)")
     p.add_argument(
         "--reference",
@@ -286,13 +301,35 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
 
 
+def _axis_preset(args) -> None:
+    """With --axis, the flight log's preset fills --output, --inputs, --extra and --reference."""
+    if not getattr(args, "axis", None):
+        return
+    if args.output or args.inputs:
+        raise UsageError("give either --axis or --output/--inputs: the axis names the signals of the log")
+    path = Path(args.data)
+    if not is_flight_log(path):
+        raise UsageError(f"--axis reads a flight log (.bbl, .bfl, .txt, .bin, .ulg); {path.name} is not one")
+    output, inputs, extra, reference = axis_signals(path, args.axis, args.log)
+    args.output, args.inputs = output, ",".join(inputs)
+    args.extra = ",".join([*extra, *_names(args.extra)])
+    args.reference = args.reference or reference
+
+
 def _load(args, need_validation: bool = True):
+    _axis_preset(args)
     inputs, extra = _names(args.inputs), _names(args.extra)
     reference = getattr(args, "reference", None)
-    if reference and reference not in extra:  # the reference is read with the other logged signals
-        extra = [*extra, reference]
+    if reference and _reference_name(reference) not in {_reference_name(e) for e in extra}:
+        extra = [*extra, reference]  # the reference is read with the other logged signals
     units = parse_units(args.units)
-    grid: dict[str, Any] = dict(ts=args.ts, time_col=args.time, units=units, resample=getattr(args, "resample", False))
+    grid: dict[str, Any] = dict(
+        ts=args.ts,
+        time_col=args.time,
+        units=units,
+        resample=getattr(args, "resample", False),
+        log=getattr(args, "log", 1),
+    )
     data = load_data(args.data, args.output, inputs, extra, **grid)
     val = None
     if getattr(args, "validation", None):

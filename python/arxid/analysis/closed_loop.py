@@ -9,7 +9,8 @@ the chain (Forssell & Ljung, "Closed-loop identification revisited", Automatica 
   whose instruments come from the reference (consistent for any noise colour), and judged by the
   free run of the plant on the reference-driven part of the input (the two-stage input ``û``, see
   :mod:`arxid.models.two_stage`), which the noise did not pass through. The chosen structure is
-  refitted by IV4 (:func:`arxid.iv`); the diagnosis refits candidates on the two-stage data;
+  refitted by IV4 (:func:`arxid.iv`); the diagnosis judges its candidates on the two-stage
+  validation data;
 * **feedback, no reference**: the direct method, a Box–Jenkins model fitted by prediction error on
   the measured signals, consistent when its noise model can describe the noise. The validation can
   only use the measured input, which carries the noise fed back: the plant may still be biased.
@@ -38,7 +39,6 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.iv import instrument_names, iv
 from ..models.pem import bj
-from ..models.two_stage import reference_driven
 
 __all__ = [
     "ClosedLoopMethod",
@@ -47,6 +47,7 @@ __all__ = [
     "feedback_notes",
     "reference_candidates",
     "reference_names",
+    "still_references",
     "loop_signal_names",
     "closed_loop_grid",
     "operating_point",
@@ -87,10 +88,11 @@ def reference_names(
 ) -> tuple[str, ...]:
     """The references of the analysis: those named (checked), else those recognised by name.
 
-    Recognised references that do not move (in the estimation or the validation data) are left
-    out; of the rest, the analysis keeps as many as there are inputs, those the output follows most
-    closely (largest correlation: a loop makes its output track its reference), so that a roll
-    analysis takes the roll setpoint and not the throttle's.
+    References that do not move (in the estimation or the validation data) are left out (see
+    :func:`still_references`). Of the rest of those recognised, the analysis keeps as many as
+    there are inputs, those the output follows most closely (largest correlation: a loop makes its
+    output track its reference), so that a roll analysis takes the roll setpoint, not the
+    throttle's.
 
     Parameters
     ----------
@@ -108,14 +110,30 @@ def reference_names(
     DataError
         When a named reference is not an extra signal of the data, or is the output or an input.
     """
-    if reference is not None:
-        return instrument_names(data, reference)
-    records = [data] if validation is None else [data, validation]
-    moving = [n for n in reference_candidates(data) if all(_moves(r.extra.get(n)) for r in records)]
-    if len(moving) <= data.n_inputs:
+    named = reference is not None
+    candidates = instrument_names(data, reference) if named else tuple(reference_candidates(data))
+    moving = [n for n in candidates if n not in still_references(data, validation, candidates)]
+    if named or len(moving) <= data.n_inputs:
         return tuple(moving)
     tracked = sorted(moving, key=lambda n: -_correlation(data.extra[n], data.y))
     return tuple(tracked[: data.n_inputs])
+
+
+def still_references(data: IOData, validation: IOData | None, references: Sequence[str]) -> tuple[str, ...]:
+    """The references that do not move in the estimation or the validation record (they excite
+    nothing, so they cannot be instruments).
+
+    Parameters
+    ----------
+    data, validation : IOData
+    references : sequence of str
+
+    Returns
+    -------
+    tuple of str
+    """
+    records = [data] if validation is None else [data, validation]
+    return tuple(n for n in references if not all(_moves(r.extra.get(n)) for r in records))
 
 
 def _moves(x: np.ndarray | None) -> bool:
@@ -170,9 +188,9 @@ def beyond_the_sample(data: IOData, test: FeedbackTest | None) -> bool:
 
     The default test counts a dependence of ``u(t)`` on ``y(t)`` as feedback (MATLAB's ``fbck0``).
     A plant with a direct feedthrough (an accelerometer answering a torque in the same sample)
-    shows the same dependence, so the chain changes its method only when the later inputs
-    ``u(t+1), u(t+2), ...`` predict the output too (``direct=True``, MATLAB's ``fbck``): a digital
-    controller's integral or derivative makes its next commands depend on the output.
+    shows the same dependence, so without a logged setpoint the chain changes its method only when
+    the later inputs ``u(t+1), u(t+2), ...`` predict the output too (``direct=True``, MATLAB's
+    ``fbck``). With a setpoint the loop is known and the default verdict is enough.
 
     Parameters
     ----------
@@ -441,21 +459,6 @@ def direct_method(loop: Sequence[str], point: Mapping[str, float], still: Sequen
     )
 
 
-def reference_driven_pair(est: IOData, val: IOData, references: Sequence[str]) -> tuple[IOData, IOData]:
-    """The two-stage estimation and validation data (each input replaced by its reference-driven part).
-
-    Parameters
-    ----------
-    est, val : IOData
-    references : sequence of str
-
-    Returns
-    -------
-    tuple of IOData
-    """
-    return reference_driven(est, references), reference_driven(val, references)
-
-
 def feedback_notes(test: FeedbackTest | None, data: IOData, method: ClosedLoopMethod | None = None) -> tuple[str, ...]:
     """The feedback test's sentence, and what it meant for the analysis.
 
@@ -481,9 +484,9 @@ def feedback_notes(test: FeedbackTest | None, data: IOData, method: ClosedLoopMe
         return (
             test.sentence,
             "Only the input of the same sample follows the output (the later inputs do not): a controller that "
-            "reacts within the sample, or a plant with a direct feedthrough, which the data cannot tell apart. "
-            "The open-loop chain was kept; if a controller closes the loop here, give its setpoint with "
-            "reference=<signal>.",
+            "reacts within the sample, or a plant with a direct feedthrough, which the data cannot tell apart "
+            "without a logged setpoint. The open-loop chain was kept; if a controller closes the loop here, give "
+            "its setpoint with reference=<signal>.",
         )
     refs = reference_candidates(data)
     if refs:

@@ -2,8 +2,10 @@
 consistent under feedback (see :mod:`arxid.analysis.closed_loop` for the methods and why).
 
 :func:`closed_loop_structure` returns the chosen plant with the data the rest of the analysis
-(the diagnosis, its ladder and the checks) must read: with a reference, the two-stage data, whose
-inputs are the reference-driven parts; without, the measured data.
+(the diagnosis, its ladder and the checks) must read. The estimation data stay the measured ones.
+With a reference the validation data are the two-stage data, whose inputs are the reference-driven
+parts: every refit of the diagnosis is judged there, so a candidate that only absorbs the feedback
+validates worse, and none is named for it.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 from ..data.iodata import IOData
 from ..diagnosis.suspects import diagnose
 from ..exceptions import ArxidError, OrderError
+from ..models.two_stage import reference_driven
 from ..selection.search import SweepResult, sweep
 from .choice import Choice, OrderGrid, choose, grid_of
 from .closed_loop import (
@@ -26,8 +29,6 @@ from .closed_loop import (
     iv_refit,
     loop_signal_names,
     operating_point,
-    reference_candidates,
-    reference_driven_pair,
     remove_operating_point,
 )
 
@@ -51,7 +52,7 @@ class LoopStructure:
     grid : dict
         The grid swept.
     estimation, validation : IOData
-        The data of the diagnosis and the checks (two-stage data with a reference).
+        The data of the diagnosis and the checks (the validation data two-stage with a reference).
     method : ClosedLoopMethod
     """
 
@@ -84,6 +85,7 @@ def closed_loop_structure(
     horizon: int | None,
     expect: str | None,
     progress: bool,
+    still: Sequence[str] = (),
 ) -> LoopStructure:
     """Sweep, choose and refit the plant of closed-loop data.
 
@@ -100,6 +102,8 @@ def closed_loop_structure(
     horizon : int or None
     expect : str or None
     progress : bool
+    still : sequence of str
+        Logged references that do not move (named in the direct method's reason).
 
     Returns
     -------
@@ -111,7 +115,7 @@ def closed_loop_structure(
     g = _grid(orders, grid)
     kw: dict[str, Any] = {"horizon": horizon, "expect": expect, "progress": progress}
     if references:
-        est_hat, val_hat = reference_driven_pair(est, val, references)
+        val_hat = reference_driven(val, references)
         res = sweep(est, validation=val_hat, method="iv", instruments=list(references), **kw, **g)
         chosen, choice = choose(res, LOOP_RULE)
         model = iv_refit(chosen, est, references, val_hat, res.horizon)
@@ -120,7 +124,8 @@ def closed_loop_structure(
             if model is not chosen
             else "fitted by basic IV with the reference as instrument (IV4 did not validate better)"
         )
-        return LoopStructure(res, model, _said(choice, how), g, est_hat, val_hat, iv_method(references, loop, point))
+        method = iv_method(references, loop, point)
+        return LoopStructure(res, model, _said(choice, how, model), g, est, val_hat, method)
     res = sweep(est, validation=val, **kw, **g)
     chosen, choice = choose(res, LOOP_RULE)
     try:
@@ -128,14 +133,14 @@ def closed_loop_structure(
         how = "refitted as a Box-Jenkins model by prediction error (the direct method)"
     except ArxidError as exc:
         model, how = chosen, f"kept as least squares fitted it: the Box-Jenkins refit failed ({exc})"
-    still = reference_candidates(est)  # logged setpoints that did not move, if any
-    return LoopStructure(res, model, _said(choice, how), g, est, val, direct_method(loop, point, still))
+    return LoopStructure(res, model, _said(choice, how, model), g, est, val, direct_method(loop, point, still))
 
 
-def _said(choice: Choice, how: str) -> Choice:
+def _said(choice: Choice, how: str, model: Any) -> Choice:
+    """The choice as the refitted model: its name, and the reason with how it was refitted."""
     from dataclasses import replace
 
-    return replace(choice, reason=f"{choice.reason}; {how}")
+    return replace(choice, structure=model.structure_name(), reason=f"{choice.reason}; {how}")
 
 
 def loop_closing_sentences(

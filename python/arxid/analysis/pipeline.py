@@ -55,7 +55,9 @@ from .closed_loop import (
     feedback_check,
     feedback_notes,
     loop_signal_names,
+    reference_candidates,
     reference_names,
+    still_references,
 )
 from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
 from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
@@ -114,7 +116,8 @@ class Analysis:
         How the plant was identified given that verdict (open loop, IV with the reference, or the
         direct method), why, and the validation criterion; None when the model was given. In
         closed loop ``estimation`` and ``validation`` are the data the analysis read: without the
-        operating point, and with a reference, each input replaced by its reference-driven part.
+        operating point, and with a reference the validation inputs replaced by their
+        reference-driven parts.
     """
 
     estimation: IOData
@@ -582,6 +585,8 @@ def analyse(
     requested = check_horizon(horizon)
     initial = check_initial(initial)
     refs = reference_names(est, reference, val)
+    named = [reference] if isinstance(reference, str) else list(reference or reference_candidates(est))
+    still = still_references(est, val, named)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     # The verdict steers the chain: with a reference it is awaited before any sweep; without one it
@@ -594,7 +599,7 @@ def analyse(
             est, val, orders, grid, requested, expect, progress, model, grow=grow, max_seconds=max_seconds
         )
         fb = pending.result() if fb is None else fb
-        loop = _loop_structure(fb, est, val, (), orders, grid, requested, expect, progress, model)
+        loop = _loop_structure(fb, est, val, (), orders, grid, requested, expect, progress, model, still)
     method: ClosedLoopMethod | None = OPEN_LOOP if fb is not None and model is None else None
     if loop is not None:
         res, chosen, choice, g = loop.sweep, loop.model, loop.choice, loop.grid
@@ -648,9 +653,15 @@ def _loop_structure(
     expect: str | None,
     progress: bool,
     given: Any,
+    still: Sequence[str] = (),
 ) -> LoopStructure | None:
-    """The closed-loop structure when feedback was found beyond the sample and the structure is not
-    given (else None)."""
-    if given is not None or not beyond_the_sample(est, fb):
+    """The closed-loop structure when feedback was found and the structure is not given (else None).
+
+    With a logged reference the loop is known, so feedback within the sample counts; without one
+    it must show beyond the sample, since a plant with a direct feedthrough looks the same within
+    it (:func:`~arxid.analysis.closed_loop.beyond_the_sample`)."""
+    if given is not None or fb is None or not fb.feedback:
         return None
-    return closed_loop_structure(est, val, refs, orders, grid, horizon, expect, progress)
+    if not refs and not beyond_the_sample(est, fb):
+        return None
+    return closed_loop_structure(est, val, refs, orders, grid, horizon, expect, progress, still)
