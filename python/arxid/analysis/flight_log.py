@@ -9,6 +9,7 @@ as input, the setpoint as reference, battery, throttle and motors as extra signa
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 from pathlib import Path
 
 from ..data.blackbox import signal_name
@@ -98,7 +99,7 @@ def flight_log_data(
     -------
     IOData
     """
-    kw = {"output": output, "inputs": list(inputs), "extra": list(extra), "ts": ts}
+    kw: dict[str, Any] = {"output": output, "inputs": list(inputs), "extra": list(extra), "ts": ts}
     kind = log_kind(path)
     if kind == "blackbox":
         data = IOData.from_blackbox(path, log=log, **kw)
