@@ -9,8 +9,8 @@ as input, the setpoint as reference, battery, throttle and motors as extra signa
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 from ..data.blackbox import signal_name
 from ..data.iodata import IOData
