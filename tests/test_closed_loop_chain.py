@@ -201,3 +201,32 @@ def test_bode_view_is_the_plant_from_the_reference_and_the_report_shows_it():
     assert np.max(np.abs(20 * np.log10(np.abs(fr.response[good, 0] / true[good])))) < 1.0
     html = render_html(a)
     assert 'id="bode"' in html and "Bode view" in html
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_battery_sag_the_controller_hides_is_still_named_in_closed_loop(seed):
+    # The refits are instrumental variables from the setpoint too: the effect is found on the
+    # two-stage criterion, and the linear loops above add nothing.
+    a = arxid.analyse(pid_rate_loop(seed=seed, n_samples=20000, battery_sag=3.0), reference="rate_sp")
+    assert a.closed_loop.key == "iv-reference"
+    assert a.ladder.final_model.effects == ("command*vbat",)
+    assert a.ladder.final_model.structure_name().startswith("IV(")
+    assert a.error_fall > 0.05
+
+
+def test_iv_with_effects_reduces_to_the_cores_basic_iv_and_matches_the_normal_equations():
+    from arxid.models.iv import instrument_signals
+    from arxid.models.iv_effects import iv_with_effects
+
+    d = pid_rate_loop(seed=9, n_samples=6000, battery_sag=2.0)
+    plain = iv_with_effects(d, 2, [1], [3], [], ["rate_sp"])
+    core = arxid.iv(d, 2, 1, 3, instruments="rate_sp", iterations=0)
+    np.testing.assert_allclose(plain.parameters_, core.parameters_, rtol=1e-9, atol=1e-12)
+    m = iv_with_effects(d, 2, [1], [3], ["command*vbat"], ["rate_sp"])
+    # the normal equations written out: phi(t) = [-y(t-1), -y(t-2), u(t-3), u(t-3) vbat(t-3)]
+    xy, xu = instrument_signals(d, ["rate_sp"])
+    y, u, v, t = d.y, d.u[:, 0], d.extra["vbat"], np.arange(3, d.n_samples)
+    phi = np.column_stack([-y[t - 1], -y[t - 2], u[t - 3], u[t - 3] * v[t - 3]])
+    z = np.column_stack([-xy[t - 1], -xy[t - 2], xu[t - 3, 0], xu[t - 3, 0] * v[t - 3]])
+    want = np.linalg.solve(z.T @ phi, z.T @ y[t])
+    np.testing.assert_allclose(m.parameters_, want, rtol=1e-8)

@@ -263,8 +263,8 @@ def remove_operating_point(data: IOData, point: Mapping[str, float]) -> IOData:
 
 def iv_refit(model: Any, data: IOData, references: Sequence[str], validation: IOData, horizon: int | None) -> Any:
     """The chosen structure refitted by IV4 with the references as instruments, unless the refit
-    validates worse than the sweep's basic IV fit on the closed-loop criterion, or cannot
-    determine every parameter (then the sweep's fit).
+    validates worse than the basic IV fit (the sweep's) on the closed-loop criterion, or cannot
+    determine every parameter (then the basic IV fit).
 
     Parameters
     ----------
@@ -284,12 +284,14 @@ def iv_refit(model: Any, data: IOData, references: Sequence[str], validation: IO
     """
     from ..checks.comparison import error_rms
 
+    orders = (model.na, list(model.nb_), list(model.nk_))
+    basic = iv(data, *orders, instruments=list(references), iterations=0)
     try:
-        refit = iv(data, model.na, list(model.nb_), list(model.nk_), instruments=list(references))
+        refit = iv(data, *orders, instruments=list(references))
     except ArxidError:
-        return model
-    new, old = error_rms(refit, validation, horizon), error_rms(model, validation, horizon)
-    return refit if np.isfinite(new) and not new > old else model
+        return basic
+    new, old = error_rms(refit, validation, horizon), error_rms(basic, validation, horizon)
+    return refit if np.isfinite(new) and not new > old else basic
 
 
 def direct_refit(model: Any, data: IOData) -> Any:

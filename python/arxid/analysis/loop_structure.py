@@ -121,7 +121,7 @@ def closed_loop_structure(
         model = iv_refit(chosen, est, references, val_hat, res.horizon)
         how = (
             "refitted by IV4 with the reference as instrument"
-            if model is not chosen
+            if model.iterations > 0
             else "fitted by basic IV with the reference as instrument (IV4 did not validate better)"
         )
         method = iv_method(references, loop, point)

@@ -16,8 +16,11 @@ from ..checks import error_rms
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, OrderError
 from ..models.arx_model import ArxModel
+from ..models.arx_solver import per_input
 from ..models.effects import compile_effects, parse_effect
 from ..models.envelope import EnvelopeFactor
+from ..models.iv import IvModel
+from ..models.iv_effects import iv_with_effects
 from ..models.lanes import lane_rms
 from ..models.polynomial import PolynomialModel
 from .candidates import auto_candidates, candidate_input_names
@@ -135,7 +138,21 @@ def refit(model: ArxModel, data: IOData, c) -> ArxModel:
             label = c.label if isinstance(c, Candidate) else c.effect
             return cast(ArxModel, refit_structure(model, data, label, candidate_input_names(data)))
         return cast(ArxModel, refit_with_effects(model, data, c.effects))
+    if _closed_loop_iv(model):  # instruments from the reference: consistent in closed loop
+        nb, nk = per_input("nb", c.nb, data.n_inputs), per_input("nk", c.nk, data.n_inputs)
+        return iv_with_effects(data, c.na, nb, nk, _with(model, c), _references(model), model.first_lag_)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(model, c)).fit(data, first_lag=model.first_lag_)
+
+
+def _references(model: ArxModel) -> tuple[str, ...]:
+    """The logged references an IV model's instruments come from (empty otherwise)."""
+    refs = getattr(model, "instruments", None) if isinstance(model, IvModel) else None
+    return (refs,) if isinstance(refs, str) else tuple(refs or ())
+
+
+def _closed_loop_iv(model: ArxModel) -> bool:
+    """Whether ``model`` was fitted by instrumental variables from logged references."""
+    return bool(_references(model))
 
 
 def _with(model: ArxModel, c) -> tuple[str, ...]:
@@ -177,7 +194,7 @@ class Refits:
         self.index: dict[str, int] = {}
         self._validated: dict[tuple, tuple[ArxModel, float]] = {}  # found by validate_all
         self.envelope: EnvelopeFactor | None = None
-        if isinstance(model, PolynomialModel):
+        if isinstance(model, PolynomialModel) or _closed_loop_iv(model):  # refitted one by one
             return
         specs: list[tuple] = []
         for c in cands:

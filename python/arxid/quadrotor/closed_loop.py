@@ -197,7 +197,13 @@ class RateLoopPlant:
 
 
 def pid_rate_loop(
-    seed: int = 0, n_samples: int = 20000, *, ts: float = 0.002, plant: RateLoopPlant | None = None, band: float = 0.3
+    seed: int = 0,
+    n_samples: int = 20000,
+    *,
+    ts: float = 0.002,
+    plant: RateLoopPlant | None = None,
+    band: float = 0.3,
+    battery_sag: float = 0.0,
 ) -> IOData:
     """Simulate the rate axis of :class:`RateLoopPlant` under a PID controller with a filtered derivative.
 
@@ -213,12 +219,17 @@ def pid_rate_loop(
         True parameters (default :class:`RateLoopPlant()`).
     band : float
         Bandwidth of the PRBS setpoint as a fraction of the Nyquist frequency.
+    battery_sag : float
+        Volts the battery loses over the record (0: none). The motors' torque is the command times
+        ``vbat / 15 V`` (a motor driven at battery voltage), which the controller's integral
+        partly hides; the voltage is logged as ``vbat``.
 
     Returns
     -------
     IOData
         Output ``rate`` [rad/s], input ``command`` [1] (the PID sum), extra signals ``rate_sp`` (the
-        logged setpoint [rad/s]) and ``pid_d`` (the controller's derivative term [1]).
+        logged setpoint [rad/s]), ``pid_d`` (the controller's derivative term [1]) and, with a
+        battery sag, ``vbat`` [V].
 
     Examples
     --------
@@ -232,7 +243,12 @@ def pid_rate_loop(
     p = plant or RateLoopPlant()
     rng = np.random.default_rng(seed)
     r, v = _reference_and_noise(rng, n_samples, band, p.reference, p.noise_pole, p.noise_std)
-    y, u, d_term = _fly_pid(r, v, p, ts)
+    k = np.arange(n_samples)
+    vbat = 16.8 - battery_sag * k / n_samples + 0.1 * battery_sag * np.sin(k / 700.0)
+    y, u, d_term = _fly_pid(r, v, p, ts, vbat / 15.0 if battery_sag else np.ones(n_samples))
+    extra, units = {"rate_sp": r, "pid_d": d_term}, {"rate_sp": "rad/s", "pid_d": "1"}
+    if battery_sag:
+        extra["vbat"], units["vbat"] = vbat, "V"
     return IOData(
         y,
         u,
@@ -241,8 +257,8 @@ def pid_rate_loop(
         input_names=("command",),
         output_unit="rad/s",
         input_units=("1",),
-        extra={"rate_sp": r, "pid_d": d_term},
-        extra_units={"rate_sp": "rad/s", "pid_d": "1"},
+        extra=extra,
+        extra_units=units,
     )
 
 
@@ -261,13 +277,16 @@ def _reference_and_noise(
     return r, v
 
 
-def _fly_pid(r: np.ndarray, v: np.ndarray, p: RateLoopPlant, ts: float) -> tuple[np.ndarray, ...]:
-    """The loop sample by sample: the plant's state, the measured rate, the PID command."""
+def _fly_pid(
+    r: np.ndarray, v: np.ndarray, p: RateLoopPlant, ts: float, authority: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """The loop sample by sample: the plant's state, the measured rate, the PID command (whose
+    torque is scaled by ``authority``, the battery's share of its nominal voltage)."""
     n = r.shape[0]
     y, u, d_term = np.zeros(n), np.zeros(n), np.zeros(n)
     rate = torque = integral = derivative = last_error = 0.0
     for t in range(n):
-        command = u[t - p.delay] if t >= p.delay else 0.0
+        command = u[t - p.delay] * authority[t - p.delay] if t >= p.delay else 0.0
         rate = p.rate_pole * rate + p.rate_gain * torque  # the torque of the last sample
         torque = p.motor_pole * torque + (1.0 - p.motor_pole) * command
         y[t] = rate + v[t]
