@@ -90,3 +90,13 @@ def test_real_arduplane_log_says_what_the_axis_is_missing(shared_data, capsys):
     assert main(["diagnose", str(path), "--axis", "roll", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "no roll rate" in err and "ArduPlane" in err
+
+
+@pytest.mark.realdata
+def test_real_px4_log_by_axis(shared_data, capsys):
+    pytest.importorskip("pyulog", reason="needs the px4 extra: pip install 'arxid[px4]'")
+    path = _shared_log(shared_data, "px4-ulog", "sample_log_small.ulg")
+    out = _diagnose_json(capsys, str(path), "--axis", "roll")
+    assert out["closed_loop"]["references"] == ["vehicle_rates_setpoint_roll"]
+    assert not [e for e in _named_effects(out) if "setpoint" in e or "actuator_outputs" in e]
+    assert min(out["model"]["nk"]) >= 1 and out["baseline"]["fit_val"] > 0
