@@ -43,7 +43,7 @@ def test_pid_rate_loop_plant_within_3_percent_and_poles_within_0_01(seed):
     assert not {"rate_sp", "pid_d"} & {f for e in _loop_effects(a) for f in e.replace("*", " ").split()}
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(8))
 def test_pi_loop_plant_recovered_where_arx_and_oe_are_biased(seed):
     plant = PiLoopPlant()
     data = pi_loop(seed=seed, n_samples=30000, band=0.5)
@@ -53,6 +53,8 @@ def test_pi_loop_plant_recovered_where_arx_and_oe_are_biased(seed):
     est = data.split(0.7)[0]
     arx = arxid.arx(est, 2, 2, 1)
     assert _gain_and_pole_error(arx.a, arx.b[0], plant)[1] > 0.05
+    oe = arxid.oe(est, 2, 2, 1)
+    assert abs(_gain_and_pole_error(oe.f[0], oe.b[0], plant)[0]) > 0.2
     assert "r" not in {e for e in _loop_effects(a)}
 
 

@@ -11,8 +11,10 @@ validates worse, and none is named for it.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
+
+import numpy as np
 
 from ..data.iodata import IOData
 from ..diagnosis.suspects import diagnose
@@ -37,6 +39,10 @@ __all__ = ["LoopStructure", "closed_loop_structure", "loop_closing_sentences"]
 #: The choice rule in closed loop: the IV fits of neighbouring structures differ by their variance
 #: more than by their bias, so the fewest parameters within the noise of the best is taken.
 LOOP_RULE = "smallest-within-noise"
+
+#: A pole and a zero of one input closer than this cancel: the structure has one pole and one zero
+#: too many, and the pair shifts the static gain by (1 - z) / (1 - p) without changing the fit.
+CANCELLATION = 0.02
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,7 +123,7 @@ def closed_loop_structure(
     if references:
         val_hat = reference_driven(val, references)
         res = sweep(est, validation=val_hat, method="iv", instruments=list(references), **kw, **g)
-        chosen, choice = choose(res, LOOP_RULE)
+        chosen, choice = _without_cancellation(res, *choose(res, LOOP_RULE))
         model = iv_refit(chosen, est, references, val_hat, res.horizon)
         how = (
             "refitted by IV4 with the reference as instrument"
@@ -136,10 +142,36 @@ def closed_loop_structure(
     return LoopStructure(res, model, _said(choice, how, model), g, est, val, direct_method(loop, point, still))
 
 
+def _cancelling_pair(model: Any) -> tuple[float, float] | None:
+    """A real pole and zero of a single-input model closer than :data:`CANCELLATION` (None if none)."""
+    if len(model.nb_) != 1 or model.na_ < 1 or model.nb_[0] < 2:
+        return None
+    b = np.trim_zeros(np.asarray(model.b[0], dtype=float), "f")
+    poles, zeros = np.roots(model.a), np.roots(b) if b.size > 1 else np.zeros(0)
+    pairs = [(abs(p - z), p, z) for p in poles for z in zeros if abs(p.imag) < 1e-9 and abs(z.imag) < 1e-9]
+    close = [pair for pair in pairs if pair[0] < CANCELLATION]
+    return None if not close else (float(min(close)[1].real), float(min(close)[2].real))
+
+
+def _without_cancellation(res: SweepResult, model: Any, choice: Choice) -> tuple[Any, Choice]:
+    """The chosen structure, or, while a pole and a zero of it cancel, the structure with one pole
+    and one zero fewer (when the sweep holds it and its step response passes)."""
+    while (pair := _cancelling_pair(model)) is not None:
+        na, nb, nk = model.na_ - 1, model.nb_[0] - 1, model.nk_[0]
+        rank = next((i for i in range(len(res)) if (res.na[i], res.nb[i][0], res.nk[i][0]) == (na, nb, nk)), None)
+        if rank is None or res.sanity(rank).reasons:
+            break
+        why = (
+            f"{model.structure_name()} has a pole at {pair[0]:.3f} and a zero at {pair[1]:.3f} that cancel, "
+            f"so {res.structure_name(rank)} was kept"
+        )
+        model = res.model(rank)
+        choice = replace(choice, structure=model.structure_name(), rank=rank, reason=f"{choice.reason}; {why}")
+    return model, choice
+
+
 def _said(choice: Choice, how: str, model: Any) -> Choice:
     """The choice as the refitted model: its name, and the reason with how it was refitted."""
-    from dataclasses import replace
-
     return replace(choice, structure=model.structure_name(), reason=f"{choice.reason}; {how}")
 
 
