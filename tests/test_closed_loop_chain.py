@@ -124,6 +124,8 @@ def test_zero_delay_at_kilohertz_rates_is_reported():
     assert "no delay from u1 to y" in delay_notes(m, d)[0]
     assert delay_notes(m, arxid.IOData(y, u, ts=0.1)) == ()
     assert delay_notes(arxid.arx(d, 1, 2, 1), d) == ()
+    slow = arxid.IOData(y, u, ts=0.1)
+    assert "the controller reacting to the output" in delay_notes(arxid.arx(slow, 1, 2, 0), slow, closed=True)[0]
 
 
 def test_cli_reference_names_the_method(tmp_path, capsys):

@@ -64,6 +64,12 @@ _CONTROLLER = re.compile(
     r"(axis[pidf](_|$)|pid|(^|_)[pidf]term|rout$|pout$|yout$|(^|_)out(_|$)|actuator|motor|servo|rcou|control)", re.I
 )
 
+#: Level of the test beyond the sample that switches to the direct method without a reference. An
+#: open-loop plant with a static nonlinearity driven by a coloured input leaves a nonlinear residual
+#: that the later inputs partly predict (the Silverbox circuit: p = 5e-4), while rate loops give
+#: p-values below 1e-12: the switch asks for evidence far beyond the test's 0.1 %.
+DIRECT_SWITCH_LEVEL = 1e-6
+
 #: Orders (nc, nd) of the Box–Jenkins noise model of the direct method: a noise spectrum with two
 #: resonances or slopes, enough for vibration and gusts seen by a gyro.
 NOISE_ORDERS = (2, 2)
@@ -190,7 +196,8 @@ def beyond_the_sample(data: IOData, test: FeedbackTest | None) -> bool:
     A plant with a direct feedthrough (an accelerometer answering a torque in the same sample)
     shows the same dependence, so without a logged setpoint the chain changes its method only when
     the later inputs ``u(t+1), u(t+2), ...`` predict the output too (``direct=True``, MATLAB's
-    ``fbck``). With a setpoint the loop is known and the default verdict is enough.
+    ``fbck``), at the level :data:`DIRECT_SWITCH_LEVEL`. With a setpoint the loop is known and the
+    default verdict is enough.
 
     Parameters
     ----------
@@ -206,7 +213,7 @@ def beyond_the_sample(data: IOData, test: FeedbackTest | None) -> bool:
     if test is None or not test.feedback:
         return False
     try:
-        return feedback(data, direct=True).feedback
+        return feedback(data, direct=True, alpha=DIRECT_SWITCH_LEVEL).feedback
     except DataError:
         return False
 
@@ -397,6 +404,29 @@ OPEN_LOOP = ClosedLoopMethod(
 )
 
 
+#: The open-loop chain on data the feedback test flags, without a setpoint: the evidence alone does
+#: not change the method.
+WEAK_EVIDENCE = ClosedLoopMethod(
+    "open-loop",
+    "least squares (open loop)",
+    "Without a logged setpoint this is not enough to change the method: a plant with a direct feedthrough "
+    "shows the same dependence within the sample, and a nonlinear plant driven by a coloured input can mimic "
+    "it in the later inputs. The open-loop chain was kept; if a controller closes the loop here, give its "
+    "setpoint with reference=<signal>.",
+    OPEN_LOOP.criterion,
+)
+
+#: Given ARX orders on data the feedback test flags, without a setpoint: the structure is kept.
+GIVEN_ORDERS = ClosedLoopMethod(
+    "open-loop",
+    "least squares (the given ARX orders)",
+    "The ARX orders were given, so they were fitted by least squares. In closed loop the least-squares (ARX) and "
+    "output-error models may be biased (the controller feeds the output noise back into the input); give the "
+    "setpoint with reference=<signal> to fit the same orders by instrumental variables, which stay consistent.",
+    OPEN_LOOP.criterion,
+)
+
+
 def iv_method(references: Sequence[str], loop: Sequence[str], point: Mapping[str, float]) -> ClosedLoopMethod:
     """The method of closed-loop data with a logged reference.
 
@@ -482,14 +512,8 @@ def feedback_notes(test: FeedbackTest | None, data: IOData, method: ClosedLoopMe
         return (test.sentence,)
     if method is not None and method.closed:
         return (test.sentence, *method.sentences())
-    if method is not None:  # the open-loop chain ran: the dependence showed within the sample only
-        return (
-            test.sentence,
-            "Only the input of the same sample follows the output (the later inputs do not): a controller that "
-            "reacts within the sample, or a plant with a direct feedthrough, which the data cannot tell apart "
-            "without a logged setpoint. The open-loop chain was kept; if a controller closes the loop here, give "
-            "its setpoint with reference=<signal>.",
-        )
+    if method is not None:  # the open-loop chain ran on data the test flags: the method says why
+        return (test.sentence, method.reason)
     refs = reference_candidates(data)
     if refs:
         todo = (

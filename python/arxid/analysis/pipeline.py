@@ -49,7 +49,9 @@ from ..selection.growth import DEFAULT_GROWTH_SECONDS, GridGrowth, grid_text
 from ..selection.search import SweepResult, sweep
 from .choice import Choice, OrderGrid, choose, grid_lists, grid_of
 from .closed_loop import (
+    GIVEN_ORDERS,
     OPEN_LOOP,
+    WEAK_EVIDENCE,
     ClosedLoopMethod,
     beyond_the_sample,
     feedback_check,
@@ -600,7 +602,7 @@ def analyse(
         )
         fb = pending.result() if fb is None else fb
         loop = _loop_structure(fb, est, val, (), orders, grid, requested, expect, progress, model, still)
-    method: ClosedLoopMethod | None = OPEN_LOOP if fb is not None and model is None else None
+    method = _open_loop_method(fb, model, orders)
     if loop is not None:
         res, chosen, choice, g = loop.sweep, loop.model, loop.choice, loop.grid
         est, val, method = loop.estimation, loop.validation, loop.method
@@ -633,13 +635,22 @@ def analyse(
         cmp,
         failures,
         timings,
-        notes + delay_notes(chosen, est, fb),
+        notes + delay_notes(chosen, est, method is not None and method.closed),
         freq,
         bands,
         initial,
         fb,
         method,
     )
+
+
+def _open_loop_method(fb: FeedbackTest | None, given: Any, orders: Sequence | None) -> ClosedLoopMethod | None:
+    """What the open-loop chain says it did (None when the model was given or the test could not run)."""
+    if fb is None or given is not None:
+        return None
+    if not fb.feedback:
+        return OPEN_LOOP
+    return GIVEN_ORDERS if orders is not None else WEAK_EVIDENCE
 
 
 def _loop_structure(
@@ -659,9 +670,10 @@ def _loop_structure(
 
     With a logged reference the loop is known, so feedback within the sample counts; without one
     it must show beyond the sample, since a plant with a direct feedthrough looks the same within
-    it (:func:`~arxid.analysis.closed_loop.beyond_the_sample`)."""
+    it (:func:`~arxid.analysis.closed_loop.beyond_the_sample`), and given orders keep their ARX
+    structure."""
     if given is not None or fb is None or not fb.feedback:
         return None
-    if not refs and not beyond_the_sample(est, fb):
-        return None
+    if not refs and (orders is not None or not beyond_the_sample(est, fb)):
+        return None  # given ARX orders without a reference stay ARX (the notes say what feedback means)
     return closed_loop_structure(est, val, refs, orders, grid, horizon, expect, progress, still)

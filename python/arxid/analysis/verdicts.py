@@ -31,14 +31,14 @@ __all__ = [
 
 #: Sampling intervals [s] at or below which no actuator answers within one sample (1 kHz and faster
 #: gyro loops: motors and their propellers take milliseconds to change their thrust).
-FAST_SAMPLING = 0.002
+FAST_SAMPLING = 0.001
 
 
-def delay_notes(model: Any, data: Any, feedback: Any = None) -> tuple[str, ...]:
+def delay_notes(model: Any, data: Any, closed: bool = False) -> tuple[str, ...]:
     """A warning when the chosen model has no delay from an input while that is implausible.
 
-    A delay of zero samples says the input acts on the output within the same sample. At kHz
-    sampling no motor does that, and in closed loop a controller that reads the output and writes
+    A delay of zero samples says the input acts on the output within the same sample. At 1 kHz
+    and faster no motor does that, and in closed loop a controller that reads the output and writes
     the input within the sample produces exactly this dependence: the model has learned the
     controller, not the plant.
 
@@ -48,8 +48,8 @@ def delay_notes(model: Any, data: Any, feedback: Any = None) -> tuple[str, ...]:
         The chosen model (its delays ``nk_``).
     data : IOData
         The estimation data (its sampling time and input names).
-    feedback : FeedbackTest, optional
-        The feedback test of the data.
+    closed : bool
+        Whether the analysis identified the data as closed loop.
 
     Returns
     -------
@@ -57,7 +57,6 @@ def delay_notes(model: Any, data: Any, feedback: Any = None) -> tuple[str, ...]:
     """
     nk = list(getattr(model, "nk_", ()) or ())
     zero = [n for n, k in zip(data.input_names, nk) if int(k) == 0]
-    closed = bool(getattr(feedback, "feedback", False))
     if not zero or not (closed or data.ts <= FAST_SAMPLING):
         return ()
     why = (

@@ -78,7 +78,7 @@ def iv_with_effects(
     >>> d = pid_rate_loop(seed=0, n_samples=6000)
     >>> m = iv_with_effects(d, 2, [1], [3], ["const"], ["rate_sp"])
     >>> m.structure_name(), m.effects
-    ('IV(2,1,3)', ('const',))
+    ('IV(2,1,3) + const', ('const',))
     """
     names = instrument_names(data, list(references))
     if not names:
