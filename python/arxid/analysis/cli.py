@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 import time
 from collections.abc import Sequence
@@ -22,17 +21,15 @@ import numpy as np
 from .._base.formatting import format_value, json_safe, text_table
 from .._base.limits import MAX_ORDER
 from .._base.version import __version__
-from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arx_model import arx
 from ..models.spec import MODEL_FORMS, parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import DEFAULT_GRID, sweep
 from .benchmark import add_bench_command
+from .cli_data import UsageError, data_args, load, load_data, names, parse_units, reference_name
 from .fleet_cli import add_fleet_command
-from .flight_log import axis_signals, flight_log_data, is_flight_log
-from .npz_data import read_npz
-from .pipeline import DEFAULT_SPLIT, Analysis, analyse, choose
+from .pipeline import Analysis, analyse, choose
 from .report.html import render_html
 from .verdicts import negative_fit_note
 
@@ -41,17 +38,9 @@ __all__ = ["main", "load_data", "parse_range"]
 EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
 
 
-class UsageError(Exception):
-    """A bad command line or bad data: reported in one line, exit code 2."""
-
-
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, no usage block: scripts read stderr
         raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
-
-
-def _names(text: str | None) -> list[str]:
-    return [s.strip() for s in (text or "").split(",") if s.strip()]
 
 
 def parse_range(text: str, name: str) -> Sequence[int]:
@@ -85,19 +74,8 @@ def parse_range(text: str, name: str) -> Sequence[int]:
     return sorted(set(out))
 
 
-def parse_units(text: str | None) -> dict[str, str]:
-    """``"V2=V,V1=V"`` → {"V2": "V", "V1": "V"} (the ``--units`` option)."""
-    out: dict[str, str] = {}
-    for part in _names(text):
-        name, sep, unit = part.partition("=")
-        if not sep or not name.strip() or not unit.strip():
-            raise UsageError(f"--units {text!r}: write NAME=UNIT pairs separated by commas, e.g. V2=V,V1=V")
-        out[name.strip()] = unit.strip()
-    return out
-
-
 def _parse_orders(text: str) -> tuple[int, int, int]:
-    parts = _names(text)
+    parts = names(text)
     try:
         vals = tuple(int(p) for p in parts)
     except ValueError:
@@ -106,137 +84,6 @@ def _parse_orders(text: str) -> tuple[int, int, int]:
         raise UsageError(f"--orders {text!r} must be three non-negative integers NA,NB,NK, e.g. 2,1,8")
     na, nb, nk = vals
     return na, nb, nk
-
-
-def load_data(  # noqa: C901
-    path: str,
-    output: str,
-    inputs: Sequence[str],
-    extra: Sequence[str] = (),
-    ts: float | None = None,
-    time_col: str | None = None,
-    units: dict[str, str] | None = None,
-    resample: bool = False,
-    log: int = 1,
-):
-    """Read a CSV file (header row) or a ``.npz`` archive (arrays by name) into :class:`~arxid.IOData`.
-
-    Parameters
-    ----------
-    path : str
-        ``.csv`` or ``.npz`` file.
-    output : str
-        Output column (array) name.
-    inputs, extra : sequence of str
-        Input and extra signal names.
-    ts : float, optional
-        Sampling time in seconds.
-    time_col : str, optional
-        Time column (uniformly sampled seconds), instead of ``ts``.
-    units : dict of str to str, optional
-        Unit of each signal by name (``--units``); overrides units in a CSV header.
-    resample : bool
-        Put a time column with jitter on a uniform grid (``--resample``, see
-        :meth:`~arxid.IOData.from_csv`).
-    log : int
-        Which log of a blackbox file, from 1.
-
-    In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
-    array ``ts`` in the archive.
-    """
-    p = Path(path)
-    if not p.exists():
-        raise DataError(f"data file {path!r} does not exist")
-    if not p.is_file():
-        raise DataError(f"data file {path!r} is not a regular file (a directory, device or pipe)")
-    if not inputs:
-        raise UsageError("name the input column(s) with --inputs A[,B,...]")
-    if not output:
-        raise UsageError("name the output column with --output COL")
-    wanted = [output, *inputs, *extra] + ([time_col] if time_col else [])
-    if is_flight_log(p):  # a PX4 ULog: topic.field selectors, grid from the log (analysis/flight_log.py)
-        return flight_log_data(p, output, inputs, extra, ts, units, log)
-    if p.suffix.lower() == ".npy":
-        raise DataError(
-            f"{p.name} holds one unnamed array; save the signals by name with "
-            "numpy.savez('log.npz', y=..., u=..., ts=...) or write a CSV file with a header row"
-        )
-    if p.suffix.lower() == ".npz":
-        columns, ts = read_npz(p, wanted, ts, time_col)
-        data = IOData._from_columns(
-            columns,
-            output=output,
-            inputs=list(inputs),
-            extra=list(extra),
-            ts=ts,
-            time=time_col,
-            units=units,
-            source=p.name,
-            resample=resample,
-        )
-    else:
-        try:
-            if ts is None and time_col is None:
-                raise UsageError("give the sampling time with --ts SECONDS or a time column with --time COL")
-            grid: dict[str, Any] = dict(ts=ts, time=time_col, units=units, resample=resample)
-            data = IOData.from_csv(p, output=output, inputs=list(inputs), extra=list(extra), **grid)
-        except UnicodeDecodeError:
-            raise DataError(
-                f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
-                "give a CSV file with a header row or a .npz archive"
-            ) from None
-    for name, values in [(data.output_name, data.y), *zip(data.input_names, data.u.T), *data.extra.items()]:
-        if not np.isfinite(values).any():
-            raise DataError(f"{p.name}: the column {name!r} holds no numbers (every sample is missing)")
-    return data
-
-
-def _data_args(p: argparse.ArgumentParser, validation: bool = True, split_default: bool = True) -> None:
-    p.add_argument(
-        "data",
-        metavar="DATA",
-        help="CSV file with a header row, .npz archive, or a flight log: PX4 .ulg (topic.field), "
-        "Betaflight/INAV .bbl/.bfl/.txt (gyroADC[0]), ArduPilot .bin (RATE.R)",
-    )
-    p.add_argument("--output", metavar="COL", help="output column (not with --axis)")
-    p.add_argument("--inputs", metavar="A[,B]", help="input column(s), comma separated (not with --axis)")
-    p.add_argument(
-        "--axis",
-        choices=("roll", "pitch", "yaw"),
-        help="a flight log's rate loop on this axis: the gyro as output, the controller's output as input, the "
-        "setpoint as reference, battery, throttle and motors as extra signals",
-    )
-    p.add_argument("--log", type=int, default=1, metavar="N", help="which log of a blackbox file (from 1)")
-    p.add_argument("--extra", metavar="C[,D]", default="", help="logged signals kept for diagnostics (e.g. vbat)")
-    p.add_argument(
-        "--reference",
-        metavar="C",
-        default=None,
-        help="the setpoint the controller tracks (closed-loop data: the plant is identified with it as instrument; "
-        "default: recognised from the names, e.g. roll_sp, setpoint)",
-    )
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--ts", type=float, metavar="S", help="sampling time in seconds")
-    g.add_argument("--time", metavar="COL", help="time column (uniformly sampled, seconds)")
-    jitter = "put a --time column with jitter on a uniform grid (inputs held, other signals interpolated)"
-    p.add_argument("--resample", action="store_true", help=jitter)
-    p.add_argument(
-        "--units",
-        metavar="NAME=UNIT,...",
-        default="",
-        help="units of the signals for tables and plot axes, e.g. V2=V,V1=V (a CSV header 'vbat[V]' gives them too)",
-    )
-    if validation:
-        v = p.add_mutually_exclusive_group()
-        v.add_argument("--validation", metavar="VAL.csv", help="separate validation file with the same columns")
-        v.add_argument(
-            "--split",
-            type=float,
-            metavar="F",
-            default=None,
-            help="estimation fraction of DATA when no --validation is given "
-            + (f"(default {DEFAULT_SPLIT})" if split_default else "(default: no validation, fit on all of DATA)"),
-        )
 
 
 def _range_text(r: Sequence[int]) -> str:
@@ -301,51 +148,6 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
 
 
-def _axis_preset(args) -> None:
-    """With --axis, the flight log's preset fills --output, --inputs, --extra and --reference."""
-    if not getattr(args, "axis", None):
-        return
-    if args.output or args.inputs:
-        raise UsageError("give either --axis or --output/--inputs: the axis names the signals of the log")
-    path = Path(args.data)
-    if not is_flight_log(path):
-        raise UsageError(f"--axis reads a flight log (.bbl, .bfl, .txt, .bin, .ulg); {path.name} is not one")
-    output, inputs, extra, reference = axis_signals(path, args.axis, args.log)
-    args.output, args.inputs = output, ",".join(inputs)
-    args.extra = ",".join([*extra, *_names(args.extra)])
-    args.reference = args.reference or reference
-
-
-def _load(args, need_validation: bool = True):
-    _axis_preset(args)
-    inputs, extra = _names(args.inputs), _names(args.extra)
-    reference = getattr(args, "reference", None)
-    if reference and _reference_name(reference) not in {_reference_name(e) for e in extra}:
-        extra = [*extra, reference]  # the reference is read with the other logged signals
-    units = parse_units(args.units)
-    grid: dict[str, Any] = dict(
-        ts=args.ts,
-        time_col=args.time,
-        units=units,
-        resample=getattr(args, "resample", False),
-        log=getattr(args, "log", 1),
-    )
-    data = load_data(args.data, args.output, inputs, extra, **grid)
-    val = None
-    if getattr(args, "validation", None):
-        val = load_data(args.validation, args.output, inputs, extra, **grid)
-        if abs(val.ts - data.ts) > 1e-9 * data.ts:
-            raise UsageError(f"the validation data are sampled at {val.ts:g} s but DATA at {data.ts:g} s")
-        return data, val
-    split = getattr(args, "split", None)
-    if split is None and not need_validation:
-        return data, None
-    split = DEFAULT_SPLIT if split is None else split
-    if not 0 < split < 1:
-        raise UsageError(f"--split {split} must be a fraction between 0 and 1, e.g. {DEFAULT_SPLIT}")
-    return data.split(split)
-
-
 def _grid(args) -> dict | None:
     """The sweep grid from --na/--nb/--nk (each defaulting to DEFAULT_GRID), or None with --orders."""
     given = {k: getattr(args, k, None) for k in ("na", "nb", "nk")}
@@ -366,11 +168,11 @@ def _print_json(obj) -> None:
 
 # ---------------------------------------------------------------------------------------- commands
 def cmd_fit(args) -> int:
-    est, val = _load(args, need_validation=False)
+    est, val = load(args, need_validation=False)
     orders = _parse_orders(args.orders) if args.orders else None
     if orders is None:
         raise UsageError("fit needs the structure: --orders NA,NB,NK (find one with 'arxid sweep')")
-    effects = _names(args.effects)
+    effects = names(args.effects)
     model = arx(est, *orders, effects=effects)
     h = args.horizon
     if val is not None and not np.isfinite(model.predict(val, h)).any():
@@ -416,7 +218,7 @@ def cmd_fit(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    est, val = _load(args)
+    est, val = load(args)
     grid = _grid(args)
     if grid is None:
         o = _parse_orders(args.orders)
@@ -479,7 +281,7 @@ def _analyse(args) -> Analysis:
         if orders is not None or any(getattr(args, k, None) is not None for k in ("na", "nb", "nk")):
             raise UsageError("give either --model or --orders / --na --nb --nk, not both")
         parse_model_spec(spec)  # a typed error with the correct form, before the data are read
-    est, val = _load(args)
+    est, val = load(args)
     grid = None if spec is not None or all(getattr(args, k, None) is None for k in ("na", "nb", "nk")) else _grid(args)
     return analyse(
         est,
@@ -494,13 +296,8 @@ def _analyse(args) -> Analysis:
         max_steps=args.max_steps,
         progress=_progress(args),
         initial=args.initial,
-        reference=_reference_name(args.reference),
+        reference=reference_name(args.reference),
     )
-
-
-def _reference_name(name: str | None) -> str | None:
-    """The reference as the data name it: a ULog selector's ``.`` and brackets become ``_``."""
-    return None if not name else re.sub(r"[.\[\]]+", "_", name).strip("_")
 
 
 def cmd_diagnose(args) -> int:
@@ -603,7 +400,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Fit one ARX model by QR and report its errors.",
         **kw,
     )
-    _data_args(p, split_default=False)
+    data_args(p, split_default=False)
     p.add_argument("--orders", metavar="NA,NB,NK", required=True, help="structure, e.g. 2,1,8")
     p.add_argument("--effects", metavar="E[,F]", default="", help="effect terms, e.g. 'u1*vbat,const'")
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
@@ -618,7 +415,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Exhaustive order sweep, ranked by validation error; step sanity checks.",
         **kw,
     )
-    _data_args(p)
+    data_args(p)
     _order_args(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument("--expect", choices=["stable", "integrating", "double-integrating"], help="step sanity expectation")
@@ -628,8 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(func=cmd_sweep)
     _add_analysis_commands(sub, kw)
-    add_bench_command(sub, kw, load=_load, grid=_grid)
-    fleet: dict[str, Any] = dict(load_data=load_data, names=_names, units=parse_units, orders=_parse_orders)
+    add_bench_command(sub, kw, load=load, grid=_grid)
+    fleet: dict[str, Any] = dict(load_data=load_data, names=names, units=parse_units, orders=_parse_orders)
     fleet.update(grid=_grid, order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
     add_fleet_command(sub, kw, {**fleet, "usage_error": UsageError})
     return root
@@ -654,7 +451,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
         description="Diagnose a model: residual tests, suspects, ladder.",
         **kw,
     )
-    _data_args(p)
+    data_args(p)
     _order_args(p)
     _model_arg(p)
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
@@ -673,7 +470,7 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
         description="Sweep, choose, diagnose and write one HTML file with every plot embedded.",
         **kw,
     )
-    _data_args(p)
+    data_args(p)
     _order_args(p)
     _model_arg(p)
     p.add_argument("-o", metavar="REPORT.html", default="report.html", help="output file (default %(default)s)")
