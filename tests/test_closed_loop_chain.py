@@ -210,6 +210,9 @@ def test_bode_view_is_the_plant_from_the_reference_and_the_report_shows_it():
     assert np.max(np.abs(20 * np.log10(np.abs(fr.response[good, 0] / true[good])))) < 1.0
     html = render_html(a)
     assert 'id="bode"' in html and "Bode view" in html
+    assert all(lo <= hi for lo, hi in a.bode_misses)  # the report states these bands, computed by the API
+    said = ", ".join(f"{lo:.3g} Hz" if lo == hi else f"{lo:.3g}–{hi:.3g} Hz" for lo, hi in a.bode_misses)
+    assert (said and said in html) or (not said and "stays inside the measured response" in html)
 
 
 @pytest.mark.parametrize("seed", range(2))

@@ -155,6 +155,16 @@ class Analysis:
         except ArxidError:
             return None
 
+    @cached_property
+    def bode_misses(self) -> tuple[tuple[float, float], ...]:
+        """Frequency bands [Hz] where the final model's response leaves the band of :attr:`bode`
+        while the coherence is at least 0.5 (empty without a Bode view)."""
+        from ..frequency_domain import model_response
+        from ..plots.bode import miss_bands
+
+        fr = self.bode
+        return () if fr is None else miss_bands(fr, model_response(self.final_model, fr.frequency))
+
     @property
     def final_model(self) -> ArxModel:
         """The model of the ladder's last step (the chosen model when nothing was added)."""

@@ -9,7 +9,7 @@ import numpy as np
 
 from .data import new_figure
 
-__all__ = ["plot_bode", "misses"]
+__all__ = ["plot_bode", "misses", "miss_bands"]
 
 #: Coherence below which the estimate is shaded as unreliable.
 _LOW_COHERENCE = 0.5
@@ -33,6 +33,26 @@ def misses(fr: Any, model: np.ndarray | None, input: int = 0) -> np.ndarray:
     if model is None:
         return np.zeros(fr.frequency.size, dtype=bool)
     return np.abs(np.asarray(model) - fr.response[:, input]) > fr.band_radius[:, input]
+
+
+def miss_bands(fr: Any, model: np.ndarray | None, input: int = 0) -> tuple[tuple[float, float], ...]:
+    """The runs of frequencies [Hz] where the model leaves the band (:func:`misses`) while the
+    coherence is at least 0.5, as (first, last) pairs.
+
+    Parameters
+    ----------
+    fr : FrequencyResponse
+    model : ndarray of complex, shape (n_f,), or None
+    input : int
+
+    Returns
+    -------
+    tuple of (float, float)
+    """
+    missed = misses(fr, model, input) & (fr.coherence >= _LOW_COHERENCE)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], missed.astype(np.int8), [0]])))
+    f = fr.frequency
+    return tuple((float(f[a]), float(f[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True))
 
 
 def _spans(mask: np.ndarray, f: np.ndarray) -> list[tuple[float, float]]:

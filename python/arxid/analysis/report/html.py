@@ -482,7 +482,7 @@ def _frequency_section(a: Analysis) -> Raw:
 
 def _bode_section(a: Analysis) -> Raw:
     from ...frequency_domain import model_response
-    from ...plots.bode import misses, plot_bode
+    from ...plots.bode import plot_bode
 
     fr = a.bode
     if fr is None:
@@ -491,9 +491,7 @@ def _bode_section(a: Analysis) -> Raw:
             "have no reference each."
         )
     model = a.final_model
-    g = model_response(model, fr.frequency)
-    missed = misses(fr, g) & (fr.coherence >= 0.5)
-    where = _miss_bands(fr.frequency, missed)
+    where = ", ".join(f"{lo:.3g} Hz" if lo == hi else f"{lo:.3g}–{hi:.3g} Hz" for lo, hi in a.bode_misses)
     verdict = (
         f"The model {model.structure_name()} leaves the measured response's band at {where}."
         if where
@@ -505,14 +503,8 @@ def _bode_section(a: Analysis) -> Raw:
         "coherence below 0.5 (the data say little there). Red shading: where the model leaves the band.",
         cls="small",
     )
-    return _join([_p(verdict), _img(plot_bode(fr, g, model_name=model.structure_name()), "Bode view"), how])
-
-
-def _miss_bands(f: np.ndarray, missed: np.ndarray) -> str:
-    """Runs of missed frequencies as ``1.2–3.4 Hz, 10 Hz`` (empty when none)."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], missed.astype(np.int8), [0]])))
-    runs = [(f[a], f[b - 1]) for a, b in zip(edges[::2], edges[1::2])]
-    return ", ".join(f"{lo:.3g} Hz" if lo == hi else f"{lo:.3g}–{hi:.3g} Hz" for lo, hi in runs)
+    figure = plot_bode(fr, model_response(model, fr.frequency), model_name=model.structure_name())
+    return _join([_p(verdict), _img(figure, "Bode view"), how])
 
 
 def _suspect_section(a: Analysis) -> Raw:
