@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -262,8 +262,6 @@ def remove_operating_point(data: IOData, point: Mapping[str, float]) -> IOData:
     -------
     IOData
     """
-    from dataclasses import replace
-
     offsets = np.array([point[n] for n in data.input_names])
     return replace(data, y=data.y - point[data.output_name], u=data.u - offsets)
 

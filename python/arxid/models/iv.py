@@ -20,6 +20,7 @@ for a whole grid, see :func:`arxid.sweep` with ``method="iv"``).
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -115,12 +116,66 @@ def instrument_signals(
     if not names:
         u = np.where(np.isfinite(data.u), data.u, 0.0)
         return _simulate(data, data.y, u, order), np.ascontiguousarray(data.u)
-    refs = np.column_stack([np.where(np.isfinite(data.extra[n]), data.extra[n], 0.0) for n in names])
-    if np.any(np.ptp(refs, axis=0) == 0):
-        raise DataError(f"the reference {names} is constant: it excites nothing and cannot serve as instrument")
-    xy = _simulate(data, data.y, refs, order)
-    xu = np.column_stack([_simulate(data, data.u[:, i], refs, order) for i in range(data.n_inputs)])
-    return xy, xu
+    xy = projected(data, None, names, order)
+    return xy, projected_inputs(data, names, order)
+
+
+def projected_inputs(data: IOData, references: Sequence[str], order: int = PROJECTION_ORDER) -> np.ndarray:
+    """Every input projected on the references (see :func:`projected`), one column each.
+
+    Parameters
+    ----------
+    data : IOData
+    references : sequence of str
+        Checked reference names (:func:`instrument_names`).
+    order : int
+
+    Returns
+    -------
+    ndarray of shape (n_samples, n_inputs)
+    """
+    return np.column_stack([projected(data, i, references, order) for i in range(data.n_inputs)])
+
+
+#: Projections already made, per data set (the IV fits of a diagnosis' refits all ask for them).
+_PROJECTIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def projected(data: IOData, signal: int | None, references: Sequence[str], order: int = PROJECTION_ORDER) -> np.ndarray:
+    """The output (``signal=None``) or input ``signal`` simulated from a high-order ARX model on the
+    references: its part the references drive, which the noise does not reach. Made once per data
+    set, signal, references and order (read-only).
+
+    Parameters
+    ----------
+    data : IOData
+    signal : int or None
+    references : sequence of str
+        Checked reference names (:func:`instrument_names`).
+    order : int
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+
+    Raises
+    ------
+    DataError
+        When a reference is constant.
+    """
+    memo = _PROJECTIONS.setdefault(data, {})
+    key = (signal, tuple(references), order)
+    if key not in memo:
+        refs = np.column_stack([np.where(np.isfinite(data.extra[n]), data.extra[n], 0.0) for n in references])
+        if np.any(np.ptp(refs, axis=0) == 0):
+            raise DataError(
+                f"the reference {tuple(references)} is constant: it excites nothing and cannot serve as instrument"
+            )
+        target = data.y if signal is None else data.u[:, signal]
+        out = _simulate(data, target, refs, order)
+        out.setflags(write=False)
+        memo[key] = out
+    return memo[key]
 
 
 @dataclass(frozen=True)

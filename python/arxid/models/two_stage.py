@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..data.iodata import IOData
-from .iv import PROJECTION_ORDER, instrument_signals
+from .iv import PROJECTION_ORDER, instrument_names, projected_inputs
 
 __all__ = ["reference_driven"]
 
@@ -54,6 +54,6 @@ def reference_driven(data: IOData, references: str | Sequence[str], order: int =
     >>> bool(abs(np.corrcoef(u_hat, d.u[:, 0])[0, 1]) > 0.5)
     True
     """
-    _xy, xu = instrument_signals(data, references, order)
+    xu = projected_inputs(data, instrument_names(data, references), order)
     xu = np.where(np.isfinite(data.u), xu, np.nan)
     return data.with_signals(u=xu, input_names=data.input_names, input_units=data.input_units)
