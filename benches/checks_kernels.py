@@ -40,7 +40,7 @@ def _csd_matrix(x: np.ndarray, nseg: int, ts: float) -> np.ndarray:
 
 
 def main() -> None:
-    from arxid.checks.failures import _argsort_nonnegative, _sorted_quantiles
+    from arxid.checks.binning import _argsort_nonnegative, _sorted_quantiles
     from arxid.checks.frequency import spectra
     from arxid.diagnosis.disturbance import _low_share
 
