@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 
+import re
+
 import numpy as np
 import pytest
 
@@ -87,12 +89,17 @@ def _fall(diag: Diagnosis, k=0) -> float:
 def test_quadratic_thrust_finds_speed_squared():
     est, val = quadratic_thrust().split(0.6)
     d = diagnose(arxid.arx(est, 1, 1, 1), est, val)
-    assert d.top.effect == "speed^2"
+    # The speed acts through its square (a shape that replaces it), not beside it.
+    assert d.top.effect == "through(speed^2)" and "thrust ∝ square" in d.top.physics
     assert d.suspects[0] is d.top and d.top.p_value < 1e-10
     assert _fall(d) >= 0.4
     m = d.apply(0)
-    # The refit recovers the true parameters: a1 = -0.85, b(speed^2) = 0.6, b(speed) ≈ 0.
-    np.testing.assert_allclose(m.parameters_, [-0.85, 0.0, 0.6], atol=0.01)
+    # The refit recovers the true parameters: a1 = -0.85, b(speed^2) = 0.6.
+    np.testing.assert_allclose(m.parameters_, [-0.85, 0.6], atol=0.01)
+    # The additive speed^2 says the same with one more coefficient: named only if it does better.
+    additive = next(s for s in d.suspects if s.effect == "speed^2")
+    assert not additive.significant and additive.explained_by == "through(speed^2)"
+    np.testing.assert_allclose(d.apply("speed^2").parameters_, [-0.85, 0.0, 0.6], atol=0.01)
 
 
 def test_cubic_spring_finds_y3():
@@ -261,7 +268,7 @@ def test_apply_by_name_and_errors():
     est, val = quadratic_thrust().split(0.6)
     d = diagnose(arxid.arx(est, 1, 1, 1), est, val)
     assert d.apply("speed^2").effects == ("speed^2",)
-    assert d.rank("speed^2") == 0
+    assert d.rank("through(speed^2)") == 0 and d.rank("speed^2") > 0
     with pytest.raises(arxid.ArxidError, match="no suspect"):
         d.apply("vbat")
     with pytest.raises(arxid.ArxidError, match="out of range"):
@@ -338,13 +345,16 @@ def test_ladder_two_hidden_effects_error_falls_each_step(tmp_path):
     ladder = Ladder.run(arxid.arx(est, 2, 1, 1), est, val, max_steps=4)
     added = [s.added for s in ladder.steps]
     # Friction is found alone or, when the offset helps the refit by another 5%, with const.
-    assert added[0] == "" and added[1] == "u1^2" and added[2] in ("sign(dy)", "sign(dy)+const")
+    # The square law is found as the shape the input acts through (its exponent within 10 %).
+    power = re.fullmatch(r"through\(u1\^([0-9.]+)\)(\+const)?", added[1])
+    assert added[0] == "" and power and abs(float(power[1]) - 2) <= 0.2, added
+    assert added[2] in ("sign(dy)", "sign(dy)+const")
     err = ladder.errors
     assert np.all(np.diff(err[:3]) < 0) and err[2] < 0.2 * err[0]
     assert len(ladder.diagnoses) == len(ladder.steps)
-    assert ladder.final_model.effects[:2] == ("u1^2", "sign(dy)")
+    assert ladder.final_model.effects[0] == added[1].removesuffix("+const") and "sign(dy)" in ladder.final_model.effects
     assert (
-        "u1^2" in str(ladder) and ladder.to_list()[0]["effects"] == [] and ladder.to_list()[0]["rms_sim_val"] == err[0]
+        "through(u1^" in str(ladder) and ladder.to_list()[0]["effects"] == [] and ladder.to_list()[0]["rms_sim_val"] == err[0]
     )
     ladder.plot().savefig(tmp_path / "ladder.png")
     assert len(ladder.to_pandas()) == len(ladder)
@@ -487,7 +497,7 @@ def test_functions_and_modules_have_distinct_names():
     missing = importlib.import_module("arxid.diagnosis.suspects")
     est, val = quadratic_thrust().split(0.6)
     d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
-    assert isinstance(d, Diagnosis) and d.top.effect == "speed^2"
+    assert isinstance(d, Diagnosis) and d.top.effect == "through(speed^2)"
     assert arxid.diagnose is missing.diagnose and arxid.sweep is orders.sweep and arxid.Ladder is Ladder
 
 

@@ -327,6 +327,8 @@ def _effect_physics(label: str, data: IOData) -> str:
         return ""
     if effect.special is not None:
         return _BY_WRITTEN[effect.special].physics
+    if effect.shape is not None:
+        return effect.shape.physics()
     written = "*".join(_written(f, data) for f in effect.factors)
     if written in ("u*u", "u*u2"):
         written = "u1*u2"

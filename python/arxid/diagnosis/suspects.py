@@ -57,6 +57,7 @@ from .nonlinearity import NonlinearDependence, nonlinear_dependence
 from .polynomial_scoring import score_polynomial
 from .result import Diagnosis, Suspect
 from .scoring import Scoring
+from .shapes import prefer_shapes, score_shapes
 
 __all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
 
@@ -163,10 +164,12 @@ def diagnose(
         baseline.result()  # the baseline's error first, as when it ran before the scoring
         raise
     base = baseline.result()
+    if scoring is not None and auto:  # shapes that replace an input compete on equal terms
+        scored = scored + score_shapes(model, data, validation, base.horizon, initial, tuple(loop_signals))
     judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement, initial)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
-    suspects = judge.conditional_on_top(suspects)
+    suspects = judge.conditional_on_top(prefer_shapes(suspects, data, min_improvement))
     if scoring is not None and auto and not any(s.significant for s in suspects):
         # Two effects can hide each other: try the strongest candidate with its strongest partner.
         masked = scoring.masked_pairs(scored, alpha)

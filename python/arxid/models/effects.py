@@ -42,10 +42,11 @@ from typing import Any
 
 import numpy as np
 
-from .._base import _core
 from .._base.columns import write_columns
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
+from .input_shapes import InputShape, parse_shape
+from .term_values import integer_power, thresholded, thresholded_products
 
 __all__ = [
     "Effect",
@@ -89,6 +90,7 @@ class Effect:
 
     text: str
     factors: tuple[Factor, ...]
+    shape: InputShape | None = None  # through(SHAPE): the shape replaces its input
 
     @property
     def special(self) -> str | None:
@@ -154,6 +156,8 @@ def parse_effect(text: str, data: IOData) -> Effect:
     if clean in ("const", "time"):
         return Effect(clean, ())
     names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
+    if clean.startswith("through(") and clean.endswith(")"):
+        return _through(clean, names, data)
     factors = []
     for part in _split_product(clean):
         m = _FACTOR.match(part)
@@ -188,6 +192,25 @@ def parse_effect(text: str, data: IOData) -> Effect:
     if not factors:
         raise OrderError(f"cannot read effect {text!r}")
     return Effect(clean, tuple(factors))
+
+
+def _through(clean: str, names: set[str], data: IOData) -> Effect:
+    """A replacing shape (:mod:`arxid.models.input_shapes`): its factors are the signals it reads."""
+    shape = parse_shape(clean[len("through(") : -1], names, clean)
+    if _input_index(shape.signal, data) is None:
+        raise OrderError(f"effect {clean!r}: through( ) shapes an input, and {shape.signal!r} is not one")
+    signals = (shape.signal, shape.other) if shape.other else (shape.signal,)
+    return Effect(f"through({shape.text})", tuple(Factor(s) for s in signals), shape)
+
+
+def shape_series(e: Effect, data: IOData) -> np.ndarray:
+    """The samples of a replacing shape's input f(u) on ``data``."""
+    assert e.shape is not None
+    other = data.signal(e.shape.other) if e.shape.other else None
+    with np.errstate(over="ignore", invalid="ignore"):
+        value = e.shape.evaluate(data.signal(e.shape.signal), other)
+    _check_range(e.text, value)
+    return value
 
 
 def _threshold(text: str, c: str) -> float:
@@ -244,113 +267,6 @@ def factor_series(f: Factor, data: IOData) -> np.ndarray:
     """
     with np.errstate(over="ignore", invalid="ignore"):
         return _apply(f, np.asarray(data.signal(f.signal), dtype=float), data)
-
-
-def thresholded(
-    op: str, magnitude: np.ndarray, sign: np.ndarray, c: float, out: np.ndarray | None = None
-) -> np.ndarray:
-    """A dead zone or a saturation of a signal given as |x| and sign(x): ``dz`` is
-    sign(x)·max(|x| − c, 0), ``sat`` is sign(x)·min(|x|, c) (a threshold scan shapes the same
-    samples with dozens of thresholds, so |x| and sign(x) are taken once).
-
-    Parameters
-    ----------
-    op : {"dz", "sat"}
-    magnitude, sign : ndarray
-        |x| and sign(x).
-    c : float
-        The threshold.
-    out : ndarray, optional
-        Where to write (same shape as ``magnitude``).
-
-    Returns
-    -------
-    ndarray
-
-    Examples
-    --------
-    >>> x = np.array([-2.0, 0.5, 3.0])
-    >>> thresholded("dz", np.abs(x), np.sign(x), 1.0).tolist(), thresholded("sat", np.abs(x), np.sign(x), 1.0).tolist()
-    ([-1.0, 0.0, 2.0], [-1.0, 0.5, 1.0])
-    """
-    if op == "dz":
-        out = np.subtract(magnitude, c, out=out)
-        np.maximum(out, 0.0, out=out)
-    else:
-        out = np.minimum(magnitude, c, out=out)
-    out *= sign
-    return out
-
-
-def thresholded_products(
-    op: str, a: np.ndarray, e: np.ndarray, lagged: np.ndarray, thresholds: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The products of a threshold scan, without forming its columns: for every threshold c the
-    columns ``z_c = thresholded(op, |lagged|, sign(lagged), c)`` times ``[a | e]`` and times
-    themselves, in one pass over the rows (Rust core, all cores).
-
-    Parameters
-    ----------
-    op : {"dz", "sat"}
-    a : ndarray of shape (n_rows, k)
-        The columns each ``z_c`` is multiplied with (a model's regressors).
-    e : ndarray of shape (n_rows,)
-        One more such column (the model's residual).
-    lagged : ndarray of shape (n_rows, width)
-        The samples each of the ``width`` columns of ``z_c`` shapes, row by row.
-    thresholds : ndarray of shape (m,)
-
-    Returns
-    -------
-    cross : ndarray of shape (k + 1, m * width)
-        ``[a | e]' z_c`` for threshold i in columns ``i * width`` to ``(i + 1) * width``.
-    zz : ndarray of shape (m, width, width)
-        ``z_c' z_c`` for every threshold.
-
-    Examples
-    --------
-    >>> x = np.array([[-2.0], [0.5], [3.0]])
-    >>> cross, zz = thresholded_products("dz", np.ones((3, 1)), np.zeros(3), x, np.array([1.0]))
-    >>> cross.tolist(), zz.tolist()
-    ([[1.0], [0.0]], [[[5.0]]])
-    """
-    a, e, lagged = (np.ascontiguousarray(v, dtype=float) for v in (a, e, lagged))
-    cs = np.ascontiguousarray(thresholds, dtype=float)
-    cross, zz = _core.threshold_products(a, e, lagged, cs, op == "dz")
-    k, width, m = cross.shape
-    return cross.transpose(0, 2, 1).reshape(k, m * width), zz.transpose(2, 0, 1)
-
-
-def integer_power(x: np.ndarray, power: int) -> np.ndarray:
-    """``x ** power`` for an integer ``power >= 1`` by squaring and multiplying, as the Rust core's
-    ``powi`` evaluates an output term: the same bits in the regressors and in the simulation (numpy's
-    ``pow`` rounds once, and is eight times slower for a cube).
-
-    Parameters
-    ----------
-    x : ndarray
-    power : int
-
-    Returns
-    -------
-    ndarray
-        A new array.
-
-    Examples
-    --------
-    >>> integer_power(np.array([2.0, -1.5]), 3).tolist()
-    [8.0, -3.375]
-    """
-    result, given = None, np.asarray(x, dtype=float)
-    base = given
-    while True:
-        if power & 1:
-            result = (base.copy() if base is given else base) if result is None else result * base
-        power >>= 1
-        if power == 0:
-            assert result is not None  # power >= 1 sets it
-            return result
-        base = base * base
 
 
 def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
@@ -452,7 +368,7 @@ def compile_effects(
         plan.effect(e, text)
     if u is None and samples:
         u = _stacked(plan.cols, data.n_samples)
-        if len(plan.cols) > 1:  # the inputs themselves need no keeping
+        if len(plan.cols) > 1 or plan.replaced:  # the inputs themselves need no keeping
             u = _keep(data, texts, u)
     if u is None:
         u = np.empty((0, len(plan.nb)))
@@ -506,6 +422,7 @@ class _Plan:
         self.eff_term: list[str] = []
         used_nk = [k for b, k in zip(nb, nk, strict=False) if b > 0]
         self.min_nk = min(used_nk) if used_nk else 0
+        self.replaced = False
 
     def add(self, col: np.ndarray | None, b: int, k: int, source: int | None, label: str, effect: str | None) -> None:
         if col is not None:
@@ -516,11 +433,27 @@ class _Plan:
         self.labels.append(label)
         self.eff_col.append(effect)
 
+    def replace(self, e: Effect) -> None:
+        """A replacing shape takes its input's column, lags and label (the input is not kept beside it)."""
+        i = _input_index(e.shape.signal if e.shape else "", self.data)
+        assert i is not None  # parse_effect checked it
+        if self.eff_col[i] is not None:
+            raise OrderError(f"effects {self.eff_col[i]!r} and {e.text!r} both replace the input {self.labels[i]!r}")
+        if self.build:
+            if self.cols[0] is self.data.u:
+                self.cols[0] = self.data.u.copy()
+            self.cols[0][:, i] = shape_series(e, self.data)
+        self.labels[i], self.eff_col[i] = e.text, e.text
+        self.replaced = True
+
     def effect(self, e: Effect, text: str) -> None:
         data = self.data
         if e.special is not None:
             col = _special_column(e.special, data) if self.build else None
             self.add(col, 1, 0, None, e.special, e.text)
+            return
+        if e.shape is not None:
+            self.replace(e)
             return
         y_factors = [f for f in e.factors if _is_output(f.signal, data)]
         others = [f for f in e.factors if not _is_output(f.signal, data)]
@@ -574,6 +507,8 @@ def effect_series(text: str, data: IOData) -> np.ndarray:
     e = parse_effect(text, data)
     if e.special is not None:
         return _special_column(e.special, data)
+    if e.shape is not None:
+        return shape_series(e, data)
     prod = np.ones(data.n_samples)
     with np.errstate(over="ignore", invalid="ignore"):
         for f in e.factors:
@@ -664,6 +599,8 @@ def layout_column(label: str, data: IOData) -> np.ndarray:
     e = parse_effect(text, data)
     if e.special is not None:
         return _special_column(e.special, data)
+    if e.shape is not None:
+        return shape_series(e, data)
     prod = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
     # A read-only view, not a copy (16 MB at 2M samples, for each of dozens of candidates): it may
     # be the data's own samples (a logged signal as it is).

@@ -189,6 +189,29 @@ def typical_amplitudes(data: IOData) -> np.ndarray:
     return np.where(amp > 0, amp, 1.0)
 
 
+def operating_inputs(model, data: IOData) -> np.ndarray:
+    """Where each input rests before its step: zero, or the measured mean for an input the model
+    feeds through a shape (``through(u^2)``): a static nonlinearity is stepped about the operating
+    point, inside the range where its law holds (a power law is not defined below zero).
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+
+    Returns
+    -------
+    ndarray of shape (n_inputs,)
+    """
+    at = np.zeros(data.n_inputs)
+    layout = getattr(model, "layout_", None)
+    labels = list(layout.column_labels) if layout is not None else []
+    for i in range(data.n_inputs):
+        if i < len(labels) and labels[i].startswith("through("):
+            at[i] = float(np.nanmean(data.u[:, i]))
+    return at
+
+
 def output_range(data: IOData) -> float:
     """Measured output range, 99th minus 1st percentile (robust to a few spikes).
 
@@ -546,15 +569,17 @@ def step_sanity(
     extra = step_inputs(data, horizon)
     pos, neg = [], []
     m = data.n_inputs
-    base = _simulate(model, np.zeros((horizon, m)), extra)
+    at = operating_inputs(model, data)
+    base = _simulate(model, np.tile(at, (horizon, 1)), extra)
     for i in range(m):
         if model.nb_[i] == 0:
             continue
-        u = np.zeros((horizon, m))
-        u[:, i] = amps[i]
+        u = np.tile(at, (horizon, 1))
         with np.errstate(all="ignore"):
+            u[:, i] = at[i] + amps[i]
             pos.append(_simulate(model, u, extra) - base)
-            neg.append(_simulate(model, -u, extra) - base)
+            u[:, i] = at[i] - amps[i]
+            neg.append(_simulate(model, u, extra) - base)
     poles = model.poles()
     excess = None
     if poles.size and np.max(np.abs(poles)) > 1.0 and expect in ("integrating", "double-integrating"):

@@ -1,0 +1,351 @@
+"""Shapes that replace an input: the candidates of a diagnosis that make the input act *through*
+f(u) (a Hammerstein model, :mod:`arxid.models.input_shapes`), scored beside the additive effects.
+
+For each input the named families are fitted with the model's own dynamics (orders and lags), the
+input replaced by the shape and an offset added when the model has none (a power law's zero is
+the input's zero, not the output's):
+
+* power u^p (an input that is never negative), signed power sign(u)·|u|^p (one that changes sign);
+* saturation at two levels, clip(u, lo, hi); dead zone dz(u, c);
+* the input times each logged signal, u·x (duty × battery voltage), with no parameter.
+
+**What identifies a shape.** On an input with at least ``MIN_SCAN_LEVELS`` distinct values the
+shape's parameter is found on the estimation data (a scan of the one-step error, refined), and its
+evidence is the partial F-test of the shape against the linear model, which each family contains
+(p = 1, levels beyond the input's range, c = 0). On a staircase of a few levels it cannot be: every
+shape with a gain, an offset and one parameter passes through three levels, and the additive
+polynomials u, u², const span the same values. Physics breaks that tie. Only the laws with a
+physical name are tried, with no parameter fitted (the square law, the square root, the cube law;
+thresholds halfway between adjacent levels), and their evidence is the validation data's, which
+hold levels or transitions the estimation did not: a Diebold–Mariano test of the shape's
+validation errors against the model's. Either p-value is multiplied by the number of shapes tried
+(Bonferroni), and the judge then asks of a shape what it asks of every candidate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+from scipy import special
+
+from ..checks import prediction
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arx_model import ArxModel
+from ..models.effects import parse_effect
+from ..models.input_shapes import InputShape
+from ..models.iv import IvModel
+from ..selection.parsimony import diebold_mariano
+from .candidates import candidate_input_names, changes_sign
+from .extension import Candidate
+from .result import Suspect
+
+__all__ = [
+    "MIN_SCAN_LEVELS",
+    "PHYSICAL_POWERS",
+    "shape_candidates",
+    "score_shapes",
+    "input_levels",
+    "prefer_shapes",
+]
+
+#: Distinct values an input needs before a shape's parameter is estimated from the data.
+MIN_SCAN_LEVELS = 20
+#: The power laws with a physical name tried on an input of few levels: square law, square root, cube.
+PHYSICAL_POWERS = (2.0, 0.5, 3.0)
+#: The exponents of the scan on a rich input (refined around the best).
+POWER_GRID = np.geomspace(0.25, 4.0, 25)
+#: Values of a level tried across the input's range (a dead zone's half-width, a saturation's level).
+THRESHOLD_STEPS = 16
+
+
+def input_levels(x: np.ndarray) -> np.ndarray:
+    """The distinct finite values of an input, ascending."""
+    return np.unique(x[np.isfinite(x)])
+
+
+def _replaced(model: ArxModel, data: IOData) -> set[str]:
+    """Inputs the model already feeds through a shape."""
+    shapes = (parse_effect(e, data).shape for e in model.effects if e.startswith("through("))
+    return {s.signal for s in shapes if s is not None}
+
+
+def shape_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] = ()) -> list[tuple[InputShape, int]]:
+    """The shapes worth fitting on ``data``, each with the number of parameter values its family
+    tries (before the scan picks one on a rich input).
+
+    Parameters
+    ----------
+    model : ArxModel
+    data : IOData
+    loop_signals : sequence of str
+        Logged signals of a feedback loop: never a modulating signal.
+
+    Returns
+    -------
+    list of (InputShape, int)
+        On a staircase input, one shape per physical law or threshold (count 1); on a rich input one
+        per family with a placeholder parameter (the scan fills it in) and its grid size.
+    """
+    names = candidate_input_names(data)
+    done = _replaced(model, data)
+    extras = [k for k in data.extra if k.isidentifier() and k not in {*names, *loop_signals, data.output_name}]
+    out: list[tuple[InputShape, int]] = []
+    for i, name in enumerate(names):
+        if name in done or model.nb_[i] == 0:
+            continue
+        x = np.asarray(data.u[:, i], dtype=float)
+        levels = input_levels(x)
+        if levels.size < 3:
+            continue
+        out += _power_shapes(name, x, levels) + _threshold_shapes(name, x, levels)
+        out += [(InputShape("product", name, (), v), 1) for v in extras]
+    return out
+
+
+def _power_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tuple[InputShape, int]]:
+    kind = "signed power" if changes_sign(x) else "power" if levels[0] >= 0 else None
+    if kind is None:  # a one-sided input below zero: no power law about its zero
+        return []
+    if levels.size < MIN_SCAN_LEVELS:
+        return [(InputShape(kind, name, (p,)), 1) for p in PHYSICAL_POWERS]
+    return [(InputShape(kind, name, (1.0,)), POWER_GRID.size)]
+
+
+def _threshold_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tuple[InputShape, int]]:
+    """A saturation and a dead zone, their levels scanned on the data (a level between two steps of
+    a staircase still shows: the steps beyond it all give the same f)."""
+    lo, hi = float(levels[0]), float(levels[-1])
+    return [
+        (InputShape("saturation", name, (lo - 1.0, hi + 1.0)), 4 * THRESHOLD_STEPS),
+        (InputShape("dead zone", name, (0.0,)), 2 * THRESHOLD_STEPS),
+    ]
+
+
+def _fit(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> ArxModel:
+    effects = [*model.effects, shape.effect] + (["const"] if const else [])
+    return ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=effects).fit(data, first_lag=model.first_lag_)
+
+
+def _rss(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> float:
+    try:
+        return float(_fit(model, data, shape, const).rss_)
+    except ArxidError:
+        return math.inf
+
+
+def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> InputShape:
+    """The shape's parameters with the lowest one-step error on ``data``: a grid (a saturation's
+    two levels in turn), then a local search from its best point (each value tried is a refit)."""
+    from scipy import optimize  # only a diagnosis that scans a shape needs it
+
+    x = np.asarray(data.u[:, candidate_input_names(data).index(shape.signal)], dtype=float)
+    x = x[np.isfinite(x)]
+    kind, name = shape.kind, shape.signal
+
+    def cost(params) -> float:
+        return _rss(model, data, InputShape(kind, name, tuple(float(v) for v in np.atleast_1d(params))), const)
+
+    def best(values: np.ndarray, make) -> InputShape:
+        shapes = [make(float(v)) for v in values]
+        return shapes[int(np.argmin([cost(s.params) for s in shapes]))]
+
+    if kind == "saturation":
+        lo, hi = float(np.min(x)), float(np.max(x))
+        mid, span = float(np.median(x)), hi - lo
+        uppers = np.append(np.linspace(mid, hi, THRESHOLD_STEPS + 1)[1:], hi + span)
+        lowers = np.append(np.linspace(lo, mid, THRESHOLD_STEPS + 1)[:-1], lo - span)
+        up = best(uppers, lambda h: InputShape(kind, name, (lo - span, h)))
+        down = best(lowers, lambda v: InputShape(kind, name, (v, up.params[1])))
+        step = span / THRESHOLD_STEPS
+        start = np.array(down.params)
+        simplex = [start, start + [step, 0.0], start + [0.0, step]]
+        res = optimize.minimize(
+            cost, start, method="Nelder-Mead", options={"initial_simplex": simplex, "xatol": 1e-3 * step, "maxfev": 60}
+        )
+        found = res.x if res.fun <= cost(start) else start
+        return InputShape(kind, name, (float(min(found)), float(max(found))))
+    grid = POWER_GRID if kind in ("power", "signed power") else _half_widths(x)
+    first = best(grid, lambda v: InputShape(kind, name, (v,)))
+    i = int(np.argmin(np.abs(grid - first.params[0])))
+    bounds = (grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)])
+    res = optimize.minimize_scalar(cost, bounds=bounds, method="bounded", options={"xatol": 1e-4 * bounds[1]})
+    return InputShape(kind, name, (float(res.x),)) if res.fun <= cost(first.params) else first
+
+
+def _half_widths(x: np.ndarray) -> np.ndarray:
+    """The dead-zone half-widths of the grid: across the input's magnitudes."""
+    return np.linspace(0.0, float(np.max(np.abs(x))), THRESHOLD_STEPS + 2)[1:-1]
+
+
+def score_shapes(
+    model: ArxModel,
+    data: IOData,
+    validation: IOData,
+    horizon: int | None,
+    initial: str,
+    loop_signals: Sequence[str] = (),
+) -> list[dict]:
+    """The shapes of :func:`shape_candidates` fitted and scored as the judge reads candidates.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data, validation : IOData
+        Estimation and validation data.
+    horizon : int or None
+        The diagnosis's validation horizon (a staircase shape's evidence is measured there).
+    initial : {"zero", "estimate"}
+    loop_signals : sequence of str
+
+    Returns
+    -------
+    list of dict
+        ``{"c": Candidate, "score", "f", "p", "p_adj", "q"}`` per shape, as
+        :meth:`arxid.diagnosis.judge.Judge.suspects` takes them.
+    """
+    if isinstance(model, IvModel):  # closed loop: a shape's refit would need its own instruments
+        return []
+    shapes = shape_candidates(model, data, loop_signals)
+    if not shapes:
+        return []
+    offsets = (False, True) if "const" not in model.effects else (False,)
+    n_tried = sum(n for _, n in shapes) * len(offsets)
+    evidence = _Evidence(model, validation, horizon, initial)
+    out = []
+    for shape, n in shapes:
+        if n > 1:  # the offset a shape may need is in the scan: the parameter is found with it
+            shape = _scan(model, data, shape, offsets[-1])
+        rich = input_levels(data.signal(shape.signal)).size >= MIN_SCAN_LEVELS
+        for const in offsets:
+            entry = _scored(model, data, shape, const, evidence if not rich else None)
+            if entry is not None:
+                out.append({**entry, "p_adj": min(1.0, entry["p"] * n_tried)})
+    return out
+
+
+class _Evidence:
+    """The validation errors of the model, found once, against which a shape is tested."""
+
+    def __init__(self, model: ArxModel, validation: IOData, horizon: int | None, initial: str):
+        self.model, self.validation, self.horizon, self.initial = model, validation, horizon, initial
+        self._base: np.ndarray | None = None
+
+    def errors(self, model: ArxModel) -> np.ndarray:
+        return self.validation.y - prediction(model, self.validation, self.horizon, self.initial)[0]
+
+    def p_value(self, fitted: ArxModel) -> float:
+        if self._base is None:
+            self._base = self.errors(self.model)
+        return _validation_p(self._base, self.errors(fitted))
+
+
+def _scored(model: ArxModel, data: IOData, shape: InputShape, const: bool, evidence: _Evidence | None) -> dict | None:
+    """One shape as the judge reads a candidate; its p-value from the estimation data's F-test, or
+    from the validation errors (``evidence``) when the input has too few levels to tell shapes apart."""
+    try:
+        fitted = _fit(model, data, shape, const)
+    except ArxidError:
+        return None
+    q = len(shape.params) + int(const) or 1
+    f, p = _f_test(model.rss_, fitted.rss_, q, fitted.n_rows_ - fitted.n_params)
+    if evidence is not None:
+        p = evidence.p_value(fitted)
+    label = shape.effect + ("+const" if const else "")
+    effects = (shape.effect, "const") if const else (shape.effect,)
+    c = Candidate(label, effects, model.na_, tuple(model.nb_), tuple(model.nk_), "shape")
+    score = math.sqrt(max(0.0, 1.0 - fitted.rss_ / model.rss_)) if model.rss_ > 0 else 0.0
+    return {"c": c, "score": score, "f": f, "p": p, "q": q}
+
+
+def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:
+    """Partial F statistic of ``q`` added parameters and its p-value."""
+    if dof <= 0 or not rss1 > 0 or not math.isfinite(rss0):
+        return math.nan, 1.0
+    f = max(0.0, (rss0 - rss1) / q) / (rss1 / dof)
+    return f, float(special.fdtrc(q, dof, f))
+
+
+def _validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
+    """One-sided p-value that the shape's validation error is below the model's (Diebold–Mariano)."""
+    stat = diebold_mariano(base_err, shape_err).statistic
+    if not math.isfinite(stat):
+        return 0.0 if stat > 0 else 1.0
+    return float(special.ndtr(-stat))
+
+
+def prefer_shapes(suspects: list[Suspect], data: IOData, min_improvement: float) -> list[Suspect]:
+    """A shape is the simpler explanation of its input: it replaces the input's columns where an
+    additive term (``u^2``, ``u^3``, ``sign(du)``, ``u*y`` ...) adds its own beside them. An additive
+    term of an input that has a significant shape stays significant only when its validation error
+    is ``min_improvement`` below the best shape's; of several shapes of one input, the one with the
+    lowest validation error stays.
+
+    Parameters
+    ----------
+    suspects : list of Suspect
+        Judged suspects.
+    data : IOData
+        The estimation data (to read which input each term involves).
+    min_improvement : float
+
+    Returns
+    -------
+    list of Suspect
+    """
+    suspects = [_product_as_term(s, suspects, data, min_improvement) for s in suspects]
+    best: dict[str, Suspect] = {}
+    by_label = {s.effect: s for s in suspects}
+    for s in suspects:
+        if s.kind == "shape" and s.significant and math.isfinite(s.rms_sim_val_after):
+            name = _shape_of(s, data).signal
+            if name not in best or s.rms_sim_val_after < best[name].rms_sim_val_after:
+                best[name] = s
+    for name, s in best.items():  # an offset must earn its parameter, as a pair's must
+        single = by_label.get(s.effect.removesuffix("+const"))
+        if single is not s and single is not None and single.refitted:
+            if s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after:
+                best[name] = single
+    if not best:
+        return suspects
+    return [_against_shapes(s, best, data, min_improvement) for s in suspects]
+
+
+def _product_as_term(s: Suspect, suspects: list[Suspect], data: IOData, min_improvement: float) -> Suspect:
+    """A product shape, through(u*x), says what the additive term u*x says (the gain scales with x),
+    and the additive form contains it: the term keeps the name unless the shape beats it by the margin."""
+    if s.kind != "shape" or not s.significant or _shape_of(s, data).kind != "product":
+        return s
+    shape = _shape_of(s, data)
+    terms = {f"{shape.signal}*{shape.other}", f"{shape.other}*{shape.signal}"}
+    for t in suspects:
+        if t.significant and t.effect.removesuffix("+const") in terms:
+            if s.rms_sim_val_after > (1.0 - min_improvement) * t.rms_sim_val_after:
+                return replace(s, significant=False, note=f"no better than the term {t.effect}", explained_by=t.effect)
+    return s
+
+
+def _shape_of(s: Suspect, data: IOData) -> InputShape:
+    shape = parse_effect(s.effects[0], data).shape
+    assert shape is not None
+    return shape
+
+
+def _against_shapes(s: Suspect, best: dict[str, Suspect], data: IOData, min_improvement: float) -> Suspect:
+    if not s.significant or s.kind == "dynamics":
+        return s
+    if s.kind == "shape":
+        rival = best[_shape_of(s, data).signal]
+        if rival is s:
+            return s
+        return replace(s, significant=False, note=f"{rival.effect} fits this input better", explained_by=rival.effect)
+    names = {f.signal for e in s.effects if e not in ("const", "time") for f in parse_effect(e, data).factors}
+    for name in names & set(best):
+        rival = best[name]
+        if s.rms_sim_val_after > (1.0 - min_improvement) * rival.rms_sim_val_after:
+            note = f"no better than {rival.effect}, which feeds {name} through a shape with fewer parameters"
+            return replace(s, significant=False, note=note, explained_by=rival.effect)
+    return s
