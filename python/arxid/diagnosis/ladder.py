@@ -25,6 +25,7 @@ from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
+from ..models.wiener import WienerModel
 from .candidates import physics
 from .restructure import linear_name, order_change, rechoose_structure
 from .result import Diagnosis, Suspect
@@ -235,7 +236,7 @@ class Ladder:
             metrics.prediction_rms(val.y, pred),
             metrics.fit_percent(val.y, pred),
             self.horizon,
-            physics(added, data) if added else "",
+            model.sensor.physics() if isinstance(model, WienerModel) else physics(added, data) if added else "",
             replaces=replaces,
         )
 
@@ -328,6 +329,9 @@ class Ladder:
             if rung is None:
                 break
             model = d.apply(rung.effect)
+            if rung.kind == "sensor":  # every other candidate acts before the sensor: the ladder ends here
+                ladder.steps.append(ladder._step(model, rung.effect, ladder.validation, ()))
+                break
             rechosen_from = None
             if restructure and rung.kind != "dynamics" and not isinstance(model, PolynomialModel):
                 choice = rechoose_structure(

@@ -50,6 +50,7 @@ __all__ = [
     "score_shapes",
     "input_levels",
     "prefer_shapes",
+    "validation_p",
 ]
 
 #: Distinct values an input needs before a shape's parameter is estimated from the data.
@@ -240,7 +241,7 @@ class _Evidence:
     def p_value(self, fitted: ArxModel) -> float:
         if self._base is None:
             self._base = self.errors(self.model)
-        return _validation_p(self._base, self.errors(fitted))
+        return validation_p(self._base, self.errors(fitted))
 
 
 def _scored(model: ArxModel, data: IOData, shape: InputShape, const: bool, evidence: _Evidence | None) -> dict | None:
@@ -269,7 +270,7 @@ def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:
     return f, float(special.fdtrc(q, dof, f))
 
 
-def _validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
+def validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
     """One-sided p-value that the shape's validation error is below the model's (Diebold–Mariano)."""
     stat = diebold_mariano(base_err, shape_err).statistic
     if not math.isfinite(stat):

@@ -57,6 +57,7 @@ from .nonlinearity import NonlinearDependence, nonlinear_dependence
 from .polynomial_scoring import score_polynomial
 from .result import Diagnosis, Suspect
 from .scoring import Scoring
+from .sensor_shapes import rank_sensors, sensor_suspects
 from .shapes import prefer_shapes, score_shapes
 
 __all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
@@ -175,6 +176,9 @@ def diagnose(
         masked = scoring.masked_pairs(scored, alpha)
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
+    if scoring is not None and auto:  # the output read through a static shape (Wiener)
+        sensors = sensor_suspects(model, data, validation, base.horizon, initial, base.rms)
+        suspects = rank_sensors(suspects, sensors, alpha, min_improvement)
     suspects = finish_suspects(notes, cands, suspects, data)
     # The dependence test runs when the diagnosis is first asked for it (a ladder asks its last
     # diagnosis only), never beside the scoring: its design (~0.4 GiB at 2M rows) on top of the
@@ -329,4 +333,4 @@ def finish_suspects(
         Ranked: significant first, then refitted by validation error, then by p-value.
     """
     suspects = suspects + _unscored(notes, cands, suspects)
-    return sorted((replace(s, physics=physics(s.effect, data)) for s in suspects), key=_rank_key)
+    return sorted((replace(s, physics=s.physics or physics(s.effect, data)) for s in suspects), key=_rank_key)

@@ -1,0 +1,172 @@
+"""Output nonlinearities as suspects: the output read through a static g after the linear
+dynamics (a Wiener model, :mod:`arxid.models.wiener`): a sensor that saturates, a quadratic
+sensor, a measurement with a dead band.
+
+Each g's parameter is scanned for the lowest free-run error on the estimation data, with the
+model's own orders. The best one per kind is judged on the validation data like every candidate:
+its evidence is a Diebold–Mariano test of its free-run errors against the model's (Bonferroni over
+the values tried), and it must lower the validation error by ``min_improvement``. A sensor shape
+changes what every other candidate means (they act before g), so it is named only when its
+validation error is also below the best other suspect's; then the ladder stops at it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..checks import prediction
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arx_model import ArxModel
+from ..models.iv import IvModel
+from ..models.wiener import SensorShape, WienerModel, fit_wiener, free_run_rms, noise_floor
+from .result import Suspect
+from .shapes import validation_p
+
+__all__ = ["sensor_suspects", "rank_sensors", "SENSOR_STEPS"]
+
+#: Values of a sensor shape's parameter tried on the estimation data.
+SENSOR_STEPS = 12
+#: The scan reads at most this many estimation samples (a free run per value tried).
+SCAN_SAMPLES = 200_000
+
+
+def _sensor_grid(y: np.ndarray) -> list[SensorShape]:
+    y = y[np.isfinite(y)]
+    floor = noise_floor(y)
+    out = []
+    if np.mean(y < -floor) < 0.02:  # an output that does not go below zero: a power-law sensor
+        out += [SensorShape("power", (float(p),)) for p in np.geomspace(0.33, 3.0, SENSOR_STEPS)]
+    lo, hi = float(np.min(y)), float(np.max(y))
+    for q in np.linspace(0.0, 0.03, 4):  # levels at the plateaus a clipping sensor leaves
+        top, bottom = float(np.quantile(y, 1 - q)), float(np.quantile(y, q))
+        out += [SensorShape("saturation", (bottom, top)), SensorShape("saturation", (lo - (hi - lo), top))]
+        out += [SensorShape("saturation", (bottom, hi + (hi - lo)))]
+    if np.mean(y < -floor) > 0.02 and np.mean(y > floor) > 0.02:  # a two-sided output: a dead band
+        top = float(np.max(np.abs(y)))
+        out += [SensorShape("dead zone", (float(c),)) for c in np.linspace(0, 0.5 * top, SENSOR_STEPS + 1)[1:]]
+    return out
+
+
+def _fitted(model: ArxModel, data: IOData, sensor: SensorShape) -> tuple[WienerModel | None, float]:
+    try:
+        w = fit_wiener(model, data, sensor)
+    except ArxidError:
+        return None, math.inf
+    return w, free_run_rms(w, data)
+
+
+def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float) -> tuple[float, WienerModel]:
+    """A local search from the grid's best parameters (Nelder–Mead; each point a fit and a free run)."""
+    from scipy import optimize  # only a diagnosis that scans a sensor shape needs it
+
+    kind, start = w.sensor.kind, np.array(w.sensor.params)
+    scale = np.maximum(np.abs(start), 1e-3) * 0.05
+    simplex = [start] + [start + np.eye(start.size)[i] * scale[i] for i in range(start.size)]
+
+    def cost(params: np.ndarray) -> float:
+        return _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in params))))[1]
+
+    res = optimize.minimize(cost, start, method="Nelder-Mead", options={"initial_simplex": simplex, "maxfev": 40})
+    if not res.fun < rms:
+        return rms, w
+    better, after = _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in res.x))))
+    return (after, better) if better is not None else (rms, w)
+
+
+def sensor_suspects(
+    model: ArxModel, data: IOData, validation: IOData, horizon: int | None, initial: str, base_rms: float
+) -> list[Suspect]:
+    """The best sensor shape of each kind, refitted and judged on the validation data.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data, validation : IOData
+    horizon : int or None
+        The diagnosis's validation horizon.
+    initial : {"zero", "estimate"}
+    base_rms : float
+        The model's validation error.
+
+    Returns
+    -------
+    list of Suspect
+        Of kind ``"sensor"`` (significance still to be weighed against the other suspects by
+        :func:`rank_sensors`).
+    """
+    if isinstance(model, IvModel) or model.effects or not math.isfinite(base_rms):
+        return []
+    data = data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES]
+    grid = _sensor_grid(np.asarray(data.y, dtype=float))
+    best: dict[str, tuple[float, WienerModel]] = {}
+    for sensor in grid:
+        w, rms = _fitted(model, data, sensor)
+        if w is not None and rms < best.get(sensor.kind, (math.inf, None))[0]:
+            best[sensor.kind] = (rms, w)
+    best = {kind: _polished(model, data, w, rms) for kind, (rms, w) in best.items()}
+    base_err = validation.y - prediction(model, validation, horizon, initial)[0]
+    out = []
+    for w in (w for _, w in best.values()):
+        pred = w.predict(validation, horizon)
+        after = float(np.sqrt(np.nanmean((validation.y - pred) ** 2))) if np.isfinite(pred).any() else math.inf
+        p = validation_p(base_err, validation.y - pred)
+        p_adj = min(1.0, p * len(grid))
+        gain = 1.0 - after / base_rms if math.isfinite(after) else -math.inf
+        s = Suspect(
+            f"sensor: {w.sensor.text}", "sensor", (), model.na_, tuple(model.nb_), tuple(model.nk_),
+            math.nan, math.nan, p, p_adj, len(w.sensor.params), after, gain, False, "", w, w.sensor.physics(),
+        )  # fmt: skip
+        out.append(s)
+    return out
+
+
+def rank_sensors(
+    suspects: list[Suspect], sensors: list[Suspect], alpha: float, min_improvement: float
+) -> list[Suspect]:
+    """The sensor suspects among the others: significant when their corrected p-value passes, they
+    lower the validation error by ``min_improvement``, and lower it below the best other suspect's.
+
+    Parameters
+    ----------
+    suspects : list of Suspect
+        The judged suspects.
+    sensors : list of Suspect
+        From :func:`sensor_suspects`.
+    alpha, min_improvement : float
+
+    Returns
+    -------
+    list of Suspect
+    """
+    rival = min(
+        (s for s in suspects if s.significant and math.isfinite(s.rms_sim_val_after)),
+        key=lambda s: s.rms_sim_val_after,
+        default=None,
+    )
+    out = []
+    for s in sensors:
+        if s.p_value >= alpha:
+            s = replace(s, note=f"p-value {s.p_value:.2g} is not below {alpha:g}: no evidence it is missing")
+        elif not s.improvement >= min_improvement:
+            s = replace(s, note=f"validation error falls only {100 * s.improvement:.1f} %")
+        elif rival is not None and s.rms_sim_val_after >= rival.rms_sim_val_after:
+            s = replace(s, note=f"no better than {rival.effect}", explained_by=rival.effect)
+        else:
+            s = replace(s, significant=True)
+        out.append(s)
+    if any(s.significant for s in out):
+        best = min((s for s in out if s.significant), key=lambda s: s.rms_sim_val_after)
+        out = [s if s is best or not s.significant else replace(s, significant=False) for s in out]
+        suspects = [_explained(s, best) for s in suspects]
+    return suspects + out
+
+
+def _explained(s: Suspect, sensor: Suspect) -> Suspect:
+    if not s.significant:
+        return s
+    note = f"the output read through a sensor shape ({sensor.effect}) explains more"
+    return replace(s, significant=False, note=note, explained_by=sensor.effect)

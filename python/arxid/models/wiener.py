@@ -1,0 +1,207 @@
+"""A static nonlinearity after the linear dynamics (a Wiener model): the sensor or the output stage
+reads g(x) of the linear part's output x.
+
+========================  ==============================  ========================================
+sensor                    g(x)                            typical physics
+========================  ==============================  ========================================
+``power``                 x^p (x >= 0)                    a quadratic sensor (p = 2), a square-root one
+``saturation``            x held within [lo, hi]          a sensor or an amplifier that clips
+``dead zone``             sign(x)·max(|x| − c, 0)         a measurement that reads 0 inside a band
+========================  ==============================  ========================================
+
+g has unit slope where it is linear, so x is in the output's units and the linear part carries the
+gain. Estimation inverts g where it can: z = g⁻¹(y) (samples on a flat part of g are missing, as
+gaps), an ARX model of z from the inputs is fitted by least squares, and the model predicts
+g(x̂) from the free run x̂ of that linear part. :func:`fit_wiener` scans g's parameter for the lowest
+free-run error on the estimation data.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .._base import metrics
+from ..data.iodata import IOData
+from ..exceptions import ArxidError, DataError, OrderError
+from .arx_model import ArxModel
+
+__all__ = ["SensorShape", "WienerModel", "fit_wiener", "SENSOR_KINDS"]
+
+#: The output nonlinearities :func:`fit_wiener` knows.
+SENSOR_KINDS = ("power", "saturation", "dead zone")
+
+
+@dataclass(frozen=True)
+class SensorShape:
+    """The static function g the output is read through.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`SENSOR_KINDS`.
+    params : tuple of float
+        The exponent p, the levels (lo, hi) or the half-width c.
+    """
+
+    kind: str
+    params: tuple[float, ...]
+
+    @property
+    def text(self) -> str:
+        """e.g. ``"y = x^2"``, ``"y = clip(x,-1,1.2)"``, ``"y = dz(x,0.1)"``."""
+        p = [f"{v:.4g}" for v in self.params]
+        if self.kind == "power":
+            return f"y = x^{p[0]}"
+        return f"y = clip(x,{p[0]},{p[1]})" if self.kind == "saturation" else f"y = dz(x,{p[0]})"
+
+    def physics(self) -> str:
+        """What the shape stands for, in words."""
+        if self.kind == "power":
+            p = self.params[0]
+            what = (
+                "a quadratic sensor"
+                if abs(p - 2) <= 0.2
+                else "a square-root sensor"
+                if abs(p - 0.5) <= 0.05
+                else "a power-law sensor"
+            )
+            return f"the output is read through {self.text} ({what})"
+        if self.kind == "saturation":
+            return f"the output is read through {self.text} (the sensor saturates at its levels)"
+        return f"the output is read through {self.text} (the measurement reads 0 inside a dead band)"
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        with np.errstate(invalid="ignore"):
+            if self.kind == "power":
+                return np.power(np.maximum(x, 0.0), self.params[0])
+            if self.kind == "saturation":
+                return np.clip(x, *self.params)
+            return np.sign(x) * np.maximum(np.abs(x) - self.params[0], 0.0)
+
+    def inverse(self, y: np.ndarray, floor: float) -> np.ndarray:
+        """x = g⁻¹(y) where g is invertible; NaN on its flat parts (within ``floor`` of a level).
+
+        Parameters
+        ----------
+        y : ndarray
+        floor : float
+            The measurement noise's size: a sample this close to a flat part may lie on it.
+        """
+        y = np.asarray(y, dtype=float)
+        with np.errstate(invalid="ignore"):
+            if self.kind == "power":
+                return np.where(y > floor, np.power(np.maximum(y, 0.0), 1.0 / self.params[0]), np.nan)
+            if self.kind == "saturation":
+                lo, hi = self.params
+                return np.where((y > lo + floor) & (y < hi - floor), y, np.nan)
+            c = self.params[0]
+            return np.where(np.abs(y) > floor, y + c * np.sign(y), np.nan)
+
+
+@dataclass(frozen=True, eq=False)
+class WienerModel:
+    """Linear dynamics followed by a static output nonlinearity: y = g(x), x from an ARX model.
+
+    Attributes
+    ----------
+    linear : ArxModel
+        The linear part, fitted on z = g⁻¹(y).
+    sensor : SensorShape
+    data_ : IOData
+        The estimation data (measured output).
+    """
+
+    linear: ArxModel
+    sensor: SensorShape
+    data_: IOData | None = None
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        return tuple(self.linear.effects)
+
+    @property
+    def n_params(self) -> int:
+        return self.linear.n_params + len(self.sensor.params)
+
+    def structure_name(self) -> str:
+        """e.g. ``ARX(2,2,1), then y = x^2``."""
+        return f"{self.linear.structure_name()}, then {self.sensor.text}"
+
+    def predict(self, data: IOData, horizon: int | None = None) -> np.ndarray:
+        """g of the linear part's prediction: its free run (``horizon=None``), or k steps ahead from
+        the inverted past outputs (NaN where the past output lies on a flat part of g).
+
+        Parameters
+        ----------
+        data : IOData
+        horizon : int or None
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+        """
+        if horizon is None:
+            x = self.linear.predict(data, None)
+        else:
+            z = self.sensor.inverse(data.y, 0.0)
+            x = (
+                self.linear.predict(replace(data, y=z), horizon)
+                if np.isfinite(z).any()
+                else np.full(data.n_samples, np.nan)
+            )
+        return self.sensor(x)
+
+    def __repr__(self) -> str:
+        return f"<WienerModel {self.structure_name()}>"
+
+
+def noise_floor(y: np.ndarray) -> float:
+    """A robust size of the measurement noise: 3 × the scaled MAD of the first differences / √2."""
+    d = np.diff(y[np.isfinite(y)])
+    if d.size < 3:
+        return 0.0
+    return float(3 * 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2))
+
+
+def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape) -> WienerModel:
+    """The Wiener model with ``model``'s orders and effects and the output read through ``sensor``.
+
+    Parameters
+    ----------
+    model : ArxModel
+        Gives the orders, delays and effects of the linear part.
+    data : IOData
+        Estimation data.
+    sensor : SensorShape
+
+    Returns
+    -------
+    WienerModel
+
+    Raises
+    ------
+    DataError
+        When too few samples lie where g can be inverted.
+    """
+    if sensor.kind not in SENSOR_KINDS:
+        raise OrderError(f"unknown sensor shape {sensor.kind!r}; use one of {SENSOR_KINDS}")
+    z = sensor.inverse(data.y, noise_floor(data.y))
+    if np.isfinite(z).sum() < 0.2 * data.n_samples:
+        raise DataError(f"fewer than 20 % of the samples lie where {sensor.text} can be inverted")
+    zdata = replace(data, y=z)
+    linear = ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=model.effects).fit(zdata)
+    return WienerModel(linear, sensor, data)
+
+
+def free_run_rms(model: Any, data: IOData) -> float:
+    """The free-run RMS of ``model`` on ``data`` (inf when it diverges or cannot be fitted)."""
+    try:
+        pred = model.predict(data, None)
+    except ArxidError:
+        return math.inf
+    return metrics.prediction_rms(data.y, pred)
