@@ -9,17 +9,27 @@ the input's zero, not the output's):
 * saturation at two levels, clip(u, lo, hi); dead zone dz(u, c);
 * the input times each logged signal, u·x (duty × battery voltage), with no parameter.
 
-**What identifies a shape.** On an input with at least ``MIN_SCAN_LEVELS`` distinct values the
-shape's parameter is found on the estimation data (a scan of the one-step error, refined), and its
-evidence is the partial F-test of the shape against the linear model, which each family contains
-(p = 1, levels beyond the input's range, c = 0). On a staircase of a few levels it cannot be: every
+**What identifies a shape.** The evidence comes from either record, and the smaller p-value is
+doubled (Bonferroni over the two tests), then multiplied by the number of shapes and of the values
+a scan tried:
+
+* the estimation data's encompassing test: the shape's columns (and the offset), added *beside*
+  the input with its lags, lower the one-step error (partial F-test): the input acts nonlinearly;
+* the validation data's Diebold–Mariano test of the shape model's errors against the model's: a
+  staircase's estimation data may hold too few levels to show a shape, the validation data hold
+  others.
+
+Whether the input acts *through* the shape or beside it is the validation error's to say, the
+fewer parameters preferred: an additive term of the same input is named only when it lowers the
+validation error by ``min_improvement`` more (:func:`prefer_shapes`).
+
+On an input with at least ``MIN_SCAN_LEVELS`` distinct values a shape's parameter is found on the
+estimation data (a grid, then a local search). On a staircase of a few levels it cannot be: every
 shape with a gain, an offset and one parameter passes through three levels, and the additive
-polynomials u, u², const span the same values. Physics breaks that tie. Only the laws with a
-physical name are tried, with no parameter fitted (the square law, the square root, the cube law;
-thresholds halfway between adjacent levels), and their evidence is the validation data's, which
-hold levels or transitions the estimation did not: a Diebold–Mariano test of the shape's
-validation errors against the model's. Either p-value is multiplied by the number of shapes tried
-(Bonferroni), and the judge then asks of a shape what it asks of every candidate.
+polynomials u, u², const span the same values. Physics breaks that tie: only the power laws with a
+physical name are tried there (the square law, the square root, the cube law), with no exponent
+fitted; a saturation's or dead zone's level is still scanned (the steps beyond a level all give
+the same f, so the level shows when two steps lie on each side of it).
 """
 
 from __future__ import annotations
@@ -51,6 +61,7 @@ __all__ = [
     "input_levels",
     "prefer_shapes",
     "validation_p",
+    "ValidationEvidence",
 ]
 
 #: Distinct values an input needs before a shape's parameter is estimated from the data.
@@ -183,23 +194,17 @@ def _half_widths(x: np.ndarray) -> np.ndarray:
 
 
 def score_shapes(
-    model: ArxModel,
-    data: IOData,
-    validation: IOData,
-    horizon: int | None,
-    initial: str,
-    loop_signals: Sequence[str] = (),
+    model: ArxModel, data: IOData, evidence: ValidationEvidence, loop_signals: Sequence[str] = ()
 ) -> list[dict]:
     """The shapes of :func:`shape_candidates` fitted and scored as the judge reads candidates.
 
     Parameters
     ----------
     model : ArxModel
-    data, validation : IOData
-        Estimation and validation data.
-    horizon : int or None
-        The diagnosis's validation horizon (a staircase shape's evidence is measured there).
-    initial : {"zero", "estimate"}
+    data : IOData
+        Estimation data.
+    evidence : ValidationEvidence
+        The model's validation errors, against which each shape's are tested.
     loop_signals : sequence of str
 
     Returns
@@ -214,52 +219,63 @@ def score_shapes(
     if not shapes:
         return []
     offsets = (False, True) if "const" not in model.effects else (False,)
-    n_tried = sum(n for _, n in shapes) * len(offsets)
-    evidence = _Evidence(model, validation, horizon, initial)
+    n_shapes = len(shapes) * len(offsets)
     out = []
     for shape, n in shapes:
         if n > 1:  # the offset a shape may need is in the scan: the parameter is found with it
             shape = _scan(model, data, shape, offsets[-1])
-        rich = input_levels(data.signal(shape.signal)).size >= MIN_SCAN_LEVELS
+        tried = n_shapes * n  # Bonferroni: every shape, and every value a scan tried
+
         for const in offsets:
-            entry = _scored(model, data, shape, const, evidence if not rich else None)
+            entry = _scored(model, data, shape, const, evidence)
             if entry is not None:
-                out.append({**entry, "p_adj": min(1.0, entry["p"] * n_tried)})
+                out.append({**entry, "p_adj": min(1.0, entry["p"] * tried)})
     return out
 
 
-class _Evidence:
-    """The validation errors of the model, found once, against which a shape is tested."""
+class ValidationEvidence:
+    """The model's validation errors, found once, against which each shape's are tested."""
 
     def __init__(self, model: ArxModel, validation: IOData, horizon: int | None, initial: str):
         self.model, self.validation, self.horizon, self.initial = model, validation, horizon, initial
         self._base: np.ndarray | None = None
 
-    def errors(self, model: ArxModel) -> np.ndarray:
+    def _errors(self, model: ArxModel) -> np.ndarray:
         return self.validation.y - prediction(model, self.validation, self.horizon, self.initial)[0]
 
     def p_value(self, fitted: ArxModel) -> float:
+        """One-sided p-value that ``fitted``'s validation error is below the model's."""
         if self._base is None:
-            self._base = self.errors(self.model)
-        return validation_p(self._base, self.errors(fitted))
+            self._base = self._errors(self.model)
+        return validation_p(self._base, self._errors(fitted))
 
 
-def _scored(model: ArxModel, data: IOData, shape: InputShape, const: bool, evidence: _Evidence | None) -> dict | None:
-    """One shape as the judge reads a candidate; its p-value from the estimation data's F-test, or
-    from the validation errors (``evidence``) when the input has too few levels to tell shapes apart."""
+def _scored(model: ArxModel, data: IOData, shape: InputShape, const: bool, evidence: ValidationEvidence) -> dict | None:
+    """One shape as the judge reads a candidate, with the smaller p-value of its two tests, doubled."""
     try:
-        fitted = _fit(model, data, shape, const)
+        beside, q = _beside(model, data, shape, const)
+        p_val = evidence.p_value(_fit(model, data, shape, const))
     except ArxidError:
         return None
-    q = len(shape.params) + int(const) or 1
-    f, p = _f_test(model.rss_, fitted.rss_, q, fitted.n_rows_ - fitted.n_params)
-    if evidence is not None:
-        p = evidence.p_value(fitted)
+    f, p_est = _f_test(model.rss_, beside.rss_, q, beside.n_rows_ - beside.n_params)
+    p = min(1.0, 2 * min(p_est, p_val))
     label = shape.effect + ("+const" if const else "")
     effects = (shape.effect, "const") if const else (shape.effect,)
     c = Candidate(label, effects, model.na_, tuple(model.nb_), tuple(model.nk_), "shape")
-    score = math.sqrt(max(0.0, 1.0 - fitted.rss_ / model.rss_)) if model.rss_ > 0 else 0.0
+    score = math.sqrt(max(0.0, 1.0 - beside.rss_ / model.rss_)) if model.rss_ > 0 else 0.0
     return {"c": c, "score": score, "f": f, "p": p, "q": q}
+
+
+def _beside(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> tuple[ArxModel, int]:
+    """The model with the shaped input as one more input (the input's own lags) and the offset."""
+    i = candidate_input_names(data).index(shape.signal)
+    other = data.signal(shape.other) if shape.other else None
+    u = np.column_stack([data.u, shape.evaluate(data.u[:, i], other)])
+    extended = data.with_signals(u=u, input_names=[*data.input_names, "shape_"], input_units=[*data.input_units, ""])
+    nb, nk = (*model.nb_, model.nb_[i]), (*model.nk_, model.nk_[i])
+    effects = [*model.effects] + (["const"] if const else [])
+    fitted = ArxModel(na=model.na_, nb=nb, nk=nk, effects=effects).fit(extended, first_lag=model.first_lag_)
+    return fitted, model.nb_[i] + int(const)
 
 
 def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:

@@ -58,7 +58,7 @@ from .polynomial_scoring import score_polynomial
 from .result import Diagnosis, Suspect
 from .scoring import Scoring
 from .sensor_shapes import rank_sensors, sensor_suspects
-from .shapes import prefer_shapes, score_shapes
+from .shapes import ValidationEvidence, prefer_shapes, score_shapes
 
 __all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
 
@@ -166,7 +166,8 @@ def diagnose(
         raise
     base = baseline.result()
     if scoring is not None and auto:  # shapes that replace an input compete on equal terms
-        scored = scored + score_shapes(model, data, validation, base.horizon, initial, tuple(loop_signals))
+        evidence = ValidationEvidence(model, validation, base.horizon, initial)
+        scored = scored + score_shapes(model, data, evidence, tuple(loop_signals))
     judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement, initial)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
