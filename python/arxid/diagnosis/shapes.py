@@ -314,21 +314,43 @@ def prefer_shapes(suspects: list[Suspect], data: IOData, min_improvement: float)
     list of Suspect
     """
     suspects = [_product_as_term(s, suspects, data, min_improvement) for s in suspects]
-    best: dict[str, Suspect] = {}
-    by_label = {s.effect: s for s in suspects}
+    groups: dict[str, list[Suspect]] = {}
     for s in suspects:
-        if s.kind == "shape" and s.significant and math.isfinite(s.rms_sim_val_after):
-            name = _shape_of(s, data).signal
-            if name not in best or s.rms_sim_val_after < best[name].rms_sim_val_after:
-                best[name] = s
-    for name, s in best.items():  # an offset must earn its parameter, as a pair's must
-        single = by_label.get(s.effect.removesuffix("+const"))
-        if single is not s and single is not None and single.refitted:
-            if s.rms_sim_val_after > (1.0 - min_improvement) * single.rms_sim_val_after:
-                best[name] = single
+        if s.kind == "shape" and s.refitted and math.isfinite(s.rms_sim_val_after):
+            groups.setdefault(_shape_of(s, data).signal, []).append(s)
+    best = {
+        name: _simplest(group, data, min_improvement)
+        for name, group in groups.items()
+        if any(s.significant for s in group)
+    }
+    suspects = [replace(s, significant=True) if s in best.values() else s for s in suspects]
+    best = {name: replace(s, significant=True) for name, s in best.items()}
     if not best:
         return suspects
     return [_against_shapes(s, best, data, min_improvement) for s in suspects]
+
+
+def _simplest(group: list[Suspect], data: IOData, min_improvement: float) -> Suspect:
+    """Of one input's shapes, the one with the fewest fitted parameters unless one with more lowers
+    the validation error by ``min_improvement`` (on a staircase a named power law has none, and a
+    dead zone at the right level can pass through the same steps as the square law)."""
+    ranked = sorted(group, key=lambda s: (fitted_parameters(s, data), s.rms_sim_val_after))
+    chosen = ranked[0]
+    for s in ranked[1:]:
+        more = fitted_parameters(s, data) > fitted_parameters(chosen, data)
+        if s.rms_sim_val_after < (1.0 - min_improvement if more else 1.0) * chosen.rms_sim_val_after:
+            chosen = s
+    return chosen
+
+
+def fitted_parameters(s: Suspect, data: IOData) -> int:
+    """Parameters a shape suspect fitted beyond the gains: its scanned ones and the offset (a power
+    law on a staircase is a named law, with none)."""
+    shape = _shape_of(s, data)
+    scanned = 0 if shape.kind == "product" else len(shape.params)
+    if shape.kind in ("power", "signed power") and input_levels(data.signal(shape.signal)).size < MIN_SCAN_LEVELS:
+        scanned = 0
+    return scanned + int("const" in s.effects)
 
 
 def _product_as_term(s: Suspect, suspects: list[Suspect], data: IOData, min_improvement: float) -> Suspect:
@@ -356,7 +378,7 @@ def _against_shapes(s: Suspect, best: dict[str, Suspect], data: IOData, min_impr
         return s
     if s.kind == "shape":
         rival = best[_shape_of(s, data).signal]
-        if rival is s:
+        if rival.effect == s.effect:
             return s
         return replace(s, significant=False, note=f"{rival.effect} fits this input better", explained_by=rival.effect)
     names = {f.signal for e in s.effects if e not in ("const", "time") for f in parse_effect(e, data).factors}
