@@ -38,6 +38,7 @@ from ..checks.feedback import FeedbackTest
 from ..checks.frequency import FrequencyCheck, frequency_check
 from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
+from ..diagnosis.static_map import shape_map_dict, shape_maps
 from ..diagnosis.suspects import Diagnosis
 from ..exceptions import ArxidError, DataError, OrderError
 from ..frequency_domain import FrequencyResponse, frf
@@ -165,6 +166,12 @@ class Analysis:
         fr = self.bode
         return () if fr is None else miss_bands(fr, model_response(self.final_model, fr.frequency))
 
+    @cached_property
+    def input_shapes(self) -> tuple:
+        """Each shape the final model feeds an input through, with the input's static map
+        (:func:`arxid.diagnosis.static_map.shape_maps`) for the report's plot."""
+        return shape_maps(self.final_model, self.estimation)
+
     @property
     def final_model(self) -> ArxModel:
         """The model of the ladder's last step (the chosen model when nothing was added)."""
@@ -233,6 +240,7 @@ class Analysis:
                 "error_fall": self.ladder.error_fall(),
                 "feedback": None if self.feedback is None else json.loads(self.feedback.to_json()),
                 "closed_loop": None if self.closed_loop is None else self.closed_loop.to_dict(),
+                "input_shapes": [shape_map_dict(*pair) for pair in self.input_shapes],
             }
         )
         return out

@@ -330,7 +330,7 @@ class Ladder:
                 break
             model = d.apply(rung.effect)
             if rung.kind == "sensor":  # every other candidate acts before the sensor: the ladder ends here
-                ladder.steps.append(ladder._step(model, rung.effect, ladder.validation, ()))
+                ladder.steps.append(ladder._step(model, rung.effect, d.validation, ()))
                 break
             rechosen_from = None
             if restructure and rung.kind != "dynamics" and not isinstance(model, PolynomialModel):

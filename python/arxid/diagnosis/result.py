@@ -11,7 +11,7 @@ import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from ..checks import ResidualAnalysis
@@ -93,7 +93,7 @@ class Suspect:
     improvement: float
     significant: bool
     note: str = ""
-    model: ArxModel | None = field(default=None, repr=False, compare=False)
+    model: Any = field(default=None, repr=False, compare=False)  # ArxModel, or a WienerModel for a sensor
     physics: str = ""
     explained_by: str = ""
 

@@ -80,7 +80,7 @@ class SensorShape:
             if self.kind == "power":
                 return np.power(np.maximum(x, 0.0), self.params[0])
             if self.kind == "saturation":
-                return np.clip(x, *self.params)
+                return np.clip(x, self.params[0], self.params[1])
             return np.sign(x) * np.maximum(np.abs(x) - self.params[0], 0.0)
 
     def inverse(self, y: np.ndarray, floor: float) -> np.ndarray:

@@ -507,6 +507,30 @@ def _bode_section(a: Analysis) -> Raw:
     return _join([_p(verdict), _img(figure, "Bode view"), how])
 
 
+def _shape_section(a: Analysis) -> Raw:
+    from ...plots.shapes import plot_static_map
+
+    if not a.input_shapes:
+        return _p("The final model feeds no input through a static shape.")
+    parts = []
+    for shape, m in a.input_shapes:
+        nearest = ", ".join(f"{label} {fit:.1f} %" for label, fit, _ in m.matches[:4])
+        parts.append(_p(el("b", shape.physics().capitalize()), f". Fit of each named shape to the map: {nearest}."))
+        if m.fit_of(shape) - m.fit_of(None) < 1.0:  # the held levels alone do not tell the shape
+            parts.append(_p(f"At the levels the estimation data hold, the map is as straight as it is {shape.text} "
+                            f"({m.fit_of(None):.1f} % against {m.fit_of(shape):.1f} %): the validation data, with "
+                            "other levels and transitions, are what chose the shape."))  # fmt: skip
+        parts.append(_img(plot_static_map(shape, m, a.estimation.output_name), f"static map of {m.input}"))
+    how = _p(
+        "Black: the steady-state output with the input held at each knot, from a model whose input enters "
+        "through one coefficient per knot and lag (piecewise linear, estimated with the dynamics; Bai's "
+        f"over-parameterisation), with two standard errors. One shape explains {100 * m.rank_one_share:.1f} % "
+        "of those coefficients. Blue: the shape the model uses, scaled to the map; grey: a straight line.",
+        cls="small",
+    )
+    return _join([*parts, how])
+
+
 def _suspect_section(a: Analysis) -> Raw:
     d = a.diagnosis
     top = d.top
@@ -604,6 +628,7 @@ _SECTIONS = (
     ("bode", "Bode view", _bode_section),
     ("suspects", "Which effect is missing", _suspect_section),
     ("ladder", "Error ladder", _ladder_section),
+    ("shape", "How the input acts", _shape_section),
 )
 
 
