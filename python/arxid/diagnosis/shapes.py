@@ -70,6 +70,8 @@ MIN_SCAN_LEVELS = 20
 PHYSICAL_POWERS = (2.0, 0.5, 3.0)
 #: The exponents of the scan on a rich input (refined around the best).
 POWER_GRID = np.geomspace(0.25, 4.0, 25)
+#: A scan reads at most this many estimation samples (each value it tries is a refit).
+SCAN_SAMPLES = 200_000
 #: Values of a level tried across the input's range (a dead zone's half-width, a saturation's level).
 THRESHOLD_STEPS = 16
 
@@ -223,7 +225,7 @@ def score_shapes(
     out = []
     for shape, n in shapes:
         if n > 1:  # the offset a shape may need is in the scan: the parameter is found with it
-            shape = _scan(model, data, shape, offsets[-1])
+            shape = _scan(model, data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES], shape, offsets[-1])
         tried = n_shapes * n  # Bonferroni: every shape, and every value a scan tried
 
         for const in offsets:
