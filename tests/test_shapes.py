@@ -211,13 +211,9 @@ def test_heating_at_another_split_still_names_the_lamp_power(shared_data):
 @pytest.mark.realdata
 def test_thrust_stand_names_the_square_law(shared_data):
     """Crazyflie thrust stand, rpm → thrust: a square law, as a shape or as a term beside the speed."""
-    import csv
+    from test_selection import thrust_stand
 
-    with open(shared_data / "crazyflie-thrust-stand" / "cf2.1-stock-prop.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    thrust = np.array([float(r["weight[g]"]) for r in rows])
-    rpm = np.array([float(r["rpm1"]) for r in rows])
-    est, val = arxid.IOData(thrust, rpm, 1.0, output_name="thrust", input_names=["rpm"]).split(0.7)
+    est, val = thrust_stand(shared_data).split(0.7)
     d = arxid.diagnose(arxid.arx(est, 1, 1, 0), est, val)
     top = d.top.effect
     power = re.fullmatch(r"through\(rpm\^([0-9.]+)\)(\+const)?", top)
