@@ -130,8 +130,10 @@ def file_problems(file: Path, root: Path, layers: tuple[tuple[str, ...], ...], e
     rank = layer_index(layers)
     own = concept_of(file, root)
     if own not in rank:
+        depth = len(file.relative_to(root).parts)
+        place = rel.parents[depth - 2] if depth > 1 else rel  # the concept's folder: one line per concept
         return problems + [
-            f"{rel}: the concept {own!r} has no layer: add it to LAYERS in tools/check_crate_layers.py "
+            f"{place}: the concept {own!r} has no layer: add it to LAYERS in tools/check_crate_layers.py "
             f"(and to the crate's map in docs/architecture.md); the layers are {order_text(layers)}"
         ]
     code = without_comments(text)
@@ -156,7 +158,8 @@ def file_problems(file: Path, root: Path, layers: tuple[tuple[str, ...], ...], e
 def crate_problems(root: Path, layers: tuple[tuple[str, ...], ...] = LAYERS) -> list[str]:
     """Every problem in the crate under ``root`` (the folder holding ``lib.rs``)."""
     exports = root_exports(root)
-    return [p for file in sorted(root.rglob("*.rs")) for p in file_problems(file, root, layers, exports)]
+    found = [p for file in sorted(root.rglob("*.rs")) for p in file_problems(file, root, layers, exports)]
+    return list(dict.fromkeys(found))
 
 
 def main(argv: list[str]) -> int:
