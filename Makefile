@@ -41,7 +41,8 @@ setup: $(VENV)/.installed
 # maturin share target/release without invalidating each other: same profile and dependency
 # features, and cargo test builds only the lib's test harness, never the cdylib maturin owns.
 CORE := python/arxid/_base/_core.abi3.so
-RUST_SOURCES := Cargo.toml Cargo.lock $(wildcard rust/*.rs rust/*/*.rs)
+# Every .rs file at any depth of the crate's concept folders (rust/<concept>/...).
+RUST_SOURCES := Cargo.toml Cargo.lock $(shell find rust -name '*.rs')
 
 develop: $(CORE)
 
@@ -109,16 +110,18 @@ bench-pem: develop
 	$(PY) benches/pem_vs_sippy.py
 
 # Python: lint, format, the stub of the compiled core against the built module (hence `develop`),
-# and the layers (import-linter's contracts in pyproject.toml, docs/architecture.md). Rust: format
-# and clippy (--release: it shares target/release with `make test`'s builds, but only their build
-# scripts; its metadata-only check artifacts are its own, about a minute from clean, seconds when
-# warm). Every step runs, in this order; lint fails at the end if any step failed, naming them.
+# and the layers (import-linter's contracts in pyproject.toml, docs/architecture.md). Rust: the
+# crate's layers and file sizes (tools/check_crate_layers.py, the same map), format and clippy
+# (--release: it shares target/release with `make test`'s builds, but only their build scripts; its
+# metadata-only check artifacts are its own, about a minute from clean, seconds when warm). Every
+# step runs, in this order; lint fails at the end if any step failed, naming them.
 LINT_STEPS = \
-	"$(PY) -m ruff check python tests benches examples docs/gallery" \
-	"$(PY) -m ruff format --check python tests benches examples docs/gallery" \
+	"$(PY) -m ruff check python tests benches examples docs/gallery tools" \
+	"$(PY) -m ruff format --check python tests benches examples docs/gallery tools" \
 	"$(PY) -m mypy" \
 	"$(PY) -m mypy.stubtest arxid._base._core" \
 	"$(VENV)/bin/lint-imports --no-cache" \
+	"$(PY) tools/check_crate_layers.py" \
 	"cargo fmt --check" \
 	"env $(MATURIN_PYO3_ENV) cargo clippy --release --all-targets --features python -- -D warnings"
 

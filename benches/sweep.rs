@@ -6,10 +6,11 @@
 
 use std::hint::black_box;
 
-use arxid::qr::reduce;
-use arxid::simulate::{free_run_rms_lanes, free_run_rms_linear, input_columns, LANES};
-use arxid::structure::usable_rows;
-use arxid::sweep::{envelope, sweep, SweepOptions};
+use arxid::arx::reduce::reduce;
+use arxid::arx::structure::usable_rows;
+use arxid::simulate::lanes::{free_run_rms_lanes, input_columns, LANES};
+use arxid::simulate::score::free_run_rms_linear;
+use arxid::sweep::least_squares::{envelope, sweep, SweepOptions};
 use arxid::{Data, Structure};
 use criterion::{criterion_group, criterion_main, Criterion};
 

@@ -1,4 +1,4 @@
-//! The one error type of the Rust core; converted to Python exceptions in `py.rs` only.
+//! The one error type of the Rust core; converted to Python exceptions in `python/errors.rs` only.
 
 use std::fmt;
 
@@ -50,6 +50,15 @@ impl fmt::Display for ArxError {
 }
 
 impl std::error::Error for ArxError {}
+
+/// The message a panic carried (its `String` or `&str` payload), or "unknown".
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<String>()
+        .cloned()
+        .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_else(|| "unknown".into())
+}
 
 pub type Result<T> = std::result::Result<T, ArxError>;
 

@@ -1,42 +1,24 @@
 //! arxid core: exact ARX least squares by Householder QR (faer), exhaustive order sweeps from one
-//! factorization, and fast free-run simulation. Pure Rust; the Python boundary lives in `py`.
+//! factorization, and fast free-run simulation. Pure Rust; the Python boundary lives in `python`.
+//!
+//! One folder per concept, lowest layer first (a module uses only its own folder and the layers
+//! below it; `make lint` checks this with `tools/check_crate_layers.py`, see docs/architecture.md):
+//! `error`, `linalg`, `arx`, `simulate`, `sweep`, then `pem`, `scoring` and `io` side by side, and
+//! `python` on top.
 
-pub mod ar_filter;
-pub mod band;
-pub mod column_products;
-pub mod columns;
-pub mod csv_read;
+pub mod arx;
 pub mod error;
-pub mod finite_sums;
-pub mod fit;
-pub mod fit_residual;
-pub mod flight_log;
-pub mod group_sums;
-pub mod iv;
-pub mod kstep;
-pub mod lagged_products;
-pub mod lagged_qr;
-pub mod linear_predict;
-pub mod one_step;
+pub mod io;
+pub mod linalg;
 pub mod pem;
-pub mod procest;
-pub mod qr;
+pub mod scoring;
 pub mod simulate;
-pub mod srivc;
-pub mod structure;
 pub mod sweep;
-pub mod sweep_columns;
-pub mod term_free_run;
-pub mod threshold_scan;
 
 #[cfg(feature = "python")]
-mod py;
-#[cfg(feature = "python")]
-mod py_csv;
-#[cfg(feature = "python")]
-mod py_flight_log;
+mod python;
 
+pub use arx::fit::{fit, Fit};
+pub use arx::structure::{Data, OutputKind, OutputTerm, Structure};
 pub use error::{ArxError, Result};
-pub use fit::{fit, Fit};
-pub use structure::{Data, OutputKind, OutputTerm, Structure};
 pub use sweep::{sweep, StructureResult, SweepOptions};

@@ -297,14 +297,14 @@ def iv_sweep(
     progress: Callable[[int], object] | None = None,
 ) -> tuple[SweepOutput, list[_F], int]: ...
 
-# (kind, line, offset, got, column, text): see rust/py_csv.rs
+# (kind, line, offset, got, column, text): see rust/python/csv.rs
 _CsvProblem = tuple[str, int, int, int, int, str]
 
 def csv_read(
     path: str | os.PathLike[str], delimiter: str, n_fields: int, wanted: Sequence[int]
 ) -> tuple[list[_F] | None, bool, _CsvProblem | None]: ...
 
-# flight logs: see rust/py_flight_log.rs
+# flight logs: see rust/python/flight_log.rs
 def blackbox_fields(path: str | os.PathLike[str], log: int) -> tuple[int, list[tuple[str, str]], list[str]]: ...
 def blackbox_read(
     path: str | os.PathLike[str], log: int, wanted: Sequence[str]

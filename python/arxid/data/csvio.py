@@ -135,7 +135,7 @@ class CsvFile:
         return columns, quoted
 
     def _problem(self, kind: str, line: int, offset: int, got: int, column: int, text: str) -> DataError:
-        """The :class:`DataError` of a problem the Rust reader found (see ``rust/py_csv.rs``)."""
+        """The :class:`DataError` of a problem the Rust reader found (see ``rust/python/csv.rs``)."""
         source = self.path.name
         if kind == "not_utf8":
             return _not_utf8(self.path, text, offset, line)

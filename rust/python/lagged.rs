@@ -1,0 +1,90 @@
+//! Bindings of the kernels on lagged signals: the triangular factor of a matrix of lagged signals
+//! ([`crate::linalg::lagged_qr`]), lagged cross-products and the prewhitening filter of rows.
+
+use numpy::{
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray2, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+
+use super::errors::DataError;
+use super::run::run;
+use crate::linalg::lagged_qr::{lagged_r as factor, LaggedColumn, Source};
+
+/// `(R, n_rows)`: R (q × q upper triangular, R'R = M'M) of the matrix M whose column j is
+/// `columns[j] = (source, column, lag)`: that column of `sources[source]` (2-D arrays, any
+/// non-negative strides; a signal is passed as one column) read `lag` samples back, on the rows
+/// `a + back <= t < b - ahead` of each segment `(a, b)`. Rows with a non-finite value are left out
+/// when `skip_missing`. Runs with the GIL released on `n_threads` (0 = all cores), stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (sources, columns, segments, back, ahead, skip_missing = true, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn lagged_r<'py>(
+    py: Python<'py>,
+    sources: Vec<PyReadonlyArray2<'py, f64>>,
+    columns: Vec<(usize, usize, isize)>,
+    segments: Vec<(usize, usize)>,
+    back: usize,
+    ahead: usize,
+    skip_missing: bool,
+    n_threads: usize,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, usize)> {
+    let views = sources.iter().map(source).collect::<PyResult<Vec<_>>>()?;
+    let cols: Vec<LaggedColumn> =
+        columns.iter().map(|&(source, column, lag)| LaggedColumn { source, column, lag }).collect();
+    let rows: Vec<usize> =
+        segments.iter().flat_map(|&(a, b)| (a + back)..b.saturating_sub(ahead).max(a + back)).collect();
+    let out = run(py, n_threads, |cancel| factor(&views, &cols, &rows, skip_missing, n_threads != 1, cancel))?;
+    let q = cols.len();
+    let r = PyArray1::from_vec(py, out.r).reshape([q, q])?; // column-major q × q read row-major: Rᵀ
+    Ok((r.transpose()?.cast_into::<PyArray2<f64>>()?, out.n_rows))
+}
+
+/// The strided view of a numpy array as a [`Source`] (its strides in elements, not bytes).
+fn source<'a>(a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<Source<'a>> {
+    let (rows, columns) = (a.shape()[0], a.shape()[1]);
+    let item = std::mem::size_of::<f64>() as isize;
+    let strides = a.strides();
+    if strides.iter().any(|&s| s < 0 || s % item != 0) {
+        return Err(DataError::new_err(
+            "a lagged signal has negative or unaligned strides; pass np.ascontiguousarray(signal)",
+        ));
+    }
+    let (row_stride, col_stride) = ((strides[0] / item) as usize, (strides[1] / item) as usize);
+    let span = if rows == 0 || columns == 0 { 0 } else { (rows - 1) * row_stride + (columns - 1) * col_stride + 1 };
+    // SAFETY: numpy guarantees every entry (t, c) = data + t·row_stride + c·col_stride (strides
+    // non-negative, checked above) lies in the array's buffer, so the span from `data` to the last
+    // entry is initialised memory; the read-only borrow keeps Rust writers away while it is held.
+    let values = unsafe { std::slice::from_raw_parts(a.data() as *const f64, span) };
+    Ok(Source { values, rows, columns, row_stride, col_stride })
+}
+
+/// Filters the rows of `v` (C-contiguous rows × columns) in place by `v(t) − Σ_j a_j v(t − 1 − j)`:
+/// each run `(at, first, end)` writes rows `first..end` filtered to rows `at..` (see
+/// [`crate::scoring::ar_filter::filter_rows_in_place`]; numpy's numbers to the last bit).
+#[pyfunction]
+pub(super) fn ar_filter_rows(
+    py: Python<'_>,
+    mut v: PyReadwriteArray2<'_, f64>,
+    a: PyReadonlyArray1<'_, f64>,
+    runs: Vec<(usize, usize, usize)>,
+) -> PyResult<()> {
+    let width = v.shape()[1];
+    let coefficients = a.as_slice()?.to_vec();
+    let values = v.as_slice_mut()?;
+    run(py, 1, |_| crate::scoring::ar_filter::filter_rows_in_place(values, width, &coefficients, &runs))
+}
+
+/// `c(k) = Σ_t a(t) b(t − k)` for k = first..=last over the samples where both exist (see
+/// [`crate::linalg::lagged_products`]); with the GIL released on every core, stops on Ctrl-C.
+#[pyfunction]
+pub(super) fn lagged_products<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray1<'py, f64>,
+    b: PyReadonlyArray1<'py, f64>,
+    first: isize,
+    last: isize,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (a, b) = (a.as_slice()?, b.as_slice()?);
+    let out = run(py, 0, |cancel| crate::linalg::lagged_products::lagged_products(a, b, first, last, cancel))?;
+    Ok(PyArray1::from_vec(py, out))
+}

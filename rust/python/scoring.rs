@@ -1,0 +1,124 @@
+//! Python bindings of the candidate scoring's products ([`crate::scoring::threshold_scan`],
+//! [`crate::scoring::column_products`], the base fit's residual).
+
+use numpy::{
+    PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
+    PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+
+use super::errors::DataError;
+use super::run::run;
+use crate::scoring::column_products::{column_products, Block};
+use crate::scoring::fit_residual::{refine_residual, residual_products};
+use crate::scoring::threshold_scan::{scan_products, ScanRows, Shape};
+
+/// `(cross, zz)`: see [`threshold_products`].
+type Products<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>);
+
+/// `(cross, zz)` of a threshold scan: `cross[i, j, t]` is column i of `[a | e]` times
+/// `shape(lagged[:, j], thresholds[t])`, `zz[j, l, t]` the product of lags j and l at threshold t,
+/// with `shape` a dead zone (`dead_zone`) or a saturation. `a` and `lagged` are C-contiguous
+/// (rows × columns). Runs with the GIL released on `n_threads` (0 = all cores) and stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (a, e, lagged, thresholds, dead_zone, n_threads = 0))]
+pub(super) fn threshold_products<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    e: PyReadonlyArray1<'py, f64>,
+    lagged: PyReadonlyArray2<'py, f64>,
+    thresholds: PyReadonlyArray1<'py, f64>,
+    dead_zone: bool,
+    n_threads: usize,
+) -> PyResult<Products<'py>> {
+    let (k, b, m) = (a.shape()[1], lagged.shape()[1], thresholds.len());
+    let rows = ScanRows { a: a.as_slice()?, k, e: e.as_slice()?, lagged: lagged.as_slice()?, b };
+    let shape = if dead_zone { Shape::DeadZone } else { Shape::Saturation };
+    let cs = thresholds.as_slice()?;
+    let out = run(py, n_threads, |cancel| scan_products(&rows, cs, shape, n_threads != 1, cancel))?;
+    let cross = PyArray1::from_vec(py, out.cross).reshape([k + 1, b, m])?;
+    let zz = PyArray1::from_vec(py, out.zz).reshape([b, b, m])?;
+    Ok((cross, zz))
+}
+
+/// A tested block as Python gives it: `(values, width, lagged)`; see [`Block`].
+type PyBlock<'py> = (PyReadonlyArray1<'py, f64>, usize, bool);
+
+/// `(cross, zz)` of one block: `[a | e]'z` (`(k + 1) × width`) and `z'z`.
+type BlockProducts<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// `[a | e]'z` and `z'z` of every block, in one pass over the rows. A block is
+/// `(values, width, lagged)`: `lagged` False, `values` holds the rows × width matrix row by row;
+/// True, column j of row r is `values[r + width − 1 − j]` (a lagged signal, never written out).
+/// `a` is C-contiguous. Runs with the GIL released on `n_threads` (0 = all cores), stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (a, e, blocks, n_threads = 0))]
+pub(super) fn tested_products<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    e: PyReadonlyArray1<'py, f64>,
+    blocks: Vec<PyBlock<'py>>,
+    n_threads: usize,
+) -> PyResult<Vec<BlockProducts<'py>>> {
+    let k = a.shape()[1];
+    let mut views = Vec::with_capacity(blocks.len());
+    for (values, width, lagged) in &blocks {
+        let values = values.as_slice()?;
+        if *width == 0 {
+            return Err(DataError::new_err("a tested block has no column"));
+        }
+        views.push(if *lagged {
+            Block::Lagged { series: values, width: *width }
+        } else {
+            Block::Matrix { values, width: *width }
+        });
+    }
+    let (av, ev) = (a.as_slice()?, e.as_slice()?);
+    let out = run(py, n_threads, |cancel| column_products(av, k, ev, &views, n_threads != 1, cancel))?;
+    out.into_iter()
+        .zip(&blocks)
+        .map(|(p, (_, w, _))| {
+            let cross = PyArray1::from_vec(py, p.cross).reshape([k + 1, *w])?;
+            let zz = PyArray1::from_vec(py, p.zz).reshape([*w, *w])?;
+            Ok((cross, zz))
+        })
+        .collect()
+}
+
+/// `(e, a'e)`: see [`fit_residual`].
+type Residual<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// `(e, a'e)`: the residual `y − aθ` of a linear fit and its products with the regressors `a`
+/// (C-contiguous rows × k), in one pass over the rows. Runs with the GIL released on `n_threads`
+/// (0 = all cores) and stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (a, y, theta, n_threads = 0))]
+pub(super) fn fit_residual<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    y: PyReadonlyArray1<'py, f64>,
+    theta: PyReadonlyArray1<'py, f64>,
+    n_threads: usize,
+) -> PyResult<Residual<'py>> {
+    let k = a.shape()[1];
+    let (av, yv, tv) = (a.as_slice()?, y.as_slice()?, theta.as_slice()?);
+    let (e, products) = run(py, n_threads, |cancel| residual_products(av, k, yv, tv, n_threads != 1, cancel))?;
+    Ok((PyArray1::from_vec(py, e), PyArray1::from_vec(py, products)))
+}
+
+/// `e ← e − aδ` in place (a residual of [`fit_residual`] refined by a correction δ of the
+/// coefficients) and the new `e'e`, in one pass; as [`fit_residual`].
+#[pyfunction]
+#[pyo3(signature = (a, e, delta, n_threads = 0))]
+pub(super) fn refine_fit_residual<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    mut e: PyReadwriteArray1<'py, f64>,
+    delta: PyReadonlyArray1<'py, f64>,
+    n_threads: usize,
+) -> PyResult<f64> {
+    let k = a.shape()[1];
+    let (av, dv) = (a.as_slice()?, delta.as_slice()?);
+    let ev = e.as_slice_mut()?;
+    run(py, n_threads, |cancel| refine_residual(av, k, ev, dv, n_threads != 1, cancel))
+}

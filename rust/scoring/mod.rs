@@ -1,0 +1,8 @@
+//! The diagnostic tests' kernels, one pass over the rows each: threshold scans, added-variable
+//! products, the base fit's residual, sums per operating-point bin, the prewhitening filter.
+
+pub mod ar_filter;
+pub mod column_products;
+pub mod fit_residual;
+pub mod group_sums;
+pub mod threshold_scan;
