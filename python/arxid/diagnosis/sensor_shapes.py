@@ -68,7 +68,11 @@ def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float) -> tupl
     simplex = [start] + [start + np.eye(start.size)[i] * scale[i] for i in range(start.size)]
 
     def cost(params: np.ndarray) -> float:
-        return _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in params))))[1]
+        try:
+            sensor = SensorShape(kind, tuple(sorted(float(v) for v in params)))
+        except ArxidError:  # the search stepped out of the shape's range
+            return math.inf
+        return _fitted(model, data, sensor)[1]
 
     res = optimize.minimize(cost, start, method="Nelder-Mead", options={"initial_simplex": simplex, "maxfev": 40})
     if not res.fun < rms:

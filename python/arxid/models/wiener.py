@@ -50,6 +50,18 @@ class SensorShape:
     kind: str
     params: tuple[float, ...]
 
+    def __post_init__(self) -> None:
+        p = self.params
+        bad = {
+            "power": lambda: not (len(p) == 1 and 0 < p[0] <= 10),
+            "saturation": lambda: not (len(p) == 2 and p[0] < p[1]),
+            "dead zone": lambda: not (len(p) == 1 and p[0] >= 0),
+        }
+        if self.kind not in bad:
+            raise OrderError(f"unknown sensor shape {self.kind!r}; use one of {SENSOR_KINDS}")
+        if bad[self.kind]():
+            raise OrderError(f"sensor shape {self.kind}: an exponent in (0, 10], levels lo < hi or c >= 0; got {p}")
+
     @property
     def text(self) -> str:
         """e.g. ``"y = x^2"``, ``"y = clip(x,-1,1.2)"``, ``"y = dz(x,0.1)"``."""
@@ -76,7 +88,7 @@ class SensorShape:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=float)
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             if self.kind == "power":
                 return np.power(np.maximum(x, 0.0), self.params[0])
             if self.kind == "saturation":
@@ -93,7 +105,7 @@ class SensorShape:
             The measurement noise's size: a sample this close to a flat part may lie on it.
         """
         y = np.asarray(y, dtype=float)
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             if self.kind == "power":
                 return np.where(y > floor, np.power(np.maximum(y, 0.0), 1.0 / self.params[0]), np.nan)
             if self.kind == "saturation":
@@ -188,8 +200,6 @@ def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape) -> WienerMode
     DataError
         When too few samples lie where g can be inverted.
     """
-    if sensor.kind not in SENSOR_KINDS:
-        raise OrderError(f"unknown sensor shape {sensor.kind!r}; use one of {SENSOR_KINDS}")
     z = sensor.inverse(data.y, noise_floor(data.y))
     if np.isfinite(z).sum() < 0.2 * data.n_samples:
         raise DataError(f"fewer than 20 % of the samples lie where {sensor.text} can be inverted")
