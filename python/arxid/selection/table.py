@@ -133,11 +133,27 @@ class SweepTable:
     def max_pole(self) -> np.ndarray:
         """Largest pole magnitude of every structure, shape (S,)."""
         if "max_pole" not in self._cache:
-            theta = np.full((len(self), max(int(self.na.max()), 1)), np.nan)
-            for i, (th, k) in enumerate(zip(self.parameters, self.na)):
-                theta[i, :k] = th[:k]
-            self._cache["max_pole"] = max_poles(self.na, theta)
+            self._cache["max_pole"] = self._max_poles_of(np.arange(len(self)))
         return self._cache["max_pole"]
+
+    def max_pole_of(self, rows: Sequence[int]) -> np.ndarray:
+        """Largest pole magnitude of the ranked structures ``rows`` (as :attr:`max_pole`), computed
+        for those rows alone and remembered: a verdict that reads a few structures of a grid of
+        hundreds of thousands solves a few companion matrices, not all of them."""
+        if "max_pole" in self._cache:
+            return self._cache["max_pole"][np.asarray(rows, dtype=np.intp)]
+        known = self._cache.setdefault("max_pole_rows", {})
+        new = np.array(sorted({int(i) for i in rows} - known.keys()), dtype=np.intp)
+        if new.size:
+            known.update(zip(new.tolist(), self._max_poles_of(new).tolist()))
+        return np.array([known[int(i)] for i in rows], dtype=float)
+
+    def _max_poles_of(self, rows: np.ndarray) -> np.ndarray:
+        na = self.na[rows]
+        theta = np.full((len(rows), max(int(na.max(initial=0)), 1)), np.nan)
+        for j, i in enumerate(rows):
+            theta[j, : na[j]] = self.parameters[i][: na[j]]
+        return max_poles(na, theta)
 
     @property
     def stable(self) -> np.ndarray:
