@@ -6,6 +6,7 @@ pub mod band;
 pub mod column_products;
 pub mod columns;
 pub mod csv_read;
+pub mod digital_filter;
 pub mod error;
 pub mod finite_sums;
 pub mod fit;

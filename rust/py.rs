@@ -1053,7 +1053,7 @@ mod core_module {
     #[pymodule_export]
     use super::py_iv::iv_sweep;
     #[pymodule_export]
-    use super::py_lagged::{ar_filter_rows, lagged_products, lagged_r};
+    use super::py_lagged::{ar_filter_rows, lagged_products, lagged_r, lfilter};
     #[pymodule_export]
     use super::py_procest::{procest_refine, procest_simulate};
     #[pymodule_export]

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .._base.digital_filter import lfilter
 from .._base.formatting import json_safe
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -237,8 +238,6 @@ class SweepTable:
         if self.effects:
             return step_sanity(self.model(i), data, expect=expect, limits=self.limits)
         # Linear structure: the step response is a filter of a constant (exactly antisymmetric).
-        from scipy.signal import lfilter
-
         theta, na = self.parameters[i], int(self.na[i])
         a = np.concatenate([[1.0], theta[:na]])
         amps = typical_amplitudes(data)
