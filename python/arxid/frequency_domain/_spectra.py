@@ -11,7 +11,14 @@ import math
 
 import numpy as np
 
-__all__ = ["spectra", "hann_window", "finite_runs", "default_segment_length", "HANN_OVERLAP_CORRELATION", "effective_averages"]
+__all__ = [
+    "spectra",
+    "hann_window",
+    "finite_runs",
+    "default_segment_length",
+    "HANN_OVERLAP_CORRELATION",
+    "effective_averages",
+]
 
 # Welch (1967): for a Hann window with 50 % overlap, neighbouring segments' spectra correlate with
 # c = 0.167, so K averages have the variance of K / (1 + 2 c²) independent ones.

@@ -141,8 +141,8 @@ class SweepTable:
         """Largest pole magnitude of the ranked structures ``rows`` (as :attr:`max_pole`), computed
         for those rows alone and remembered: a verdict that reads a few structures of a grid of
         hundreds of thousands solves a few companion matrices, not all of them."""
-        if "max_pole" in self._cache:
-            return self._cache["max_pole"][np.asarray(rows, dtype=np.intp)]
+        if "max_pole" in self._cache or 2 * len(rows) >= len(self):  # most rows: the whole column at once
+            return self.max_pole[np.asarray(rows, dtype=np.intp)]
         known = self._cache.setdefault("max_pole_rows", {})
         new = np.array(sorted({int(i) for i in rows} - known.keys()), dtype=np.intp)
         if new.size:
@@ -329,6 +329,7 @@ class SweepTable:
 
     def _rows(self, n: int | None, sanity: bool):
         n = len(self) if n is None else min(n, len(self))
+        max_pole = self.max_pole_of(range(n))  # the rows shown only (a grid may hold a million)
         rows = []
         for i in range(n):
             sv = self.sanity(i) if sanity else None
@@ -348,8 +349,8 @@ class SweepTable:
                     "fpe": _num(self.fpe[i]),
                     "aic": _num(self.aic[i]),
                     "bic": _num(self.bic[i]),
-                    "stable": bool(self.stable[i]),
-                    "max_pole": _num(self.max_pole[i]),
+                    "stable": bool(max_pole[i] < 1.0),
+                    "max_pole": _num(max_pole[i]),
                     "diverged_est": bool(self.diverged_est[i]),
                     "diverged_val": bool(self.diverged_val[i]),
                     "horizon": self.horizon,
@@ -473,6 +474,7 @@ class SweepTable:
             "stage",
         ]
         lines = []
+        max_pole = self.max_pole_of(range(min(n, len(self))))
         for i in range(min(n, len(self))):
             if self.errors[i] is not None:
                 cells = [str(i + 1), self.structure_name(i), "not fitted", "not fitted"] + ["-"] * 7 + ["collinear"]
@@ -490,7 +492,7 @@ class SweepTable:
                     _fmt(self.aic[i], ".4g"),
                     _fmt(self.bic[i], ".4g"),
                     str(int(self.n_params[i])),
-                    "yes" if self.stable[i] else "no",
+                    "yes" if max_pole[i] < 1.0 else "no",
                     "-" if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
                     str(int(self.stage[i])),
                 ]
