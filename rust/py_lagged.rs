@@ -6,8 +6,8 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use super::{run, to_pyerr};
 use super::DataError;
+use super::{run, to_pyerr};
 use crate::lagged_qr::{lagged_r as factor, LaggedColumn, Source};
 
 /// `(R, n_rows)`: R (q × q upper triangular, R'R = M'M) of the matrix M whose column j is
