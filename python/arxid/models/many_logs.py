@@ -110,9 +110,9 @@ def logs_fitting(what: str) -> LogsFitting:
     Raises
     ------
     ArxidError
-        When :mod:`arxid.fleet` has not been imported (``import arxid`` imports it).
+        When :mod:`arxid.fleet` cannot be imported, or does not provide the fits.
     """
-    if not _PROVIDED:  # by name: this layer does not import the fleet's (``import arxid`` may not have yet)
+    if not _PROVIDED:  # imported by name: this layer does not import the fleet's above it
         importlib.import_module("arxid.fleet")
     if not _PROVIDED:
         raise ArxidError(f"{what} needs arxid.fleet, which provides the fits of many logs: import arxid.fleet first")
