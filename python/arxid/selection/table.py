@@ -140,7 +140,18 @@ class SweepTable:
     def max_pole_of(self, rows: Sequence[int]) -> np.ndarray:
         """Largest pole magnitude of the ranked structures ``rows`` (as :attr:`max_pole`), computed
         for those rows alone and remembered: a verdict that reads a few structures of a grid of
-        hundreds of thousands solves a few companion matrices, not all of them."""
+        hundreds of thousands solves a few companion matrices, not all of them.
+
+        Parameters
+        ----------
+        rows : sequence of int
+            Ranks of the structures (0 is the best).
+
+        Returns
+        -------
+        ndarray of shape (len(rows),)
+            0 for a structure without poles, NaN where a coefficient is not finite.
+        """
         if "max_pole" in self._cache or 2 * len(rows) >= len(self):  # most rows: the whole column at once
             return self.max_pole[np.asarray(rows, dtype=np.intp)]
         known = self._cache.setdefault("max_pole_rows", {})
