@@ -83,6 +83,7 @@ bench: develop
 	$(PY) benches/analyse_scale.py
 	$(PY) benches/checks_kernels.py
 	$(PY) benches/analyse_fleet.py
+	$(PY) benches/cli_start.py
 
 # The wheel (abi3: one file for CPython >= 3.10) for manylinux2014 (glibc 2.17; maturin links with
 # zig) and the sdist, in dist/; the wheel's tag is checked and it is installed in a fresh venv

@@ -9,7 +9,10 @@ Baseline: MATLAB's ``arxstruc`` in vectorised numpy, the one-step ranking alone:
 the largest regressor on each data set, then per structure a Cholesky solve and a validation
 quadratic form (``arxid.selection.baseline``, shared with ``arxid bench``). Its per-structure part
 is timed on a random subset of structures and extrapolated (the Gram matrices are timed in full).
-Also a row for a grid of over a million structures.
+Also a row for a grid of over a million structures, and the default sweep (the integrator verdict
+decides the measure: its unit-root test and the settling evidence of its best free-run structures)
+against the same sweep with ``expect="stable"`` (no verdict) on 200,000 + 200,000 samples (issue 42:
+at most 1.15x).
 
 Run with ``make bench`` (or ``python benches/sweep_miso.py [--quick]``). Timings are medians.
 """
@@ -86,6 +89,24 @@ def run_row(est, val, nk_max: int, subset: int, rep: int) -> tuple:
     return n_structures, t_arxid, t_numpy, t_sub / subset, agree, res
 
 
+def verdict_cost(est, val, rep: int) -> tuple[float, float, str]:
+    """Median times of the default sweep (integrator verdict) and of the same with ``expect="stable"``,
+    run in turn (a drifting machine affects both), and the verdict's reason."""
+
+    def sweep(expect):
+        return arxid.sweep(
+            est, na=NA, nb=NB, nk=range(0, 9), validation=val, top=1000, progress=False, simulate_estimation=False,
+            expect=expect,
+        )  # fmt: skip
+
+    res = sweep(None)
+    times: dict = {None: [], "stable": []}
+    for _ in range(rep):
+        for expect in times:
+            times[expect].append(median_time(lambda e=expect: sweep(e), 1))
+    return float(np.median(times[None])), float(np.median(times["stable"])), res.integrating_reason
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats, skip the million-structure row")
@@ -122,6 +143,14 @@ def main():
             f"best {res.structure_name(0)}"
         )
     print(f"  numpy per-structure cost timed on {args.subset:,} random structures and extrapolated")
+    est, val = make_data(200_000, 1), make_data(200_000, 2)
+    t_default, t_stable, reason = verdict_cost(est, val, rep)
+    print()
+    print(
+        f"  default sweep (integrator verdict) {t_default:.3f} s, with expect='stable' {t_stable:.3f} s: "
+        f"{t_default / t_stable:.2f} x (target <= 1.15 x); 200,000 + 200,000 samples, nk 0..8 per input"
+    )
+    print(f"  verdict: {reason}")
 
 
 if __name__ == "__main__":

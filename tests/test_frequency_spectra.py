@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
-from scipy.signal import csd
+from scipy.signal import csd, get_window
 
 from arxid.checks.frequency import spectra
+from arxid.frequency_domain._spectra import hann_window
 
 
 @pytest.mark.parametrize("nseg", [32, 64, 256, 33])
@@ -31,3 +32,9 @@ def test_spectra_are_scipys_csd_averaged_over_the_runs(nseg, seed):
         want = np.moveaxis(want / total, -1, 0)
         assert np.allclose(s, want, rtol=1e-12, atol=1e-14 * np.abs(want).max())
     assert np.allclose(s, np.conj(np.swapaxes(s, 1, 2)))
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 32, 100, 257, 4096])
+def test_the_hann_window_is_scipys_to_the_last_bit(n):
+    """The spectra's window, computed without importing scipy.signal: scipy's numbers exactly."""
+    assert np.array_equal(hann_window(n), get_window("hann", n)) if n else hann_window(0).size == 0

@@ -22,17 +22,12 @@ The map (one subpackage per layer, top to bottom; docs/architecture.md has the r
 * :mod:`arxid.data` — :class:`IOData`, CSV, logs; ``arxid._base`` — the compiled core and the metrics.
 """
 
+# ruff: noqa: F401 - the imports for type checkers are the public names (__all__ is built from _PUBLIC)
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from . import fleet  # noqa: F401 - gives the models their fits of many logs (client=, per_experiment=True)
-from .analysis.pipeline import Analysis, analyse
-from .checks import FeedbackTest, FrequencyCheck, compare, feedback, frequency_check, residuals, where_it_fails
-from .data.iodata import IOData
-from .diagnosis.ladder import Ladder
-from .diagnosis.suspects import Diagnosis, diagnose
 from .exceptions import (
     ArxidError,
     ArxidWarning,
@@ -44,52 +39,50 @@ from .exceptions import (
     NotFittedError,
     OrderError,
 )
-from .frequency_domain import DeconvolvedStep, FrequencyResponse, frf, step_by_deconvolution, tf_from_frequency
-from .models.arx_model import ArxModel, arx
-from .models.iv import IvModel, iv
-from .models.pem import armax, bj, delayest, oe, polyest
-from .models.polynomial import PolynomialModel
-from .models.process_models import procest
-from .models.tfest import tfest
-from .selection.refine import RefinedSweep, refine
-from .selection.search import DEFAULT_GRID, SweepResult, sweep
+
+if TYPE_CHECKING:  # the names of _PUBLIC, imported on first use (__getattr__ below)
+    from .analysis.pipeline import Analysis, analyse
+    from .checks import FeedbackTest, FrequencyCheck, compare, feedback, frequency_check, residuals, where_it_fails
+    from .data.iodata import IOData
+    from .diagnosis.ladder import Ladder
+    from .diagnosis.suspects import Diagnosis, diagnose
+    from .frequency_domain import DeconvolvedStep, FrequencyResponse, frf, step_by_deconvolution, tf_from_frequency
+    from .models.arx_model import ArxModel, arx
+    from .models.iv import IvModel, iv
+    from .models.pem import armax, bj, delayest, oe, polyest
+    from .models.polynomial import PolynomialModel
+    from .models.process_models import procest
+    from .models.tfest import tfest
+    from .selection.refine import RefinedSweep, refine
+    from .selection.search import DEFAULT_GRID, SweepResult, sweep
+
+#: The module of each public name. A name is imported when first used, so that ``import arxid``
+#: (the command line's ``--help``, a fit of a small record) loads only what it uses.
+_PUBLIC = {
+    **dict.fromkeys(["IOData"], "arxid.data.iodata"),
+    **dict.fromkeys(["ArxModel", "arx"], "arxid.models.arx_model"),
+    **dict.fromkeys(["sweep", "SweepResult", "DEFAULT_GRID"], "arxid.selection.search"),
+    **dict.fromkeys(["PolynomialModel"], "arxid.models.polynomial"),
+    **dict.fromkeys(["iv", "IvModel"], "arxid.models.iv"),
+    **dict.fromkeys(["oe", "armax", "bj", "polyest", "delayest"], "arxid.models.pem"),
+    **dict.fromkeys(["tfest"], "arxid.models.tfest"),
+    **dict.fromkeys(["procest"], "arxid.models.process_models"),
+    **dict.fromkeys(
+        ["frf", "FrequencyResponse", "step_by_deconvolution", "DeconvolvedStep", "tf_from_frequency"],
+        "arxid.frequency_domain",
+    ),
+    **dict.fromkeys(["refine", "RefinedSweep"], "arxid.selection.refine"),
+    **dict.fromkeys(
+        ["compare", "residuals", "where_it_fails", "frequency_check", "FrequencyCheck", "feedback", "FeedbackTest"],
+        "arxid.checks",
+    ),
+    **dict.fromkeys(["diagnose", "Diagnosis"], "arxid.diagnosis.suspects"),
+    **dict.fromkeys(["Ladder"], "arxid.diagnosis.ladder"),
+    **dict.fromkeys(["analyse", "Analysis"], "arxid.analysis.pipeline"),
+}
 
 __all__ = [
-    "IOData",
-    "ArxModel",
-    "arx",
-    "sweep",
-    "SweepResult",
-    "DEFAULT_GRID",
-    "PolynomialModel",
-    "iv",
-    "IvModel",
-    "oe",
-    "armax",
-    "bj",
-    "polyest",
-    "delayest",
-    "tfest",
-    "procest",
-    "frf",
-    "FrequencyResponse",
-    "step_by_deconvolution",
-    "DeconvolvedStep",
-    "tf_from_frequency",
-    "refine",
-    "RefinedSweep",
-    "compare",
-    "residuals",
-    "where_it_fails",
-    "frequency_check",
-    "FrequencyCheck",
-    "feedback",
-    "FeedbackTest",
-    "diagnose",
-    "Diagnosis",
-    "Ladder",
-    "analyse",
-    "Analysis",
+    *_PUBLIC,
     "ArxidError",
     "DataError",
     "OrderError",
@@ -112,14 +105,18 @@ _moved.install()
 # Subpackages with heavier or optional dependencies load on first use.
 _LAZY_MODULES = {"quadrotor": "arxid.quadrotor", "plots": "arxid.plots"}
 _LAZY_MODULES.update((path.rpartition(".")[2], module) for path, module in _moved.PUBLIC.items())
+_SUBPACKAGES = {"analysis", "checks", "data", "diagnosis", "fleet", "frequency_domain", "inputs", "models", "selection"}
 
 
 def __getattr__(name: str) -> Any:
-    if name in _LAZY_MODULES:
-        module = importlib.import_module(_LAZY_MODULES[name])
-        globals()[name] = module
-        return module
-    raise AttributeError(f"module 'arxid' has no attribute {name!r}")
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    elif name in _LAZY_MODULES or name in _SUBPACKAGES:
+        value = importlib.import_module(_LAZY_MODULES.get(name, f"arxid.{name}"))
+    else:
+        raise AttributeError(f"module 'arxid' has no attribute {name!r}")
+    globals()[name] = value
+    return value
 
 
 def __dir__() -> list[str]:

@@ -6,7 +6,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use super::errors::DataError;
+use super::errors::{to_pyerr, DataError};
 use super::run::run;
 use crate::linalg::lagged_qr::{lagged_r as factor, LaggedColumn, Source};
 
@@ -87,4 +87,25 @@ pub(super) fn lagged_products<'py>(
     let (a, b) = (a.as_slice()?, b.as_slice()?);
     let out = run(py, 0, |cancel| crate::linalg::lagged_products::lagged_products(a, b, first, last, cancel))?;
     Ok(PyArray1::from_vec(py, out))
+}
+
+/// `scipy.signal.lfilter(b, a, x)` of a signal from rest (see [`crate::simulate::digital_filter`]; scipy's
+/// numbers to the last bit), with the GIL released.
+#[pyfunction]
+pub(super) fn lfilter<'py>(
+    py: Python<'py>,
+    b: PyReadonlyArray1<'py, f64>,
+    a: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (b, a) = (b.as_array().to_vec(), a.as_array().to_vec());
+    let x = x.as_array();
+    let out = match x.as_slice() {
+        Some(x) => py.detach(|| crate::simulate::digital_filter::lfilter(&b, &a, x)),
+        None => {
+            let x = x.to_vec();
+            py.detach(|| crate::simulate::digital_filter::lfilter(&b, &a, &x))
+        }
+    };
+    Ok(PyArray1::from_vec(py, out.map_err(|e| to_pyerr(py, e))?))
 }

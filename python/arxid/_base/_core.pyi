@@ -57,6 +57,7 @@ __all__ = [
     "lagged_products",
     "lagged_r",
     "ar_filter_rows",
+    "lfilter",
 ]
 
 #: A prediction beyond this many times the largest measured |y| has diverged.
@@ -340,6 +341,7 @@ def lagged_r(
 ) -> tuple[_F, int]: ...
 def ar_filter_rows(v: _F, a: _F, runs: Sequence[tuple[int, int, int]]) -> None: ...
 def lagged_products(a: _F, b: _F, first: int, last: int) -> _F: ...
+def lfilter(b: _F, a: _F, x: _F) -> _F: ...
 
 _Process = tuple[int, bool, bool, bool, bool]
 

@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from ..exceptions import ArxidError
 from . import _core
+from .probabilities import standard_normal_quantile
 
 __all__ = [
     "normal_quantile",
@@ -417,8 +418,6 @@ def normal_quantile(level: float) -> float:
     -------
     float
     """
-    from scipy.stats import norm
-
     if not 0.0 < level < 1.0:
         raise ArxidError(f"level must be a confidence level between 0 and 1, e.g. 0.99, got {level!r}")
-    return float(norm.ppf(0.5 + level / 2.0))
+    return standard_normal_quantile(0.5 + level / 2.0)

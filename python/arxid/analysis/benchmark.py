@@ -353,7 +353,7 @@ def add_bench_command(sub: Any, kw: dict[str, Any], load: Callable, grid: Callab
     sub : argparse subparsers
         Where the command goes.
     kw : dict
-        Keyword arguments of every subparser (the help formatter).
+        Keyword arguments of the subparser (its help line, the help formatter).
     load : callable
         ``load(args) -> (est, val)``: the command line's reader of DATA (split or ``--validation``).
     grid : callable
@@ -361,7 +361,6 @@ def add_bench_command(sub: Any, kw: dict[str, Any], load: Callable, grid: Callab
     """
     p = sub.add_parser(
         "bench",
-        help="time the grid search on this machine, on your data or a synthetic record",
         epilog=_EXAMPLE,
         description="Time arxid's sweep (and optionally the whole analysis) against MATLAB's arxstruc method in "
         "vectorised numpy on the same data, and against the machine's multiply-add throughput.",

@@ -14,24 +14,18 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from .._base.formatting import format_value, json_safe, text_table
 from .._base.limits import MAX_ORDER
 from .._base.version import __version__
 from ..exceptions import ArxidError, DataError
-from ..models.arx_model import arx
-from ..models.spec import MODEL_FORMS, parse_model_spec
-from ..selection.growth import DEFAULT_GROWTH_SECONDS
-from ..selection.search import DEFAULT_GRID, sweep
-from .benchmark import add_bench_command
 from .cli_data import UsageError, data_args, load, load_data, names, parse_units, reference_name
-from .fleet_cli import add_fleet_command
-from .pipeline import Analysis, analyse, choose
-from .report.html import render_html
-from .verdicts import negative_fit_note
+
+if TYPE_CHECKING:
+    from .pipeline import Analysis
+
+# The commands import what they run when they run: ``arxid --help`` and a small analysis do not
+# pay for the modules of the others.
 
 __all__ = ["main", "load_data", "parse_range"]
 
@@ -94,6 +88,8 @@ _GRID_HELP = {"na": "poles", "nb": "input coefficients", "nk": "input delays in 
 
 
 def _order_args(p: argparse.ArgumentParser) -> None:
+    from ..selection.search import DEFAULT_GRID
+
     p.add_argument("--orders", metavar="NA,NB,NK", help="one fixed structure, e.g. 2,1,8 (instead of a sweep)")
     for k, what in _GRID_HELP.items():
         p.add_argument(
@@ -105,6 +101,8 @@ def _order_args(p: argparse.ArgumentParser) -> None:
 
 
 def _grow_args(p: argparse.ArgumentParser) -> None:
+    from ..selection.growth import DEFAULT_GROWTH_SECONDS
+
     g = p.add_mutually_exclusive_group()
     g.add_argument(
         "--grow",
@@ -134,6 +132,8 @@ def _grows(args) -> bool:
 
 
 def _model_arg(p: argparse.ArgumentParser) -> None:
+    from ..models.spec import MODEL_FORMS
+
     p.add_argument(
         "--model",
         metavar="KIND:ORDERS",
@@ -150,6 +150,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def _grid(args) -> dict | None:
     """The sweep grid from --na/--nb/--nk (each defaulting to DEFAULT_GRID), or None with --orders."""
+    from ..selection.search import DEFAULT_GRID
+
     given = {k: getattr(args, k, None) for k in ("na", "nb", "nk")}
     if getattr(args, "orders", None):
         if any(v is not None for v in given.values()):
@@ -163,11 +165,19 @@ def _progress(args) -> bool:
 
 
 def _print_json(obj) -> None:
+    from .._base.formatting import json_safe
+
     sys.stdout.write(json.dumps(json_safe(obj), allow_nan=False, indent=2) + "\n")
 
 
 # ---------------------------------------------------------------------------------------- commands
 def cmd_fit(args) -> int:
+    import numpy as np
+
+    from .._base.formatting import text_table
+    from ..models.arx_model import arx
+    from .verdicts import negative_fit_note
+
     est, val = load(args, need_validation=False)
     orders = _parse_orders(args.orders) if args.orders else None
     if orders is None:
@@ -218,6 +228,11 @@ def cmd_fit(args) -> int:
 
 
 def cmd_sweep(args) -> int:
+    from .._base.formatting import format_value
+    from ..selection.search import sweep
+    from .pipeline import choose
+    from .verdicts import negative_fit_note
+
     est, val = load(args)
     grid = _grid(args)
     if grid is None:
@@ -275,6 +290,9 @@ def cmd_sweep(args) -> int:
 
 
 def _analyse(args) -> Analysis:
+    from ..models.spec import parse_model_spec
+    from .pipeline import analyse
+
     orders = _parse_orders(args.orders) if args.orders else None
     spec = getattr(args, "model", None)
     if spec is not None:
@@ -313,6 +331,8 @@ def cmd_diagnose(args) -> int:
 
 
 def cmd_report(args) -> int:
+    from .report.html import render_html
+
     t0 = time.perf_counter()
     a = _analyse(args)
     source = Path(args.data).name + (f" + {Path(args.validation).name}" if args.validation else "")
@@ -351,6 +371,8 @@ def cmd_demo(args) -> int:
 
 def _write_demo_flight(args) -> int:
     """``arxid demo --write-data FILE.csv``: the simulated flight as a CSV file, no analysis."""
+    import numpy as np
+
     from .demo import DURATION, demo_flight_columns
 
     columns = demo_flight_columns(seed=args.seed, duration=args.duration or DURATION)
@@ -380,7 +402,21 @@ _EXAMPLES = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
+#: Each command's line in ``arxid --help``.
+_COMMANDS = {
+    "fit": "fit one ARX structure (optionally with effects)",
+    "sweep": "fit and validate every (na, nb, nk) of a grid",
+    "diagnose": "rank the missing physical effect and climb the error ladder",
+    "report": "write a self-contained HTML report",
+    "demo": "the hidden battery effect of a simulated quadrotor, end to end",
+    "bench": "time the grid search on this machine, on your data or a synthetic record",
+    "fleet": "diagnose a fleet of logs where they are, on a Dask cluster",
+}
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``arxid`` parser with every command's options, or with those of ``command`` alone (the
+    others listed by name and help line): the options of a command import what they describe."""
     root = _Parser(
         prog="arxid",
         description="ARX system identification that finds the missing physical effect.",
@@ -391,15 +427,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     root.add_argument("--version", action="version", version=f"arxid {__version__}")
     sub = root.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    kw: dict[str, Any] = {"formatter_class": argparse.RawDescriptionHelpFormatter}
+    add = {"fit": _add_fit, "sweep": _add_sweep, "diagnose": _add_diagnose, "report": _add_report}
+    add.update(demo=_add_demo, bench=_add_bench, fleet=_add_fleet)
+    for name, help_line in _COMMANDS.items():
+        kw: dict[str, Any] = {"formatter_class": argparse.RawDescriptionHelpFormatter, "help": help_line}
+        if command is None or name == command:
+            add[name](sub, kw)
+        else:
+            sub.add_parser(name, **kw)
+    return root
 
-    p = sub.add_parser(
-        "fit",
-        help="fit one ARX structure (optionally with effects)",
-        epilog=_EXAMPLES["fit"],
-        description="Fit one ARX model by QR and report its errors.",
-        **kw,
-    )
+
+def _add_fit(sub: Any, kw: dict[str, Any]) -> None:
+    description = "Fit one ARX model by QR and report its errors."
+    p = sub.add_parser("fit", epilog=_EXAMPLES["fit"], description=description, **kw)
     data_args(p, split_default=False)
     p.add_argument("--orders", metavar="NA,NB,NK", required=True, help="structure, e.g. 2,1,8")
     p.add_argument("--effects", metavar="E[,F]", default="", help="effect terms, e.g. 'u1*vbat,const'")
@@ -408,9 +449,10 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(func=cmd_fit)
 
+
+def _add_sweep(sub: Any, kw: dict[str, Any]) -> None:
     p = sub.add_parser(
         "sweep",
-        help="fit and validate every (na, nb, nk) of a grid",
         epilog=_EXAMPLES["sweep"],
         description="Exhaustive order sweep, ranked by validation error; step sanity checks.",
         **kw,
@@ -424,12 +466,20 @@ def build_parser() -> argparse.ArgumentParser:
     _grow_args(p)
     _common(p)
     p.set_defaults(func=cmd_sweep)
-    _add_analysis_commands(sub, kw)
+
+
+def _add_bench(sub: Any, kw: dict[str, Any]) -> None:
+    from .benchmark import add_bench_command
+
     add_bench_command(sub, kw, load=load, grid=_grid)
+
+
+def _add_fleet(sub: Any, kw: dict[str, Any]) -> None:
+    from .fleet_cli import add_fleet_command
+
     fleet: dict[str, Any] = dict(load_data=load_data, names=names, units=parse_units, orders=_parse_orders)
     fleet.update(grid=_grid, order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
     add_fleet_command(sub, kw, {**fleet, "usage_error": UsageError})
-    return root
 
 
 def _initial_arg(p: Any) -> None:
@@ -442,11 +492,9 @@ def _initial_arg(p: Any) -> None:
     )
 
 
-def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
-    """The commands that run the analysis pipeline: diagnose, report, demo."""
+def _add_diagnose(sub: Any, kw: dict[str, Any]) -> None:
     p = sub.add_parser(
         "diagnose",
-        help="rank the missing physical effect and climb the error ladder",
         epilog=_EXAMPLES["diagnose"],
         description="Diagnose a model: residual tests, suspects, ladder.",
         **kw,
@@ -463,9 +511,10 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     _common(p)
     p.set_defaults(func=cmd_diagnose)
 
+
+def _add_report(sub: Any, kw: dict[str, Any]) -> None:
     p = sub.add_parser(
         "report",
-        help="write a self-contained HTML report",
         epilog=_EXAMPLES["report"],
         description="Sweep, choose, diagnose and write one HTML file with every plot embedded.",
         **kw,
@@ -483,9 +532,10 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     _common(p)
     p.set_defaults(func=cmd_report)
 
+
+def _add_demo(sub: Any, kw: dict[str, Any]) -> None:
     p = sub.add_parser(
         "demo",
-        help="the hidden battery effect of a simulated quadrotor, end to end",
         epilog=_EXAMPLES["demo"],
         description="Simulated quadrotor flight with battery sag: sweep, "
         "diagnose, add the missing effect, print the error ladder, write an HTML report.",
@@ -505,9 +555,16 @@ def _add_analysis_commands(sub: Any, kw: dict[str, Any]) -> None:
     p.set_defaults(func=cmd_demo)
 
 
+def _command_of(argv: Sequence[str]) -> str | None:
+    """The command ``argv`` runs (its first word that is not an option), if it names one."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    return word if word in _COMMANDS else None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``arxid`` command line; returns the exit code (0 ok, 2 bad arguments or data)."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command_of(argv) or "")
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):

@@ -10,13 +10,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..data.iodata import IOData
 from ..exceptions import DataError
-from .flight_log import axis_signals, flight_log_data, is_flight_log
-from .npz_data import read_npz
-from .pipeline import DEFAULT_SPLIT
+
+# The readers and the pipeline's defaults are imported where used: ``arxid --help`` needs none of them.
 
 __all__ = ["UsageError", "data_args", "load", "load_data", "names", "parse_units", "reference_name"]
 
@@ -76,6 +72,12 @@ def load_data(  # noqa: C901
     In a ``.npz`` the sampling time is ``ts``, a time array named by ``time_col``, or a scalar
     array ``ts`` in the archive.
     """
+    import numpy as np
+
+    from ..data.iodata import IOData
+    from .flight_log import flight_log_data, is_flight_log
+    from .npz_data import read_npz
+
     p = Path(path)
     if not p.exists():
         raise DataError(f"data file {path!r} does not exist")
@@ -124,6 +126,8 @@ def load_data(  # noqa: C901
 
 
 def data_args(p: argparse.ArgumentParser, validation: bool = True, split_default: bool = True) -> None:
+    from .pipeline import DEFAULT_SPLIT
+
     p.add_argument(
         "data",
         metavar="DATA",
@@ -173,6 +177,8 @@ def data_args(p: argparse.ArgumentParser, validation: bool = True, split_default
 
 def axis_preset(args) -> None:
     """With --axis, the flight log's preset fills --output, --inputs, --extra and --reference."""
+    from .flight_log import axis_signals, is_flight_log
+
     if not getattr(args, "axis", None):
         return
     if args.output or args.inputs:
@@ -187,6 +193,8 @@ def axis_preset(args) -> None:
 
 
 def load(args, need_validation: bool = True):
+    from .pipeline import DEFAULT_SPLIT
+
     axis_preset(args)
     inputs, extra = names(args.inputs), names(args.extra)
     reference = getattr(args, "reference", None)

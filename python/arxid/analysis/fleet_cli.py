@@ -117,7 +117,7 @@ def add_fleet_command(sub: Any, kw: dict[str, Any], helpers: dict[str, Any]) -> 
     ----------
     sub : argparse subparsers
     kw : dict
-        Keyword arguments of every subparser (the help formatter).
+        Keyword arguments of the subparser (its help line, the help formatter).
     helpers : dict of str to callable
         The command line's own readers: ``load_data`` (a file as IOData), ``names`` (a comma list),
         ``units`` (``--units``), ``orders`` (``--orders``), ``grid`` (``--na/--nb/--nk``),
@@ -126,7 +126,6 @@ def add_fleet_command(sub: Any, kw: dict[str, Any], helpers: dict[str, Any]) -> 
     """
     p = sub.add_parser(
         "fleet",
-        help="diagnose a fleet of logs where they are, on a Dask cluster",
         epilog=_EXAMPLE,
         description="Sweep or fit, diagnose and climb the error ladder over many logs on a Dask cluster, and say "
         "which logs the missing effect shows in (the same answer as on the logs merged in one process).",

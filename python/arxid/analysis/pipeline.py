@@ -22,6 +22,7 @@ Examples
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import time
@@ -600,6 +601,8 @@ def analyse(
                 "with client=, give the logs as a list (each log's last share validates) and orders or grid"
             )
         kw = dict(orders=orders, grid=grid, horizon=horizon, expect=expect, max_steps=max_steps, initial=initial)
+        if not FLEET_ANALYSIS:  # by name: fleet_analysis imports this module
+            importlib.import_module("arxid.analysis.fleet_analysis")
         return FLEET_ANALYSIS["analyse"](data, client, split=split, read=read, **kw, **diagnose_kwargs)
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._base import _core, metrics
+from .._base.probabilities import chi2_sf, f_sf
 
 __all__ = ["SignalBins", "SquaredRanks", "bin_signal"]
 
@@ -211,8 +212,6 @@ def _anova_p(
     and not constant), from per-group sums: scipy.stats.f_oneway's formula (sums of squares about
     the overall mean) without splitting the samples into groups. ``centred``: :func:`_centred` of
     ``es`` when known; ``sums``: its centred values summed per group, when known."""
-    from scipy import stats
-
     nb, have = len(counts), counts > 0
     k, n = int(np.count_nonzero(have)), len(es)
     d, normalized, sstot = _centred(es) if centred is None else centred
@@ -220,7 +219,7 @@ def _anova_p(
     ssbn = float(np.sum(sums**2 / counts[have])) - normalized
     with np.errstate(divide="ignore", invalid="ignore"):
         f = (ssbn / (k - 1)) / ((sstot - ssbn) / (n - k))
-    return float(stats.f.sf(f, k - 1, n - k))
+    return float(f_sf(f, k - 1, n - k))
 
 
 def _varies(es: np.ndarray, where: np.ndarray, counts: np.ndarray) -> bool:
@@ -295,8 +294,6 @@ def bin_signal(
     SignalBins or None
         None when too few samples, a single value or a zero residual leave nothing to test.
     """
-    from scipy import stats
-
     ok = np.isfinite(x) & ranked.mask
     n_ok = int(np.count_nonzero(ok))
     if n_ok < 4 * n_bins:
@@ -336,13 +333,17 @@ def bin_signal(
         p_kw = 1.0
     elif used is None:  # every sample in a group of two or more: the shared ranks
         p_kw = _kruskal(ok, where, nb, e, ranked, shared)
-    else:
+    else:  # a bin of one sample: scipy.stats on the groups (rare; scipy.stats is slow to import)
+        from scipy import stats
+
         p_kw = float(stats.kruskal(*[g**2 for g in used]).pvalue)
     if used is None and shared is not None:
         p_an = _anova_p(es, where, counts, ranked.centred(), shared.centred) if shared.varies else 1.0
     elif used is None:
         p_an = _anova_p(es, where, counts, ranked.centred() if full else None) if _varies(es, where, counts) else 1.0
     else:
+        from scipy import stats
+
         p_an = float(stats.f_oneway(*used).pvalue) if all(np.ptp(g) > 0 for g in used) else 1.0
     p_kw = 1.0 if not math.isfinite(p_kw) else p_kw
     p_an = 1.0 if not math.isfinite(p_an) else p_an
@@ -357,8 +358,6 @@ def _kruskal(
     """Kruskal–Wallis p-value of e² between the bins ``where`` of the samples ``ok``: from the shared
     ranks when ``ok`` holds every finite residual (their sums per bin from ``shared`` when given),
     else from the ranks of those samples."""
-    from scipy import stats
-
     if len(where) == len(ranked.finite):  # the same samples: the ranks are the shared ones
         n = len(where)
         if shared is None:
@@ -369,7 +368,7 @@ def _kruskal(
         have = sizes > 0
         h = 12.0 / (n * (n + 1.0)) * float(np.sum(sums[have] ** 2 / sizes[have])) - 3.0 * (n + 1.0)
         h /= 1.0 - ranked.ties / (float(n) ** 3 - n)
-        return float(stats.chi2.sf(h, int(np.count_nonzero(have)) - 1))
+        return float(chi2_sf(h, int(np.count_nonzero(have)) - 1))
     idx = np.zeros(len(e), dtype=np.intp)
     idx[ok] = where
     sub = ranked.order[ok[ranked.order]]
@@ -380,8 +379,6 @@ def _kruskal_sorted(v: np.ndarray, group: np.ndarray, n_groups: int) -> float:
     """Kruskal–Wallis p-value of values ``v`` given in ascending order with their groups (as
     ``scipy.stats.kruskal`` on the groups: midranks for ties, tie-corrected H, χ² with k − 1
     degrees of freedom); linear in n once sorted."""
-    from scipy import stats
-
     n = len(v)
     starts = np.flatnonzero(np.r_[True, v[1:] != v[:-1]])
     ties = np.diff(np.r_[starts, n]).astype(float)
@@ -391,4 +388,4 @@ def _kruskal_sorted(v: np.ndarray, group: np.ndarray, n_groups: int) -> float:
     have = sizes > 0
     h = 12.0 / (n * (n + 1.0)) * float(np.sum(sums[have] ** 2 / sizes[have])) - 3.0 * (n + 1.0)
     h /= 1.0 - float(np.sum(ties**3 - ties)) / (float(n) ** 3 - n)
-    return float(stats.chi2.sf(h, int(np.count_nonzero(have)) - 1))
+    return float(chi2_sf(h, int(np.count_nonzero(have)) - 1))

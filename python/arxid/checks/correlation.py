@@ -25,6 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._base import _core
+from .._base.digital_filter import lfilter
 from .._base.nested import nested_from_factor
 from ..data.iodata import IOData
 from ..models.lagged import ar_factor
@@ -186,8 +187,6 @@ def ar_innovations(x: np.ndarray, segments: Sequence[tuple[int, int]], a: np.nda
     -------
     ndarray of shape (n_samples,)
     """
-    from scipy.signal import lfilter
-
     p = len(a)
     if p == 0:
         return x

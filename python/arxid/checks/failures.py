@@ -17,6 +17,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from .._base.probabilities import f_sf
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon, check_model
@@ -253,8 +254,6 @@ def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int, total: t
     """One-sided F test: is the one-step residual variance in [lo, hi) larger than outside it?
     ``total``: the count and the sum of squares of the finite residuals (the outside's are the
     total's less the inside's)."""
-    from scipy import stats
-
     inside = res[lo:hi]
     inside = inside[np.isfinite(inside)]
     n_out = total[0] - inside.size
@@ -266,7 +265,7 @@ def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int, total: t
     if v_out == 0:
         return math.nan
     f = (sq_in / inside.size) / v_out
-    return float(min(1.0, stats.f.sf(f, inside.size, n_out) * n_windows))
+    return float(min(1.0, f_sf(f, inside.size, n_out) * n_windows))
 
 
 def where_it_fails(

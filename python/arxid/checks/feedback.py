@@ -23,6 +23,7 @@ import numpy as np
 
 from .._base.formatting import json_safe
 from .._base.nested import nested_from_factor
+from .._base.probabilities import f_sf
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
@@ -98,8 +99,6 @@ class FeedbackTest:
 
 def _f_test(r: np.ndarray, n_rows: int, p_small: int) -> tuple[float, float, int, int]:
     """F statistic and p-value of the columns of R beyond the first ``p_small`` (output last)."""
-    from scipy import stats
-
     p = r.shape[1] - 1
     rss = nested_from_factor(r)[0]  # every prefix of the columns from the one factor
     rss_small, rss_big = float(rss[p_small]), float(rss[p])
@@ -108,7 +107,7 @@ def _f_test(r: np.ndarray, n_rows: int, p_small: int) -> tuple[float, float, int
     if rss_big <= 0 or dof <= 0:
         return math.nan, math.nan, q, dof
     f = max(rss_small - rss_big, 0.0) / q / (rss_big / dof)
-    return f, float(stats.f.sf(f, q, dof)), q, dof
+    return f, float(f_sf(f, q, dof)), q, dof
 
 
 def feedback(

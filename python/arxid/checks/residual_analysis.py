@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._base.formatting import finite_or_none, require_pandas, text_table
+from .._base.probabilities import chi2_sf, t_sf
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_model
@@ -101,8 +102,6 @@ def low_frequency_test(e: np.ndarray, s: np.ndarray, segments, block: int) -> fl
 
 def _low_frequency_of_blocks(eb: np.ndarray, sb: np.ndarray) -> float:
     """:func:`low_frequency_test` from the block means of the residual and of the signal."""
-    from scipy import stats
-
     ok = np.isfinite(eb) & np.isfinite(sb)
     eb, sb = eb[ok], sb[ok]
     m = len(eb)
@@ -122,7 +121,7 @@ def _low_frequency_of_blocks(eb: np.ndarray, sb: np.ndarray) -> float:
     if noise <= 0:
         return 0.0
     t = beta * math.sqrt(sxx) / math.sqrt(noise * v)
-    return float(2.0 * stats.t.sf(abs(t), 1.5 * m / (bandwidth + 1)))
+    return float(2.0 * t_sf(abs(t), 1.5 * m / (bandwidth + 1)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -434,8 +433,6 @@ def _signal_tests(
     means over blocks of ``max_lag`` samples), its 99% bound, Haugh's p-value
     (against the prewhitened residual ``ew``) and the low-frequency p-value of one signal ``s`` (``source``: the
     data's array it comes from)."""
-    from scipy import stats
-
     segs = data.segments
     ok = np.isfinite(e)
     cl = np.arange(-max_lag, max_lag + 1)
@@ -468,7 +465,7 @@ def _signal_tests(
     mw, ms = ew[pair].mean(), sw[pair].mean()
     rw = zeroed_correlation(np.where(pair, ew - mw, 0.0), np.where(pair, sw - ms, 0.0), cl, segs)
     stat = float(nw * nw * np.sum(rw**2 / (nw - np.abs(cl))))
-    return cross, bound, float(stats.chi2.sf(stat, len(cl))), slow
+    return cross, bound, float(chi2_sf(stat, len(cl))), slow
 
 
 def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0.01) -> ResidualAnalysis:
@@ -524,8 +521,6 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     auto = zeroed_correlation(ecz, ecz, lags, segs)
     cl = np.arange(-max_lag, max_lag + 1)
     auto_full = np.concatenate([auto[:0:-1], auto])  # ρ_ee(k) for k = -L..L
-    from scipy import stats
-
     cross, bounds, pvals, slow = {}, {}, {}, {}
     signals = [(name, data.u[:, i], data.u) for i, name in enumerate(data.input_names)]
     signals += [(name, s, s) for name, s in data.extra.items()]
@@ -540,7 +535,7 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
     noise_parameters = model.na_ + (model.nc_ + model.nd_ if isinstance(model, PolynomialModel) else 0)
     dof = max(max_lag - noise_parameters, 1)
-    p = float(stats.chi2.sf(q, dof))
+    p = float(chi2_sf(q, dof))
     if _at_round_off(e[ok], data.y[ok]):
         # Nothing left to explain: the correlations of rounding errors say nothing about the model.
         p, pvals = 1.0, {k: (1.0 if math.isfinite(v) else v) for k, v in pvals.items()}

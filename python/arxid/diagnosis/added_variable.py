@@ -22,6 +22,7 @@ import numpy as np
 
 from .._base import _core
 from .._base.nested import blocked_r, column_norms
+from .._base.probabilities import f_sf
 
 __all__ = [
     "all_finite",
@@ -368,8 +369,6 @@ class AddedVariableTest:
     ) -> AddedVariableResult | None:
         """The test from the cross-products when the block is well conditioned beside the model's
         regressors (None otherwise: the QR of the stripped block decides which columns count)."""
-        from scipy import stats
-
         nk = norms[keep]
         g = (zz - b.T @ b)[np.ix_(keep, keep)] / np.outer(nk, nk)
         rn = np.sqrt(np.maximum(np.diag(g), 0.0))
@@ -387,7 +386,7 @@ class AddedVariableTest:
         drss = max(drss, 0.0)
         rss1 = max(self.rss0 - drss, 1e-300 * self.rss0)
         f = (drss / q) / (rss1 / dof)
-        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(stats.f.sf(f, q, dof)), q)
+        return AddedVariableResult(math.sqrt(drss / self.rss0), float(f), float(f_sf(f, q, dof)), q)
 
 
 def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tuple[AddedVariableResult | None, str]:
@@ -411,8 +410,6 @@ def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tupl
     (AddedVariableResult or None, str)
         The result, or None with the reason the block cannot be tested.
     """
-    from scipy import stats
-
     rn = np.linalg.norm(zr, axis=0)
     ok = rn > 1e-7
     if not ok.any():
@@ -427,7 +424,7 @@ def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tupl
     drss = min(float(np.sum((qz.T @ e) ** 2)), rss0)
     rss1 = max(rss0 - drss, 1e-300 * rss0)
     f = (drss / q) / (rss1 / dof)
-    return AddedVariableResult(math.sqrt(drss / rss0), float(f), float(stats.f.sf(f, q, dof)), q), ""
+    return AddedVariableResult(math.sqrt(drss / rss0), float(f), float(f_sf(f, q, dof)), q), ""
 
 
 def all_finite(z: np.ndarray) -> bool:

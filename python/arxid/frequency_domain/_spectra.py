@@ -11,7 +11,14 @@ import math
 
 import numpy as np
 
-__all__ = ["spectra", "finite_runs", "default_segment_length", "HANN_OVERLAP_CORRELATION", "effective_averages"]
+__all__ = [
+    "spectra",
+    "hann_window",
+    "finite_runs",
+    "default_segment_length",
+    "HANN_OVERLAP_CORRELATION",
+    "effective_averages",
+]
 
 # Welch (1967): for a Hann window with 50 % overlap, neighbouring segments' spectra correlate with
 # c = 0.167, so K averages have the variance of K / (1 + 2 c²) independent ones.
@@ -68,13 +75,11 @@ def spectra(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment
     n_segments : int
         Segments averaged.
     """
-    from scipy.signal import get_window
-
     if segment_length % 2:
         return _spectra_by_csd(signals, runs, ts, segment_length)
     q = signals.shape[0]
     step = segment_length // 2
-    window = get_window("hann", segment_length)
+    window = hann_window(segment_length)
     n_f = segment_length // 2 + 1
     total = np.zeros((q, q, n_f), dtype=complex)
     count = 0
@@ -104,6 +109,19 @@ def spectra(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment
     total[..., 1 : n_f - 1] *= 2.0
     freq = np.fft.rfftfreq(segment_length, ts)
     return freq, np.moveaxis(total, -1, 0), count
+
+
+def hann_window(n: int) -> np.ndarray:
+    """``scipy.signal.get_window("hann", n)``, the periodic Hann window of ``n`` samples, computed as
+    scipy does (0.5 + 0.5 cos over ``n + 1`` points from -π to π, the last dropped) without importing
+    scipy.signal, which would take most of a short analysis's time."""
+    if n <= 1:
+        return np.ones(n)
+    fac = np.linspace(-np.pi, np.pi, n + 1)
+    w = np.zeros(n + 1)
+    w += 0.5 * np.cos(0 * fac)
+    w += 0.5 * np.cos(fac)
+    return w[:n]
 
 
 def _spectra_by_csd(signals: np.ndarray, runs: list[tuple[int, int]], ts: float, segment_length: int):

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._base import _core
+from .._base.digital_filter import lfilter
 from .._base.nested import BLOCK_ROWS, cholesky_factor, core_readable
 
 __all__ = ["ar_factor", "lagged_columns", "lagged_factor", "lagged_gram", "filter_segments"]
@@ -260,8 +261,6 @@ def filter_segments(num: np.ndarray, den: np.ndarray, x: np.ndarray, segments: S
     -------
     ndarray of shape (n_samples,)
     """
-    from scipy.signal import lfilter
-
     out = np.empty_like(x, dtype=float)
     clean = np.where(np.isfinite(x), x, 0.0)
     for a, b in segments:

@@ -5,11 +5,12 @@ and needs nothing more. Two ways of fitting a list need a fleet: with ``client=`
 the workers of a Dask cluster, which send back the triangular factor of the model's regressors (a
 :class:`FactorSource`); with ``per_experiment=True`` each log gets its own model. The model layer
 must not import the fleet layer above it, so the fleet provides both here when it is imported
-(:func:`provide`, called by :mod:`arxid.fleet.fit`); ``import arxid`` imports it.
+(:func:`provide`, called by :mod:`arxid.fleet.fit`), imported by name on first need.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -109,8 +110,10 @@ def logs_fitting(what: str) -> LogsFitting:
     Raises
     ------
     ArxidError
-        When :mod:`arxid.fleet` has not been imported (``import arxid`` imports it).
+        When :mod:`arxid.fleet` cannot be imported, or does not provide the fits.
     """
+    if not _PROVIDED:  # imported by name: this layer does not import the fleet's above it
+        importlib.import_module("arxid.fleet")
     if not _PROVIDED:
         raise ArxidError(f"{what} needs arxid.fleet, which provides the fits of many logs: import arxid.fleet first")
     return _PROVIDED[0]

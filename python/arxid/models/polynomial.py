@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from .._base import _core, metrics
+from .._base.digital_filter import lfilter
 from .._base.formatting import format_polynomial
 from .._base.limits import check_order
 from ..data.iodata import IOData
@@ -456,8 +457,6 @@ class PolynomialModel(FittedModel):
         -------
         ndarray of shape (N,)
         """
-        from scipy.signal import lfilter
-
         self.check_fitted()
         u = np.asarray(u, dtype=float)
         u = u.reshape(-1, 1) if u.ndim == 1 else u

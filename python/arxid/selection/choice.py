@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.digital_filter import lfilter
 from ..exceptions import ArxidError
 from .parsimony import DM_CRITICAL, diebold_mariano
 from .ranking import FREE_RUN_KEYS, SORT_TEXT
@@ -153,8 +154,6 @@ def _prediction_errors(table: SweepTable, i: int) -> np.ndarray:
     """Validation errors of ranked structure ``i`` at the ranking's own measure (free run from
     rest or one step by filtering the data with its polynomials when the structure is linear
     and the data complete; else the model's own prediction)."""
-    from scipy.signal import lfilter
-
     from ..checks import prediction_error
 
     data = table.validation if table.validation is not None else table.estimation

@@ -314,8 +314,8 @@ def _settling_evidence(result: SweepResult) -> SettlingEvidence | None:
     if not best:
         return None
     taus = [
-        float("inf") if result.max_pole[i] >= 1.0 else slowest_time_constant(result.parameters[i], int(result.na[i]))
-        for i in best
+        float("inf") if pole >= 1.0 else slowest_time_constant(result.parameters[i], int(result.na[i]))
+        for i, pole in zip(best, result.max_pole_of(best))
     ]
     return SettlingEvidence(
         tuple(result.structure_name(i) for i in best),

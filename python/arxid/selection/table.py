@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .._base.digital_filter import lfilter
 from .._base.formatting import json_safe
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -133,11 +134,38 @@ class SweepTable:
     def max_pole(self) -> np.ndarray:
         """Largest pole magnitude of every structure, shape (S,)."""
         if "max_pole" not in self._cache:
-            theta = np.full((len(self), max(int(self.na.max()), 1)), np.nan)
-            for i, (th, k) in enumerate(zip(self.parameters, self.na)):
-                theta[i, :k] = th[:k]
-            self._cache["max_pole"] = max_poles(self.na, theta)
+            self._cache["max_pole"] = self._max_poles_of(np.arange(len(self)))
         return self._cache["max_pole"]
+
+    def max_pole_of(self, rows: Sequence[int]) -> np.ndarray:
+        """Largest pole magnitude of the ranked structures ``rows`` (as :attr:`max_pole`), computed
+        for those rows alone and remembered: a verdict that reads a few structures of a grid of
+        hundreds of thousands solves a few companion matrices, not all of them.
+
+        Parameters
+        ----------
+        rows : sequence of int
+            Ranks of the structures (0 is the best).
+
+        Returns
+        -------
+        ndarray of shape (len(rows),)
+            0 for a structure without poles, NaN where a coefficient is not finite.
+        """
+        if "max_pole" in self._cache or 2 * len(rows) >= len(self):  # most rows: the whole column at once
+            return self.max_pole[np.asarray(rows, dtype=np.intp)]
+        known = self._cache.setdefault("max_pole_rows", {})
+        new = np.array(sorted({int(i) for i in rows} - known.keys()), dtype=np.intp)
+        if new.size:
+            known.update(zip(new.tolist(), self._max_poles_of(new).tolist()))
+        return np.array([known[int(i)] for i in rows], dtype=float)
+
+    def _max_poles_of(self, rows: np.ndarray) -> np.ndarray:
+        na = self.na[rows]
+        theta = np.full((len(rows), max(int(na.max(initial=0)), 1)), np.nan)
+        for j, i in enumerate(rows):
+            theta[j, : na[j]] = self.parameters[i][: na[j]]
+        return max_poles(na, theta)
 
     @property
     def stable(self) -> np.ndarray:
@@ -221,8 +249,6 @@ class SweepTable:
         if self.effects:
             return step_sanity(self.model(i), data, expect=expect, limits=self.limits)
         # Linear structure: the step response is a filter of a constant (exactly antisymmetric).
-        from scipy.signal import lfilter
-
         theta, na = self.parameters[i], int(self.na[i])
         a = np.concatenate([[1.0], theta[:na]])
         amps = typical_amplitudes(data)
@@ -314,6 +340,7 @@ class SweepTable:
 
     def _rows(self, n: int | None, sanity: bool):
         n = len(self) if n is None else min(n, len(self))
+        max_pole = self.max_pole_of(range(n))  # the rows shown only (a grid may hold a million)
         rows = []
         for i in range(n):
             sv = self.sanity(i) if sanity else None
@@ -333,8 +360,8 @@ class SweepTable:
                     "fpe": _num(self.fpe[i]),
                     "aic": _num(self.aic[i]),
                     "bic": _num(self.bic[i]),
-                    "stable": bool(self.stable[i]),
-                    "max_pole": _num(self.max_pole[i]),
+                    "stable": bool(max_pole[i] < 1.0),
+                    "max_pole": _num(max_pole[i]),
                     "diverged_est": bool(self.diverged_est[i]),
                     "diverged_val": bool(self.diverged_val[i]),
                     "horizon": self.horizon,
@@ -458,6 +485,7 @@ class SweepTable:
             "stage",
         ]
         lines = []
+        max_pole = self.max_pole_of(range(min(n, len(self))))
         for i in range(min(n, len(self))):
             if self.errors[i] is not None:
                 cells = [str(i + 1), self.structure_name(i), "not fitted", "not fitted"] + ["-"] * 7 + ["collinear"]
@@ -475,7 +503,7 @@ class SweepTable:
                     _fmt(self.aic[i], ".4g"),
                     _fmt(self.bic[i], ".4g"),
                     str(int(self.n_params[i])),
-                    "yes" if self.stable[i] else "no",
+                    "yes" if max_pole[i] < 1.0 else "no",
                     "-" if sv is None else ("ok" if sv.ok else ",".join(sv.flags)),
                     str(int(self.stage[i])),
                 ]

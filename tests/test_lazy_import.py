@@ -1,0 +1,63 @@
+"""``import arxid`` and ``arxid --help`` stay light: the public names load on first use, the command
+line imports what a command runs when it runs, and the analysis of a short record does not import
+scipy.signal or scipy.stats. The lazy names are the ones type checkers see."""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import arxid
+
+INIT = Path(arxid.__file__)
+
+
+def modules_after(code: str) -> set[str]:
+    """The modules a fresh interpreter holds after running ``code``."""
+    probe = code + "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    return set(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def test_the_lazy_names_are_the_names_type_checkers_see():
+    tree = ast.parse(INIT.read_text())
+    guarded = next(n for n in tree.body if isinstance(n, ast.If) and getattr(n.test, "id", "") == "TYPE_CHECKING")
+    seen = {
+        alias.name: "arxid." + node.module
+        for node in guarded.body
+        if isinstance(node, ast.ImportFrom) and node.module
+        for alias in node.names
+    }
+    assert seen == arxid._PUBLIC
+    for name in arxid.__all__:
+        assert getattr(arxid, name) is not None
+
+
+def test_import_arxid_and_help_import_neither_numpy_nor_the_pipeline():
+    light = modules_after("import arxid")
+    assert "numpy" not in light and "arxid.selection.search" not in light
+    cli = "import sys\nfrom arxid.analysis.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass"
+    helped = modules_after(cli)
+    assert not {"numpy", "scipy", "arxid._base._core", "arxid.analysis.pipeline"} & helped
+
+
+def test_a_name_loads_its_module_and_the_fleet_fits_load_on_demand():
+    loaded = modules_after("import arxid\narxid.IOData")
+    assert "arxid.data.iodata" in loaded and "arxid.selection.search" not in loaded
+    fits = modules_after("from arxid.models.many_logs import logs_fitting\nlogs_fitting('client=')")
+    assert "arxid.fleet" in fits
+
+
+def test_a_short_analysis_imports_neither_scipy_signal_nor_scipy_stats():
+    code = (
+        "import warnings, arxid\n"
+        "warnings.simplefilter('ignore')\n"
+        "d = arxid.datasets.thrust_stand(seed=0, duration=20.0, ts=0.01)\n"
+        "arxid.analyse(d, progress=False)"
+    )
+    loaded = modules_after(code)
+    assert "arxid.diagnosis.ladder" in loaded  # the analysis ran
+    assert "scipy.signal" not in loaded and "scipy.stats" not in loaded
