@@ -109,8 +109,22 @@ from ._base.version import __version__ as __version__  # noqa: E402
 
 _moved.install()
 
-# Subpackages with heavier or optional dependencies load on first use.
-_LAZY_MODULES = {"quadrotor": "arxid.quadrotor", "plots": "arxid.plots"}
+# Every subpackage is an attribute (``arxid.inputs.prbs(...)`` after a bare ``import arxid``); those
+# that ``import arxid`` does not need (inputs, plots, quadrotor...) load on first use (PEP 562).
+_SUBPACKAGES = (
+    "analysis",
+    "checks",
+    "data",
+    "diagnosis",
+    "fleet",
+    "frequency_domain",
+    "inputs",
+    "models",
+    "plots",
+    "quadrotor",
+    "selection",
+)
+_LAZY_MODULES = {name: f"arxid.{name}" for name in _SUBPACKAGES}
 _LAZY_MODULES.update((path.rpartition(".")[2], module) for path, module in _moved.PUBLIC.items())
 
 
@@ -123,4 +137,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__all__) | set(_LAZY_MODULES))
