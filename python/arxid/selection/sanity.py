@@ -555,7 +555,7 @@ def step_sanity(
         with np.errstate(all="ignore"):
             pos.append(_simulate(model, u, extra) - base)
             neg.append(_simulate(model, -u, extra) - base)
-    poles = model.poles()
+    poles = model.discrete_poles()
     excess = None
     if poles.size and np.max(np.abs(poles)) > 1.0 and expect in ("integrating", "double-integrating"):
         excess = pole_excess(model.parameters_, model.covariance_, model.na_)[1]
