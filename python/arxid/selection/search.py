@@ -26,6 +26,7 @@ from ..exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from ..fleet import logs as fleet
 from ..models.arguments import check_same_signals
 from ..models.arx_model import ArxModel
+from ..models.excitation import check_excitation
 from . import choice, stages
 from .choice import Selection
 from .engine import Runner, check_validation_length, core_inputs, fleet_engine, fleet_parts
@@ -578,6 +579,8 @@ def sweep(
     n_threads = check_order("n_threads", n_threads)
     m = est.n_inputs
     nas, nbs, nks = order_range("na", na), per_input_ranges("nb", nb, m), per_input_ranges("nk", nk, m)
+    if workers is None:  # a fleet on a cluster: the logs stay on the workers
+        check_excitation(est, [max(r) for r in nbs], remedy="leave it out of the inputs")
     effects = tuple(effects)
     top = check_top(top)
     n_structures, p_max, q = check_grid_size(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
