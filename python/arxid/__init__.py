@@ -24,6 +24,10 @@ The map (one subpackage per layer, top to bottom; docs/architecture.md has the r
 
 from __future__ import annotations
 
+# First, before numpy and the core: a Ctrl-C while the arxid command starts exits 130.
+from ._base import launch as _launch  # noqa: F401
+
+# isort: split
 import importlib
 from typing import Any
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._base.formatting import format_value, json_safe, text_table
+from .._base.launch import EXIT_INTERRUPTED, end_startup
 from .._base.limits import MAX_ORDER
 from .._base.version import __version__
 from ..exceptions import ArxidError, DataError
@@ -509,6 +510,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``arxid`` command line; returns the exit code (0 ok, 2 bad arguments or data)."""
     parser = build_parser()
     try:
+        end_startup()  # a Ctrl-C from here on is the KeyboardInterrupt below
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
             raise UsageError(
@@ -533,7 +535,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("arxid: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover
