@@ -127,13 +127,6 @@ def _grow_args(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _grows(args) -> bool:
-    """Grow the grid: asked for, or the default grid (no --na/--nb/--nk and no --no-grow)."""
-    if args.grow is not None:
-        return bool(args.grow)
-    return all(getattr(args, k, None) is None for k in ("na", "nb", "nk"))
-
-
 def _model_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--model",
@@ -224,9 +217,12 @@ def cmd_sweep(args) -> int:
     if grid is None:
         o = _parse_orders(args.orders)
         grid = {"na": [o[0]], "nb": [o[1]], "nk": [o[2]]}
+    given = {k: v for k, v in grid.items() if getattr(args, k, None) is not None or args.orders}
     t0 = time.perf_counter()
-    res = sweep(est, validation=val, progress=_progress(args), expect=args.expect, horizon=args.horizon, **grid)
-    res = res.extend(max_rounds=None if _grows(args) else 0, max_seconds=args.max_seconds)
+    # arxid.sweep's own rule and budget: the default grid grows, a given grid with --grow
+    kw = dict(progress=_progress(args), expect=args.expect, horizon=args.horizon, auto_extend=args.grow)
+    res = sweep(est, validation=val, growth_seconds=args.max_seconds, **kw, **given)
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=args.max_seconds)
     growth = res.growth
     best, choice = choose(res)
     elapsed = time.perf_counter() - t0
@@ -428,7 +424,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_analysis_commands(sub, kw)
     add_bench_command(sub, kw, load=load, grid=_grid)
     fleet: dict[str, Any] = dict(load_data=load_data, names=names, units=parse_units, orders=_parse_orders)
-    fleet.update(grid=_grid, order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
+    fleet.update(grid=_grid, grow_args=_grow_args, order_args=_order_args, initial_arg=_initial_arg, common=_common)
+    fleet.update(print_json=_print_json)
     add_fleet_command(sub, kw, {**fleet, "usage_error": UsageError})
     return root
 

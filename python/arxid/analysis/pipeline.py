@@ -386,10 +386,11 @@ def _structure(
         model = arx(est, na, nb, nk)
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
     g = grid_of(grid)
-    res = sweep(est, validation=val, horizon=horizon, expect=expect, progress=progress, **g)
-    # The default grid grows while its choice sits on an edge; a given grid only when asked.
-    grows = grid is None if grow is None else bool(grow)
-    res = res.extend(max_rounds=None if grows else 0, max_seconds=max_seconds)
+    # sweep's rule: the default grid grows while its choice sits on an edge, a given grid when asked
+    opts: dict[str, Any] = dict(horizon=horizon, expect=expect, progress=progress, growth_seconds=max_seconds)
+    opts.update(auto_extend=grow, **({} if grid is None else grid_lists(g)))
+    res = sweep(est, validation=val, **opts)
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=max_seconds)  # the record: why not
     model, choice = choose(res)
     return res, model, choice, g
 
@@ -588,10 +589,13 @@ def analyse(
     """
     if client is not None:
         if validation is not None or model is not None:
+            given = "validation data" if validation is not None else "a model"
             raise ArxidError(
-                "with client=, give the logs as a list (each log's last share validates) and orders or grid"
+                f"with client=, analyse takes no {given}: give the logs as a list (the last share of each log, "
+                f"1 - split, validates), with orders=, a grid= or neither (the default grid, grown as in process)"
             )
-        kw = dict(orders=orders, grid=grid, horizon=horizon, expect=expect, max_steps=max_steps, initial=initial)
+        kw: dict[str, Any] = dict(orders=orders, grid=grid, horizon=horizon, expect=expect, max_steps=max_steps)
+        kw.update(initial=initial, grow=grow, max_seconds=max_seconds)
         return FLEET_ANALYSIS["analyse"](data, client, split=split, read=read, **kw, **diagnose_kwargs)
     est, val = _split(data, validation, split)
     requested = check_horizon(horizon)

@@ -65,6 +65,7 @@ __all__ = [
     "GridRound",
     "grid_text",
     "grow",
+    "grows",
 ]
 
 #: Seconds of sweeping (the first sweep included) after which no larger grid is started.
@@ -81,6 +82,24 @@ STOP_REASONS = ("integrates", "no-gain", "inside", "rounds", "off", "order-cap",
 
 # Criteria on a logarithmic scale (N log V + penalty): a difference, not a ratio, compares them.
 _LOG_KEYS = ("est_aic", "est_bic", "bic")
+
+
+def grows(grow: bool | None, default_grid: bool) -> bool:
+    """Whether a sweep grows its grid, the one rule of :func:`arxid.sweep`, :func:`arxid.analyse`
+    and the command line: as asked (True or False), else (None) the default grid grows and a given
+    one is swept as it is.
+
+    Parameters
+    ----------
+    grow : bool or None
+    default_grid : bool
+        No order range was given.
+
+    Returns
+    -------
+    bool
+    """
+    return default_grid if grow is None else bool(grow)
 
 
 def grid_text(grid: dict) -> str:
