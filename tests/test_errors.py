@@ -81,6 +81,8 @@ def test_constant_input_does_not_excite(data):
             1.0 + 1e-12 * np.random.default_rng(3).standard_normal(300),
             r"'pwm' is nearly constant \(1, standard deviation",
         ),
+        (np.full(300, 3e-200), r"'pwm' is constant \(3e-200 in all"),  # judged on the scaled input: no underflow
+        (1e200 + 1e188 * np.random.default_rng(3).standard_normal(300), r"'pwm' is nearly constant \(1e\+200"),
     ],
 )
 def test_a_constant_or_nearly_constant_input_is_refused_by_name_in_the_api_and_the_cli(

@@ -302,3 +302,16 @@ def test_growth_record_reads_as_json():
     assert d["stop"] in STOP_REASONS and d["kept"] == len(d["rounds"]) - 1
     assert d["n_structures"] == sum(r["n_structures"] for r in d["rounds"])
     assert all(r["seconds"] >= 0 for r in d["rounds"]) and d["rounds"][0]["on_edge"]
+
+
+def test_growth_never_turns_an_answer_into_a_refusal():
+    """A cascaded-tanks-like record (de-meaned): the default grid has a structure that passes the
+    step sanity checks, its first larger grid none. That grid is not kept, so ``best(sane=True)``
+    still answers (it raised once ``arxid.sweep`` grew the default grid)."""
+    from test_robust_offsets import tanks
+
+    est, val = tanks(1).detrend("mean"), tanks(1001).detrend("mean")
+    res = arxid.sweep(est, validation=val, progress=False)
+    g = res.growth
+    assert g.stop == "insane" and g.kept == len(g.rounds) - 2 and "passes the step sanity checks" in g.reason
+    assert res.best(sane=True, explain=False).structure_name() == g.rounds[g.kept].structure

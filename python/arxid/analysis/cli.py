@@ -409,7 +409,8 @@ def build_parser() -> argparse.ArgumentParser:
         "sweep",
         help="fit and validate every (na, nb, nk) of a grid",
         epilog=_EXAMPLES["sweep"],
-        description="Exhaustive order sweep, ranked by validation error; step sanity checks.",
+        description="Exhaustive order sweep, ranked by validation error; step sanity checks. The default grid "
+        "grows while the best structure sits on its edge, as arxid.sweep(data) does in Python.",
         **kw,
     )
     data_args(p)

@@ -138,15 +138,15 @@ def _sweep_or_reason(source: Any, name: str, read: Any, validation: Any, sweep: 
 
 
 def sweep_again(sweep: Callable, sources: Sequence[Any], client: Any, read: Any, fraction: Any, **settings: Any) -> Any:
-    """The fleet's sweep of another grid (``settings``: the orders and a result's settings), where
-    the first one ran: on the workers of ``client``, or of the logs read in process.
+    """The fleet's sweep of another grid (``settings``: the orders and a result's settings) on the
+    workers of ``client``, where the first one ran.
 
     Parameters
     ----------
     sweep : callable
         :func:`arxid.sweep`.
     sources : sequence
-    client : dask.distributed.Client or None
+    client : dask.distributed.Client
     read, fraction
         As in :func:`load_experiment` and :func:`split_experiment`.
     **settings

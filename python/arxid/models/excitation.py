@@ -49,9 +49,11 @@ def check_excitation(data: IOData, nb: Sequence[int], *, remedy: str = "set nb=0
         name = data.input_names[i]
         if x.size == 0:
             raise IdentifiabilityError(f"input {name!r} has no finite sample: it carries no information", (name,))
-        sd, level = float(np.std(x)), float(np.mean(np.abs(x)))
-        if sd > CONSTANT_TOLERANCE * level:
+        peak = float(np.max(np.abs(x)))
+        z = x / peak if peak > 0 else x  # scaled first: the variance of 1e-200 or 1e200 leaves the float range
+        if np.std(z) > CONSTANT_TOLERANCE * np.mean(np.abs(z)):
             continue
+        sd = float(np.std(z)) * peak
         unit = f" {data.input_units[i]}" if data.input_units[i] else ""
         how = (
             f"is constant ({x[0]:.6g}{unit} in all {x.size} samples)"

@@ -196,7 +196,7 @@ class SweepResult(SweepTable):
         str
         """
         edges = self.grid_edges(i)
-        if edges and self.growth is not None and self.growth.stop in ("no-gain", "integrates"):
+        if edges and self.growth is not None and self.growth.stop in ("no-gain", "integrates", "insane"):
             return self.growth.edge_note(self.structure_name(i), "; ".join(str(e) for e in edges))
         return super().grid_edge_text(i)
 
@@ -497,8 +497,8 @@ def sweep(
     auto_extend : bool or None
         Grow the grid past the edge the best sane structure sits on and sweep again, while it does
         and improves (:meth:`SweepResult.extend`; ``growth`` of the result says what was tried).
-        None (default): the default grid grows (no ``na``, ``nb``, ``nk`` given), a given grid or a
-        list of logs is swept as it is: the rule of ``arxid sweep`` and :func:`arxid.analyse`.
+        None (default): the default grid grows (no ``na``, ``nb``, ``nk`` given; a list of logs where
+        they are), a given grid is swept as it is: the rule of ``arxid sweep`` and :func:`arxid.analyse`.
     growth_seconds : float or None
         Time budget of the growing search in seconds, first sweep included (``--max-seconds``).
     refine : {None, "oe"}
@@ -573,7 +573,8 @@ def sweep(
         fraction = fleet.check_validation(validation)
         if per_experiment:
             return fleet.sweep_each(data, client, read, fraction, sweep, options | {"growth_seconds": growth_seconds})
-        sweeper = functools.partial(fleet.sweep_again, sweep, list(data), client, read, fraction)
+        if client is not None:  # a larger grid is swept where the logs are too (in process: the merged logs)
+            sweeper = functools.partial(fleet.sweep_again, sweep, list(data), client, read, fraction)
         workers, (data, validation) = fleet_parts(client, data, read, fraction)
     if not isinstance(data, IOData):
         raise DataError(
