@@ -52,13 +52,12 @@ def main():
             f"arxid fleet sweep: {n_logs} logs x {n:,} samples from files, 30 % of each validates, "
             f"default grid (72 structures), {os.cpu_count()} cores; medians"
         )
-        ref = arxid.sweep(paths, validation=0.3, progress=False, expect="stable")
-        t_local = median_time(lambda: arxid.sweep(paths, validation=0.3, progress=False, expect="stable"), rep)
+        kw = dict(validation=0.3, progress=False, expect="stable", auto_extend=False)  # the default grid as it is
+        ref = arxid.sweep(paths, **kw)
+        t_local = median_time(lambda: arxid.sweep(paths, **kw), rep)
         with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0") as cluster, Client(cluster) as c:
-            got = arxid.sweep(paths, validation=0.3, progress=False, expect="stable", client=c)
-            t_dask = median_time(
-                lambda: arxid.sweep(paths, validation=0.3, progress=False, expect="stable", client=c), rep
-            )
+            got = arxid.sweep(paths, **kw, client=c)
+            t_dask = median_time(lambda: arxid.sweep(paths, **kw, client=c), rep)
             model = arxid.arx(paths, 2, 2, 3, client=c)
             t_arx_dask = median_time(lambda: arxid.arx(paths, 2, 2, 3, client=c), rep)
         diff = float(np.nanmax(np.abs(got.rms_val - ref.rms_val) / ref.rms_val))

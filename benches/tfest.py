@@ -69,7 +69,7 @@ def main() -> None:
     err_arx = f"{pole_error(discrete_route()):.1%}"
     print(f"tfest (SRIVC) on {n} samples, 3 poles, 1 zero, known dead time")
     print(f"  time {t_srivc:.3f} s (CPU {cpu:.3f} s), {m.iterations_} iterations (converged: {m.converged_})")
-    print(f"  largest pole error {pole_error(m.continuous_poles()):.2%}, fit {m.fit_percent_:.1f} %")
+    print(f"  largest pole error {pole_error(m.poles()):.2%}, fit {m.fit_percent_:.1f} %")
     print(f"ARX(3,4,2) + d2c of its poles on the same data: {t_arx:.3f} s, largest pole error {err_arx}")
     print(f"ratio SRIVC / ARX+d2c time: {t_srivc / t_arx:.1f}")
     delay_search()

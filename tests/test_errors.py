@@ -73,6 +73,44 @@ def test_constant_input_does_not_excite(data):
     assert exc.value.regressors == ("pwm",)
 
 
+@pytest.mark.parametrize(
+    "pwm, match",
+    [
+        (np.full(300, 1.0), r"'pwm' is constant \(1 in all"),
+        (
+            1.0 + 1e-12 * np.random.default_rng(3).standard_normal(300),
+            r"'pwm' is nearly constant \(1, standard deviation",
+        ),
+        (np.full(300, 3e-200), r"'pwm' is constant \(3e-200 in all"),  # judged on the scaled input: no underflow
+        (1e200 + 1e188 * np.random.default_rng(3).standard_normal(300), r"'pwm' is nearly constant \(1e\+200"),
+    ],
+)
+def test_a_constant_or_nearly_constant_input_is_refused_by_name_in_the_api_and_the_cli(
+    data, pwm, match, tmp_path, capsys
+):
+    """A constant input (u = 1 throughout) once went through a sweep to a "best sane structure" at
+    -0.04 % fit. The sweep, the fits, and ``arxid sweep`` / ``arxid diagnose`` refuse it by name; a
+    variation of 1e-12 of the level is rounding, refused as nearly constant (1e-9 is the threshold)."""
+    from arxid.analysis.cli import main
+    from arxid.models.excitation import CONSTANT_TOLERANCE
+
+    d = arxid.IOData(data.y, pwm, ts=0.1, input_names=["pwm"])
+    for fit in (lambda: arxid.sweep(d, progress=False), lambda: arxid.arx(d, 1, 1, 1), lambda: arxid.oe(d, 1, 1, 1)):
+        with pytest.raises(IdentifiabilityError, match=match + ".*carries no information.*arxid.inputs") as exc:
+            fit()
+        assert exc.value.regressors == ("pwm",)
+    path = tmp_path / "log.csv"
+    np.savetxt(path, np.column_stack([d.y, d.u[:, 0]]), delimiter=",", header="y,pwm", comments="")
+    for command in ("sweep", "diagnose"):
+        assert main([command, str(path), "--output", "y", "--inputs", "pwm", "--ts", "0.1", "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert "input 'pwm'" in err and "constant" in err and "leave it out of the inputs" in err
+    # a small but real variation (1e-6 of the level, 1000 times the threshold) is data, not rounding
+    assert CONSTANT_TOLERANCE == 1e-9
+    small = arxid.IOData(data.y, 1.0 + 1e-6 * data.u[:, 0], ts=0.1, input_names=["pwm"])
+    assert np.isfinite(arxid.arx(small, 1, 1, 1).parameters_).all()
+
+
 def test_collinear_regressors_are_named():
     rng = np.random.default_rng(2)
     u = rng.standard_normal((500, 2))

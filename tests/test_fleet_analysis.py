@@ -103,6 +103,25 @@ def test_fleet_sweep_choice_matches_in_process(dask_client):
     assert fleet.choice.rank == local.choice.rank
 
 
+def test_the_default_grid_on_a_cluster_is_the_in_process_one_grown_the_same_way(dask_client):
+    """No orders and no grid: the cluster sweeps the default grid and grows it where the logs are,
+    as the in-process analysis does. Three records of a flexible arm (sixth order, outside the
+    default grid na 1..4, nb 1..3) give the same grids tried and the same structure, well outside it."""
+    from test_robust_grid import arm_record
+
+    logs = [arm_record(seed) for seed in range(3)]
+    est, val = merged_parts(logs, None, 0.3)
+    fleet = arxid.analyse(logs, client=dask_client, candidates=["const"], max_steps=0)
+    local = arxid.analyse(est, val, candidates=["const"], max_steps=0)
+    assert fleet.grid == arxid.analysis.grid_of() and fleet.sweep.growth.grew
+    assert [r.text for r in fleet.sweep.growth.rounds] == [r.text for r in local.grid_growth.rounds]
+    assert fleet.model.structure_name() == local.model.structure_name() and fleet.model.na_ > 4
+    np.testing.assert_allclose(fleet.model.parameters_, local.model.parameters_, rtol=1e-8, atol=1e-12)
+    # a given grid is swept as given, on the cluster as in process
+    given = arxid.analyse(logs, client=dask_client, grid={"na": [1, 2, 3, 4]}, candidates=["const"], max_steps=0)
+    assert given.sweep.growth.stop in ("off", "inside") and len(given.sweep) == 72
+
+
 def test_per_log_test_is_the_in_process_test_on_that_log(dask_client):
     """A log's statistic is the added-variable test of the top suspect on that log's rows alone."""
     logs, with_effect = _fleet(3, "battery", n_logs=4)
@@ -127,7 +146,7 @@ def test_per_log_test_is_the_in_process_test_on_that_log(dask_client):
 
 def test_fleet_analysis_refuses_what_it_cannot_do(dask_client):
     logs, _ = _fleet(4, "battery", n_logs=2)
-    with pytest.raises(ArxidError, match="client="):
+    with pytest.raises(ArxidError, match="with client=, analyse takes no validation data.*or neither"):
         arxid.analyse(logs, logs[0], client=dask_client, orders=(2, 2, 1))
     workers = WorkerLogs(dask_client, logs)  # no validation share
     model = FleetRefits(workers).fit(2, (2,), (1,), ())

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-
 import re
 
 import numpy as np
@@ -354,7 +353,9 @@ def test_ladder_two_hidden_effects_error_falls_each_step(tmp_path):
     assert len(ladder.diagnoses) == len(ladder.steps)
     assert ladder.final_model.effects[0] == added[1].removesuffix("+const") and "sign(dy)" in ladder.final_model.effects
     assert (
-        "through(u1^" in str(ladder) and ladder.to_list()[0]["effects"] == [] and ladder.to_list()[0]["rms_sim_val"] == err[0]
+        "through(u1^" in str(ladder)
+        and ladder.to_list()[0]["effects"] == []
+        and ladder.to_list()[0]["rms_sim_val"] == err[0]
     )
     ladder.plot().savefig(tmp_path / "ladder.png")
     assert len(ladder.to_pandas()) == len(ladder)

@@ -19,7 +19,7 @@ def test_tfest_searches_a_fractional_dead_time(seed):
     data, _ = record([2.0], [3.0, 1.0], 0.1, 2000, 10, tau=0.47, seed=seed)
     m = arxid.tfest(data, 1, 0, delay="estimate")
     assert m.dead_time_ == pytest.approx(0.47, abs=0.01)
-    assert m.continuous_poles()[0].real == pytest.approx(-1 / 3, rel=0.03)
+    assert m.poles()[0].real == pytest.approx(-1 / 3, rel=0.03)
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -68,7 +68,7 @@ def test_the_arm_is_sixth_order_and_the_default_grid_alone_misses_it():
     _, a = _arm()
     assert len(a) - 1 == 6 and np.all(np.abs(np.roots(a)) > 0.9)
     est, val = arm_record(0), arm_record(1000)
-    small = arxid.sweep(est, validation=val, progress=False)
+    small = arxid.sweep(est, validation=val, progress=False, auto_extend=False)  # the default grid as it is
     wide = arxid.sweep(est, validation=val, progress=False, **WIDE)
     assert small.select(sane=True).grid_edge  # the edge warning fires
     assert _chosen_error(small) > 4 * _chosen_error(wide)
@@ -99,7 +99,7 @@ def test_analyse_with_defaults_comes_within_125_percent_of_the_wide_grid_best(se
 def test_extend_goes_beyond_three_rounds_while_the_choice_stays_on_the_edge_and_improves():
     """``extend()`` used to stop after 3 rounds; the arm needs 4 growths to leave the edge."""
     est, val = arm_record(0), arm_record(1000)
-    res = arxid.sweep(est, validation=val, progress=False)
+    res = arxid.sweep(est, validation=val, progress=False, auto_extend=False)
     assert res.growth is None
     ext = res.extend()
     g = ext.growth
@@ -247,6 +247,34 @@ def test_cli_sweep_grows_the_default_grid(tmp_path, capsys):
     assert d["grid_growth"]["stop"] in ("off", "inside") and d["n_structures"] == 72
 
 
+def test_sweep_has_one_meaning_in_the_api_and_the_cli(tmp_path, capsys):
+    """``arxid.sweep(data)`` grows the default grid as ``arxid sweep`` and ``arxid.analyse`` do, so
+    the three choose the same structure, outside the default grid (it was ARX(12,12,0) against
+    ARX(4,3,0) on the DaISy robot arm); a given grid is swept as given by all three."""
+    from arxid.analysis.cli import main
+    from arxid.analysis.pipeline import choose
+
+    path = _csv(tmp_path / "arm.csv", arm_record(0))
+    io = ["--output", "accel", "--inputs", "torque", "--ts", str(TS), "--no-progress", "--json"]
+    assert main(["sweep", path, *io]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    est, val = arxid.IOData.from_csv(path, output="accel", inputs=["torque"], ts=TS).split(arxid.analysis.DEFAULT_SPLIT)
+    res = arxid.sweep(est, validation=val, progress=False)
+    model, _ = choose(res)
+    assert res.growth.grew and len(res) == cli["n_structures"] > 72
+    assert (
+        cli["best"]["structure"]
+        == model.structure_name()
+        == arxid.analyse(est, val, max_steps=0).model.structure_name()
+    )
+    assert model.na_ > 4 or model.nb_[0] > 3  # outside the default grid na 1..4, nb 1..3
+    given = arxid.sweep(est, validation=val, na=range(1, 5), progress=False)
+    assert given.growth is None and len(given) == 72
+    assert main(["sweep", path, *io, "--na", "1:4"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_structures"] == 72
+    assert arxid.sweep(est, validation=val, progress=False, auto_extend=False).growth is None
+
+
 def test_grown_grids_grow_poles_and_zeros_together():
     """An edge on nb alone also grows na (a plant of order n needs n poles and about n zeros);
     the delay grows on its own edge only; fixed ranges stay; the order cap stops growth."""
@@ -269,8 +297,21 @@ def test_growth_record_reads_as_json():
     g = GridGrowth((), "inside", "x", 30.0)
     assert g.stop in STOP_REASONS and g.seconds == 0 and g.n_structures == 0 and not g.grew
     est, val = arm_record(0), arm_record(1000)
-    g = arxid.sweep(est, validation=val, progress=False).extend().growth
+    g = arxid.sweep(est, validation=val, progress=False, auto_extend=False).extend().growth
     d = json.loads(json.dumps(g.to_dict()))
     assert d["stop"] in STOP_REASONS and d["kept"] == len(d["rounds"]) - 1
     assert d["n_structures"] == sum(r["n_structures"] for r in d["rounds"])
     assert all(r["seconds"] >= 0 for r in d["rounds"]) and d["rounds"][0]["on_edge"]
+
+
+def test_growth_never_turns_an_answer_into_a_refusal():
+    """A cascaded-tanks-like record (de-meaned): the default grid has a structure that passes the
+    step sanity checks, its first larger grid none. That grid is not kept, so ``best(sane=True)``
+    still answers (it raised once ``arxid.sweep`` grew the default grid)."""
+    from test_robust_offsets import tanks
+
+    est, val = tanks(1).detrend("mean"), tanks(1001).detrend("mean")
+    res = arxid.sweep(est, validation=val, progress=False)
+    g = res.growth
+    assert g.stop == "insane" and g.kept == len(g.rounds) - 2 and "passes the step sanity checks" in g.reason
+    assert res.best(sane=True, explain=False).structure_name() == g.rounds[g.kept].structure

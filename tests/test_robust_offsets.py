@@ -69,10 +69,11 @@ def _rms_of(res, orders: tuple) -> float:
 
 def _check_raw_and_demeaned(est, val, **grid):
     """Both sweeps choose without raising, within WITHIN of their best stable structure, and the
-    two choices agree within WITHIN scored in either sweep. Returns the two ratios to best stable."""
-    raw = arxid.sweep(est, validation=val, effects=["const"], progress=False, **grid)
+    two choices agree within WITHIN scored in either sweep. Returns the two ratios to best stable.
+    The grid is swept as it is (``auto_extend=False``): the two are compared on the same structures."""
+    raw = arxid.sweep(est, validation=val, effects=["const"], progress=False, auto_extend=False, **grid)
     dm_val = val.detrend("mean") if isinstance(val, arxid.IOData) else val
-    dm = arxid.sweep(est.detrend("mean"), validation=dm_val, progress=False, **grid)
+    dm = arxid.sweep(est.detrend("mean"), validation=dm_val, progress=False, auto_extend=False, **grid)
     i, j = _choice(raw), _choice(dm)
     ratios = (raw.rms_val[i] / _best_stable(raw), dm.rms_val[j] / _best_stable(dm))
     names = (raw.structure_name(i), dm.structure_name(j))

@@ -31,7 +31,7 @@ def _simulate(seed: int, num=NUM, den=DEN, noise: float = 0.002, n: int = 2**16,
 
 def _pole_error(model, den=DEN) -> float:
     """Largest relative distance from a true pole to the nearest estimated one."""
-    est = model.continuous_poles()
+    est = model.poles()
     return max(np.min(np.abs(est - p)) / abs(p) for p in np.roots(den))
 
 

@@ -77,7 +77,7 @@ def test_first_order_with_fractional_dead_time(seed):
     ARX + d2c (nb = 2 for the fraction) is off by more than 10 %."""
     data, _ = record([2.0], [3.0, 1.0], 0.1, 2000, 10, tau=0.47, seed=seed)
     m = arxid.tfest(data, 1, 0, delay=0.47)
-    assert rel_error(m.continuous_poles(), [-1 / 3]) < 0.03
+    assert rel_error(m.poles(), [-1 / 3]) < 0.03
     assert m.dc_gain()[0] == pytest.approx(2.0, rel=0.03)
     assert rel_error(arx_d2c_poles(data, 1, 5, nb=2), [-1 / 3]) > 0.10
 
@@ -87,7 +87,7 @@ def test_underdamped_second_order(seed):
     """4 / (s² + 0.8 s + 4) (ζ = 0.2, ωn = 2 rad/s), ts = 0.05 s: poles within 1 %, gain within 2 %."""
     data, _ = record([4.0], [1.0, 0.8, 4.0], 0.05, 4000, 10, seed=seed)
     m = arxid.tfest(data, 2, 0)
-    assert rel_error(m.continuous_poles(), np.roots([1.0, 0.8, 4.0])) < 0.01
+    assert rel_error(m.poles(), np.roots([1.0, 0.8, 4.0])) < 0.01
     assert m.dc_gain()[0] == pytest.approx(1.0, rel=0.02)
 
 
@@ -99,8 +99,8 @@ def test_third_order_with_a_zero_where_arx_d2c_is_biased(seed):
     den = np.polymul([1.0, 0.5], [1.0, 0.6, 1.0])
     data, _ = record([1.0, 3.0], den, 0.05, 4000, 10, seed=seed)
     m = arxid.tfest(data, 3, 1)
-    assert rel_error(m.continuous_poles(), np.roots(den)) < 0.03
-    assert rel_error(m.continuous_zeros(), [-3.0]) < 0.02
+    assert rel_error(m.poles(), np.roots(den)) < 0.03
+    assert rel_error(m.zeros(), [-3.0]) < 0.02
     assert rel_error(arx_d2c_poles(data, 3, 1), np.roots(den)) > 1.0
 
 
@@ -113,7 +113,7 @@ def test_fast_sampling_is_as_accurate_as_slow_sampling(seed):
     slow, _ = record([1.0], [1.0, 1.0], 0.2, 2000, 5, seed=seed)
     for data in (fast, slow):
         m = arxid.tfest(data, 1, 0)
-        assert rel_error(m.continuous_poles(), [-1.0]) < 0.02
+        assert rel_error(m.poles(), [-1.0]) < 0.02
         assert m.dc_gain()[0] == pytest.approx(1.0, rel=0.02)
     assert rel_error(arx_d2c_poles(fast, 1, 1), [-1.0]) > 0.5
     assert rel_error(arx_d2c_poles(slow, 1, 1), [-1.0]) < 0.1
@@ -126,14 +126,14 @@ def test_plant_with_an_integrator(seed):
     deviations, the integrator at |p| < 0.001 rad/s; with 1 % noise the free pole within 1 %."""
     data, _ = record([1.0], [1.0, 2.0, 0.0], 0.05, 4000, 10, seed=seed)
     m = arxid.tfest(data, 2, 0)
-    p = sorted_roots(m.continuous_poles())
+    p = sorted_roots(m.poles())
     assert abs(p[1]) < 1e-3
     assert abs(p[0] + 2.0) / 2.0 < 0.05
     for name, true in (("a1", 2.0), ("b0", 1.0)):
         v, sd = m.parameter_dict()[name]
         assert abs(v - true) < 3 * sd
     quiet, _ = record([1.0], [1.0, 2.0, 0.0], 0.05, 4000, 10, seed=seed, noise=0.01)
-    p = sorted_roots(arxid.tfest(quiet, 2, 0).continuous_poles())
+    p = sorted_roots(arxid.tfest(quiet, 2, 0).poles())
     assert abs(p[0] + 2.0) / 2.0 < 0.01 and abs(p[1]) < 1e-4
 
 
@@ -214,7 +214,7 @@ def test_json_keeps_the_continuous_model_and_loads_the_exact_discrete_equivalent
     pytest.importorskip("control")
     tf = arxid.models.to_control(m, continuous=True)
     assert tf.dead_time == pytest.approx(0.47, abs=1e-6)
-    np.testing.assert_allclose(tf.poles(), m.continuous_poles(), rtol=1e-6)
+    np.testing.assert_allclose(tf.poles(), m.poles(), rtol=1e-6)
 
 
 @pytest.mark.realdata
@@ -237,3 +237,27 @@ def test_daisy_heating_validates_as_well_as_the_discrete_output_error_models(sha
     p = arxid.procest(est, "P1D").parameter_dict()
     assert p["K"][0] == pytest.approx(19.7, rel=0.02) and p["Tp1"][0] == pytest.approx(68, rel=0.03)
     assert p["Td"][0] < 1.0
+
+
+def test_poles_and_zeros_are_in_rad_per_second_as_python_control_gives_them():
+    """``poles()``/``zeros()`` of a continuous model are its own, in rad/s (python-control's and
+    MATLAB's ``pole(sys)``); the sampled equivalent's, in z, are ``discrete_poles()``/``discrete_zeros()``."""
+    control = pytest.importorskip("control")
+    ts, tau = 0.05, 0.12
+    num, den = [1.0, 3.0], np.polymul([1.0, 0.5], [1.0, 0.6, 1.0])
+    data, _ = record(num, den, ts, 4000, 8, tau=tau, noise=0.0)
+    m = arxid.tfest(data, 3, 1, delay=tau)
+    tf = control.TransferFunction(m.num_, m.den_)
+    np.testing.assert_allclose(sorted_roots(m.poles()), sorted_roots(tf.poles()), rtol=1e-9)
+    np.testing.assert_allclose(sorted_roots(m.zeros()), sorted_roots(tf.zeros()), rtol=1e-9)
+    assert rel_error(m.poles(), np.roots(den)) < 1e-4 and rel_error(m.zeros(), [-3.0]) < 1e-4
+    # the exact ZOH sample maps each pole p to exp(p ts); the dead time adds poles at z = 0
+    sampled = m.discrete_poles()
+    np.testing.assert_allclose(sorted_roots(sampled[np.abs(sampled) > 1e-9]), sorted_roots(np.exp(m.poles() * ts)))
+    assert m.is_stable and np.all(np.abs(sampled) < 1)  # stability judged in z, from the sampled poles
+    disc = m.to_control(continuous=False)
+    np.testing.assert_allclose(
+        sorted_roots(m.discrete_zeros()), sorted_roots(disc.zeros()[np.abs(disc.zeros()) > 1e-9])
+    )
+    with pytest.warns(DeprecationWarning, match=r"continuous_poles\(\) is now poles\(\)"):
+        np.testing.assert_array_equal(m.continuous_poles(), m.poles(0))

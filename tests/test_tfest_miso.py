@@ -29,7 +29,7 @@ def test_two_inputs_with_a_common_denominator(seed):
     """4/(s² + 0.8 s + 4) from u1 and (s + 2) e^{-0.13 s}/(s² + 0.8 s + 4) from u2: poles within 1 %,
     numerators within 3 %."""
     m = arxid.tfest(two_inputs(seed), 2, [0, 1], delay=[0.0, 0.13])
-    assert rel_error(m.continuous_poles(0), np.roots(DEN)) < 0.01
+    assert rel_error(m.poles(0), np.roots(DEN)) < 0.01
     np.testing.assert_allclose(m.nums_[0], [4.0], rtol=0.03)
     np.testing.assert_allclose(m.nums_[1], [1.0, 2.0], rtol=0.03)
     assert m.delays_ == (0.0, 0.13)
@@ -42,8 +42,8 @@ def test_two_inputs_with_independent_denominators(seed):
     """4/(s² + 0.8 s + 4) and 2 e^{-0.13 s}/(s + 2): each input's poles within 2 %."""
     data = two_inputs(seed, independent=True)
     m = arxid.tfest(data, [2, 1], [0, 0], delay=[0.0, 0.13], denominator="independent")
-    assert rel_error(m.continuous_poles(0), np.roots(DEN)) < 0.02
-    assert rel_error(m.continuous_poles(1), [-2.0]) < 0.02
+    assert rel_error(m.poles(0), np.roots(DEN)) < 0.02
+    assert rel_error(m.poles(1), [-2.0]) < 0.02
     assert m.dc_gain() == pytest.approx([1.0, 1.0], rel=0.02)
     with pytest.raises(OrderError, match="common denominator"):
         arxid.tfest(data, [2, 1], [0, 0])
@@ -78,7 +78,7 @@ def test_nan_gaps(seed):
         y[start : start + 25] = np.nan
     gappy = arxid.IOData(y, u, ts=TS)
     m = arxid.tfest(gappy, 2, 0)
-    assert rel_error(m.continuous_poles(), np.roots(DEN)) < 0.02
+    assert rel_error(m.poles(), np.roots(DEN)) < 0.02
     pred = m.predict(gappy, horizon=None)
     lag = m.first_lag_  # samples that only feed the filters' lags, as for any OE model
     np.testing.assert_allclose(pred[lag:], m.simulate(u)[lag:], atol=1e-9)
@@ -103,8 +103,8 @@ def test_one_dead_time_searched_per_input(seed):
     m = arxid.tfest(data, [1, 1], [0, 0], delay="estimate", denominator="independent")
     assert m.delays_[0] == pytest.approx(0.12, abs=0.005)
     assert m.delays_[1] == pytest.approx(0.335, abs=0.005)
-    assert rel_error(m.continuous_poles(0), [-1.0]) < 0.02
-    assert rel_error(m.continuous_poles(1), [-2.0]) < 0.02
+    assert rel_error(m.poles(0), [-1.0]) < 0.02
+    assert rel_error(m.poles(1), [-2.0]) < 0.02
     mixed = arxid.tfest(data, [1, 1], [0, 0], delay=[0.12, "estimate"], denominator="independent")
     assert mixed.delays_[0] == 0.12
     assert mixed.delays_[1] == pytest.approx(0.335, abs=0.005)

@@ -19,18 +19,24 @@ def _msg(kind: bytes, payload: bytes) -> bytes:
 
 def write_ulog(path, topics: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]) -> None:
     """A minimal valid ULog (version 1): header, flag bits, one format and subscription per topic
-    (``uint64_t timestamp`` then float fields), and the data messages in time order."""
+    (``uint64_t timestamp`` then float fields, a ``timestamp_sample`` field as uint64_t), and the
+    data messages in time order."""
     out = bytearray(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", 0))
     out += _msg(b"B", bytes(8) + bytes(8) + struct.pack("<3Q", 0, 0, 0))
+
+    def kind(field: str) -> tuple[str, str]:
+        return ("uint64_t", "Q") if field == "timestamp_sample" else ("float", "f")
+
     for name, (_, fields) in topics.items():
-        spec = "uint64_t timestamp;" + "".join(f"float {f};" for f in fields)
+        spec = "uint64_t timestamp;" + "".join(f"{kind(f)[0]} {f};" for f in fields)
         out += _msg(b"F", f"{name}:{spec}".encode())
     events = []
     for msg_id, (name, (t_us, fields)) in enumerate(topics.items()):
         out += _msg(b"A", struct.pack("<BH", 0, msg_id) + name.encode())
+        form = "<HQ" + "".join(kind(f)[1] for f in fields)
         for k, t in enumerate(t_us):
-            values = [float(v[k]) for v in fields.values()]
-            events.append((int(t), msg_id, struct.pack(f"<HQ{len(values)}f", msg_id, int(t), *values)))
+            values = [int(v[k]) if kind(f)[1] == "Q" else float(v[k]) for f, v in fields.items()]
+            events.append((int(t), msg_id, struct.pack(form, msg_id, int(t), *values)))
     for _, _, payload in sorted(events, key=lambda e: (e[0], e[1])):
         out += _msg(b"D", payload)
     path.write_bytes(bytes(out))
@@ -101,6 +107,31 @@ def test_errors_name_what_the_log_holds(synthetic, tmp_path):
         arxid.IOData.from_ulog(bad, output="a.b", inputs=["c.d"])
 
 
+def test_commands_at_their_issue_and_measurements_at_their_sample(tmp_path):
+    """PX4 stamps a command's ``timestamp_sample`` with the gyro sample it answers: the command is
+    placed at its ``timestamp`` (issued 0.4 ms later), the gyro at its ``timestamp_sample``."""
+    t_gyro = np.arange(0, 400_000, 1000)  # 1 kHz, published 0.3 ms after the sample
+    t_cmd = t_gyro + 430  # each command issued 0.43 ms after the sample it answers
+    w = np.sin(t_gyro * 1e-6 * 20)
+    logged = t_gyro >= 2000  # the gyro's log starts 2 ms in: the grid starts there, at its sample
+    topics = {
+        "vehicle_angular_velocity": (t_gyro[logged] + 300, {"timestamp_sample": t_gyro[logged], "xyz[0]": w[logged]}),
+        "actuator_controls_0": (t_cmd, {"timestamp_sample": t_gyro, "control[0]": np.arange(len(t_cmd)) % 7}),
+    }
+    write_ulog(tmp_path / "stamps.ulg", topics)
+    d = arxid.IOData.from_ulog(
+        tmp_path / "stamps.ulg",
+        output="vehicle_angular_velocity.xyz[0]",
+        inputs=["actuator_controls_0.control[0]"],
+        ts=0.0001,
+    )
+    t = 2e-3 + 1e-4 * np.arange(d.n_samples)
+    np.testing.assert_allclose(d.y, np.interp(t, t_gyro * 1e-6, w.astype(np.float32)), atol=1e-6)
+    # command k held from its issue, 1e-3 k + 0.43 ms (not from 1e-3 k), to the next one
+    k = np.floor((t - 430e-6) / 1e-3).astype(int)
+    np.testing.assert_array_equal(d.u[:, 0], k % 7)
+
+
 @pytest.mark.realdata
 def test_real_px4_log_matches_pyulog_at_the_sample_times(shared_data):
     path = shared_data / "px4-ulog" / "sample_log_small.ulg"
@@ -115,9 +146,10 @@ def test_real_px4_log_matches_pyulog_at_the_sample_times(shared_data):
     topics = ["vehicle_angular_velocity", "actuator_controls_0", "vehicle_rates_setpoint"]
     log = pyulog.ULog(str(path), topics)
 
-    def times(topic: str) -> np.ndarray:  # when the sample was taken, where the topic says
+    def times(topic: str) -> np.ndarray:  # a command when issued, a measurement when sampled
         data = log.get_dataset(topic).data
-        return data["timestamp_sample" if "timestamp_sample" in data else "timestamp"] * 1e-6
+        command = topic.startswith("actuator") or "setpoint" in topic
+        return data["timestamp_sample" if "timestamp_sample" in data and not command else "timestamp"] * 1e-6
 
     t = times("vehicle_angular_velocity")
     x = log.get_dataset("vehicle_angular_velocity").data["xyz[0]"].astype(float)
@@ -132,6 +164,13 @@ def test_real_px4_log_matches_pyulog_at_the_sample_times(shared_data):
     dropout = (grid > t[0]) & (grid < t[1])
     assert dropout.sum() > 50 and np.all(np.isnan(d.y[dropout]))
     assert np.all(np.isfinite(d.y[grid >= t[1]]))
+    # the command is held from when the controller issued it, 0.4 ms after the gyro sample it answers
+    cmd = log.get_dataset("actuator_controls_0").data
+    issued, sampled = cmd["timestamp"] * 1e-6, cmd["timestamp_sample"] * 1e-6
+    assert np.median(issued - sampled) == pytest.approx(419e-6, abs=2e-6)
+    held = np.isfinite(d.u[:, 0])
+    last = np.searchsorted(issued, grid[held] + 1e-9, side="right") - 1
+    np.testing.assert_array_equal(d.u[held, 0], cmd["control[0]"].astype(float)[last])
     # the feedback test sees the attitude controller in this log
     assert arxid.feedback(d[int(dropout.sum()) + 1 :]).feedback
 

@@ -25,6 +25,10 @@ The map (one subpackage per layer, top to bottom; docs/architecture.md has the r
 # ruff: noqa: F401 - the imports for type checkers are the public names (__all__ is built from _PUBLIC)
 from __future__ import annotations
 
+# First, before numpy and the core: a Ctrl-C while the arxid command starts exits 130.
+from ._base import launch as _launch  # noqa: F401
+
+# isort: split
 import importlib
 from typing import TYPE_CHECKING, Any
 
@@ -102,10 +106,23 @@ from ._base.version import __version__ as __version__  # noqa: E402
 
 _moved.install()
 
-# Subpackages with heavier or optional dependencies load on first use.
-_LAZY_MODULES = {"quadrotor": "arxid.quadrotor", "plots": "arxid.plots"}
+# Every subpackage is an attribute (``arxid.inputs.prbs(...)`` after a bare ``import arxid``); those
+# that ``import arxid`` does not need (inputs, plots, quadrotor...) load on first use (PEP 562).
+_SUBPACKAGES = (
+    "analysis",
+    "checks",
+    "data",
+    "diagnosis",
+    "fleet",
+    "frequency_domain",
+    "inputs",
+    "models",
+    "plots",
+    "quadrotor",
+    "selection",
+)
+_LAZY_MODULES = {name: f"arxid.{name}" for name in _SUBPACKAGES}
 _LAZY_MODULES.update((path.rpartition(".")[2], module) for path, module in _moved.PUBLIC.items())
-_SUBPACKAGES = {"analysis", "checks", "data", "diagnosis", "fleet", "frequency_domain", "inputs", "models", "selection"}
 
 
 def __getattr__(name: str) -> Any:
@@ -120,4 +137,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__all__) | set(_LAZY_MODULES))

@@ -5,13 +5,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, TypedDict
+from typing import Any, TypedDict, cast
 
-from ..exceptions import ArxidError, OrderError
+from ..data.iodata import IOData
+from ..exceptions import ArxidError, DataError, OrderError
+from ..models.arguments import check_model
 from ..models.arx_model import ArxModel
+from ..models.polynomial import PolynomialModel
+from ..models.spec import parse_model_spec
 from ..selection.search import DEFAULT_GRID, SweepResult
 
-__all__ = ["Choice", "OrderGrid", "choose", "grid_of", "grid_lists"]
+__all__ = ["Choice", "OrderGrid", "choose", "grid_of", "grid_lists", "given_model"]
 
 
 @dataclass(frozen=True)
@@ -127,3 +131,22 @@ def choose(result: SweepResult, rule: str = "lowest") -> tuple[ArxModel, Choice]
         reason = f"{sel.note}, {among}"
     skipped = tuple((name, "; ".join(reasons)) for _, name, reasons in sel.skipped)
     return model, Choice(sel.structure, sel.rank, reason, skipped, sel.grid_edge)
+
+
+def given_model(
+    est: IOData, model: ArxModel | PolynomialModel | str, orders: Sequence | None, grid: Mapping | None
+) -> tuple[ArxModel, Choice]:
+    """The model the user gave (fitted, or a structure such as ``"oe:2,2,3"`` fitted here), and why."""
+    if orders is not None or grid is not None:
+        raise OrderError("give either model=... or orders/grid, not both: the model fixes the structure")
+    if isinstance(model, str):
+        spec = parse_model_spec(model)
+        fitted = spec.fit(est)
+        how = spec.method
+        return cast(ArxModel, fitted), Choice(
+            fitted.structure_name(), None, f"the structure was given and fitted by {how} on the estimation data"
+        )
+    fitted = check_model(model)
+    if fitted.measured_input_names != est.input_names:
+        raise DataError(f"the model's inputs {list(fitted.input_names)} differ from the data's {list(est.input_names)}")
+    return fitted, Choice(fitted.structure_name(), None, "the model was given and is used as fitted, not refitted")

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .._base.launch import EXIT_INTERRUPTED, end_startup
 from .._base.limits import MAX_ORDER
 from .._base.version import __version__
 from ..exceptions import ArxidError, DataError
@@ -122,13 +123,6 @@ def _grow_args(p: argparse.ArgumentParser) -> None:
         help="time budget of the grid search in seconds: no larger grid is started that would pass it "
         "(default %(default)g)",
     )
-
-
-def _grows(args) -> bool:
-    """Grow the grid: asked for, or the default grid (no --na/--nb/--nk and no --no-grow)."""
-    if args.grow is not None:
-        return bool(args.grow)
-    return all(getattr(args, k, None) is None for k in ("na", "nb", "nk"))
 
 
 def _model_arg(p: argparse.ArgumentParser) -> None:
@@ -238,9 +232,12 @@ def cmd_sweep(args) -> int:
     if grid is None:
         o = _parse_orders(args.orders)
         grid = {"na": [o[0]], "nb": [o[1]], "nk": [o[2]]}
+    given = {k: v for k, v in grid.items() if getattr(args, k, None) is not None or args.orders}
     t0 = time.perf_counter()
-    res = sweep(est, validation=val, progress=_progress(args), expect=args.expect, horizon=args.horizon, **grid)
-    res = res.extend(max_rounds=None if _grows(args) else 0, max_seconds=args.max_seconds)
+    # arxid.sweep's own rule and budget: the default grid grows, a given grid with --grow
+    kw = dict(progress=_progress(args), expect=args.expect, horizon=args.horizon, auto_extend=args.grow)
+    res = sweep(est, validation=val, growth_seconds=args.max_seconds, **kw, **given)
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=args.max_seconds)
     growth = res.growth
     best, choice = choose(res)
     elapsed = time.perf_counter() - t0
@@ -454,7 +451,8 @@ def _add_sweep(sub: Any, kw: dict[str, Any]) -> None:
     p = sub.add_parser(
         "sweep",
         epilog=_EXAMPLES["sweep"],
-        description="Exhaustive order sweep, ranked by validation error; step sanity checks.",
+        description="Exhaustive order sweep, ranked by validation error; step sanity checks. The default grid "
+        "grows while the best structure sits on its edge, as arxid.sweep(data) does in Python.",
         **kw,
     )
     data_args(p)
@@ -478,7 +476,8 @@ def _add_fleet(sub: Any, kw: dict[str, Any]) -> None:
     from .fleet_cli import add_fleet_command
 
     fleet: dict[str, Any] = dict(load_data=load_data, names=names, units=parse_units, orders=_parse_orders)
-    fleet.update(grid=_grid, order_args=_order_args, initial_arg=_initial_arg, common=_common, print_json=_print_json)
+    fleet.update(grid=_grid, grow_args=_grow_args, order_args=_order_args, initial_arg=_initial_arg, common=_common)
+    fleet.update(print_json=_print_json)
     add_fleet_command(sub, kw, {**fleet, "usage_error": UsageError})
 
 
@@ -566,6 +565,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(_command_of(argv) or "")
     try:
+        end_startup()  # a Ctrl-C from here on is the KeyboardInterrupt below
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
             raise UsageError(
@@ -590,7 +590,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("arxid: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -35,8 +35,9 @@ from ..exceptions import ArxidError, OrderError
 from ..fleet.cluster import WorkerLogs
 from ..models.arx_model import ArxModel
 from ..models.polynomial import check_initial
+from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import SweepResult, sweep
-from .pipeline import DEFAULT_SPLIT, FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_of
+from .pipeline import DEFAULT_SPLIT, FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_lists, grid_of
 from .verdicts import ladder_headline
 
 __all__ = ["FleetAnalysis", "analyse_fleet", "FLEET_ANALYSIS_NOTE"]
@@ -206,8 +207,10 @@ def _structure(
         nks = tuple(nk) if isinstance(nk, (list, tuple)) else (int(nk),) * m
         model = refits.fit(int(na), nbs, nks, ())
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
-    g = grid_of(grid)
-    res = sweep(cast(Any, list(sources)), client=logs.client, validation=logs.validation, **options, **g)
+    g = grid_of(grid)  # the grid of the in-process analysis, grown by the same rule (arxid.sweep's)
+    options.update(grid_lists(g) if grid is not None else {})
+    res = sweep(cast(Any, list(sources)), client=logs.client, validation=logs.validation, **options)
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=options["growth_seconds"])
     model, choice = choose(res)
     return res, model, choice, g
 
@@ -272,6 +275,8 @@ def analyse_fleet(
     expect: str | None = None,
     max_steps: int = 3,
     initial: str = "zero",
+    grow: bool | None = None,
+    max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
     **diagnose_kwargs: Any,
 ) -> FleetAnalysis:
     """Analyse a fleet of logs where they are, on a Dask cluster.
@@ -288,7 +293,13 @@ def analyse_fleet(
     orders : (na, nb, nk), optional
         A fixed structure; else the fleet sweep over ``grid`` chooses it.
     grid : mapping with keys na, nb, nk, optional
-        Sweep grid (missing keys take :data:`arxid.DEFAULT_GRID`; not grown on a fleet).
+        Sweep grid (missing keys take :data:`arxid.DEFAULT_GRID`), swept as given unless ``grow``.
+    grow : bool or None
+        Grow the grid while the choice sits on its edge and growing improves it, each larger grid
+        swept where the logs are. None (default): the default grid grows, a given one does not
+        (as :func:`arxid.analyse` in process).
+    max_seconds : float or None
+        Time budget of the grid search in seconds (default 30).
     horizon : int, optional
         Validation error measure: None = free run; k = k-step-ahead prediction.
     expect : {None, "stable", "integrating", "double-integrating"}
@@ -318,7 +329,7 @@ def analyse_fleet(
     timings["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     refits = FleetRefits(on_workers)
-    options = {"horizon": horizon, "expect": expect, "read": read}
+    options = {"horizon": horizon, "expect": expect, "read": read, "auto_extend": grow, "growth_seconds": max_seconds}
     res, model, choice, g = _structure(on_workers, logs, refits, orders, grid, options)
     timings["sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -95,8 +95,10 @@ def _run(args: argparse.Namespace, helpers: dict[str, Any]) -> int:
     )
     orders = helpers["orders"](args.orders) if args.orders else None
     grid = helpers["grid"](args)
+    if all(getattr(args, k) is None for k in ("na", "nb", "nk")):
+        grid = None  # the default grid, grown as by 'arxid diagnose' unless --no-grow
     kw: dict[str, Any] = dict(orders=orders, grid=grid, horizon=args.horizon, expect=args.expect)
-    kw.update(max_steps=args.max_steps, initial=args.initial)
+    kw.update(max_steps=args.max_steps, initial=args.initial, grow=args.grow, max_seconds=args.max_seconds)
     if args.candidates:  # commas inside parentheses belong to a threshold: dz(u1,0.2)
         kw["candidates"] = [c.strip() for c in re.split(r",(?![^()]*\))", args.candidates) if c.strip()]
     logs = expand_logs(args.logs)
@@ -143,6 +145,7 @@ def add_fleet_command(sub: Any, kw: dict[str, Any], helpers: dict[str, Any]) -> 
         "--split", type=float, metavar="F", help=f"estimation fraction of each log (default {DEFAULT_SPLIT})"
     )
     helpers["order_args"](p)
+    helpers["grow_args"](p)
     p.add_argument(
         "--candidates",
         metavar="E[,F]",

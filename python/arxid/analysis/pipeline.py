@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property, partial
-from typing import Any, cast
+from typing import Any
 
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
@@ -41,15 +41,14 @@ from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.static_map import shape_map_dict, shape_maps
 from ..diagnosis.suspects import Diagnosis
-from ..exceptions import ArxidError, DataError, OrderError
+from ..exceptions import ArxidError, OrderError
 from ..frequency_domain import FrequencyResponse, frf
-from ..models.arguments import check_data, check_horizon, check_model
+from ..models.arguments import check_data, check_horizon
 from ..models.arx_model import ArxModel, arx
 from ..models.polynomial import PolynomialModel, check_initial
-from ..models.spec import parse_model_spec
 from ..selection.growth import DEFAULT_GROWTH_SECONDS, GridGrowth, grid_text
 from ..selection.search import SweepResult, sweep
-from .choice import Choice, OrderGrid, choose, grid_lists, grid_of
+from .choice import Choice, OrderGrid, choose, given_model, grid_lists, grid_of
 from .closed_loop import (
     GIVEN_ORDERS,
     OPEN_LOOP,
@@ -353,25 +352,6 @@ def _split(data: IOData, validation: IOData | float | None, split: float) -> tup
     return data.split(float(split))
 
 
-def _given_model(
-    est: IOData, model: ArxModel | PolynomialModel | str, orders: Sequence | None, grid: Mapping | None
-) -> tuple[ArxModel, Choice]:
-    """The model the user gave (fitted, or a structure such as ``"oe:2,2,3"`` fitted here), and why."""
-    if orders is not None or grid is not None:
-        raise OrderError("give either model=... or orders/grid, not both: the model fixes the structure")
-    if isinstance(model, str):
-        spec = parse_model_spec(model)
-        fitted = spec.fit(est)
-        how = spec.method
-        return cast(ArxModel, fitted), Choice(
-            fitted.structure_name(), None, f"the structure was given and fitted by {how} on the estimation data"
-        )
-    fitted = check_model(model)
-    if fitted.measured_input_names != est.input_names:
-        raise DataError(f"the model's inputs {list(fitted.input_names)} differ from the data's {list(est.input_names)}")
-    return fitted, Choice(fitted.structure_name(), None, "the model was given and is used as fitted, not refitted")
-
-
 def _structure(
     est: IOData,
     val: IOData,
@@ -385,7 +365,7 @@ def _structure(
     max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
 ) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
     if given is not None:
-        model, choice = _given_model(est, given, orders, grid)
+        model, choice = given_model(est, given, orders, grid)
         return None, model, choice, None
     if orders is not None:
         try:
@@ -395,10 +375,11 @@ def _structure(
         model = arx(est, na, nb, nk)
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
     g = grid_of(grid)
-    res = sweep(est, validation=val, horizon=horizon, expect=expect, progress=progress, **g)
-    # The default grid grows while its choice sits on an edge; a given grid only when asked.
-    grows = grid is None if grow is None else bool(grow)
-    res = res.extend(max_rounds=None if grows else 0, max_seconds=max_seconds)
+    # sweep's rule: the default grid grows while its choice sits on an edge, a given grid when asked
+    opts: dict[str, Any] = dict(horizon=horizon, expect=expect, progress=progress, growth_seconds=max_seconds)
+    opts.update(auto_extend=grow, **({} if grid is None else grid_lists(g)))
+    res = sweep(est, validation=val, **opts)
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=max_seconds)  # the record: why not
     model, choice = choose(res)
     return res, model, choice, g
 
@@ -597,10 +578,13 @@ def analyse(
     """
     if client is not None:
         if validation is not None or model is not None:
+            given = "validation data" if validation is not None else "a model"
             raise ArxidError(
-                "with client=, give the logs as a list (each log's last share validates) and orders or grid"
+                f"with client=, analyse takes no {given}: give the logs as a list (the last share of each log, "
+                f"1 - split, validates), with orders=, a grid= or neither (the default grid, grown as in process)"
             )
-        kw = dict(orders=orders, grid=grid, horizon=horizon, expect=expect, max_steps=max_steps, initial=initial)
+        kw: dict[str, Any] = dict(orders=orders, grid=grid, horizon=horizon, expect=expect, max_steps=max_steps)
+        kw.update(initial=initial, grow=grow, max_seconds=max_seconds)
         if not FLEET_ANALYSIS:  # by name: fleet_analysis imports this module
             importlib.import_module("arxid.analysis.fleet_analysis")
         return FLEET_ANALYSIS["analyse"](data, client, split=split, read=read, **kw, **diagnose_kwargs)

@@ -300,8 +300,10 @@ class IOData(FlightLogReaders):
 
         Commands (the inputs, setpoint and actuator topics) are held between samples, measurements
         interpolated linearly; a dropout longer than ``max_gap`` becomes a NaN gap, never bridged
-        (see :mod:`arxid.data.ulog`). Names are the selectors with ``.`` and brackets replaced by
-        ``_`` (``vehicle_angular_velocity_xyz_0``); units come from the PX4 message definitions.
+        (see :mod:`arxid.data.ulog`). A command is placed at its ``timestamp`` (when it was issued), a
+        measurement at its ``timestamp_sample`` (when it was sampled). Names are the selectors with
+        ``.`` and brackets replaced by ``_`` (``vehicle_angular_velocity_xyz_0``); units come from the
+        PX4 message definitions.
 
         Parameters
         ----------

@@ -9,9 +9,16 @@ fields on one grid of step ``ts``:
 * a grid point farther than ``max_gap`` from the topic's samples (a dropout longer than a few
   samples) is a missing sample (NaN), never interpolated or held across.
 
-The grid is :func:`arxid.data.resample.resample`'s, the same for every kind of log.
-Times are the topic's ``timestamp_sample`` (when the sample was taken) where it has one, else its
-``timestamp`` (microseconds since boot). The grid runs where every chosen topic has samples.
+The grid is :func:`arxid.data.resample.resample`'s, the same for every kind of log. The grid runs
+where every chosen topic has samples. Times (microseconds since boot) are chosen for what each
+signal is:
+
+* a **measurement** is stamped with its topic's ``timestamp_sample`` (when the sensor took it)
+  where it has one, else its ``timestamp``;
+* a **command** (every held signal above) is stamped with its ``timestamp``, when the controller
+  published it. The ``timestamp_sample`` of ``actuator_controls_*`` is that of the gyro sample the
+  controller answered, about 0.4 ms earlier on a PX4 multicopter: stamping the command with it would
+  move every command before its issue and hide that part of the loop's delay from the model.
 """
 
 from __future__ import annotations
@@ -138,7 +145,9 @@ class UlogSignals:
     ts: float
 
 
-def _topic_samples(ulog, sel: _Selector, path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _topic_samples(ulog, sel: _Selector, path: Path, command: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Times [s] and values of one field: a command at its issue (``timestamp``), a measurement at
+    its sample (``timestamp_sample`` where the topic has one)."""
     found = [d for d in ulog.data_list if d.name == sel.topic and d.multi_id == sel.instance]
     if not found:
         topics = sorted({d.name for d in ulog.data_list})
@@ -147,7 +156,7 @@ def _topic_samples(ulog, sel: _Selector, path: Path) -> tuple[np.ndarray, np.nda
     if sel.field not in data:
         fields = [k for k in data if not k.startswith("timestamp")]
         raise DataError(f"topic {sel.topic!r} of {path.name} has no field {sel.field!r}; its fields are {fields}")
-    t_us = data["timestamp_sample"] if "timestamp_sample" in data else data["timestamp"]
+    t_us = data["timestamp_sample"] if "timestamp_sample" in data and not command else data["timestamp"]
     t = np.asarray(t_us, dtype=np.float64) * 1e-6
     v = np.asarray(data[sel.field], dtype=np.float64)
     order = np.argsort(t, kind="stable")
@@ -206,13 +215,13 @@ def read_ulog(
             ulog = pyulog.ULog(handle, sorted({s.topic for s in selectors}))
     except Exception as exc:  # pyulog raises its own and struct errors on a damaged file
         raise DataError(f"{path.name} is not a readable ULog file ({exc})") from None
-    samples = {s.text: _topic_samples(ulog, s, path) for s in selectors}
-    for s in selectors:
-        if samples[s.text][0].shape[0] < 2:
-            raise DataError(f"{s.text} has fewer than 2 samples in {path.name}")
     held_names = {
         s.text for s in selectors if s.text in set(hold) or "setpoint" in s.topic or s.topic.startswith("actuator")
     }
+    samples = {s.text: _topic_samples(ulog, s, path, s.text in held_names) for s in selectors}
+    for s in selectors:
+        if samples[s.text][0].shape[0] < 2:
+            raise DataError(f"{s.text} has fewer than 2 samples in {path.name}")
     grid = resample(samples, hold=held_names, ts=ts, max_gap=max_gap, source=path.name)
     values = {s.name: grid.values[s.text] for s in selectors}
     units = {s.name: px4_unit(s.topic, s.field) for s in selectors}

@@ -142,7 +142,7 @@ def slowest_mode_hz(model: ArxModel, ts: float, n_samples: int) -> float:
     Parameters
     ----------
     model : ArxModel
-        A fitted model (its ``poles()``).
+        A fitted model (its ``discrete_poles()``).
     ts : float
         Sampling time in seconds.
     n_samples : int
@@ -152,7 +152,7 @@ def slowest_mode_hz(model: ArxModel, ts: float, n_samples: int) -> float:
     -------
     float
     """
-    p = np.asarray(model.poles(), dtype=complex)
+    p = np.asarray(model.discrete_poles(), dtype=complex)
     p = p[np.abs(p) > 1e-12]
     if p.size == 0:
         return math.nan

@@ -137,6 +137,30 @@ def _sweep_or_reason(source: Any, name: str, read: Any, validation: Any, sweep: 
         return str(exc)
 
 
+def sweep_again(sweep: Callable, sources: Sequence[Any], client: Any, read: Any, fraction: Any, **settings: Any) -> Any:
+    """The fleet's sweep of another grid (``settings``: the orders and a result's settings) on the
+    workers of ``client``, where the first one ran.
+
+    Parameters
+    ----------
+    sweep : callable
+        :func:`arxid.sweep`.
+    sources : sequence
+    client : dask.distributed.Client
+    read, fraction
+        As in :func:`load_experiment` and :func:`split_experiment`.
+    **settings
+        The grid and the settings of :attr:`arxid.SweepResult.settings` (whose validation part,
+        the merged logs, gives way to ``fraction``).
+
+    Returns
+    -------
+    SweepResult
+    """
+    settings.pop("validation", None)
+    return sweep(list(sources), client=client, read=read, validation=fraction, **settings)
+
+
 def sweep_each(
     sources: Sequence[Any], client: Any, read: Any, validation: Any, sweep: Callable, options: dict
 ) -> FleetSweep:

@@ -226,7 +226,7 @@ def tf_from_frequency(
     Returns
     -------
     ContinuousTransferFunction
-        As :func:`arxid.tfest` returns: ``den_``, ``num_``, ``continuous_poles()``,
+        As :func:`arxid.tfest` returns: ``den_``, ``num_``, ``poles()`` (rad/s),
         ``parameter_dict()`` (standard deviations from the weighted fit's Jacobian, scaled by its
         residual variance); it predicts, simulates and compares on the frequency response's data.
 
@@ -257,7 +257,7 @@ def tf_from_frequency(
     >>> y = lfilter(b, a, u) + 0.01 * rng.standard_normal(40000)
     >>> fr = arxid.frf(arxid.IOData(y, u, ts=ts), segment_length=1024)
     >>> m = arxid.tf_from_frequency(fr, 2, 0)
-    >>> np.round(np.sort_complex(m.continuous_poles()), 1)
+    >>> np.round(np.sort_complex(m.poles()), 1)
     array([-2.-9.8j, -2.+9.8j])
     """
     fr = frequency_response

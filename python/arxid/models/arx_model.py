@@ -17,9 +17,10 @@ from ..data.logs import merge_logs
 from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
 from . import arx_text, convert
 from . import files as modelfile
-from .arx_solver import check_excitation, check_rows, check_size, per_input, solve, solve_factor
+from .arx_solver import check_rows, check_size, per_input, solve, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
 from .envelope import EnvelopeFactor
+from .excitation import check_excitation
 from .fitted import FittedModel
 from .fitted_layout import FittedLayout
 from .many_logs import FactorSource, logs_fitting
@@ -344,7 +345,7 @@ class ArxModel(FittedModel):
     @property
     def is_stable(self) -> bool:
         """All poles strictly inside the unit circle."""
-        return bool(np.all(np.abs(self.poles()) < 1.0))
+        return bool(np.all(np.abs(self.discrete_poles()) < 1.0))
 
     def dc_gain(self) -> np.ndarray:
         """Static gain from each input, B_i(1)/A(1) (±inf for an integrator).

@@ -17,7 +17,7 @@ from ..exceptions import DataError, IdentifiabilityError, OrderError
 from .effects import EffectLayout
 from .regressors import dependent_partners, max_lag, regressor_matrix, row_bound
 
-__all__ = ["check_excitation", "check_rows", "check_size", "collinear", "per_input", "solve", "solve_factor"]
+__all__ = ["check_rows", "check_size", "collinear", "per_input", "solve", "solve_factor"]
 
 
 def per_input(name: str, value: Any, m: int) -> tuple[int, ...]:
@@ -55,21 +55,6 @@ def check_rows(na: int, layout: EffectLayout, usable: int, n_samples: int, lag: 
             f"lower na/nb/nk or use more data"
         )
     return p
-
-
-def check_excitation(data: IOData, nb: Sequence[int]) -> None:
-    """A constant input cannot identify its coefficients: say which one, before the core sees it."""
-    for i, b in enumerate(nb):
-        if b == 0:
-            continue
-        x = data.u[:, i]
-        x = x[np.isfinite(x)]
-        if x.size == 0 or np.ptp(x) == 0:
-            raise IdentifiabilityError(
-                f"input {data.input_names[i]!r} is constant ({x[0] if x.size else 'NaN'}): it does not excite the "
-                f"system, so its coefficients cannot be identified; use data where it varies, or set nb=0 for it",
-                (data.input_names[i],),
-            )
 
 
 def solve(

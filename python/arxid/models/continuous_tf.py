@@ -12,6 +12,7 @@ use any OE model. The continuous parameters, their covariance and names are kept
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -196,21 +197,30 @@ class ContinuousTransferFunction(PolynomialModel):
         tag = f"({names[names.index(input) if input in names else self._input_index(input)]})"
         return {n.removesuffix(tag): v for n, v in out.items() if n.endswith(tag) or not n.endswith(")")}
 
-    def continuous_poles(self, input: int = 0) -> np.ndarray:
-        """Poles in rad/s of ``input``'s transfer function.
+    def poles(self, input: int | None = None) -> np.ndarray:
+        """Poles in rad/s (roots of the denominators in s), as python-control's ``poles()``.
 
         Parameters
         ----------
-        input : int
+        input : int, optional
+            Only this input's transfer function (default: every input's, a denominator that
+            several inputs share counted once).
 
         Returns
         -------
         ndarray of complex
+            :meth:`discrete_poles` gives the poles in z of the exact sampled equivalent.
         """
-        return np.roots(self.dens_[self._input_index(input)])
+        self.check_fitted()
+        idx = range(len(self.dens_)) if input is None else [self._input_index(input)]
+        dens: list[np.ndarray] = []
+        for i in idx:
+            if not any(np.array_equal(self.dens_[i], d) for d in dens):
+                dens.append(self.dens_[i])
+        return np.concatenate([np.roots(d).astype(complex) for d in dens])
 
-    def continuous_zeros(self, input: int = 0) -> np.ndarray:
-        """Zeros in rad/s of ``input``'s transfer function.
+    def zeros(self, input: int = 0) -> np.ndarray:
+        """Zeros in rad/s of ``input``'s transfer function (roots of its numerator in s).
 
         Parameters
         ----------
@@ -219,9 +229,44 @@ class ContinuousTransferFunction(PolynomialModel):
         Returns
         -------
         ndarray of complex
+            :meth:`discrete_zeros` gives the zeros in z of the exact sampled equivalent.
         """
         num = np.trim_zeros(self.nums_[self._input_index(input)], "f")
         return np.roots(num) if len(num) > 1 else np.zeros(0)
+
+    def discrete_poles(self) -> np.ndarray:
+        """Poles in z of the exact zero-order-hold equivalent (sample time ``ts``), ``exp(p ts)``
+        for each pole p in rad/s, and poles at z = 0 from the dead time.
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return super().poles()
+
+    def discrete_zeros(self, input: int = 0) -> np.ndarray:
+        """Zeros in z of the exact zero-order-hold equivalent of ``input``'s transfer function
+        (the sampling zeros included).
+
+        Parameters
+        ----------
+        input : int
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return super().zeros(self._input_index(input))
+
+    def continuous_poles(self, input: int = 0) -> np.ndarray:
+        """Deprecated name of :meth:`poles` (one input's poles in rad/s)."""
+        _renamed("continuous_poles", "poles")
+        return self.poles(input)
+
+    def continuous_zeros(self, input: int = 0) -> np.ndarray:
+        """Deprecated name of :meth:`zeros` (in rad/s)."""
+        _renamed("continuous_zeros", "zeros")
+        return self.zeros(input)
 
     # ------------------------------------------------------------------ export
     def to_control(self, continuous: bool = True, input: int | None = None, pade_order: int | None = None) -> Any:
@@ -305,6 +350,15 @@ class ContinuousTransferFunction(PolynomialModel):
         if "parameters_" not in self.__dict__:
             return "ContinuousTransferFunction()"
         return f"<ContinuousTransferFunction {self.structure_} fit={self.fit_percent_:.2f}%>"
+
+
+def _renamed(old: str, new: str) -> None:
+    warnings.warn(
+        f"ContinuousTransferFunction.{old}() is now {new}() (in rad/s; discrete_{new}() gives the sampled "
+        "equivalent's, in z); the old name will be removed in the next release",
+        DeprecationWarning,
+        stacklevel=3,
+    )
 
 
 def _in_s(coefs: np.ndarray) -> str:

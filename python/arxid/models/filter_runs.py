@@ -4,16 +4,15 @@ initial-condition option), and the checks that the runs can determine the parame
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from .._base.limits import check_order
 from ..data.iodata import IOData
-from ..exceptions import ArxidError, DataError, IdentifiabilityError, OrderError
+from ..exceptions import ArxidError, DataError, OrderError
 
-__all__ = ["INITIAL", "check_excitation", "check_initial", "check_size", "finite_segments", "per_input"]
+__all__ = ["INITIAL", "check_initial", "check_size", "finite_segments", "per_input"]
 
 #: The initial-condition options (MATLAB's ``InitialCondition``).
 INITIAL = ("zero", "estimate")
@@ -84,16 +83,3 @@ def check_size(orders: tuple, segments: list[tuple[int, int]], lag: int, data: I
             f"{data.n_samples} samples leave {usable} after the first {lag} of each run of finite samples; lower "
             f"the orders or use more data"
         )
-
-
-def check_excitation(data: IOData, nb: Sequence[int]) -> None:
-    """A constant input cannot identify its coefficients: say which one, before the core sees it."""
-    for i, b in enumerate(nb):
-        x = data.u[:, i]
-        x = x[np.isfinite(x)]
-        if b and (x.size == 0 or np.ptp(x) == 0):
-            raise IdentifiabilityError(
-                f"input {data.input_names[i]!r} is constant: it does not excite the system, so its B and F "
-                f"cannot be identified; use data where it varies, or set nb=0 for it",
-                (data.input_names[i],),
-            )

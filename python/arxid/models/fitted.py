@@ -46,6 +46,38 @@ class FittedModel:
         """Free-run response to the inputs ``u`` from rest (each model class defines it)."""
         raise NotImplementedError
 
+    def poles(self) -> np.ndarray:  # pragma: no cover - every model class defines it
+        """Poles of the model (each model class defines it)."""
+        raise NotImplementedError
+
+    def zeros(self, input: int = 0) -> np.ndarray:  # pragma: no cover - every model class defines it
+        """Zeros of ``input``'s transfer function (each model class defines it)."""
+        raise NotImplementedError
+
+    def discrete_poles(self) -> np.ndarray:
+        """Poles in z of the sampled model: :meth:`poles` of a discrete model (a continuous one's
+        :meth:`poles` are in rad/s, and this gives its exact sampled equivalent's). Stability and
+        the checks judge these.
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return self.poles()
+
+    def discrete_zeros(self, input: int = 0) -> np.ndarray:
+        """Zeros in z of ``input``'s transfer function of the sampled model (see :meth:`discrete_poles`).
+
+        Parameters
+        ----------
+        input : int
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return self.zeros(input)
+
     def step(self, n_samples: int, amplitude: float = 1.0, input: int = 0) -> np.ndarray:
         """Response to a step of ``amplitude`` on ``input`` from rest.
 

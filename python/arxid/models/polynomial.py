@@ -24,7 +24,8 @@ from ..exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFitte
 from . import convert
 from . import polynomial_files as polyfile
 from .derived_inputs import DerivedInput, complete_inputs
-from .filter_runs import check_excitation, check_initial, check_size, finite_segments, per_input
+from .excitation import check_excitation
+from .filter_runs import check_initial, check_size, finite_segments, per_input
 from .fitted import FittedModel
 from .fitted_layout import FittedLayout
 
@@ -384,7 +385,7 @@ class PolynomialModel(FittedModel):
     @property
     def is_stable(self) -> bool:
         """All poles strictly inside the unit circle."""
-        return bool(np.all(np.abs(self.poles()) < 1.0))
+        return bool(np.all(np.abs(self.discrete_poles()) < 1.0))
 
     def dc_gain(self) -> np.ndarray:
         """Static gain from each input, B_i(1) / (A(1) F_i(1)).

@@ -4,6 +4,7 @@ Dask workers that read them)."""
 
 from __future__ import annotations
 
+import numbers
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -18,6 +19,7 @@ from ..exceptions import DataError
 from ..fleet import cluster
 from ..fleet import logs as fleet
 from ..fleet import sweep as fleet_sweep
+from ..models.arguments import check_same_signals
 from ..models.effects import compile_effects
 from .grid import Grid
 
@@ -230,3 +232,21 @@ def fleet_engine(workers: Any, est: IOData, g: Grid, effects: tuple[str, ...]) -
     head = est[: min(est.n_samples, 8)]
     terms = list(compile_effects(effects, head, columns.nb, columns.nk).output_terms) if effects else []
     return fleet_sweep.DaskEngine(workers, terms, columns)
+
+
+def validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
+    """The estimation and validation data of a sweep: ``validation`` as given (an IOData with the
+    same signals), None, or the fraction of ``data`` (its end) held out."""
+    if isinstance(validation, IOData):
+        if validation.n_inputs != data.n_inputs:
+            raise DataError(f"validation data have {validation.n_inputs} inputs, the estimation data {data.n_inputs}")
+        check_same_signals(data.ts, data.output_name, data.input_names, validation, "the validation data")
+        return data, validation
+    if validation is None:
+        return data, None
+    if isinstance(validation, numbers.Real) and not isinstance(validation, bool):
+        fraction = float(validation)
+        if not 0 < fraction < 1:
+            raise DataError(f"validation as a fraction must be between 0 and 1, got {validation}")
+        return data.split(1 - fraction)
+    raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")

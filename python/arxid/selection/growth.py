@@ -9,7 +9,9 @@ The stopping rule. After a growth, the grown sweep is not kept, and growing stop
    (:func:`.integrator.structure_integrates`, the rule by which the diagnosis switches to k-step
    prediction) while the previous choice had none: larger orders then fit a slow drift, such as
    an unmodelled effect leaves, not the plant's dynamics;
-2. **no-gain**: the growth chose the same structure again, or one whose validation error is
+2. **insane**: the previous grid had a structure that passes the step sanity checks and the grown
+   grid has none (its best fails them): a larger grid must not turn an answer into a refusal;
+3. **no-gain**: the growth chose the same structure again, or one whose validation error is
    lower by less than ``min_gain`` (default 1 %), compared on the grown sweep's own rows and
    measure: a larger structure is never taken for a gain within the noise, and a choice that
    growing did not change keeps the numbers of the smaller grid (its rows: a larger grid starts
@@ -17,12 +19,12 @@ The stopping rule. After a growth, the grown sweep is not kept, and growing stop
 
 Before a growth, in this order, growing stops when:
 
-3. **inside**: the chosen structure lies inside the grid (no edge, :mod:`.grid_edges`);
-4. **rounds**: ``max_rounds`` growths were made (default: no limit; **off** when it is 0);
-5. **order-cap**: no edge range can grow below the largest order (default 30);
-6. **refused**: the grown grid would not fit in memory (or, after it, :func:`arxid.sweep`
+4. **inside**: the chosen structure lies inside the grid (no edge, :mod:`.grid_edges`);
+5. **rounds**: ``max_rounds`` growths were made (default: no limit; **off** when it is 0);
+6. **order-cap**: no edge range can grow below the largest order (default 30);
+7. **refused**: the grown grid would not fit in memory (or, after it, :func:`arxid.sweep`
    refuses it);
-7. **budget**: the next sweep would take the search past ``max_seconds`` (default 30 s) in
+8. **budget**: the next sweep would take the search past ``max_seconds`` (default 30 s) in
    total. Its time is predicted before it starts, from the measured time of the last sweep scaled
    by the work of the grown grid (the larger of the ratios of structures and of the core's work,
    :func:`arxid.selection.stages.estimated_seconds`), so a round that would exceed the budget is
@@ -49,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from ..exceptions import DataError
+from ..exceptions import ArxidError, DataError
 from . import choice, stages
 from .grid import check_grid_size
 from .grid_edges import grown_grid
@@ -65,6 +67,7 @@ __all__ = [
     "GridRound",
     "grid_text",
     "grow",
+    "grows",
 ]
 
 #: Seconds of sweeping (the first sweep included) after which no larger grid is started.
@@ -77,10 +80,28 @@ GROWTH_ORDER_LIMIT = 30
 MIN_GROWTH_GAIN = 0.01
 
 #: Why growth stopped, as :attr:`GridGrowth.stop` names it.
-STOP_REASONS = ("integrates", "no-gain", "inside", "rounds", "off", "order-cap", "refused", "budget")
+STOP_REASONS = ("integrates", "insane", "no-gain", "inside", "rounds", "off", "order-cap", "refused", "budget")
 
 # Criteria on a logarithmic scale (N log V + penalty): a difference, not a ratio, compares them.
 _LOG_KEYS = ("est_aic", "est_bic", "bic")
+
+
+def grows(grow: bool | None, default_grid: bool) -> bool:
+    """Whether a sweep grows its grid, the one rule of :func:`arxid.sweep`, :func:`arxid.analyse`
+    and the command line: as asked (True or False), else (None) the default grid grows and a given
+    one is swept as it is.
+
+    Parameters
+    ----------
+    grow : bool or None
+    default_grid : bool
+        No order range was given.
+
+    Returns
+    -------
+    bool
+    """
+    return default_grid if grow is None else bool(grow)
 
 
 def grid_text(grid: dict) -> str:
@@ -189,7 +210,7 @@ class GridGrowth:
         The time budget of the whole search (None: no budget).
     kept : int
         Index in ``rounds`` of the grid whose sweep is the result: the last one, or the one before
-        when the last growth was not kept (``stop`` ``"no-gain"`` or ``"integrates"``).
+        when the last growth was not kept (``stop`` ``"integrates"``, ``"insane"`` or ``"no-gain"``).
     min_gain : float
         Smallest relative fall of the error for which growing went on.
     """
@@ -252,7 +273,7 @@ class GridGrowth:
 
     def edge_note(self, structure: str, edges: str) -> str:
         """The grid-edge sentence of a choice on an edge of a grid whose growth was not kept
-        (``stop`` ``"no-gain"`` or ``"integrates"``): what the larger grid gave.
+        (``stop`` ``"integrates"``, ``"insane"`` or ``"no-gain"``): what the larger grid gave.
 
         Parameters
         ----------
@@ -268,6 +289,8 @@ class GridGrowth:
         tried = self.rounds[-1]
         if tried.structure == structure:
             found = "chose it again"
+        elif self.stop == "insane":
+            found = f"none of its structures passes the step sanity checks (its best is {tried.structure})"
         elif self.stop == "integrates":
             found = f"its best, {tried.structure}, has a pole at z = 1 (a fitted drift, not the plant's dynamics)"
         else:
@@ -439,6 +462,12 @@ def grow(
                 f"{rounds[-2].structure} of the grid {rounds[-2].text} stands."
             )
             return res, GridGrowth(tuple(rounds), "integrates", why, max_seconds, len(rounds) - 2, min_gain)
+        if sane and not _passes(grown) and _passes(res):
+            why = (
+                f"no structure of the grid {new_rec.text} passes the step sanity checks (its best, "
+                f"{new_rec.structure}, fails them), so {rounds[-2].structure} of the grid {rounds[-2].text} stands."
+            )
+            return res, GridGrowth(tuple(rounds), "insane", why, max_seconds, len(rounds) - 2, min_gain)
         same = new_rec.structure == rounds[-2].structure
         gain = 0.0 if same else _fall(grown, new_rank, res, rank)
         if gain < min_gain:  # not worth a larger grid: the smaller grid's sweep, and so its numbers, stand
@@ -451,6 +480,15 @@ def grow(
             why = f"the grid {new_rec.text} {found}, so {rounds[-2].structure} of the grid {rounds[-2].text} stands."
             return res, GridGrowth(tuple(rounds), "no-gain", why, max_seconds, len(rounds) - 2, min_gain)
         res, rank = grown, new_rank
+
+
+def _passes(table: SweepTable) -> bool:
+    """Some structure of the sweep passes the step sanity checks."""
+    try:
+        choice.select(table, True)
+    except ArxidError:
+        return False
+    return True
 
 
 def _seconds(s: float) -> str:

@@ -580,7 +580,7 @@ def step_sanity(
             pos.append(_simulate(model, u, extra) - base)
             u[:, i] = at[i] - amps[i]
             neg.append(_simulate(model, u, extra) - base)
-    poles = model.poles()
+    poles = model.discrete_poles()
     excess = None
     if poles.size and np.max(np.abs(poles)) > 1.0 and expect in ("integrating", "double-integrating"):
         excess = pole_excess(model.parameters_, model.covariance_, model.na_)[1]

@@ -9,6 +9,7 @@ the choice of a structure (:mod:`.choice`) and the output-error refinement (:mod
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import time
@@ -24,13 +25,13 @@ from .._base.limits import check_order
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from ..fleet import logs as fleet
-from ..models.arguments import check_same_signals
 from ..models.arx_model import ArxModel
+from ..models.excitation import check_excitation
 from . import choice, stages
 from .choice import Selection
-from .engine import Runner, check_validation_length, core_inputs, fleet_engine, fleet_parts
+from .engine import Runner, check_validation_length, core_inputs, fleet_engine, fleet_parts, validation_split
 from .grid import DEFAULT_GRID, Grid, check_grid_size, check_top, order_range, per_input_ranges
-from .growth import DEFAULT_GROWTH_SECONDS, GROWTH_ORDER_LIMIT, MIN_GROWTH_GAIN, GridGrowth, grow
+from .growth import DEFAULT_GROWTH_SECONDS, GROWTH_ORDER_LIMIT, MIN_GROWTH_GAIN, GridGrowth, grow, grows
 from .integrator import (
     VOTERS,
     IntegratorTest,
@@ -195,7 +196,7 @@ class SweepResult(SweepTable):
         str
         """
         edges = self.grid_edges(i)
-        if edges and self.growth is not None and self.growth.stop in ("no-gain", "integrates"):
+        if edges and self.growth is not None and self.growth.stop in ("no-gain", "integrates", "insane"):
             return self.growth.edge_note(self.structure_name(i), "; ".join(str(e) for e in edges))
         return super().grid_edge_text(i)
 
@@ -207,6 +208,7 @@ class SweepResult(SweepTable):
         *,
         max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
         min_gain: float = MIN_GROWTH_GAIN,
+        sweeper: Callable[..., SweepResult] | None = None,
     ) -> SweepResult:
         """Grow the grid past the edges the chosen structure sits on, while it sits on one and improves.
 
@@ -233,6 +235,9 @@ class SweepResult(SweepTable):
         min_gain : float
             Smallest relative fall of the choice's validation error for which growing goes on
             (default 0.01, 1 %).
+        sweeper : callable, optional
+            Sweeps a grid (``na=, nb=, nk=`` and the settings): a fleet's sweep on its cluster
+            (default: :func:`sweep` of this result's estimation data).
 
         Returns
         -------
@@ -250,7 +255,8 @@ class SweepResult(SweepTable):
             settings["horizon"] = self.horizon if self.horizon is not None else settings.get("horizon")
 
         def rerun(grid: dict) -> SweepResult:
-            res = sweep(self.estimation, na=grid["na"], nb=grid["nb"], nk=grid["nk"], **settings)
+            again = sweeper or functools.partial(sweep, self.estimation)
+            res = again(na=grid["na"], nb=grid["nb"], nk=grid["nk"], **settings)
             return dataclasses.replace(
                 res,
                 expect=self.expect,
@@ -380,7 +386,8 @@ def sweep(
     max_memory: int | None = ...,
     limits: SanityLimits | None = ...,
     simulate_estimation: bool = ...,
-    auto_extend: bool = ...,
+    auto_extend: bool | None = ...,
+    growth_seconds: float | None = ...,
     refine: None = None,
     refine_top: int = ...,
     top: int | None = ...,
@@ -410,7 +417,8 @@ def sweep(
     max_memory: int | None = ...,
     limits: SanityLimits | None = ...,
     simulate_estimation: bool = ...,
-    auto_extend: bool = ...,
+    auto_extend: bool | None = ...,
+    growth_seconds: float | None = ...,
     refine: Literal["oe"],
     refine_top: int = ...,
     top: int | None = ...,
@@ -425,9 +433,9 @@ def sweep(
 
 def sweep(
     data: IOData,
-    na=DEFAULT_GRID["na"],
-    nb=DEFAULT_GRID["nb"],
-    nk=DEFAULT_GRID["nk"],
+    na=None,
+    nb=None,
+    nk=None,
     *,
     validation=None,
     sort_by: str = "val_sim",
@@ -439,7 +447,8 @@ def sweep(
     max_memory: int | None = None,
     limits: SanityLimits | None = None,
     simulate_estimation: bool = True,
-    auto_extend: bool = False,
+    auto_extend: bool | None = None,
+    growth_seconds: float | None = DEFAULT_GROWTH_SECONDS,
     refine: Literal["oe"] | None = None,
     refine_top: int = 5,
     top: int | None = stages.DEFAULT_TOP,
@@ -457,10 +466,11 @@ def sweep(
     data : IOData
         Estimation data.
     na : int or iterable of int
-        Numbers of poles to try.
+        Numbers of poles to try (default ``DEFAULT_GRID["na"]``).
     nb, nk : int, iterable of int, or list of iterables (one per input)
-        Input orders and delays to try. One iterable is shared by every input (each input still
-        ranges over it independently); the grid is the cartesian product of all ranges.
+        Input orders and delays to try (default ``DEFAULT_GRID``). One iterable is shared by every
+        input (each input still ranges over it independently); the grid is the cartesian product of
+        all ranges.
     validation : None, IOData or float
         Validation data, or the fraction of ``data`` (its end) to hold out. None validates on the
         estimation data only (``sort_by="val_sim"`` then ranks by estimation error).
@@ -484,11 +494,13 @@ def sweep(
         Thresholds of the step sanity checks.
     simulate_estimation : bool
         Also simulate every structure on the estimation data (``rms_est``).
-    auto_extend : bool
-        When the best sane structure sits on an edge of the grid, grow the grid past it and sweep
-        again (:meth:`SweepResult.extend` with its defaults: while the choice sits on an edge and
-        improves, orders up to 30, 30 s of sweeping in all); ``growth`` of the result says what
-        was tried.
+    auto_extend : bool or None
+        Grow the grid past the edge the best sane structure sits on and sweep again, while it does
+        and improves (:meth:`SweepResult.extend`; ``growth`` of the result says what was tried).
+        None (default): the default grid grows (no ``na``, ``nb``, ``nk`` given; a list of logs where
+        they are), a given grid is swept as it is: the rule of ``arxid sweep`` and :func:`arxid.analyse`.
+    growth_seconds : float or None
+        Time budget of the growing search in seconds, first sweep included (``--max-seconds``).
     refine : {None, "oe"}
         ``"oe"`` refits the ``refine_top`` best ARX structures (and a small grid of nb, nf, nk) as
         output-error models and ranks all of them by validation free-run error
@@ -550,34 +562,30 @@ def sweep(
     'ARX(2,1,3)'
     """
     started = time.perf_counter()
-    workers = None  # a fleet's logs on a Dask cluster
+    growing = grows(auto_extend, na is None and nb is None and nk is None)
+    na, nb, nk = (DEFAULT_GRID[k] if v is None else v for k, v in (("na", na), ("nb", nb), ("nk", nk)))
+    workers: Any = None  # a fleet's logs on a Dask cluster
+    sweeper: Callable[..., SweepResult] | None = None  # how to sweep a fleet's logs again
     if isinstance(data, (list, tuple)):
         options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
         options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
-        options.update(simulate_estimation=simulate_estimation, max_seconds=max_seconds, auto_extend=auto_extend)
+        options.update(simulate_estimation=simulate_estimation, max_seconds=max_seconds, auto_extend=growing)
         fraction = fleet.check_validation(validation)
         if per_experiment:
-            return fleet.sweep_each(data, client, read, fraction, sweep, options)
+            return fleet.sweep_each(data, client, read, fraction, sweep, options | {"growth_seconds": growth_seconds})
+        if client is not None:  # a larger grid is swept where the logs are too (in process: the merged logs)
+            sweeper = functools.partial(fleet.sweep_again, sweep, list(data), client, read, fraction)
         workers, (data, validation) = fleet_parts(client, data, read, fraction)
     if not isinstance(data, IOData):
         raise DataError(
             f"sweep needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
         )
-    if sort_by not in SORT_KEYS:
-        raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
-    if expect not in EXPECTATIONS:
-        raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
-    if refine not in (None, "oe"):
-        raise ArxidError(f"refine must be None or 'oe' (output-error refinement), got {refine!r}")
-    est, val = _validation_split(data, validation)
-    if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
-        raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
-    horizon = None if horizon is None else check_order("horizon", horizon)
-    if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
-        raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
-    n_threads = check_order("n_threads", n_threads)
+    horizon, n_threads = _checked_settings(sort_by, expect, refine, horizon, n_threads)
+    est, val = validation_split(data, validation)
     m = est.n_inputs
     nas, nbs, nks = order_range("na", na), per_input_ranges("nb", nb, m), per_input_ranges("nk", nk, m)
+    if workers is None:  # a fleet on a cluster: the logs stay on the workers
+        check_excitation(est, [max(r) for r in nbs], remedy="leave it out of the inputs")
     effects = tuple(effects)
     top = check_top(top)
     n_structures, p_max, q = check_grid_size(est, val, nas, nbs, nks, effects, int(n_threads), max_memory)
@@ -587,13 +595,16 @@ def sweep(
     stages.check_time_budget(n_structures, top, seconds, max_seconds)
     g = Grid.build(est, nas, nbs, nks, effects)
     # A fleet on a cluster: the workers hold the samples and compute the effect columns, the client none.
-    inputs = core_inputs(est, val, g, effects) if workers is None else None
-    engine = fleet_engine(workers, est, g, effects) if workers is not None else None
-    terms = inputs.terms if inputs is not None else engine.terms
+    if workers is None:
+        inputs, engine = core_inputs(est, val, g, effects), None
+        terms = inputs.terms
+    else:
+        inputs, engine = None, fleet_engine(workers, est, g, effects)
+        terms = engine.terms
     first_lag, _ = _core.grid_envelope(g.layout, terms)
     check_validation_length(val, first_lag)
-    run = Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
-    run = run if method == "arx" else IvRunner.of(run, method, instruments, refine)
+    least_squares = Runner(est, val, g, inputs, int(n_threads), progress, simulate_estimation, top, engine)
+    run = least_squares if method == "arx" else IvRunner.of(least_squares, method, instruments, refine)
     # Integrating plants: an expectation decides the measure up front; otherwise the free-run sweep
     # runs first and, when the unit-root test calls the plant integrating, is redone with k steps.
     integrating = expect in ("integrating", "double-integrating")
@@ -627,24 +638,24 @@ def sweep(
     elif expect is None:  # the user's horizon fixes the measure; the verdict is stated
         result = _with_verdict(result, _integrator_verdict(result))
     result = dataclasses.replace(result, seconds=time.perf_counter() - started)
-    result = result.extend() if auto_extend else result
+    if growing:
+        result = result.extend(max_seconds=growth_seconds, sweeper=sweeper)
     return result if refine is None else refine_sweep(result, refine, top=refine_top)
 
 
-def _validation_split(data: IOData, validation: Any) -> tuple[IOData, IOData | None]:
-    if isinstance(validation, IOData):
-        if validation.n_inputs != data.n_inputs:
-            raise DataError(f"validation data have {validation.n_inputs} inputs, the estimation data {data.n_inputs}")
-        check_same_signals(data.ts, data.output_name, data.input_names, validation, "the validation data")
-        return data, validation
-    if validation is None:
-        return data, None
-    if isinstance(validation, numbers.Real) and not isinstance(validation, bool):
-        fraction = float(validation)
-        if not 0 < fraction < 1:
-            raise DataError(f"validation as a fraction must be between 0 and 1, got {validation}")
-        return data.split(1 - fraction)
-    raise DataError(f"validation must be None, an IOData or a fraction, got {type(validation).__name__}")
+def _checked_settings(sort_by: str, expect: Any, refine: Any, horizon: Any, n_threads: Any) -> tuple[int | None, int]:
+    """The horizon and thread count as integers, after a typed error for any setting out of its range."""
+    if sort_by not in SORT_KEYS:
+        raise ArxidError(f"sort_by must be one of {SORT_KEYS}, got {sort_by!r}")
+    if expect not in EXPECTATIONS:
+        raise ArxidError(f"expect must be one of {EXPECTATIONS}, got {expect!r}")
+    if refine not in (None, "oe"):
+        raise ArxidError(f"refine must be None or 'oe' (output-error refinement), got {refine!r}")
+    if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, numbers.Integral) or horizon < 1):
+        raise OrderError(f"horizon must be an integer >= 1, got {horizon!r}")
+    if isinstance(n_threads, bool) or not isinstance(n_threads, numbers.Integral) or n_threads < 0:
+        raise OrderError(f"n_threads must be an integer >= 0 (0 = all cores), got {n_threads!r}")
+    return (None if horizon is None else check_order("horizon", horizon)), check_order("n_threads", n_threads)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,53 @@
+"""Ctrl-C while the ``arxid`` command is still starting: exit 130, as after it has started.
+
+The command line's ``main`` turns a KeyboardInterrupt into exit 130, but ``arxid`` and
+``python -m arxid.cli`` import the whole package (numpy, scipy, the core: a second or more) before
+``main`` runs. A Ctrl-C in those imports would end the process killed by SIGINT instead (exit -2 to
+a parent process). :func:`guard_startup`, run first by ``arxid/__init__.py``, installs a handler
+that exits with 130 while the package of a program being launched is imported; ``main`` hands
+SIGINT back to Python's KeyboardInterrupt (:func:`end_startup`) once its own handling is in place.
+A program that only imports arxid as a library is left alone.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from pathlib import Path
+from types import FrameType
+
+__all__ = ["EXIT_INTERRUPTED", "end_startup", "guard_startup"]
+
+#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+EXIT_INTERRUPTED = 130
+
+
+def _launching() -> bool:
+    """The ``arxid`` script, or ``python -m arxid...`` still importing the packages of its module."""
+    argv0 = sys.argv[0] if sys.argv else ""
+    if argv0 == "-m":  # runpy sets the module's path once its packages are imported
+        orig = list(getattr(sys, "orig_argv", []))
+        return "-m" in orig[:-1] and orig[orig.index("-m") + 1].split(".")[0] == "arxid"
+    return Path(argv0).name in ("arxid", "arxid.exe")
+
+
+def _exit_interrupted(signum: int, frame: FrameType | None) -> None:
+    sys.stderr.write("arxid: interrupted\n")
+    os._exit(EXIT_INTERRUPTED)  # mid-import: nothing is written yet, no cleanup is owed
+
+
+def guard_startup() -> None:
+    """While a program that is ``arxid`` starts, a Ctrl-C exits with 130 (nothing else changes)."""
+    # Only over Python's own handler: an ignored SIGINT (a background job) or a program's own stays.
+    if _launching() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _exit_interrupted)
+
+
+guard_startup()  # on import: arxid/__init__.py imports this module before anything heavy
+
+
+def end_startup() -> None:
+    """Ctrl-C raises KeyboardInterrupt again (``main`` handles it from here)."""
+    if signal.getsignal(signal.SIGINT) is _exit_interrupted:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
