@@ -24,6 +24,7 @@ pub mod qr;
 pub mod simulate;
 pub mod srivc;
 pub mod structure;
+pub mod subspace;
 pub mod sweep;
 pub mod sweep_columns;
 pub mod term_free_run;
@@ -35,6 +36,8 @@ mod py;
 mod py_csv;
 #[cfg(feature = "python")]
 mod py_flight_log;
+#[cfg(feature = "python")]
+mod py_subspace;
 
 pub use error::{ArxError, Result};
 pub use fit::{fit, Fit};
