@@ -45,6 +45,7 @@ fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
         }
         ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } => DataError::new_err(msg),
         ArxError::InvalidStructure(_) => OrderError::new_err(msg),
+        ArxError::NotExciting(_) => IdentifiabilityError::new_err(msg),
         ArxError::NotConverged(_) => ConvergenceError::new_err(msg),
         ArxError::OutOfMemory { .. } => PyMemoryError::new_err(msg),
         ArxError::Interrupted => PyKeyboardInterrupt::new_err(msg),
@@ -1077,6 +1078,8 @@ mod core_module {
     use crate::py_csv::csv_read;
     #[pymodule_export]
     use crate::py_flight_log::{blackbox_fields, blackbox_read, dataflash_read};
+    #[pymodule_export]
+    use crate::py_subspace::{state_space_response, subspace_identify, subspace_input_matrices};
 
     #[pymodule_init]
     fn init(m: &pyo3::Bound<'_, pyo3::types::PyModule>) -> pyo3::PyResult<()> {

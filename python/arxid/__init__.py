@@ -50,6 +50,8 @@ from .models.iv import IvModel, iv
 from .models.pem import armax, bj, delayest, oe, polyest
 from .models.polynomial import PolynomialModel
 from .models.process_models import procest
+from .models.state_space import StateSpaceModel
+from .models.subspace import ssest
 from .models.tfest import tfest
 from .selection.refine import RefinedSweep, refine
 from .selection.search import DEFAULT_GRID, SweepResult, sweep
@@ -71,6 +73,8 @@ __all__ = [
     "delayest",
     "tfest",
     "procest",
+    "ssest",
+    "StateSpaceModel",
     "frf",
     "FrequencyResponse",
     "step_by_deconvolution",

@@ -130,12 +130,12 @@ pub fn input_matrices(
         initial_rows.push(r.as_ref().subrows(0, nx0).to_owned());
     }
     let r = stack_and_reduce(&shared, nb + 1);
-    let largest = (0..nb).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
-    if let Some(column) = (0..nb).find(|&i| r[(i, i)].abs() <= 1e-10 * largest || largest == 0.0) {
-        return Err(ArxError::RankDeficient {
-            column,
-            ratio: r[(column, column)].abs() / largest.max(f64::MIN_POSITIVE),
-        });
+    // Each pivot against its own column's size: the columns' scales differ by orders of magnitude
+    // (B's columns grow with slow modes, D's are the inputs).
+    let column_size = |j: usize| (0..=j).map(|i| r[(i, j)] * r[(i, j)]).sum::<f64>().sqrt();
+    if let Some(column) = (0..nb).find(|&j| !(r[(j, j)].abs() > 1e-10 * column_size(j))) {
+        let ratio = r[(column, column)].abs() / column_size(column).max(f64::MIN_POSITIVE);
+        return Err(ArxError::RankDeficient { column, ratio });
     }
     let mut theta = vec![0.0; nb];
     for i in (0..nb).rev() {

@@ -83,8 +83,21 @@ pub fn identify(
     let criterion =
         projection::singular_value_criterion(&canonical_correlations, factor.n_rows, signals.n_inputs, ny, max_order);
     let order = options.order.unwrap_or_else(|| projection::best_order(&criterion).max(1));
+    let largest = decomposition.singular_values.first().copied().unwrap_or(0.0);
+    if !(largest > 1e-10 * output_size(&factor)) {
+        return Err(ArxError::NotExciting(format!(
+            "the future inputs explain all of the outputs, so the past data say nothing about the state: the \
+             inputs are not rich enough for a horizon of {future} samples (a few sines, or a constant?); use a \
+             random binary or multisine input with more frequencies, or a shorter horizon"
+        )));
+    }
     let gamma = projection::observability(&decomposition, order);
     let (a, c) = realization::state_matrices(&gamma, ny)?;
+    if !a.col_iter().flat_map(|col| col.iter().copied().collect::<Vec<_>>()).all(f64::is_finite) {
+        return Err(ArxError::NotExciting(format!(
+            "the data determine fewer than {order} states; choose a lower order or a richer input"
+        )));
+    }
     Ok(Subspace {
         a,
         c,
@@ -94,6 +107,14 @@ pub fn identify(
         order,
         n_rows: factor.n_rows,
     })
+}
+
+/// The size of the future outputs in L (Frobenius norm of its Y_f rows): the scale against which a
+/// singular value counts as zero.
+fn output_size(factor: &hankel::HankelFactor) -> f64 {
+    let (uf, wp, yf) = factor.blocks;
+    let rows = factor.l.as_ref().subrows(uf + wp, yf);
+    rows.norm_l2()
 }
 
 /// The Moore–Penrose pseudo-inverse of `m` by its SVD, singular values below `1e-12·σ_max` taken

@@ -1,0 +1,259 @@
+"""State-space models of several inputs and outputs by subspace identification: :func:`ssest`.
+
+The numerical work (the LQ factor of the block-Hankel data, the weighted SVD, A and C, then B, D
+and the initial states by least squares) is done in the Rust core; this module gathers the data,
+enforces stability when asked and estimates the Kalman gain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .._base import _core
+from ..data.iodata import IOData
+from ..exceptions import DataError, OrderError
+from .state_space import StateSpaceModel
+
+__all__ = ["ssest", "gather", "initial_states", "METHODS", "DEFAULT_HORIZON"]
+
+METHODS = ("n4sid", "moesp", "cva")
+DEFAULT_HORIZON = 10  # past and future block rows; orders up to 9·n_outputs fit in it
+_MAX_ORDER = 20
+
+
+@dataclass(frozen=True)
+class Signals:
+    """Inputs and outputs as arrays, with the stretches free of missing samples."""
+
+    u: np.ndarray  # (N, nu), NaN replaced by 0 (never read outside `segments`)
+    y: np.ndarray  # (N, ny), likewise
+    y_with_gaps: np.ndarray  # (N, ny) as measured
+    segments: list[tuple[int, int]]  # runs without a missing sample, inside one experiment
+    ts: float
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+
+
+def _outputs(data: Any) -> list[IOData]:
+    if isinstance(data, IOData):
+        return [data]
+    if isinstance(data, Sequence) and data and all(isinstance(d, IOData) for d in data):
+        return list(data)
+    raise DataError(
+        "data must be an IOData or a sequence of IOData, one per output, that share their inputs "
+        f"(got {type(data).__name__})"
+    )
+
+
+def gather(data: Any) -> Signals:
+    """The inputs, the outputs and the stretches without missing samples of ``data``.
+
+    Parameters
+    ----------
+    data : IOData or sequence of IOData
+        One IOData per output, all with the same inputs, sampling time and experiments.
+    """
+    parts = _outputs(data)
+    first = parts[0]
+    for d in parts[1:]:
+        if d.ts != first.ts or d.experiment_starts != first.experiment_starts or d.u.shape != first.u.shape:
+            raise DataError("the outputs' data must share their sampling time, experiments and inputs")
+        if not np.array_equal(d.u, first.u, equal_nan=True):
+            raise DataError(f"output {d.output_name!r} comes with other input samples than {first.output_name!r}")
+    names = tuple(d.output_name for d in parts)
+    if len(set(names)) != len(names):
+        raise DataError(f"output names must be unique, got {list(names)}")
+    y = np.column_stack([d.y for d in parts])  # a new array: the caller's data stay as they are
+    u = np.array(first.u, dtype=float)
+    finite = np.isfinite(y).all(axis=1) & np.isfinite(u).all(axis=1)
+    segments = []
+    for a, b in first.segments:
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], finite[a:b].astype(np.int8), [0]])))
+        segments += [(a + int(s), a + int(e)) for s, e in zip(edges[::2], edges[1::2], strict=True)]
+    y_clean, u_clean = np.where(np.isfinite(y), y, 0.0), np.where(np.isfinite(u), u, 0.0)
+    return Signals(u_clean, y_clean, y, segments, first.ts, first.input_names, names)
+
+
+def _horizons(horizon: Any) -> tuple[int, int]:
+    if horizon is None:
+        return DEFAULT_HORIZON, DEFAULT_HORIZON
+    pair = (horizon, horizon) if np.ndim(horizon) == 0 else tuple(horizon)
+    if len(pair) != 2 or not all(float(h) == int(h) for h in pair):
+        raise OrderError(f"horizon must be a whole number of samples or a (past, future) pair, got {horizon!r}")
+    past, future = int(pair[0]), int(pair[1])
+    if past < 1 or future < 2:
+        raise OrderError(f"the horizons must be at least 1 (past) and 2 (future) samples, got {past} and {future}")
+    return past, future
+
+
+def initial_states(model: StateSpaceModel, signals: Signals) -> np.ndarray:
+    """Least-squares initial state of each stretch of ``signals``, A, B, C and D held fixed.
+
+    The first samples decide it (``C Aᵗ`` decays); at most 5,000 per stretch are used.
+    """
+    n = model.order
+    out = np.zeros((len(signals.segments), n))
+    zero = np.zeros(n)
+    for i, (lo, hi) in enumerate(signals.segments):
+        hi = min(hi, lo + 5000)
+        forced = model.simulate(signals.u[lo:hi], zero)
+        regressor = np.empty((hi - lo, model.n_outputs, n))
+        power = np.eye(n)
+        for t in range(hi - lo):
+            regressor[t] = model.c @ power
+            power = model.a @ power
+            if t > 4 * n and not np.abs(power).max() > 1e-14:
+                regressor[t + 1 :] = 0.0
+                break
+        target = signals.y[lo:hi] - forced
+        out[i] = np.linalg.lstsq(regressor.reshape(-1, n), target.reshape(-1), rcond=None)[0]
+    return out
+
+
+def _stabilise(a: np.ndarray) -> np.ndarray:
+    """A with each eigenvalue outside the unit circle reflected to 1/λ̄ (same frequency, same
+    decay rate mirrored), through the eigendecomposition; conjugate pairs stay pairs, so A stays
+    real."""
+    values, vectors = np.linalg.eig(a)
+    outside = np.abs(values) >= 1.0
+    if not outside.any():
+        return a
+    values = np.where(outside, 0.995 / np.conj(values), values)
+    return np.real(vectors @ np.diag(values) @ np.linalg.inv(vectors))
+
+
+def _kalman_gain(model: StateSpaceModel, signals: Signals, segments: list[tuple[int, int]], lags: int) -> np.ndarray:
+    """K of the innovation form, by two linear regressions on the output error v = y − ŷ_sim.
+
+    First the innovations e are estimated by a long vector autoregression of v (Hannan–Rissanen);
+    then v − e = C (zI − A)⁻¹ K e is linear in K, the same least squares as B with e as input.
+    K is halved until A − KC is stable (zero if it never is).
+    """
+    ny, n = model.n_outputs, model.order
+    v = np.zeros_like(signals.y)
+    innovations = np.zeros_like(signals.y)
+    rows, targets = [], []
+    for (lo, hi), x0 in zip(segments, model.initial_states, strict=True):
+        v[lo:hi] = signals.y[lo:hi] - model.simulate(signals.u[lo:hi], x0)
+        part = v[lo:hi]
+        rows.append(np.hstack([part[lags - j - 1 : len(part) - j - 1] for j in range(lags)]))
+        targets.append(part[lags:])
+    phi, target = np.vstack(rows), np.vstack(targets)
+    coefficients = np.linalg.lstsq(phi, target, rcond=None)[0]
+    at = 0
+    for lo, hi in segments:
+        size = hi - lo - lags
+        innovations[lo:hi] = v[lo:hi]
+        innovations[lo + lags : hi] = target[at : at + size] - phi[at : at + size] @ coefficients
+        at += size
+    gain = _core.subspace_input_matrices(
+        np.ascontiguousarray(model.a), np.ascontiguousarray(model.c), innovations, np.ascontiguousarray(v - innovations),
+        segments, feedthrough=False, initial_state=True,
+    )[0]
+    for _ in range(12):
+        if np.all(np.abs(np.linalg.eigvals(model.a - gain @ model.c)) < 1.0):
+            return gain
+        gain = gain / 2
+    return np.zeros((n, ny))
+
+
+def ssest(
+    data: Any,
+    order: int | None = None,
+    *,
+    method: str = "n4sid",
+    initial: str = "estimate",
+    stable: bool = False,
+    horizon: int | tuple[int, int] | None = None,
+    max_order: int | None = None,
+    n_threads: int = 0,
+) -> StateSpaceModel:
+    """Estimate a state-space model of several inputs and outputs by subspace identification.
+
+    Parameters
+    ----------
+    data : IOData or sequence of IOData
+        Estimation data; for several outputs, one IOData per output with the same inputs,
+        sampling time and experiments. Missing samples (NaN) split an experiment into stretches.
+    order : int, optional
+        Number of states. None chooses it by the singular value criterion (see Notes).
+    method : {"n4sid", "moesp", "cva"}
+        Weighting of the projection: N4SID (Van Overschee & De Moor), PO-MOESP (Verhaegen) or CVA
+        (Larimore).
+    initial : {"estimate", "zero"}
+        Initial state of each stretch: estimated by least squares (for records that start
+        mid-transient) or zero.
+    stable : bool
+        Enforce a stable model: poles outside the unit circle are reflected inside (to 0.995/λ̄),
+        then B, D and the initial states are re-estimated.
+    horizon : int or (int, int), optional
+        Past and future horizons of the block-Hankel data in samples (default 10, 10). The order
+        can be at most (future − 1) · n_outputs.
+    max_order : int, optional
+        Largest order the criterion considers (default 20, capped by the horizon).
+    n_threads : int
+        Threads for the Hankel factorisation (0: all cores).
+
+    Returns
+    -------
+    StateSpaceModel
+
+    Notes
+    -----
+    The model is ``x(t+1) = A x(t) + B u(t) + K e(t)``, ``y(t) = C x(t) + D u(t) + e(t)``.
+    A and C come from the weighted SVD of the oblique projection of future outputs on past data;
+    B, D and x0 minimise the simulation error with A and C fixed; K comes from the output error
+    (see ``_kalman_gain``). The order minimises Bauer's singular value criterion
+    ``SVC(n) = ρ²(n+1) + n (2 ny + nu) ln(N) / N`` over the canonical correlations ρ of future
+    outputs and past data (scale-free, the same for every method), N the Hankel columns.
+
+    Examples
+    --------
+    >>> import numpy as np, arxid
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.choice([-1.0, 1.0], size=2000)
+    >>> y = np.zeros(2000)
+    >>> for t in range(1, 2000):
+    ...     y[t] = 0.9 * y[t - 1] + 0.5 * u[t - 1]
+    >>> model = arxid.ssest(arxid.IOData(y, u, ts=0.01))
+    >>> model.order, round(float(model.poles[0].real), 6)
+    (1, 0.9)
+    """
+    if method not in METHODS:
+        raise OrderError(f"method must be one of {list(METHODS)}, got {method!r}")
+    if initial not in ("estimate", "zero"):
+        raise OrderError(f'initial must be "estimate" or "zero", got {initial!r}')
+    if order is not None and (isinstance(order, bool) or not float(order).is_integer() or order < 1):
+        raise OrderError(f"order must be a whole number of states >= 1 or None, got {order!r}")
+    signals = gather(data)
+    past, future = _horizons(horizon)
+    segments = [(lo, hi) for lo, hi in signals.segments if hi - lo > 2 * (past + future)]
+    if not segments:
+        raise DataError(
+            f"no stretch of the data without missing samples is longer than {2 * (past + future)} samples, "
+            "what the horizons need; use longer records or a shorter horizon"
+        )
+    u, y = np.ascontiguousarray(signals.u), np.ascontiguousarray(signals.y)
+    limit = _MAX_ORDER if max_order is None else int(max_order)
+    found = _core.subspace_identify(
+        u, y, segments, past, future, method, None if order is None else int(order), limit, n_threads
+    )
+    a, c = found["a"], found["c"]
+    if stable:
+        a = _stabilise(a)
+    estimate_x0 = initial == "estimate"
+    b, d, x0 = _core.subspace_input_matrices(a, c, u, y, segments, feedthrough=True, initial_state=estimate_x0)
+    model = StateSpaceModel(
+        a=a, b=b, c=c, d=d, k=np.zeros((a.shape[0], y.shape[1])), initial_states=x0, ts=signals.ts,
+        input_names=signals.input_names, output_names=signals.output_names, method=method,
+        singular_values=found["singular_values"], canonical_correlations=found["canonical_correlations"],
+        order_criterion=found["criterion"], horizon=(past, future), order_fixed=order is not None,
+    )
+    lags = max(2 * past, 1)
+    if all(hi - lo > 2 * lags for lo, hi in segments):
+        model = replace(model, k=_kalman_gain(model, signals, segments, lags))
+    return model
