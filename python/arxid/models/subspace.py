@@ -15,7 +15,7 @@ import numpy as np
 
 from .._base import _core
 from ..data.iodata import IOData
-from ..exceptions import DataError, OrderError
+from ..exceptions import DataError, IdentifiabilityError, OrderError
 from .state_space import StateSpaceModel
 
 __all__ = ["ssest", "gather", "initial_states", "METHODS", "DEFAULT_HORIZON"]
@@ -161,6 +161,22 @@ def _kalman_gain(model: StateSpaceModel, signals: Signals, segments: list[tuple[
     return np.zeros((n, ny))
 
 
+def _input_matrices(a, c, u, y, segments, estimate_x0: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """B, D and the initial states by least squares in the Rust core, with advice when the
+    simulation of an unstable A swamps the regression."""
+    try:
+        return _core.subspace_input_matrices(a, c, u, y, segments, feedthrough=True, initial_state=estimate_x0)
+    except IdentifiabilityError as exc:
+        radius = float(np.max(np.abs(np.linalg.eigvals(a))))
+        if radius < 1.0:
+            raise
+        raise IdentifiabilityError(
+            f"the identified dynamics are unstable (a pole of magnitude {radius:.4f}), and simulating them over "
+            "the records leaves B and D undetermined; pass stable=True, or detrend the data (an offset "
+            "or drift needs an unstable or integrating state)"
+        ) from exc
+
+
 def ssest(
     data: Any,
     order: int | None = None,
@@ -244,9 +260,8 @@ def ssest(
     )
     a, c = found["a"], found["c"]
     if stable:
-        a = _stabilise(a)
-    estimate_x0 = initial == "estimate"
-    b, d, x0 = _core.subspace_input_matrices(a, c, u, y, segments, feedthrough=True, initial_state=estimate_x0)
+        a = np.ascontiguousarray(_stabilise(a))
+    b, d, x0 = _input_matrices(a, c, u, y, segments, initial == "estimate")
     model = StateSpaceModel(
         a=a, b=b, c=c, d=d, k=np.zeros((a.shape[0], y.shape[1])), initial_states=x0, ts=signals.ts,
         input_names=signals.input_names, output_names=signals.output_names, method=method,
