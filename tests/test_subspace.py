@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from subspace_systems import System, add_noise, as_data, binary_inputs, random_system
 
 import arxid
 from arxid.exceptions import DataError, IdentifiabilityError, OrderError
+from subspace_systems import System, add_noise, as_data, binary_inputs, random_system
 
 TRUE = System(
     a=np.array([[0.8, 0.3, 0.0], [-0.3, 0.8, 0.0], [0.0, 0.0, 0.5]]),
@@ -35,7 +35,9 @@ def test_noise_free_data_give_the_true_markov_parameters_order_and_initial_respo
     model = arxid.ssest(as_data(y, u), method=method)
     assert model.order == 3 and not model.order_fixed
     for k in range(8):
-        np.testing.assert_allclose(markov(model.a, model.b, model.c, model.d, k), markov(*vars(TRUE).values(), k), atol=1e-8)
+        np.testing.assert_allclose(
+            markov(model.a, model.b, model.c, model.d, k), markov(*vars(TRUE).values(), k), atol=1e-8
+        )
     # The record starts mid-transient: the estimated x0 reproduces the data exactly.
     np.testing.assert_allclose(model.simulate(u, model.x0), y, atol=1e-8)
     assert model.canonical_correlations[2] > 0.999 and model.canonical_correlations[3] < 1e-3
@@ -77,7 +79,9 @@ def test_the_callers_arrays_are_unchanged_sippy_67(exact):
 
 def test_siso_is_a_special_case_nfoursid_pr10():
     rng = np.random.default_rng(3)
-    sys1 = System(np.array([[1.5, -0.7], [1.0, 0.0]]), np.array([[1.0], [0.0]]), np.array([[0.5, 0.3]]), np.zeros((1, 1)))
+    sys1 = System(
+        np.array([[1.5, -0.7], [1.0, 0.0]]), np.array([[1.0], [0.0]]), np.array([[0.5, 0.3]]), np.zeros((1, 1))
+    )
     u = binary_inputs(rng, 2000, 1)
     y = sys1.simulate(u)
     model = arxid.ssest(arxid.IOData(y[:, 0], u[:, 0], ts=0.1))
@@ -98,7 +102,9 @@ def test_several_experiments_and_nan_gaps_nfoursid_5():
     model = arxid.ssest(data, method="cva")
     assert model.order == 3 and model.initial_states.shape == (4, 3)
     for k in range(6):
-        np.testing.assert_allclose(markov(model.a, model.b, model.c, model.d, k), markov(*vars(TRUE).values(), k), atol=1e-7)
+        np.testing.assert_allclose(
+            markov(model.a, model.b, model.c, model.d, k), markov(*vars(TRUE).values(), k), atol=1e-7
+        )
     fits = model.fit_percent(data)
     assert fits.shape == (2,) and np.all(fits > 99.999)
 
@@ -132,7 +138,9 @@ def test_a_few_sines_are_refused_with_a_reason_not_returned_as_nan():
 def test_a_non_minimum_phase_zero_does_not_make_the_model_unstable_sippy_16():
     # G(z) = (z − 1.5) / ((z − 0.8)(z − 0.6)): a zero outside the unit circle, stable poles.
     rng = np.random.default_rng(16)
-    sys1 = System(np.array([[1.4, -0.48], [1.0, 0.0]]), np.array([[1.0], [0.0]]), np.array([[1.0, -1.5]]), np.zeros((1, 1)))
+    sys1 = System(
+        np.array([[1.4, -0.48], [1.0, 0.0]]), np.array([[1.0], [0.0]]), np.array([[1.0, -1.5]]), np.zeros((1, 1))
+    )
     u = binary_inputs(rng, 4000, 1)
     y = add_noise(rng, sys1.simulate(u), 20)
     for method in ("n4sid", "moesp", "cva"):
@@ -173,16 +181,14 @@ def test_k_step_prediction_of_a_noisy_system_improves_on_simulation():
     # One-step predictions against the ideal predictor's error e(t).
     resid = y - model.predict(data, k=1)[:, 0]
     assert np.std(resid[50:]) < 1.05 * np.std(e[50:])
-    # k = 1 prediction equals the predictor recursion written out in numpy.
+    # k = 1 prediction equals the predictor recursion written out in numpy (from a zero state).
     ak, bk = model.a - model.k @ model.c, np.hstack([model.b - model.k @ model.d, model.k])
-    x = model.x0.copy()
+    x = np.zeros(2)
     manual = np.empty(n)
-    x0 = arxid.models.subspace.initial_states(model, arxid.models.subspace.gather(data))[0]
-    x = x0
     for t in range(n):
         manual[t] = (model.c @ x + model.d @ u[t])[0]
         x = ak @ x + bk @ np.concatenate([u[t], [y[t]]])
-    np.testing.assert_allclose(model.predict(data, k=1)[:, 0], manual, atol=1e-9)
+    np.testing.assert_allclose(model.predict(data, k=1, initial="zero")[:, 0], manual, atol=1e-9)
 
 
 def test_bad_arguments_are_typed_errors(exact):

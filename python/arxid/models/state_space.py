@@ -17,6 +17,7 @@ from .._base import _core
 from .._base.metrics import fit_percent
 from .._base.optional import require
 from ..exceptions import DataError
+from .mimo_data import Signals, gather
 
 __all__ = ["StateSpaceModel"]
 
@@ -181,20 +182,39 @@ class StateSpaceModel:
         ndarray of shape (n_samples, n_outputs)
             Predictions; NaN where a sample is missing.
         """
-        from .subspace import gather, initial_states
-
         if not (np.isinf(k) or (float(k) == int(k) and k >= 1)):
             raise DataError(f"the prediction horizon k must be a whole number of samples >= 1 or inf, got {k!r}")
         signals = gather(data)
         self._check_signals(signals.u.shape[1], signals.y.shape[1])
-        x0s = (
-            initial_states(self, signals)
-            if initial == "estimate"
-            else np.zeros((len(signals.segments), self.order))
-        )
+        if initial not in ("estimate", "zero"):
+            raise DataError(f'initial must be "estimate" or "zero", got {initial!r}')
+        x0s = self._initial_states(signals) if initial == "estimate" else np.zeros((len(signals.segments), self.order))
         out = np.full(signals.y.shape, np.nan)
         for (lo, hi), x0 in zip(signals.segments, x0s, strict=True):
             out[lo:hi] = self._stretch_prediction(signals.u[lo:hi], signals.y[lo:hi], x0, k)
+        return out
+
+    def _initial_states(self, signals: Signals) -> np.ndarray:
+        """Least-squares initial state of each stretch of ``signals``, A, B, C and D held fixed.
+
+        The first samples decide it (``C Aᵗ`` decays); at most 5,000 per stretch are used.
+        """
+        n = self.order
+        out = np.zeros((len(signals.segments), n))
+        zero = np.zeros(n)
+        for i, (lo, hi) in enumerate(signals.segments):
+            hi = min(hi, lo + 5000)
+            forced = self.simulate(signals.u[lo:hi], zero)
+            regressor = np.empty((hi - lo, self.n_outputs, n))
+            power = np.eye(n)
+            for t in range(hi - lo):
+                regressor[t] = self.c @ power
+                power = self.a @ power
+                if t > 4 * n and not np.abs(power).max() > 1e-14:
+                    regressor[t + 1 :] = 0.0
+                    break
+            target = signals.y[lo:hi] - forced
+            out[i] = np.linalg.lstsq(regressor.reshape(-1, n), target.reshape(-1), rcond=None)[0]
         return out
 
     def _check_signals(self, n_inputs: int, n_outputs: int) -> None:
@@ -220,28 +240,49 @@ class StateSpaceModel:
         -------
         ndarray of shape (n_outputs,)
         """
-        from .subspace import gather
-
         y = gather(data).y_with_gaps
         pred = self.predict(data, k=k, initial=initial)
         return np.array([fit_percent(y[:, i], pred[:, i]) for i in range(self.n_outputs)])
 
     # ------------------------------------------------------------------ conversion
     def to_control(self) -> Any:
-        """The model as a python-control discrete ``StateSpace`` (deterministic part A, B, C, D)."""
+        """The model as a python-control discrete ``StateSpace`` (deterministic part A, B, C, D).
+
+        Returns
+        -------
+        control.StateSpace
+            With ``dt = ts`` and the signal names.
+        """
         control = require("control", "to_control")
         return control.ss(
             self.a, self.b, self.c, self.d, dt=self.ts, inputs=list(self.input_names), outputs=list(self.output_names)
         )
 
     def to_scipy(self) -> Any:
-        """The model as ``scipy.signal.StateSpace`` with ``dt = ts``."""
+        """The model as a scipy discrete state-space system.
+
+        Returns
+        -------
+        scipy.signal.StateSpace
+            A, B, C, D with ``dt = ts``.
+        """
         from scipy import signal
 
         return signal.StateSpace(self.a, self.b, self.c, self.d, dt=self.ts)
 
     def frequency_response(self, frequencies: Sequence[float] | np.ndarray) -> np.ndarray:
-        """G(e^{jωTs}) at ``frequencies`` in Hz, shape (n_frequencies, n_outputs, n_inputs)."""
+        """The frequency response G(e^{jωTs}) of the inputs to the outputs.
+
+        Parameters
+        ----------
+        frequencies : array_like of shape (n_frequencies,)
+            Frequencies in Hz (0 gives the steady-state gain).
+
+        Returns
+        -------
+        ndarray of shape (n_frequencies, n_outputs, n_inputs)
+            Complex gains.
+        """
         z = np.exp(2j * np.pi * np.asarray(frequencies, dtype=float) * self.ts)
         eye = np.eye(self.order)
         return np.array([self.c @ np.linalg.solve(zi * eye - self.a, self.b) + self.d for zi in z])
@@ -258,5 +299,7 @@ class StateSpaceModel:
         ]
         if self.canonical_correlations.size:
             shown = ", ".join(f"{v:.3f}" for v in self.canonical_correlations[: self.order + 3])
-            lines.append(f"  canonical correlations (first {min(self.order + 3, self.canonical_correlations.size)}): {shown}")
+            lines.append(
+                f"  canonical correlations (first {min(self.order + 3, self.canonical_correlations.size)}): {shown}"
+            )
         return "\n".join(lines)

@@ -7,75 +7,21 @@ enforces stability when asked and estimates the Kalman gain.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from .._base import _core
-from ..data.iodata import IOData
 from ..exceptions import DataError, IdentifiabilityError, OrderError
+from .mimo_data import Signals, gather
 from .state_space import StateSpaceModel
 
-__all__ = ["ssest", "gather", "initial_states", "METHODS", "DEFAULT_HORIZON"]
+__all__ = ["ssest", "METHODS", "DEFAULT_HORIZON"]
 
 METHODS = ("n4sid", "moesp", "cva")
 DEFAULT_HORIZON = 10  # past and future block rows; orders up to 9·n_outputs fit in it
 _MAX_ORDER = 20
-
-
-@dataclass(frozen=True)
-class Signals:
-    """Inputs and outputs as arrays, with the stretches free of missing samples."""
-
-    u: np.ndarray  # (N, nu), NaN replaced by 0 (never read outside `segments`)
-    y: np.ndarray  # (N, ny), likewise
-    y_with_gaps: np.ndarray  # (N, ny) as measured
-    segments: list[tuple[int, int]]  # runs without a missing sample, inside one experiment
-    ts: float
-    input_names: tuple[str, ...]
-    output_names: tuple[str, ...]
-
-
-def _outputs(data: Any) -> list[IOData]:
-    if isinstance(data, IOData):
-        return [data]
-    if isinstance(data, Sequence) and data and all(isinstance(d, IOData) for d in data):
-        return list(data)
-    raise DataError(
-        "data must be an IOData or a sequence of IOData, one per output, that share their inputs "
-        f"(got {type(data).__name__})"
-    )
-
-
-def gather(data: Any) -> Signals:
-    """The inputs, the outputs and the stretches without missing samples of ``data``.
-
-    Parameters
-    ----------
-    data : IOData or sequence of IOData
-        One IOData per output, all with the same inputs, sampling time and experiments.
-    """
-    parts = _outputs(data)
-    first = parts[0]
-    for d in parts[1:]:
-        if d.ts != first.ts or d.experiment_starts != first.experiment_starts or d.u.shape != first.u.shape:
-            raise DataError("the outputs' data must share their sampling time, experiments and inputs")
-        if not np.array_equal(d.u, first.u, equal_nan=True):
-            raise DataError(f"output {d.output_name!r} comes with other input samples than {first.output_name!r}")
-    names = tuple(d.output_name for d in parts)
-    if len(set(names)) != len(names):
-        raise DataError(f"output names must be unique, got {list(names)}")
-    y = np.column_stack([d.y for d in parts])  # a new array: the caller's data stay as they are
-    u = np.array(first.u, dtype=float)
-    finite = np.isfinite(y).all(axis=1) & np.isfinite(u).all(axis=1)
-    segments = []
-    for a, b in first.segments:
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], finite[a:b].astype(np.int8), [0]])))
-        segments += [(a + int(s), a + int(e)) for s, e in zip(edges[::2], edges[1::2], strict=True)]
-    y_clean, u_clean = np.where(np.isfinite(y), y, 0.0), np.where(np.isfinite(u), u, 0.0)
-    return Signals(u_clean, y_clean, y, segments, first.ts, first.input_names, names)
 
 
 def _horizons(horizon: Any) -> tuple[int, int]:
@@ -88,30 +34,6 @@ def _horizons(horizon: Any) -> tuple[int, int]:
     if past < 1 or future < 2:
         raise OrderError(f"the horizons must be at least 1 (past) and 2 (future) samples, got {past} and {future}")
     return past, future
-
-
-def initial_states(model: StateSpaceModel, signals: Signals) -> np.ndarray:
-    """Least-squares initial state of each stretch of ``signals``, A, B, C and D held fixed.
-
-    The first samples decide it (``C Aᵗ`` decays); at most 5,000 per stretch are used.
-    """
-    n = model.order
-    out = np.zeros((len(signals.segments), n))
-    zero = np.zeros(n)
-    for i, (lo, hi) in enumerate(signals.segments):
-        hi = min(hi, lo + 5000)
-        forced = model.simulate(signals.u[lo:hi], zero)
-        regressor = np.empty((hi - lo, model.n_outputs, n))
-        power = np.eye(n)
-        for t in range(hi - lo):
-            regressor[t] = model.c @ power
-            power = model.a @ power
-            if t > 4 * n and not np.abs(power).max() > 1e-14:
-                regressor[t + 1 :] = 0.0
-                break
-        target = signals.y[lo:hi] - forced
-        out[i] = np.linalg.lstsq(regressor.reshape(-1, n), target.reshape(-1), rcond=None)[0]
-    return out
 
 
 def _stabilise(a: np.ndarray) -> np.ndarray:
@@ -151,8 +73,13 @@ def _kalman_gain(model: StateSpaceModel, signals: Signals, segments: list[tuple[
         innovations[lo + lags : hi] = target[at : at + size] - phi[at : at + size] @ coefficients
         at += size
     gain = _core.subspace_input_matrices(
-        np.ascontiguousarray(model.a), np.ascontiguousarray(model.c), innovations, np.ascontiguousarray(v - innovations),
-        segments, feedthrough=False, initial_state=True,
+        np.ascontiguousarray(model.a),
+        np.ascontiguousarray(model.c),
+        innovations,
+        np.ascontiguousarray(v - innovations),
+        segments,
+        feedthrough=False,
+        initial_state=True,
     )[0]
     for _ in range(12):
         if np.all(np.abs(np.linalg.eigvals(model.a - gain @ model.c)) < 1.0):
@@ -263,10 +190,21 @@ def ssest(
         a = np.ascontiguousarray(_stabilise(a))
     b, d, x0 = _input_matrices(a, c, u, y, segments, initial == "estimate")
     model = StateSpaceModel(
-        a=a, b=b, c=c, d=d, k=np.zeros((a.shape[0], y.shape[1])), initial_states=x0, ts=signals.ts,
-        input_names=signals.input_names, output_names=signals.output_names, method=method,
-        singular_values=found["singular_values"], canonical_correlations=found["canonical_correlations"],
-        order_criterion=found["criterion"], horizon=(past, future), order_fixed=order is not None,
+        a=a,
+        b=b,
+        c=c,
+        d=d,
+        k=np.zeros((a.shape[0], y.shape[1])),
+        initial_states=x0,
+        ts=signals.ts,
+        input_names=signals.input_names,
+        output_names=signals.output_names,
+        method=method,
+        singular_values=found["singular_values"],
+        canonical_correlations=found["canonical_correlations"],
+        order_criterion=found["criterion"],
+        horizon=(past, future),
+        order_fixed=order is not None,
     )
     lags = max(2 * past, 1)
     if all(hi - lo > 2 * lags for lo, hi in segments):
