@@ -14,7 +14,7 @@ use faer::{Mat, MatRef};
 use super::hankel::Signals;
 use super::pseudo_inverse;
 use crate::error::{ArxError, Result};
-use crate::qr::{qr_r_in_place, stack_and_reduce, take_r, BLOCK_ROWS};
+use crate::qr::{qr_r_in_place, stack_and_reduce, BLOCK_ROWS};
 
 /// What [`input_matrices`] estimates.
 #[derive(Debug)]
@@ -34,18 +34,25 @@ pub struct Unknowns {
     pub initial_state: bool,
 }
 
-/// Adds `block` under `r` and re-triangularises: `r` becomes the R of everything seen so far.
-fn absorb(r: &mut Mat<f64>, block: &[Vec<f64>]) {
-    let q = r.ncols();
-    let mut a = Mat::<f64>::zeros(q + block.len(), q);
-    a.as_mut().subrows_mut(0, q).copy_from(r.as_ref());
-    for (i, row) in block.iter().enumerate() {
-        for (j, v) in row.iter().enumerate() {
-            a[(q + i, j)] = *v;
+/// Reduces the first `q + filled` rows of `work` (R so far on top, new rows below) to R on top.
+fn reduce(work: &mut Mat<f64>, filled: usize) {
+    let q = work.ncols();
+    qr_r_in_place(work.as_mut().subrows_mut(0, q + filled));
+    for j in 0..q {
+        for i in (j + 1)..q {
+            work[(i, j)] = 0.0; // Householder vectors, not R
         }
     }
-    qr_r_in_place(a.as_mut());
-    *r = take_r(&a, q);
+}
+
+/// `dst = a · src` for column-major `n × m` blocks (`a` n × n): the sensitivity recursion, without
+/// allocation.
+fn propagate(a: MatRef<'_, f64>, src: &[f64], dst: &mut [f64], n: usize) {
+    for (s, d) in src.chunks_exact(n).zip(dst.chunks_exact_mut(n)) {
+        for (i, v) in d.iter_mut().enumerate() {
+            *v = (0..n).map(|k| a[(i, k)] * s[k]).sum();
+        }
+    }
 }
 
 /// The segment's R over the columns `[x0 | B | D | y]`.
@@ -61,43 +68,58 @@ fn segment_factor(
     let nx0 = if unknowns.initial_state { n } else { 0 };
     let nd = if unknowns.feedthrough { ny * nu } else { 0 };
     let q = nx0 + n * nu + nd + 1;
-    let mut r = Mat::<f64>::zeros(q, q);
-    let mut sens = Mat::<f64>::zeros(n, n * nu); // column j·n + i: ∂x/∂B[i, j]
-    let mut free = Mat::<f64>::identity(n, n); // Aᵗ
-    let mut block: Vec<Vec<f64>> = Vec::with_capacity(BLOCK_ROWS);
+    let mut work = Mat::<f64>::zeros(q + BLOCK_ROWS, q);
+    let mut filled = 0;
+    // Column-major n × (n·nu): column j·n + i is ∂x/∂B[i, j]; `free` is Aᵗ (n × n).
+    let (mut sens, mut next_sens) = (vec![0.0; n * n * nu], vec![0.0; n * n * nu]);
+    let mut free: Vec<f64> = (0..n * n).map(|k| if k % (n + 1) == 0 { 1.0 } else { 0.0 }).collect();
+    let mut next_free = vec![0.0; n * n];
+    let mut decaying = true;
     for t in start..end {
-        let cs = c * &sens;
-        let cz = c * &free;
         let u = &s.u[t * nu..(t + 1) * nu];
         for o in 0..ny {
-            let mut row = Vec::with_capacity(q);
-            row.extend((0..nx0).map(|i| cz[(o, i)]));
-            row.extend((0..n * nu).map(|k| cs[(o, k)]));
-            if unknowns.feedthrough {
-                row.extend((0..nu).flat_map(|j| (0..ny).map(move |oo| if oo == o { u[j] } else { 0.0 })));
+            if filled == BLOCK_ROWS {
+                if cancel.load(Ordering::Relaxed) {
+                    return Err(ArxError::Interrupted);
+                }
+                reduce(&mut work, filled);
+                filled = 0;
             }
-            row.push(s.y[t * ny + o]);
-            block.push(row);
+            let row = q + filled;
+            let c_row = |col: &[f64]| (0..n).map(|k| c[(o, k)] * col[k]).sum::<f64>();
+            for (i, col) in free.chunks_exact(n).take(nx0).enumerate() {
+                work[(row, i)] = c_row(col);
+            }
+            for (k, col) in sens.chunks_exact(n).enumerate() {
+                work[(row, nx0 + k)] = c_row(col);
+            }
+            for j in 0..nd / ny.max(1) {
+                for oo in 0..ny {
+                    work[(row, nx0 + n * nu + j * ny + oo)] = if oo == o { u[j] } else { 0.0 };
+                }
+            }
+            work[(row, q - 1)] = s.y[t * ny + o];
+            filled += 1;
         }
-        sens = a * &sens;
+        propagate(a, &sens, &mut next_sens, n);
+        std::mem::swap(&mut sens, &mut next_sens);
         for (j, &uj) in u.iter().enumerate() {
             for i in 0..n {
-                sens[(i, j * n + i)] += uj;
+                sens[(j * n + i) * n + i] += uj;
             }
         }
-        if unknowns.initial_state {
-            free = a * &free;
-        }
-        if block.len() >= BLOCK_ROWS {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(ArxError::Interrupted);
+        if unknowns.initial_state && decaying {
+            propagate(a, &free, &mut next_free, n);
+            std::mem::swap(&mut free, &mut next_free);
+            // Once Aᵗ has died out, stop before it turns subnormal (100x slower arithmetic).
+            if free.iter().all(|v| v.abs() < 1e-150) {
+                free.fill(0.0);
+                decaying = false;
             }
-            absorb(&mut r, &block);
-            block.clear();
         }
     }
-    absorb(&mut r, &block);
-    Ok(r)
+    reduce(&mut work, filled);
+    Ok(work.as_ref().subrows(0, q).to_owned())
 }
 
 /// B (and D, and each segment's x0, as `unknowns` asks) minimising the simulation error of the

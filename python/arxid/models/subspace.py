@@ -206,7 +206,7 @@ def ssest(
         horizon=(past, future),
         order_fixed=order is not None,
     )
-    lags = max(2 * past, 1)
+    lags = past
     if all(hi - lo > 2 * lags for lo, hi in segments):
         model = replace(model, k=_kalman_gain(model, signals, segments, lags))
     return model
