@@ -56,6 +56,9 @@ __all__ = [
     "refine_fit_residual",
     "lagged_products",
     "lagged_r",
+    "state_space_response",
+    "subspace_identify",
+    "subspace_input_matrices",
     "ar_filter_rows",
 ]
 
