@@ -155,7 +155,7 @@ pub fn input_matrices(
     // Each pivot against its own column's size: the columns' scales differ by orders of magnitude
     // (B's columns grow with slow modes, D's are the inputs).
     let column_size = |j: usize| (0..=j).map(|i| r[(i, j)] * r[(i, j)]).sum::<f64>().sqrt();
-    if let Some(column) = (0..nb).find(|&j| !(r[(j, j)].abs() > 1e-10 * column_size(j))) {
+    if let Some(column) = (0..nb).find(|&j| r[(j, j)].abs().is_nan() || r[(j, j)].abs() <= 1e-10 * column_size(j)) {
         let ratio = r[(column, column)].abs() / column_size(column).max(f64::MIN_POSITIVE);
         return Err(ArxError::RankDeficient { column, ratio });
     }

@@ -84,7 +84,7 @@ pub fn identify(
         projection::singular_value_criterion(&canonical_correlations, factor.n_rows, signals.n_inputs, ny, max_order);
     let order = options.order.unwrap_or_else(|| projection::best_order(&criterion).max(1));
     let largest = decomposition.singular_values.first().copied().unwrap_or(0.0);
-    if !(largest > 1e-10 * output_size(&factor)) {
+    if largest.is_nan() || largest <= 1e-10 * output_size(&factor) {
         return Err(ArxError::NotExciting(format!(
             "the future inputs explain all of the outputs, so the past data say nothing about the state: the \
              inputs are not rich enough for a horizon of {future} samples (a few sines, or a constant?); use a \

@@ -53,7 +53,7 @@ pub fn respond(m: StateSpaceRef<'_>, x0: &[f64], u: &[f64], cancel: &AtomicBool)
     if x0.len() != n {
         return Err(ArxError::ShapeMismatch { what: "the initial state".into(), expected: n, got: x0.len() });
     }
-    let samples = if nu == 0 { 0 } else { u.len() / nu };
+    let samples = u.len().checked_div(nu).unwrap_or(0);
     if samples * nu != u.len() {
         return Err(ArxError::ShapeMismatch { what: "the inputs".into(), expected: samples * nu, got: u.len() });
     }
@@ -75,7 +75,7 @@ pub fn respond(m: StateSpaceRef<'_>, x0: &[f64], u: &[f64], cancel: &AtomicBool)
             *v = (0..n).map(|k| m.a[(i, k)] * x[k]).sum::<f64>() + (0..nu).map(|j| m.b[(i, j)] * ut[j]).sum::<f64>();
         }
         std::mem::swap(&mut x, &mut next);
-        if x.iter().any(|v| !(v.abs() < 1e150)) {
+        if x.iter().any(|v| v.is_nan() || v.abs() >= 1e150) {
             break;
         }
     }
