@@ -102,7 +102,7 @@ pub fn subspace_input_matrices<'py>(
         )));
     }
     let unknowns = Unknowns { feedthrough, initial_state };
-    let fit = run(py, 1, |cancel| {
+    let fit = run(py, 0, |cancel| {
         s.check()?;
         input_matrices(a, c, &s, unknowns, cancel)
     })?;

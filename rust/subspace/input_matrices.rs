@@ -10,6 +10,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 
 use super::hankel::Signals;
 use super::pseudo_inverse;
@@ -55,12 +56,58 @@ fn propagate(a: MatRef<'_, f64>, src: &[f64], dst: &mut [f64], n: usize) {
     }
 }
 
-/// The segment's R over the columns `[x0 | B | D | y]`.
-fn segment_factor(
+/// The sensitivities at a sample: `sens` (∂x/∂B, column-major n × (n·nu), column j·n + i for
+/// B[i, j]) and `free` (Aᵗ, n × n, zero once it has died out).
+#[derive(Clone)]
+struct Sensitivity {
+    sens: Vec<f64>,
+    free: Vec<f64>,
+    decaying: bool,
+}
+
+impl Sensitivity {
+    fn start(n: usize, nu: usize) -> Self {
+        let free = (0..n * n).map(|k| if k % (n + 1) == 0 { 1.0 } else { 0.0 }).collect();
+        Self { sens: vec![0.0; n * n * nu], free, decaying: true }
+    }
+
+    /// One sample on: `S ← A S + u ⊗ I`, `Aᵗ ← A Aᵗ` (while `initial_state`).
+    fn step(&mut self, a: MatRef<'_, f64>, u: &[f64], initial_state: bool, scratch: &mut Vec<f64>) {
+        let n = a.nrows();
+        scratch.resize(self.sens.len(), 0.0);
+        propagate(a, &self.sens, scratch, n);
+        std::mem::swap(&mut self.sens, scratch);
+        for (j, &uj) in u.iter().enumerate() {
+            for i in 0..n {
+                self.sens[(j * n + i) * n + i] += uj;
+            }
+        }
+        if initial_state && self.decaying {
+            scratch.resize(self.free.len(), 0.0);
+            propagate(a, &self.free, &mut scratch[..n * n], n);
+            self.free.copy_from_slice(&scratch[..n * n]);
+            // Once Aᵗ has died out, stop before it turns subnormal (100x slower arithmetic).
+            if self.free.iter().all(|v| v.abs() < 1e-150) {
+                self.free.fill(0.0);
+                self.decaying = false;
+            }
+        }
+    }
+}
+
+/// Samples per chunk of a segment: chunks are reduced in parallel, each from the sensitivities
+/// at its first sample (found by a cheap sequential pass), and their R's stacked in order, so the
+/// result does not depend on the number of threads.
+const CHUNK_SAMPLES: usize = 8192;
+
+/// R over the columns `[x0 | B | D | y]` of the rows of samples `t0..t1`, from `state` at `t0`.
+#[allow(clippy::too_many_arguments)]
+fn chunk_factor(
     a: MatRef<'_, f64>,
     c: MatRef<'_, f64>,
     s: &Signals<'_>,
-    (start, end): (usize, usize),
+    (t0, t1): (usize, usize),
+    mut state: Sensitivity,
     unknowns: Unknowns,
     cancel: &AtomicBool,
 ) -> Result<Mat<f64>> {
@@ -70,12 +117,8 @@ fn segment_factor(
     let q = nx0 + n * nu + nd + 1;
     let mut work = Mat::<f64>::zeros(q + BLOCK_ROWS, q);
     let mut filled = 0;
-    // Column-major n × (n·nu): column j·n + i is ∂x/∂B[i, j]; `free` is Aᵗ (n × n).
-    let (mut sens, mut next_sens) = (vec![0.0; n * n * nu], vec![0.0; n * n * nu]);
-    let mut free: Vec<f64> = (0..n * n).map(|k| if k % (n + 1) == 0 { 1.0 } else { 0.0 }).collect();
-    let mut next_free = vec![0.0; n * n];
-    let mut decaying = true;
-    for t in start..end {
+    let mut scratch = Vec::new();
+    for t in t0..t1 {
         let u = &s.u[t * nu..(t + 1) * nu];
         for o in 0..ny {
             if filled == BLOCK_ROWS {
@@ -87,10 +130,10 @@ fn segment_factor(
             }
             let row = q + filled;
             let c_row = |col: &[f64]| (0..n).map(|k| c[(o, k)] * col[k]).sum::<f64>();
-            for (i, col) in free.chunks_exact(n).take(nx0).enumerate() {
+            for (i, col) in state.free.chunks_exact(n).take(nx0).enumerate() {
                 work[(row, i)] = c_row(col);
             }
-            for (k, col) in sens.chunks_exact(n).enumerate() {
+            for (k, col) in state.sens.chunks_exact(n).enumerate() {
                 work[(row, nx0 + k)] = c_row(col);
             }
             for j in 0..nd / ny.max(1) {
@@ -101,25 +144,39 @@ fn segment_factor(
             work[(row, q - 1)] = s.y[t * ny + o];
             filled += 1;
         }
-        propagate(a, &sens, &mut next_sens, n);
-        std::mem::swap(&mut sens, &mut next_sens);
-        for (j, &uj) in u.iter().enumerate() {
-            for i in 0..n {
-                sens[(j * n + i) * n + i] += uj;
-            }
-        }
-        if unknowns.initial_state && decaying {
-            propagate(a, &free, &mut next_free, n);
-            std::mem::swap(&mut free, &mut next_free);
-            // Once Aᵗ has died out, stop before it turns subnormal (100x slower arithmetic).
-            if free.iter().all(|v| v.abs() < 1e-150) {
-                free.fill(0.0);
-                decaying = false;
-            }
-        }
+        state.step(a, u, unknowns.initial_state, &mut scratch);
     }
     reduce(&mut work, filled);
     Ok(work.as_ref().subrows(0, q).to_owned())
+}
+
+/// The segment's R over the columns `[x0 | B | D | y]`.
+fn segment_factor(
+    a: MatRef<'_, f64>,
+    c: MatRef<'_, f64>,
+    s: &Signals<'_>,
+    (start, end): (usize, usize),
+    unknowns: Unknowns,
+    cancel: &AtomicBool,
+) -> Result<Mat<f64>> {
+    let nu = s.n_inputs;
+    let mut state = Sensitivity::start(a.nrows(), nu);
+    let mut scratch = Vec::new();
+    let mut chunks = Vec::new();
+    for t0 in (start..end).step_by(CHUNK_SAMPLES) {
+        let t1 = (t0 + CHUNK_SAMPLES).min(end);
+        chunks.push(((t0, t1), state.clone()));
+        for t in t0..t1 {
+            state.step(a, &s.u[t * nu..(t + 1) * nu], unknowns.initial_state, &mut scratch);
+        }
+    }
+    let factors = chunks
+        .into_par_iter()
+        .map(|(range, at)| chunk_factor(a, c, s, range, at, unknowns, cancel))
+        .collect::<Result<Vec<_>>>()?;
+    let nx0 = if unknowns.initial_state { a.nrows() } else { 0 };
+    let nd = if unknowns.feedthrough { s.n_outputs * nu } else { 0 };
+    Ok(stack_and_reduce(&factors, nx0 + a.nrows() * nu + nd + 1))
 }
 
 /// B (and D, and each segment's x0, as `unknowns` asks) minimising the simulation error of the
