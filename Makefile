@@ -73,7 +73,7 @@ test: setup test-rust test-python
 fuzz: develop
 	HYPOTHESIS_PROFILE=long $(PY) -m pytest -q tests/test_fuzz.py
 
-bench: develop
+bench: develop $(VENV)/.extra-bench
 	$(PY) benches/sweep_vs_numpy.py
 	$(PY) benches/sweep_miso.py
 	$(PY) benches/fleet.py
@@ -84,6 +84,7 @@ bench: develop
 	$(PY) benches/checks_kernels.py
 	$(PY) benches/analyse_fleet.py
 	$(PY) benches/cli_start.py
+	$(PY) benches/subspace.py
 
 # The wheel (abi3: one file for CPython >= 3.10) for manylinux2014 (glibc 2.17; maturin links with
 # zig) and the sdist, in dist/; the wheel's tag is checked and it is installed in a fresh venv

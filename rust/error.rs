@@ -17,6 +17,8 @@ pub enum ArxError {
     NotConverged(String),
     /// A buffer of `bytes` bytes for `what` could not be allocated.
     OutOfMemory { what: String, bytes: usize },
+    /// The data do not determine the model (an input too poor for it); says why and what to do.
+    NotExciting(String),
     /// The caller asked the computation to stop (Ctrl-C); nothing was computed.
     Interrupted,
 }
@@ -44,6 +46,7 @@ impl fmt::Display for ArxError {
                  lower orders or a smaller grid",
                 *bytes as f64 / 1048576.0
             ),
+            ArxError::NotExciting(msg) => write!(f, "{msg}"),
             ArxError::Interrupted => write!(f, "interrupted"),
         }
     }

@@ -3,7 +3,7 @@
 //!
 //! One folder per concept, lowest layer first (a module uses only its own folder and the layers
 //! below it; `make lint` checks this with `tools/check_crate_layers.py`, see docs/architecture.md):
-//! `error`, `linalg`, `arx`, `simulate`, `sweep`, then `pem`, `scoring` and `io` side by side, and
+//! `error`, `linalg`, `arx`, `simulate`, `sweep`, then `pem`, `scoring`, `io` and `subspace` side by side, and
 //! `python` on top.
 
 pub mod arx;
@@ -13,6 +13,7 @@ pub mod linalg;
 pub mod pem;
 pub mod scoring;
 pub mod simulate;
+pub mod subspace;
 pub mod sweep;
 
 #[cfg(feature = "python")]

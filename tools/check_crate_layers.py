@@ -29,7 +29,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("arx",),
     ("simulate",),
     ("sweep",),
-    ("pem", "scoring", "io"),
+    ("pem", "scoring", "io", "subspace"),
     ("python",),
 )
 MAX_LINES = 700

@@ -56,6 +56,8 @@ if TYPE_CHECKING:  # the names of _PUBLIC, imported on first use (__getattr__ be
     from .models.pem import armax, bj, delayest, oe, polyest
     from .models.polynomial import PolynomialModel
     from .models.process_models import procest
+    from .models.state_space import StateSpaceModel
+    from .models.subspace import ssest
     from .models.tfest import tfest
     from .selection.refine import RefinedSweep, refine
     from .selection.search import DEFAULT_GRID, SweepResult, sweep
@@ -71,6 +73,8 @@ _PUBLIC = {
     **dict.fromkeys(["oe", "armax", "bj", "polyest", "delayest"], "arxid.models.pem"),
     **dict.fromkeys(["tfest"], "arxid.models.tfest"),
     **dict.fromkeys(["procest"], "arxid.models.process_models"),
+    **dict.fromkeys(["ssest"], "arxid.models.subspace"),
+    **dict.fromkeys(["StateSpaceModel"], "arxid.models.state_space"),
     **dict.fromkeys(
         ["frf", "FrequencyResponse", "step_by_deconvolution", "DeconvolvedStep", "tf_from_frequency"],
         "arxid.frequency_domain",

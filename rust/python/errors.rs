@@ -26,6 +26,7 @@ pub(super) fn to_pyerr(py: Python<'_>, e: ArxError) -> PyErr {
         }
         ArxError::TooFewSamples { .. } | ArxError::ShapeMismatch { .. } => DataError::new_err(msg),
         ArxError::InvalidStructure(_) => OrderError::new_err(msg),
+        ArxError::NotExciting(_) => IdentifiabilityError::new_err(msg),
         ArxError::NotConverged(_) => ConvergenceError::new_err(msg),
         ArxError::OutOfMemory { .. } => PyMemoryError::new_err(msg),
         ArxError::Interrupted => PyKeyboardInterrupt::new_err(msg),

@@ -19,6 +19,7 @@ mod run;
 mod scoring;
 mod simulate;
 mod srivc;
+mod subspace;
 mod sums;
 mod sweep;
 
@@ -46,6 +47,8 @@ mod core_module {
     use super::simulate::{divergence_limit, fma_limit, free_run_variance, predict};
     #[pymodule_export]
     use super::srivc::srivc_filter;
+    #[pymodule_export]
+    use super::subspace::{state_space_response, subspace_identify, subspace_input_matrices};
     #[pymodule_export]
     use super::sums::{
         finite_peak, finite_squares, finite_squares_of_difference, fit_pass, fit_squares, group_sums, peak_magnitude,

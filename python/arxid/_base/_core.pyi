@@ -2,7 +2,7 @@
 
 import os
 from collections.abc import Callable, Sequence
-from typing import Final, final
+from typing import Any, Final, final
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +56,9 @@ __all__ = [
     "refine_fit_residual",
     "lagged_products",
     "lagged_r",
+    "state_space_response",
+    "subspace_identify",
+    "subspace_input_matrices",
     "ar_filter_rows",
     "lfilter",
 ]
@@ -359,3 +362,26 @@ def procest_refine(
     upper: _F,
     max_iterations: int = 100,
 ) -> tuple[_F, _F, _F, int, int, bool, list[bool]]: ...
+
+# Subspace identification (rust/subspace, rust/py_subspace.rs).
+def subspace_identify(
+    u: _F,
+    y: _F,
+    segments: Sequence[tuple[int, int]],
+    past: int,
+    future: int,
+    method: str,
+    order: int | None,
+    max_order: int,
+    n_threads: int = 0,
+) -> dict[str, Any]: ...
+def subspace_input_matrices(
+    a: _F,
+    c: _F,
+    u: _F,
+    y: _F,
+    segments: Sequence[tuple[int, int]],
+    feedthrough: bool = True,
+    initial_state: bool = True,
+) -> tuple[_F, _F, _F]: ...
+def state_space_response(a: _F, b: _F, c: _F, d: _F, x0: _F, u: _F) -> tuple[_F, _F]: ...

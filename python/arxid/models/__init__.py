@@ -4,7 +4,8 @@ models by prediction-error minimisation (:func:`oe`, :func:`armax`, :func:`bj`, 
 :class:`PolynomialModel`), the physical-effect grammar (``effects``), regressor layouts, fits of many
 structures from one factor of their envelope (``envelope``), conversion
 to python-control and scipy, continuous-time conversion, continuous-time models from sampled data
-(:func:`tfest` by SRIVC, :func:`procest` process models), and model files."""
+(:func:`tfest` by SRIVC, :func:`procest` process models), state-space models of several inputs and
+outputs by subspace identification (:func:`ssest`, :class:`StateSpaceModel`), and model files."""
 
 from .arx_model import ArxModel, FittedLayout, arx
 from .continuous import c2d, d2c
@@ -16,6 +17,8 @@ from .pem import armax, bj, delayest, oe, polyest
 from .polynomial import PolynomialModel, as_polynomial
 from .process_models import procest
 from .spec import parse_model_spec
+from .state_space import StateSpaceModel
+from .subspace import ssest
 from .tfest import tfest
 
 __all__ = [
@@ -41,4 +44,6 @@ __all__ = [
     "tfest",
     "procest",
     "parse_model_spec",
+    "ssest",
+    "StateSpaceModel",
 ]
