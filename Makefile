@@ -63,9 +63,16 @@ test-rust:
 
 # One BLAS thread: the tests' tall-skinny products run up to 10x slower when OpenBLAS threads
 # compete for 2 shared cores (benchmarks keep the default, so numpy baselines are not handicapped).
+# pytest-xdist runs the tests in one worker per core, a test file to a worker (its module fixtures
+# made once); the tests marked `timed` (a latency or a duration bound) run after them, alone, so no
+# other test competes for the cores while they measure. Both runs always run; either failing fails.
+PYTEST_WORKERS ?= auto
 test-python: develop
-	@echo "running the Python tests (pytest)"
-	@OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q
+	@echo "running the Python tests (pytest, $(PYTEST_WORKERS) workers, then the timed tests alone)"
+	@export OPENBLAS_NUM_THREADS=1; status=0; \
+		$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile -m "not timed" || status=$$?; \
+		$(PY) -m pytest -q -p no:xdist -m timed || status=$$?; \
+		exit $$status
 
 test: setup test-rust test-python
 

@@ -118,11 +118,17 @@ def client_read_recorder(record: str):
 
 
 @functools.cache
-def _demo_flight(seed: int):
-    """The demo simulator's flight ``seed`` (20 s, 9,500 samples), simulated once per session."""
+def demo_data_once(seed: int):
+    """``arxid.analysis.demo.demo_data(seed)`` (the flight and the facts of its simulation), simulated
+    once per session (about 1.4 s of CPU each): read it, do not change it."""
     from arxid.analysis.demo import demo_data
 
-    return demo_data(seed=seed)[0]
+    return demo_data(seed=seed)
+
+
+def _demo_flight(seed: int):
+    """The demo simulator's flight ``seed`` (20 s, 9,500 samples), simulated once per session."""
+    return demo_data_once(seed)[0]
 
 
 @pytest.fixture(scope="session")
@@ -131,3 +137,19 @@ def demo_flight():
     (each takes seconds to simulate). Validate on another seed: a separate flight of the same
     aircraft, with its own battery level, drift and noise."""
     return _demo_flight
+
+
+@functools.cache
+def _demo_analysis(seed: int):
+    """``arxid.analyse`` of demo flight ``seed`` validated on flight ``seed + 1000``, ``expect="stable"``."""
+    import arxid
+
+    return arxid.analyse(_demo_flight(seed), _demo_flight(seed + 1000), expect="stable")
+
+
+@pytest.fixture(scope="session")
+def demo_analysis():
+    """``demo_analysis(seed)``: the analysis of a demo flight validated on a separate flight (seed
+    + 1000, ``expect="stable"``), made once per session for every test that asks for the same seed.
+    Read it, do not change it."""
+    return _demo_analysis

@@ -323,19 +323,18 @@ def test_demo_short_flight(capsys, tmp_path):
     assert "error ladder" in err.lower()  # the story goes to stderr with --json
 
 
-def test_default_demo_tells_the_battery_story(capsys, tmp_path):
+def test_default_demo_tells_the_battery_story(capsys, tmp_path, demo_flight):
     """``make demo`` runs exactly this: the default 20 s flight, before/after numbers, the grid edge."""
     import re
 
     import arxid
-    from arxid.analysis.demo import demo_data
 
     path = tmp_path / "arxid-demo-report.html"
     code, out, err = run(capsys, "demo", "-o", path, "--no-progress")
     assert code == 0, err
     assert "Missing effect: collective*vbat" in out and "battery" in out
     # The demo says what the API says about the grid edge (its choice sits on the default grid's nk edge).
-    edge = arxid.analyse(demo_data()[0], max_steps=2).choice.grid_edge
+    edge = arxid.analyse(demo_flight(0), max_steps=2).choice.grid_edge
     assert edge and edge in out
     m = re.search(r"before ([0-9.e+-]+) m/s\^2 -> after ([0-9.e+-]+) m/s\^2", out)
     assert m, out

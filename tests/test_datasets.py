@@ -47,6 +47,7 @@ def test_flight_shape_names_and_hover(flight):
     assert 0.0 < flight.u.min() and flight.u.max() < 1.0
 
 
+@pytest.mark.timed  # a duration bound: run alone (make test runs these after the parallel run)
 def test_flight_runs_fast():
     t0 = time.perf_counter()
     quadrotor_flight(seed=0, duration=20.0, ts=0.002)

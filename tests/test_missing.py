@@ -19,6 +19,7 @@ from arxid.analysis.pipeline import analyse
 from arxid.checks import error_rms
 from arxid.diagnosis.ladder import Ladder
 from arxid.diagnosis.suspects import INTEGRATING_HORIZON, Diagnosis, auto_candidates, diagnose
+from conftest import demo_data_once
 
 
 def _held(rng, n, lo, hi, hold):
@@ -474,9 +475,7 @@ def test_daisy_heating_two_step_ladder(shared_data):
 
 def test_simulated_quadrotor_flight_battery_sag():
     """The project's own flight simulator with battery sag: the battery times the thrust command."""
-    from arxid.analysis.demo import demo_data
-
-    data, facts = demo_data(seed=0)
+    data, facts = demo_data_once(0)
     assert facts["vbat_end"] < facts["vbat_start"] - 0.2  # the battery does sag
     est, val = data.split(0.6)
     d = diagnose(arxid.arx(est, 2, 1, 1), est, val)

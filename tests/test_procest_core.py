@@ -230,6 +230,7 @@ _LONG_REFINEMENT = textwrap.dedent(
 )
 
 
+@pytest.mark.timed  # a latency bound: run alone (make test runs these after the parallel run)
 def test_ctrl_c_stops_the_core_refinement_promptly():
     """A refinement on 3 million samples (each simulation tens of milliseconds) interrupted after
     1 s: KeyboardInterrupt within 0.5 s (the core looks at the flag before every simulation)."""

@@ -122,6 +122,7 @@ def _interrupt(cmd: list[str], wait_for: str, delay: float = 1.0) -> tuple[str, 
             proc.wait()
 
 
+@pytest.mark.timed  # a latency bound: run alone (make test runs these after the parallel run)
 def test_ctrl_c_interrupts_a_long_sweep_promptly():
     out, code, latency = _interrupt([sys.executable, "-c", _LONG_SWEEP], "start", delay=1.5)
     assert out.strip() == "interrupted", out
@@ -159,6 +160,7 @@ _LONG_OE_FIT = textwrap.dedent(
 )
 
 
+@pytest.mark.timed  # a latency bound: run alone (make test runs these after the parallel run)
 def test_ctrl_c_interrupts_a_long_output_error_fit_promptly():
     proc = subprocess.run(
         [sys.executable, "-W", "ignore", "-c", _LONG_OE_FIT],
@@ -222,6 +224,7 @@ _LONG_PREDICTIONS = textwrap.dedent(
 )
 
 
+@pytest.mark.timed  # a latency bound: run alone (make test runs these after the parallel run)
 @pytest.mark.parametrize("which", ["arx k-step", "arx simulate", "oe k-step"])
 def test_ctrl_c_interrupts_a_long_prediction_or_simulation_promptly(which):
     proc = subprocess.run(
@@ -238,6 +241,7 @@ def test_ctrl_c_interrupts_a_long_prediction_or_simulation_promptly(which):
     assert float(latency[0]) < 0.5, latency
 
 
+@pytest.mark.timed  # a latency bound: run alone (make test runs these after the parallel run)
 def test_ctrl_c_stops_the_cli_with_exit_130(tmp_path):
     rng = np.random.default_rng(0)
     u = rng.standard_normal(60_000)

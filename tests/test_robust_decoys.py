@@ -159,10 +159,8 @@ def test_a_genuine_logged_input_still_beats_an_offset_and_a_trend():
 # the demo: vbat is still named first, and the residual table sees it
 # ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def demo_flights():
-    from arxid.analysis.demo import demo_data
-
-    return {s: arxid.analyse(demo_data(seed=s)[0], demo_data(seed=s + 1000)[0], expect="stable") for s in (0, 1, 5)}
+def demo_flights(demo_analysis):
+    return {s: demo_analysis(s) for s in (0, 1, 5)}
 
 
 @pytest.mark.parametrize("seed", [0, 1, 5])

@@ -161,15 +161,12 @@ def test_a_choice_inside_the_default_grid_grows_nothing_and_a_noisy_edge_keeps_i
     assert inside >= 1 and edge >= 1  # both kinds occur on these seeds (3 inside, 1 on an edge)
 
 
-def test_growth_that_would_fit_a_drift_is_not_kept_and_the_battery_stays_the_story():
+def test_growth_that_would_fit_a_drift_is_not_kept_and_the_battery_stays_the_story(demo_flight):
     """The demo flight: battery sag scales the thrust gain, unmodelled. On the default grid the
     choice ARX(4,2,5) sits on the nk edge; the larger grid's best has a pole at z = 1 (a slow mode
     fitted to the sag, not the plant's dynamics, which would make the diagnosis judge it by k-step
     prediction), so it is not kept, and the battery voltage is the missing effect with a large fall."""
-    from arxid.analysis.demo import demo_data
-
-    data, _ = demo_data(seed=0)
-    a = arxid.analyse(data, max_steps=1)
+    a = arxid.analyse(demo_flight(0), max_steps=1)
     g = a.grid_growth
     assert g.stop == "integrates" and g.kept == 0 and len(g.rounds) == 2
     assert a.model.structure_name() == g.rounds[0].structure and "pole at z = 1" in a.choice.grid_edge

@@ -24,7 +24,6 @@ from scipy import signal
 
 import arxid
 from arxid.analysis.cli import main
-from arxid.analysis.demo import demo_data
 from arxid.analysis.verdicts import ladder_headline
 from arxid.checks import compare, error_rms
 from arxid.checks.initial_state import estimated_free_run
@@ -36,13 +35,13 @@ NOISE = 0.05  # output noise of the mid-transient plant
 
 # --------------------------------------------------------------------------------- the demo flights
 @pytest.fixture(scope="module")
-def flights():
-    return {s: (demo_data(seed=s)[0], demo_data(seed=s + 1000)[0]) for s in DEMO_SEEDS}
+def flights(demo_flight):
+    return {s: (demo_flight(s), demo_flight(s + 1000)) for s in DEMO_SEEDS}
 
 
 @pytest.fixture(scope="module")
-def demo_runs(flights):
-    return {s: arxid.analyse(est, val, expect="stable") for s, (est, val) in flights.items()}
+def demo_runs(demo_analysis):
+    return {s: demo_analysis(s) for s in DEMO_SEEDS}
 
 
 def _battery_first(s, a):

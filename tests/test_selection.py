@@ -170,13 +170,10 @@ def test_unit_root_t_matches_a_direct_dickey_fuller_regression():
 
 # ------------------------------------------------------------------------ 2. sane includes stability
 @pytest.fixture(scope="module")
-def demo_flight():
-    """The demo's own flight (``make demo``): vertical acceleration against the collective thrust,
-    battery sag unmodelled, the CLI's split (70% estimation)."""
-    from arxid.analysis.demo import demo_data
-
-    data, _ = demo_data(seed=0)
-    return data
+def demo_flight(demo_flight):
+    """The demo's own flight (``make demo``, seed 0; the session's copy): vertical acceleration
+    against the collective thrust, battery sag unmodelled, the CLI's split (70% estimation)."""
+    return demo_flight(0)
 
 
 def test_sane_never_returns_an_unstable_model_of_a_plant_that_is_not_integrating(demo_flight):
