@@ -17,7 +17,7 @@ Examples
 ...     y[t] = 0.8 * y[t - 1] + 0.5 * u[t - 1] ** 2 + 0.01 * rng.standard_normal()
 >>> a = arxid.analyse(arxid.IOData(y, u, ts=0.01), grid={"na": [1, 2], "nb": [1], "nk": [0, 1]}, max_steps=1)
 >>> a.model.structure_name(), a.ladder.steps[-1].added
-('ARX(2,1,1)', 'u1^2')
+('ARX(2,1,1)', 'through(u1^2.005)')
 """
 
 from __future__ import annotations

@@ -157,7 +157,7 @@ class Ladder:
     >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
     >>> ladder = arxid.Ladder.run(arxid.arx(est, 1, 1, 1), est, val)
     >>> [s.added for s in ladder.steps][:2]
-    ['', 'u1^2']
+    ['', 'through(u1^2.005)']
     """
 
     def __init__(self, validation: IOData | None = None, horizon: int | None = None, initial: str = "zero"):

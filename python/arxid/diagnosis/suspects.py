@@ -144,7 +144,7 @@ def diagnose(
     >>> est, val = arxid.IOData(y, u, ts=0.01).split(0.6)
     >>> d = arxid.diagnose(arxid.arx(est, 1, 1, 1), est, val)
     >>> d.top.effect
-    'u1^2'
+    'through(u1^2.005)'
     """
     model = check_model(model)
     polynomial = isinstance(model, PolynomialModel)
