@@ -219,3 +219,13 @@ def test_thrust_stand_names_the_square_law(shared_data):
     power = re.fullmatch(r"through\(rpm\^([0-9.]+)\)(\+const)?", top)
     assert top in ("rpm^2", "rpm^2+const") or (power and abs(float(power[1]) - 2) <= 0.2), str(d)
     assert d.top.improvement >= 0.9
+
+
+def test_no_sensor_shape_is_judged_against_a_perfect_baseline():
+    """A validation record the model already matches exactly (a flight log's idle stretch gave
+    validation error 0) has no error to fall: no sensor suspect, no division by zero."""
+    from arxid.diagnosis.sensor_shapes import sensor_suspects
+
+    f, span, _, _ = WIENER["quadratic sensor"]
+    est, val = records(f, span, 0, False, wiener=True)
+    assert sensor_suspects(arxid.arx(est, 2, 2, 1), est, val, None, "zero", 0.0) == []

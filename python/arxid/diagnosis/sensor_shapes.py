@@ -102,7 +102,7 @@ def sensor_suspects(
         Of kind ``"sensor"`` (significance still to be weighed against the other suspects by
         :func:`rank_sensors`).
     """
-    if isinstance(model, IvModel) or model.effects or not math.isfinite(base_rms):
+    if isinstance(model, IvModel) or model.effects or not (math.isfinite(base_rms) and base_rms > 0):
         return []
     data = data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES]
     grid = _sensor_grid(np.asarray(data.y, dtype=float))
