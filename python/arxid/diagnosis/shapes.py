@@ -39,8 +39,8 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from scipy import special
 
+from .._base.probabilities import f_sf
 from ..checks import prediction
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -285,7 +285,7 @@ def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:
     if dof <= 0 or not rss1 > 0 or not math.isfinite(rss0):
         return math.nan, 1.0
     f = max(0.0, (rss0 - rss1) / q) / (rss1 / dof)
-    return f, float(special.fdtrc(q, dof, f))
+    return f, f_sf(f, q, dof)
 
 
 def validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
@@ -293,7 +293,7 @@ def validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
     stat = diebold_mariano(base_err, shape_err).statistic
     if not math.isfinite(stat):
         return 0.0 if stat > 0 else 1.0
-    return float(special.ndtr(-stat))
+    return 0.5 * math.erfc(stat / math.sqrt(2.0))  # the normal tail beyond stat
 
 
 def prefer_shapes(suspects: list[Suspect], data: IOData, min_improvement: float) -> list[Suspect]:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._base import metrics
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -169,19 +170,24 @@ def _steady_state(fit: ArxModel, first: int, n_knots: int) -> tuple[np.ndarray, 
     return steady, band
 
 
+def _weights(y: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """1 / band, kept finite where a knot's band is zero."""
+    return 1.0 / np.maximum(band, 1e-12 * max(float(np.max(np.abs(y))), 1.0))
+
+
 def _weighted_line(f: np.ndarray, y: np.ndarray, band: np.ndarray) -> np.ndarray:
-    w = 1.0 / np.maximum(band, 1e-12 * max(float(np.max(np.abs(y))), 1.0))
+    w = _weights(y, band)
     design = np.column_stack([np.ones_like(f), f]) * w[:, None]
     return np.linalg.lstsq(design, y * w, rcond=None)[0]
 
 
 def _fit_percent(f: np.ndarray, y: np.ndarray, band: np.ndarray) -> float:
-    w = 1.0 / np.maximum(band, 1e-12 * max(float(np.max(np.abs(y))), 1.0))
+    """The weighted fit of a + b·f to the map, as :func:`arxid._base.metrics.fit_percent_from_norms` defines it."""
+    w = _weights(y, band)
     coef = _weighted_line(f, y, band)
-    r = (y - coef[0] - coef[1] * f) * w
-    centred = (y - np.average(y, weights=w**2)) * w
-    norm = float(np.linalg.norm(centred))
-    return 100.0 * (1.0 - float(np.linalg.norm(r)) / norm) if norm > 0 else float("nan")
+    error = float(np.linalg.norm((y - coef[0] - coef[1] * f) * w))
+    centred = float(np.linalg.norm((y - np.average(y, weights=w**2)) * w))
+    return float(metrics.fit_percent_from_norms(error, centred))
 
 
 def _matches(name: str, knots: np.ndarray, steady: np.ndarray, band: np.ndarray) -> tuple:
