@@ -153,3 +153,18 @@ def demo_analysis():
     + 1000, ``expect="stable"``), made once per session for every test that asks for the same seed.
     Read it, do not change it."""
     return _demo_analysis
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    """``run_demo`` on a 10 s flight, run once per session: ``(report path, printed story, DemoResult)``.
+    The demo's text and its report are read by several tests (each run takes seconds). Read them,
+    do not change them."""
+    import io
+
+    from arxid.analysis.demo import run_demo
+
+    path = tmp_path_factory.mktemp("demo") / "demo.html"
+    out = io.StringIO()
+    res = run_demo(path, duration=10.0, stream=out)
+    return path, out.getvalue(), res

@@ -184,14 +184,9 @@ def test_report_screenshot_is_not_blank(browser, report_file, tmp_path):
     _assert_not_blank(browser, report_file, tmp_path)
 
 
-def test_demo_report_in_the_browser(browser, tmp_path):
+def test_demo_report_in_the_browser(browser, demo_run, tmp_path):
     """The report ``make demo`` writes (on a shorter flight): loads offline, every plot drawn."""
-    import io
-
-    from arxid.analysis.demo import run_demo
-
-    path = tmp_path / "demo.html"
-    run_demo(path, duration=10.0, stream=io.StringIO())
+    path = demo_run[0]
     probe = _probe(browser, path, tmp_path)
     _assert_frequency_section(probe)
     ladder = probe["sections"]["ladder"]["text"]

@@ -138,17 +138,11 @@ def test_residual_plot_marks_exactly_the_lags_the_analysis_calls_outside(analysi
         assert list(xs) == list(rt.cross_outside(name))
 
 
-def test_demo_tells_the_battery_story(tmp_path):
+def test_demo_tells_the_battery_story(demo_run):
     """The demo on a short flight: the battery voltage is the missing effect and the error falls."""
-    import io
-
-    from arxid.analysis.demo import run_demo
-
-    out = io.StringIO()
-    res = run_demo(tmp_path / "demo.html", duration=10.0, stream=out)
-    text = out.getvalue()
+    path, text, res = demo_run
     assert res.missing_effect is not None and "vbat" in res.missing_effect, text
     assert res.error_fall is not None and res.error_fall > 0.5, text
     assert "Error ladder" in text and "before" in text
-    assert (tmp_path / "demo.html").stat().st_size > 100_000
+    assert path.stat().st_size > 100_000
     json.dumps(json_safe(res.to_dict()), allow_nan=False)
