@@ -130,6 +130,7 @@ class TableReaders:
         >>> t = np.arange(500) * 0.01 + np.random.default_rng(1).uniform(-1e-3, 1e-3, 500)
         >>> path = os.path.join(tempfile.mkdtemp(), "log.csv")
         >>> np.savetxt(path, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,y,u", comments="")
+        >>> from arxid import IOData
         >>> d = IOData.from_csv(path, output="y", inputs=["u"], time="t", resample=True)
         >>> round(d.ts, 3), d.n_samples > 490
         (0.01, True)
