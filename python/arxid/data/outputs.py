@@ -28,7 +28,16 @@ _S = TypeVar("_S", bound="SeveralOutputs")
 
 def output_list(output: Any) -> list[str]:
     """Output names as a list: a string is one name, ``"p,q,r"`` is not split (column names may hold
-    commas); a sequence is taken as it is."""
+    commas); a sequence is taken as it is.
+
+    Parameters
+    ----------
+    output : str or sequence of str
+
+    Returns
+    -------
+    list of str
+    """
     if isinstance(output, str):
         return [output]
     if isinstance(output, Sequence) and output and all(isinstance(o, str) for o in output):
@@ -62,7 +71,13 @@ def _is_several(obj: Any) -> bool:
 
 class OutputField(Generic[_T]):
     """A dataclass field of one output (``y``, ``output_name``, ``output_unit``), read as stored when
-    the data have one output and refused with :func:`several_outputs_error` when they have several."""
+    the data have one output and refused with :func:`several_outputs_error` when they have several.
+
+    Parameters
+    ----------
+    default : optional
+        The field's default; none when omitted.
+    """
 
     def __init__(self, default: Any = _NO_DEFAULT) -> None:
         self.default = default

@@ -5,110 +5,27 @@ verdicts as the API), with elements built by :func:`el` so every text is escaped
 from __future__ import annotations
 
 import html
-import json
 import string
 import time
-from collections.abc import Sequence
 from importlib import resources
 from typing import Any
 
 import numpy as np
 
-from ..._base.formatting import format_value, horizon_text, json_safe
+from ..._base.formatting import horizon_text
 from ...data.iodata import IOData
 from ...exceptions import ArxidError
 from ...models.polynomial import PolynomialModel
 from ..pipeline import Analysis
 from ..verdicts import ladder_headline, negative_fit_note, percent, residual_sentences
+from .blocks import Raw, el, script_json
+from .blocks import figure as _img
+from .blocks import join as _join
+from .blocks import number as _num
+from .blocks import paragraph as _p
+from .blocks import table as _table
 
-__all__ = ["render_html", "el", "script_json"]
-
-
-class Raw(str):
-    """Markup that is already safe (built by :func:`el`), inserted as it is."""
-
-
-def el(tag: str, *children: Any, cls: str = "", **attrs: str) -> Raw:
-    """One element: text children are escaped, :class:`Raw` children are inserted as they are.
-
-    Parameters
-    ----------
-    tag : str
-        Element name.
-    *children : str or Raw
-        Content, in order.
-    cls : str
-        The class attribute.
-    **attrs : str
-        Other attributes.
-
-    Returns
-    -------
-    Raw
-    """
-    if cls:
-        attrs["class"] = cls
-    at = "".join(f' {k}="{html.escape(str(v), quote=True)}"' for k, v in attrs.items())
-    inner = "".join(c if isinstance(c, Raw) else html.escape(str(c)) for c in children)
-    return Raw(f"<{tag}{at}>{inner}</{tag}>")
-
-
-def _join(parts: Sequence[str]) -> Raw:
-    return Raw("\n".join(p if isinstance(p, Raw) else html.escape(p) for p in parts))
-
-
-def script_json(obj: Any) -> str:
-    """JSON for a ``<script type="application/json">`` element: its text is raw (no entities), so
-    ``<``, ``>`` and ``&`` become ``\\u`` escapes and no ``</script>`` can end it early.
-
-    Parameters
-    ----------
-    obj : Any
-        JSON-able after :func:`arxid._format.json_safe`.
-
-    Returns
-    -------
-    str
-    """
-    text = json.dumps(json_safe(obj), allow_nan=False)
-    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
-
-
-def _num(v: Any, digits: int = 4) -> str:
-    return format_value(v, digits)
-
-
-def _table(
-    headers: Sequence[str],
-    rows: Sequence[Sequence[Any]],
-    classes: Sequence[str] = (),
-    left: int = 1,
-    wrap: Sequence[int] = (),
-) -> Raw:
-    """A table; the first ``left`` columns are left-aligned, the columns in ``wrap`` wrap their text."""
-
-    def cls(i: int) -> str:
-        return "l wrap" if i in wrap else ("l" if i < left else "")
-
-    head = el("tr", *[el("th", h, cls=cls(i)) for i, h in enumerate(headers)])
-    body = []
-    for k, r in enumerate(rows):
-        cells = [el("td", c if isinstance(c, Raw) else str(c), cls=cls(i)) for i, c in enumerate(r)]
-        body.append(el("tr", *cells, cls=classes[k] if k < len(classes) else ""))
-    return el("table", el("thead", head), el("tbody", *body))
-
-
-def _img(fig: Any, alt: str, caption: str = "") -> Raw:
-    from ...plots import figure_to_data_uri
-
-    parts = [Raw(f'<img src="{figure_to_data_uri(fig)}" alt="{html.escape(alt, quote=True)}">')]
-    if caption:
-        parts.append(el("figcaption", caption))
-    return el("figure", *parts)
-
-
-def _p(*children: Any, cls: str = "") -> Raw:
-    return el("p", *children, cls=cls)
+__all__ = ["render_html", "el", "script_json", "Raw"]
 
 
 # ----------------------------------------------------------------------------------------- sections
