@@ -52,6 +52,10 @@ def plot_singular_values(model: Any) -> Any:
     best = int(np.nanargmin(criterion)) if np.isfinite(criterion).any() else None
     if model.order_fixed and best is not None and best != n:
         right.plot(best, criterion[best], "o", mfc="none", color="red", markersize=12, label=f"minimum: {best}")
+    from matplotlib.ticker import MaxNLocator
+
+    right.xaxis.set_major_locator(MaxNLocator(integer=True))
+    left.xaxis.set_major_locator(MaxNLocator(integer=True))
     right.set_xlabel("order (states)")
     right.set_ylabel("SVC(n)")
     right.set_title("singular value criterion")

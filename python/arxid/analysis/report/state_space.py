@@ -111,6 +111,7 @@ def _coupling_section(a: StateSpaceAnalysis) -> Raw:
             table(head, gains(cp.steady_state)),
             el("h3", "Peak gains and where they are reached"),
             table(head, gains(cp.peak)),
+            paragraph("Frequency of each peak:", cls="small"),
             table(
                 head, [[out, *[f"{f:.3g} Hz" for f in cp.peak_frequency[i]]] for i, out in enumerate(cp.output_names)]
             ),
@@ -125,14 +126,15 @@ def _residual_section(a: StateSpaceAnalysis) -> Raw:
     rows = []
     for name, rt in a.residual_tests.items():
         verdicts = [rt.verdict(s) if s in rt.cross_correlation else "" for s in inputs]
-        rows.append([name, f"{rt.ljung_box_p_value:.3g}", rt.whiteness_text, *verdicts])
+        white = "yes" if rt.is_white else ("no (expected: no noise model)" if not rt.whiteness_expected else "no")
+        rows.append([name, f"{rt.ljung_box_p_value:.3g}", white, *verdicts])
     parts = [
         paragraph(
             "The one-step residual of each output (the innovation form's prediction error) should be white and "
             "independent of every input: a residual that follows an input means the model misses part of that "
             "input's path to this output."
         ),
-        table(["output", "Ljung–Box p", "whiteness", *[f"independent of {s}" for s in inputs]], rows),
+        table(["output", "Ljung–Box p", "white", *[f"independent of {s}" for s in inputs]], rows),
     ]
     for name, rt in a.residual_tests.items():
         parts.append(
