@@ -118,3 +118,18 @@ def test_cli_ssest_prints_each_outputs_fit_and_writes_the_report(rates_csv, tmp_
 def test_cli_single_output_commands_refuse_several_outputs(rates_csv, capsys):
     assert main(["fit", str(rates_csv), "--output", "p,q", "--inputs", "m1", "--ts", "0.01", "--orders", "1,1,1"]) == 2
     assert "'arxid ssest'" in capsys.readouterr().err
+
+
+def test_the_quadrotors_rate_model_shows_the_plus_frames_coupling():
+    """docs/state-space.md: four motor commands to p, q, r of a simulated flight (seed 1, 20 s)."""
+    from arxid.datasets import body_rates, quadrotor_flight
+
+    rates = body_rates(quadrotor_flight(seed=1, duration=20.0, output="p")).detrend()
+    a = analyse_state_space(rates, horizon=10, stable=True)
+    fits = a.fit_percent
+    assert fits["p"] > 95 and fits["q"] > 92 and fits["r"] > 55, fits
+    share = a.coupling.share
+    # roll on the side motors 2 and 4, pitch on front and back 1 and 3, yaw on all four
+    assert min(share[0, 1], share[0, 3]) > 10 * max(share[0, 0], share[0, 2]), share
+    assert min(share[1, 0], share[1, 2]) > 5 * max(share[1, 1], share[1, 3]), share
+    assert share[2].min() > 1.0, share
