@@ -82,7 +82,12 @@ class StateSpaceAnalysis:
 
     def output_rows(self) -> list[list[Any]]:
         """One row per output: name, validation fit, RMS, whiteness, dependence on inputs, and the
-        input that drives it most."""
+        input that drives it most.
+
+        Returns
+        -------
+        list of list
+        """
         rows = []
         for name, c in self.comparisons.items():
             rt = self.residual_tests.get(name)
@@ -100,7 +105,12 @@ class StateSpaceAnalysis:
         return rows
 
     def summary_lines(self) -> list[str]:
-        """The analysis as text: the model, each output's checks, the coupling and the notes."""
+        """The analysis as text: the model, each output's checks, the coupling and the notes.
+
+        Returns
+        -------
+        list of str
+        """
         head = ["output", "fit %", "RMS", "residual white", "residual follows", "driven most by"]
         lines = [
             str(self.model),
