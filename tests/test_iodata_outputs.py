@@ -136,3 +136,19 @@ def test_ssest_takes_data_of_several_outputs_as_a_list_of_one_per_output():
     assert one.output_names == ("y1", "y2", "y3")
     np.testing.assert_allclose(np.sort_complex(one.poles), np.sort_complex(per_output.poles), atol=1e-12)
     np.testing.assert_allclose(one.fit_percent(together), per_output.fit_percent(as_data(y, u)), atol=1e-9)
+
+
+@pytest.mark.realdata
+def test_a_betaflight_log_read_with_three_gyro_outputs(shared_data):
+    """The three gyro axes of a real log against four motor commands: each output is the one a
+    single-output read gives, and a state-space model predicts them one step ahead."""
+    path = shared_data / "betaflight-blackbox" / "LOG00037.BFL"
+    gyro, motors = [f"gyroADC[{i}]" for i in range(3)], [f"motor[{i}]" for i in range(4)]
+    rates = arxid.IOData.from_blackbox(path, output=gyro, inputs=motors)
+    assert rates.output_names == ("gyroADC_0", "gyroADC_1", "gyroADC_2")
+    assert rates.output_units == ("deg/s",) * 3
+    pitch = arxid.IOData.from_blackbox(path, output=gyro[1], inputs=motors)
+    np.testing.assert_array_equal(rates.output("gyroADC_1").y, pitch.y)
+    est, val = rates.detrend().split(0.7)
+    fits = arxid.ssest(est).fit_percent(val, k=1)
+    assert np.all(fits > 60), fits
