@@ -152,3 +152,14 @@ def test_a_betaflight_log_read_with_three_gyro_outputs(shared_data):
     est, val = rates.detrend().split(0.7)
     fits = arxid.ssest(est).fit_percent(val, k=1)
     assert np.all(fits > 60), fits
+
+
+def test_a_model_refuses_its_outputs_in_another_order():
+    rng = np.random.default_rng(4)
+    system = random_system(rng, 2, 1, 2)
+    u = binary_inputs(rng, 1500, 1)
+    data = arxid.IOData(system.simulate(u), u, ts=0.01, output_name=["a", "b"])
+    model = arxid.ssest(data, order=2)
+    with pytest.raises(DataError, match=r"another order than the model's \['a', 'b'\]"):
+        model.predict(data.with_outputs(data.outputs[:, ::-1], ["b", "a"]))
+    np.testing.assert_allclose(model.fit_percent(data), 100.0, atol=1e-6)
