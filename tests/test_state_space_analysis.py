@@ -110,7 +110,7 @@ def test_cli_ssest_prints_each_outputs_fit_and_writes_the_report(rates_csv, tmp_
     assert set(out["outputs"]) == set(NAMES)
     assert all(o["fit_percent"] > 95 for o in out["outputs"].values())
     assert out["report"] == str(report) and report.stat().st_size > 10_000
-    assert main([*args, "--order", "3", "--method", "moesp"]) == 0
+    assert main([*args, "--order", "3", "--method", "moesp", "--detrend"]) == 0
     text = capsys.readouterr().out
     assert "MOESP" in text and "3 states (fixed by the caller)" in text and "fit %" in text
 

@@ -14,7 +14,7 @@ from .cli_data import UsageError, data_args, load
 __all__ = ["add_ssest_command", "cmd_ssest", "EXAMPLE"]
 
 EXAMPLE = (
-    "example:\n  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --ts 0.002\n"
+    "example:\n  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --ts 0.002 --detrend --stable --horizon 10\n"
     "  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --ts 0.002 --order 6 -o rates.html --json"
 )
 
@@ -45,6 +45,12 @@ def add_ssest_command(sub: Any, kw: dict[str, Any], common: Any) -> None:
     p.add_argument("--order", type=int, metavar="N", help="number of states (default: the singular value criterion)")
     p.add_argument("--method", choices=_METHODS, default="n4sid", help="subspace weighting (default %(default)s)")
     p.add_argument("--stable", action="store_true", help="reflect unstable poles inside the unit circle")
+    p.add_argument(
+        "--detrend",
+        action="store_true",
+        help="remove each signal's mean from the estimation and the validation data (an offset otherwise needs "
+        "an integrating state)",
+    )
     p.add_argument("--horizon", type=int, metavar="K", help="validation prediction horizon (default: free run)")
     p.add_argument(
         "--initial",
@@ -67,6 +73,8 @@ def cmd_ssest(args: argparse.Namespace) -> int:
         raise UsageError(f"--order must be a number of states >= 1, got {args.order}")
     t0 = time.perf_counter()
     est, val = load(args, several_outputs=True)
+    if args.detrend:
+        est, val = est.detrend(), val.detrend()
     a = analyse_state_space(
         est, val, order=args.order, method=args.method, stable=args.stable, horizon=args.horizon, initial=args.initial
     )
