@@ -133,3 +133,18 @@ def test_the_quadrotors_rate_model_shows_the_plus_frames_coupling():
     assert min(share[0, 1], share[0, 3]) > 10 * max(share[0, 0], share[0, 2]), share
     assert min(share[1, 0], share[1, 2]) > 5 * max(share[1, 1], share[1, 3]), share
     assert share[2].min() > 1.0, share
+
+
+def test_body_rates_from_the_mixers_torques():
+    from arxid.datasets import body_rates, quadrotor_flight
+    from arxid.exceptions import DataError
+
+    flight = quadrotor_flight(seed=2, duration=1.0, output="p")
+    rates = body_rates(flight, inputs="torques")
+    w2 = np.column_stack([flight.signal(f"w{i}") ** 2 for i in range(1, 5)])
+    assert rates.input_names == ("roll_torque", "pitch_torque", "yaw_torque")
+    np.testing.assert_allclose(rates.u[:, 0], w2[:, 3] - w2[:, 1], rtol=1e-12)  # plus frame: left − right
+    np.testing.assert_allclose(rates.u[:, 1], w2[:, 2] - w2[:, 0], rtol=1e-12)  # back − front
+    np.testing.assert_array_equal(rates.outputs, np.column_stack([flight.signal(n) for n in ("p", "q", "r")]))
+    with pytest.raises(DataError, match="inputs must be one of"):
+        body_rates(flight, inputs="speeds")
