@@ -46,6 +46,7 @@ from .exceptions import (
 
 if TYPE_CHECKING:  # the names of _PUBLIC, imported on first use (__getattr__ below)
     from .analysis.pipeline import Analysis, analyse
+    from .analysis.state_space import StateSpaceAnalysis, analyse_state_space
     from .checks import FeedbackTest, FrequencyCheck, compare, feedback, frequency_check, residuals, where_it_fails
     from .data.iodata import IOData
     from .diagnosis.ladder import Ladder
@@ -87,6 +88,7 @@ _PUBLIC = {
     **dict.fromkeys(["diagnose", "Diagnosis"], "arxid.diagnosis.suspects"),
     **dict.fromkeys(["Ladder"], "arxid.diagnosis.ladder"),
     **dict.fromkeys(["analyse", "Analysis"], "arxid.analysis.pipeline"),
+    **dict.fromkeys(["analyse_state_space", "StateSpaceAnalysis"], "arxid.analysis.state_space"),
 }
 
 __all__ = [

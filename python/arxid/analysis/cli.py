@@ -405,6 +405,7 @@ _COMMANDS = {
     "sweep": "fit and validate every (na, nb, nk) of a grid",
     "diagnose": "rank the missing physical effect and climb the error ladder",
     "report": "write a self-contained HTML report",
+    "ssest": "fit a state-space model of several outputs and check each output",
     "demo": "the hidden battery effect of a simulated quadrotor, end to end",
     "bench": "time the grid search on this machine, on your data or a synthetic record",
     "fleet": "diagnose a fleet of logs where they are, on a Dask cluster",
@@ -425,7 +426,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     root.add_argument("--version", action="version", version=f"arxid {__version__}")
     sub = root.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     add = {"fit": _add_fit, "sweep": _add_sweep, "diagnose": _add_diagnose, "report": _add_report}
-    add.update(demo=_add_demo, bench=_add_bench, fleet=_add_fleet)
+    add.update(ssest=_add_ssest, demo=_add_demo, bench=_add_bench, fleet=_add_fleet)
     for name, help_line in _COMMANDS.items():
         kw: dict[str, Any] = {"formatter_class": argparse.RawDescriptionHelpFormatter, "help": help_line}
         if command is None or name == command:
@@ -464,6 +465,12 @@ def _add_sweep(sub: Any, kw: dict[str, Any]) -> None:
     _grow_args(p)
     _common(p)
     p.set_defaults(func=cmd_sweep)
+
+
+def _add_ssest(sub: Any, kw: dict[str, Any]) -> None:
+    from .ssest_cli import add_ssest_command
+
+    add_ssest_command(sub, kw, _common)
 
 
 def _add_bench(sub: Any, kw: dict[str, Any]) -> None:
@@ -569,7 +576,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
             raise UsageError(
-                "arxid: choose a command: fit, sweep, diagnose, report, demo, bench or fleet (see arxid --help)"
+                "arxid: choose a command: fit, sweep, diagnose, report, ssest, demo, bench or fleet (see arxid --help)"
             )
         for name in ("horizon", "max_steps", "top"):
             v = getattr(args, name, None)

@@ -38,7 +38,7 @@ def parse_units(text: str | None) -> dict[str, str]:
 
 def load_data(  # noqa: C901
     path: str,
-    output: str,
+    output: str | Sequence[str],
     inputs: Sequence[str],
     extra: Sequence[str] = (),
     ts: float | None = None,
@@ -53,8 +53,8 @@ def load_data(  # noqa: C901
     ----------
     path : str
         ``.csv`` or ``.npz`` file.
-    output : str
-        Output column (array) name.
+    output : str or sequence of str
+        Output column (array) name, or several (a comma-separated string or a list).
     inputs, extra : sequence of str
         Input and extra signal names.
     ts : float, optional
@@ -85,9 +85,11 @@ def load_data(  # noqa: C901
         raise DataError(f"data file {path!r} is not a regular file (a directory, device or pipe)")
     if not inputs:
         raise UsageError("name the input column(s) with --inputs A[,B,...]")
-    if not output:
+    outputs = names(output) if isinstance(output, str) else list(output or ())
+    if not outputs:
         raise UsageError("name the output column with --output COL")
-    wanted = [output, *inputs, *extra] + ([time_col] if time_col else [])
+    output = outputs[0] if len(outputs) == 1 else outputs
+    wanted = [*outputs, *inputs, *extra] + ([time_col] if time_col else [])
     if is_flight_log(p):  # a PX4 ULog: topic.field selectors, grid from the log (analysis/flight_log.py)
         return flight_log_data(p, output, inputs, extra, ts, units, log)
     if p.suffix.lower() == ".npy":
@@ -119,7 +121,8 @@ def load_data(  # noqa: C901
                 f"{p.name} is not a text CSV file (it holds bytes that are not UTF-8); "
                 "give a CSV file with a header row or a .npz archive"
             ) from None
-    for name, values in [(data.output_name, data.y), *zip(data.input_names, data.u.T), *data.extra.items()]:
+    signals = [*zip(data.output_names, data.outputs.T), *zip(data.input_names, data.u.T), *data.extra.items()]
+    for name, values in signals:
         if not np.isfinite(values).any():
             raise DataError(f"{p.name}: the column {name!r} holds no numbers (every sample is missing)")
     return data
@@ -134,7 +137,9 @@ def data_args(p: argparse.ArgumentParser, validation: bool = True, split_default
         help="CSV file with a header row, .npz archive, or a flight log: PX4 .ulg (topic.field), "
         "Betaflight/INAV .bbl/.bfl/.txt (gyroADC[0]), ArduPilot .bin (RATE.R)",
     )
-    p.add_argument("--output", metavar="COL", help="output column (not with --axis)")
+    p.add_argument(
+        "--output", metavar="COL", help="output column (not with --axis); 'arxid ssest' takes several: p,q,r"
+    )
     p.add_argument("--inputs", metavar="A[,B]", help="input column(s), comma separated (not with --axis)")
     p.add_argument(
         "--axis",
@@ -192,10 +197,15 @@ def axis_preset(args) -> None:
     args.reference = args.reference or reference
 
 
-def load(args, need_validation: bool = True):
+def load(args, need_validation: bool = True, several_outputs: bool = False):
     from .pipeline import DEFAULT_SPLIT
 
     axis_preset(args)
+    if not several_outputs and len(names(args.output)) > 1:
+        raise UsageError(
+            f"--output {args.output} names {len(names(args.output))} outputs; 'arxid {args.command}' models one: "
+            "give one, or fit a state-space model of all of them with 'arxid ssest'"
+        )
     inputs, extra = names(args.inputs), names(args.extra)
     reference = getattr(args, "reference", None)
     if reference and reference_name(reference) not in {reference_name(e) for e in extra}:

@@ -74,7 +74,7 @@ def axis_signals(path: Path, axis: str, log: int = 1) -> tuple[str, list[str], l
 
 def flight_log_data(
     path: Path,
-    output: str,
+    output: str | Sequence[str],
     inputs: Sequence[str],
     extra: Sequence[str],
     ts: float | None,
@@ -86,7 +86,8 @@ def flight_log_data(
     Parameters
     ----------
     path : Path
-    output : str
+    output : str or sequence of str
+        One output selector, or several.
     inputs, extra : sequence of str
     ts : float or None
         Grid step (None: the log's own rate).
@@ -109,17 +110,12 @@ def flight_log_data(
         data = IOData.from_ulog(path, **kw)
     if not units:
         return data
-    unit = {**{data.output_name: data.output_unit}, **dict(zip(data.input_names, data.input_units, strict=True))}
+    unit = dict(zip(data.output_names, data.output_units, strict=True))
+    unit.update(zip(data.input_names, data.input_units, strict=True))
     unit.update(data.extra_units)
     unit.update(units)
-    return IOData(
-        data.y,
-        data.u,
-        data.ts,
-        output_name=data.output_name,
-        input_names=data.input_names,
-        output_unit=unit[data.output_name],
+    return data.with_samples(
+        output_unit=[unit[n] for n in data.output_names],
         input_units=tuple(unit[n] for n in data.input_names),
-        extra=data.extra,
         extra_units={n: unit.get(n, "") for n in data.extra},
     )

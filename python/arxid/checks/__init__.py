@@ -10,6 +10,8 @@
 * :mod:`~arxid.checks.frequency` -- the frequency check (:func:`frequency_check`)
 * :mod:`~arxid.checks.bands` -- confidence bands of the step, free-run and frequency responses
 * :mod:`~arxid.checks.feedback` -- is there feedback from the output to the input (:func:`feedback`)
+* :mod:`~arxid.checks.state_space` -- a state-space model in these checks: its prediction of each
+  output, and the results of a model of several outputs by output name (:class:`PerOutput`)
 """
 
 from .comparison import Comparison, compare, error_rms, prediction, prediction_error
@@ -17,6 +19,7 @@ from .failures import FailureAnalysis, SignalBins, WorstSegment, where_it_fails
 from .feedback import FeedbackTest, feedback
 from .frequency import FrequencyCheck, frequency_check
 from .residual_analysis import ResidualAnalysis, residuals
+from .state_space import PerOutput
 
 __all__ = [
     "compare",
@@ -34,4 +37,5 @@ __all__ = [
     "FrequencyCheck",
     "feedback",
     "FeedbackTest",
+    "PerOutput",
 ]

@@ -20,11 +20,13 @@ import numpy as np
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from ..data.iodata import IOData
-from ..exceptions import ArxidError
+from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model, check_same_signals
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
+from ..models.state_space import StateSpaceModel
 from .initial_state import estimated_free_run
+from .state_space import PerOutput, in_model_order, state_space_label, state_space_prediction
 
 __all__ = ["compare", "Comparison", "prediction", "prediction_error", "error_rms"]
 
@@ -219,8 +221,8 @@ class Comparison:
         return plot_comparison(self, ax=ax)
 
 
-def _model_list(models) -> tuple[list[str], list[ArxModel]]:
-    if isinstance(models, (ArxModel, PolynomialModel)):
+def _model_list(models) -> tuple[list[str], list[Any]]:
+    if isinstance(models, (ArxModel, PolynomialModel, StateSpaceModel)):
         models = [models]
     if isinstance(models, Mapping):
         names, ms = [str(k) for k in models], list(models.values())
@@ -233,8 +235,7 @@ def _model_list(models) -> tuple[list[str], list[ArxModel]]:
             ) from None
         names = []
         for m in ms:
-            check_model(m)
-            base = m.structure_name()
+            base = state_space_label(m) if isinstance(m, StateSpaceModel) else check_model(m).structure_name()
             name, i = base, 2
             while name in names:
                 name, i = f"{base} #{i}", i + 1
@@ -242,19 +243,21 @@ def _model_list(models) -> tuple[list[str], list[ArxModel]]:
     if not ms:
         raise ArxidError("compare needs at least one model")
     for m in ms:
-        check_model(m)
+        if not isinstance(m, StateSpaceModel):
+            check_model(m)
     return names, ms
 
 
-def compare(models, data: IOData, horizon: int | None = None, initial: str = "zero") -> Comparison:
+def compare(models, data: IOData, horizon: int | None = None, initial: str = "zero") -> Any:
     """Compare models with measured data.
 
     Parameters
     ----------
-    models : ArxModel, sequence of ArxModel or mapping of str to ArxModel
-        The models (a mapping gives them names).
+    models : model, sequence of models or mapping of str to model
+        ARX, polynomial (OE, ARMAX, BJ) or state-space models (a mapping gives them names).
     data : IOData
-        Measured data, preferably not the estimation data.
+        Measured data, preferably not the estimation data; of several outputs for a state-space
+        model of several outputs.
     horizon : int or None
         None (default): free-run simulation, as MATLAB ``compare``; 1: one-step prediction;
         k: k-step-ahead prediction (for plants with an integrator, whose free run drifts).
@@ -267,8 +270,10 @@ def compare(models, data: IOData, horizon: int | None = None, initial: str = "ze
 
     Returns
     -------
-    Comparison
+    Comparison or PerOutput of Comparison
         ``fit_percent`` and ``rms`` per model; ``.plot()`` draws measured against predicted output.
+        For data of several outputs, one Comparison per output by name (``result["q"]``), each
+        with the models that predict that output.
 
     Examples
     --------
@@ -285,26 +290,41 @@ def compare(models, data: IOData, horizon: int | None = None, initial: str = "ze
     data = check_data(data)
     horizon = check_horizon(horizon)
     names, ms = _model_list(models)
-    for m in ms:
-        inputs = m.input_names if data.input_names == m.input_names else m.measured_input_names
-        check_same_signals(m.ts, m.output_name, inputs, data, "the data to compare with")
-    fits, rmss, preds, divs = [], [], [], []
-    for m in ms:
-        pred, diverged = prediction(m, data, horizon, initial)
-        fits.append(metrics.fit_percent(data.y, pred))
-        rmss.append(metrics.prediction_rms(data.y, pred))
-        preds.append(pred)
-        divs.append(diverged)
-    t = np.arange(data.n_samples) * data.ts
+    check_initial(initial)
+    predicted: dict[str, list[tuple[str, np.ndarray]]] = {name: [] for name in data.output_names}
+    for name, m in zip(names, ms, strict=True):
+        for output, pred in _output_predictions(m, data, horizon, initial).items():
+            predicted[output].append((name, pred))
+    results = {output: _comparison(entries, data, output, horizon) for output, entries in predicted.items() if entries}
+    return results[data.output_names[0]] if data.n_outputs == 1 else PerOutput(results)
+
+
+def _output_predictions(model: Any, data: IOData, horizon: int | None, initial: str) -> dict[str, np.ndarray]:
+    """The model's prediction of each output it describes, by output name."""
+    what = "the data to compare with"
+    if isinstance(model, StateSpaceModel):
+        pred = state_space_prediction(model, in_model_order(model, data, what), horizon, initial)
+        return {name: pred[:, i] for i, name in enumerate(model.output_names)}
+    if model.output_name not in data.output_names:
+        raise DataError(f"{what} have outputs {list(data.output_names)}, but the model predicts {model.output_name!r}")
+    one = data.output(model.output_name) if data.n_outputs > 1 else data
+    inputs = model.input_names if one.input_names == model.input_names else model.measured_input_names
+    check_same_signals(model.ts, model.output_name, inputs, one, what)
+    return {model.output_name: prediction(model, one, horizon, initial)[0]}
+
+
+def _comparison(entries: list[tuple[str, np.ndarray]], data: IOData, output: str, horizon: int | None) -> Comparison:
+    """The Comparison of one output with the models' predictions of it."""
+    y = data.signal(output)
     return Comparison(
-        tuple(names),
-        tuple(fits),
-        tuple(rmss),
+        tuple(name for name, _ in entries),
+        tuple(metrics.fit_percent(y, pred) for _, pred in entries),
+        tuple(metrics.prediction_rms(y, pred) for _, pred in entries),
         horizon,
-        t,
-        data.y.copy(),
-        tuple(preds),
-        tuple(divs),
-        data.output_name,
-        data.output_unit,
+        np.arange(data.n_samples) * data.ts,
+        y.copy(),
+        tuple(pred for _, pred in entries),
+        tuple(metrics.diverged(y, pred) for _, pred in entries),
+        output,
+        data.unit(output),
     )

@@ -22,8 +22,10 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel
+from ..models.state_space import StateSpaceModel
 from .binning import SignalBins, SquaredRanks, bin_signal
 from .comparison import prediction_error
+from .state_space import PerOutput, in_model_order, state_space_label, state_space_prediction
 
 __all__ = ["where_it_fails", "FailureAnalysis", "WorstSegment", "SignalBins"]
 
@@ -269,7 +271,7 @@ def _segment_p_value(res: np.ndarray, lo: int, hi: int, n_windows: int, total: t
 
 
 def where_it_fails(
-    model: ArxModel,
+    model: ArxModel | StateSpaceModel,
     data: IOData,
     horizon: int | None = None,
     *,
@@ -278,12 +280,12 @@ def where_it_fails(
     n_bins: int = 8,
     alpha: float = 0.01,
     initial: str = "zero",
-) -> FailureAnalysis:
+) -> Any:
     """Locate a model's error in time and by operating point.
 
     Parameters
     ----------
-    model : ArxModel
+    model : ArxModel, PolynomialModel or StateSpaceModel
     data : IOData
         Preferably validation data.
     horizon : int or None
@@ -305,18 +307,52 @@ def where_it_fails(
         ``worst_segments`` with their time ranges and ``by_signal``: residual RMS binned by each
         input (at t − nk), the output (at t − 1), the output rate and each extra signal, with a
         p-value, most significant first. ``.plot()`` and ``.to_pandas()`` give figure and table.
+        For a state-space model of several outputs, one FailureAnalysis per output (by name); the
+        one-step residual is then the innovation form's, from an initial state fitted to ``data``,
+        and the inputs are binned without a delay.
     """
-    model = check_model(model)
+    if not isinstance(model, StateSpaceModel):
+        model = check_model(model)
     data = check_data(data)
     horizon = check_horizon(horizon)
     n = data.n_samples
     window = max(10, n // 50) if window is None else int(window)
     if window < 2 or window > n:
         raise ArxidError(f"window must be between 2 and the number of samples ({n}), got {window}")
+    search = (window, int(n_worst), n_bins, alpha, horizon)
+    if isinstance(model, StateSpaceModel):
+        return _state_space_failures(model, data, initial, search)
     _, err, diverged = prediction_error(model, data, horizon, initial)
     if diverged:
         err = np.where(np.isfinite(err), err, np.nan)
     _, res, _ = prediction_error(model, data, 1)
+    return _located(err, res, data, tuple(model.nk_), model.structure_name(), search)
+
+
+def _state_space_failures(model: StateSpaceModel, data: IOData, initial: str, search: tuple) -> Any:
+    """:func:`where_it_fails` of each output of a state-space model."""
+    ordered = in_model_order(model, data, "the data to locate the error in")
+    simulated = state_space_prediction(model, ordered, search[-1], initial)
+    one_step = state_space_prediction(model, ordered, 1, "estimate")
+    results = {}
+    for name in data.output_names:
+        one = data.output(name) if data.n_outputs > 1 else data
+        i = model.output_names.index(name)
+        with np.errstate(all="ignore"):
+            err, res = one.y - simulated[:, i], one.y - one_step[:, i]
+        err = np.where(np.isfinite(err), err, np.nan)
+        label = f"{state_space_label(model)}, output {name}"
+        results[name] = _located(err, res, one, (0,) * one.n_inputs, label, search)
+    return results[data.output_names[0]] if data.n_outputs == 1 else PerOutput(results)
+
+
+def _located(
+    err: np.ndarray, res: np.ndarray, data: IOData, delays: tuple[int, ...], model_name: str, search: tuple
+) -> FailureAnalysis:
+    """The worst segments of ``err`` and the one-step residual ``res`` binned by each signal of
+    single-output ``data`` (inputs at t − their delay)."""
+    window, n_worst, n_bins, alpha, horizon = search
+    n = data.n_samples
     t = np.arange(n) * data.ts
     roll = np.full(n, np.nan)
     for a, b in data.segments:
@@ -332,7 +368,7 @@ def where_it_fails(
     with np.errstate(over="ignore"):
         total = (finite_res.size, float(np.einsum("i,i->", finite_res, finite_res)))
     del finite_res
-    for _ in range(int(n_worst)):
+    for _ in range(n_worst):
         if not np.isfinite(r).any():
             break
         i = int(np.nanargmax(r))
@@ -356,7 +392,7 @@ def where_it_fails(
     signals = []
     for i, name in enumerate(data.input_names):
         x = np.full(n, np.nan)
-        k = model.nk_[i]
+        k = delays[i]
         for a, b in data.segments:
             if b - a > k:
                 x[a + k : b] = data.u[a : b - k, i]
@@ -373,6 +409,4 @@ def where_it_fails(
     memo = _BINS.setdefault(data, {})
     bins = [b for b in (bin_signal(nm, x, res, n_bins, ranked, memo, tag) for nm, x, tag in signals) if b is not None]
     bins.sort(key=lambda b: (b.p_value, -b.ratio))
-    return FailureAnalysis(
-        t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model.structure_name()
-    )
+    return FailureAnalysis(t, err, res, roll, window, overall, tuple(worst), tuple(bins), horizon, alpha, model_name)

@@ -25,8 +25,10 @@ from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
+from ..models.state_space import StateSpaceModel
 from .comparison import prediction_error
 from .correlation import ar_filter, ar_innovations, centered, signal_whitening, zeroed_correlation
+from .state_space import PerOutput, in_model_order, state_space_label, state_space_prediction
 
 __all__ = ["residuals", "ResidualAnalysis", "low_frequency_test"]
 
@@ -468,12 +470,12 @@ def _signal_tests(
     return cross, bound, float(chi2_sf(stat, len(cl))), slow
 
 
-def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0.01) -> ResidualAnalysis:
+def residuals(model: ArxModel | StateSpaceModel, data: IOData, max_lag: int = 25, alpha: float = 0.01) -> Any:
     """Residual analysis: is the one-step residual white and independent of the inputs?
 
     Parameters
     ----------
-    model : ArxModel
+    model : ArxModel, PolynomialModel or StateSpaceModel
     data : IOData
         Preferably validation data. Cross-correlations are computed with every input and every
         extra signal of ``data``.
@@ -484,7 +486,8 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
 
     Returns
     -------
-    ResidualAnalysis
+    ResidualAnalysis or PerOutput of ResidualAnalysis
+        One analysis per output (by name) for a state-space model of several outputs.
 
     Notes
     -----
@@ -501,15 +504,50 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
     means over L samples (``low_frequency_p_values``), which sees a slow drift that follows the
     signal. ``independent`` is the first test's verdict; :meth:`ResidualAnalysis.verdict` combines
     both.
+
+    For a state-space model, the residual of each output is its one-step prediction error by the
+    innovation form from an initial state fitted to ``data``, tested against the inputs and extra
+    signals as above; the Ljung–Box degrees of freedom lose the model's order. Whiteness is not
+    expected when the model has no Kalman gain (K = 0: an output-error model).
     """
-    model = check_model(model)
+    if not isinstance(model, StateSpaceModel):
+        model = check_model(model)
     data = check_data(data)
     if isinstance(max_lag, bool) or not isinstance(max_lag, (int, np.integer)) or max_lag < 1:
         raise OrderError(f"max_lag must be an integer >= 1, got {max_lag!r}")
     max_lag = int(max_lag)
+    if isinstance(model, StateSpaceModel):
+        return _state_space_residuals(model, data, max_lag, alpha)
     _, e, diverged = prediction_error(model, data, 1)
     if diverged:
         raise ArxidError("the one-step prediction is not finite on these data; check the data for outliers")
+    noise_parameters = model.na_ + (model.nc_ + model.nd_ if isinstance(model, PolynomialModel) else 0)
+    expected = not (isinstance(model, PolynomialModel) and model.kind == "OE")
+    return _residual_tests(e, data, max_lag, alpha, noise_parameters, model.structure_name(), expected)
+
+
+def _state_space_residuals(model: StateSpaceModel, data: IOData, max_lag: int, alpha: float) -> Any:
+    """The residual tests of each output of a state-space model (see :func:`residuals`)."""
+    ordered = in_model_order(model, data, "the data to test the residuals on")
+    pred = state_space_prediction(model, ordered, 1, "estimate")
+    if not np.isfinite(pred).any():
+        raise ArxidError("the one-step prediction is not finite on these data; check the data for outliers")
+    expected = bool(np.any(model.k))
+    results = {}
+    for name in data.output_names:
+        one = data.output(name) if data.n_outputs > 1 else data
+        with np.errstate(all="ignore"):
+            e = one.y - pred[:, model.output_names.index(name)]
+        results[name] = _residual_tests(
+            e, one, max_lag, alpha, model.order, f"{state_space_label(model)}, output {name}", expected
+        )
+    return results[data.output_names[0]] if data.n_outputs == 1 else PerOutput(results)
+
+
+def _residual_tests(
+    e: np.ndarray, data: IOData, max_lag: int, alpha: float, noise_parameters: int, name: str, expected: bool
+) -> ResidualAnalysis:
+    """The tests of :func:`residuals` on the one-step residual ``e`` of single-output ``data``."""
     ok = np.isfinite(e)
     n = int(ok.sum())
     if n <= max_lag + 1:
@@ -533,14 +571,12 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
         )
 
     q = float(n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:])))
-    noise_parameters = model.na_ + (model.nc_ + model.nd_ if isinstance(model, PolynomialModel) else 0)
     dof = max(max_lag - noise_parameters, 1)
     p = float(chi2_sf(q, dof))
     if _at_round_off(e[ok], data.y[ok]):
         # Nothing left to explain: the correlations of rounding errors say nothing about the model.
         p, pvals = 1.0, {k: (1.0 if math.isfinite(v) else v) for k, v in pvals.items()}
         slow = {k: (1.0 if math.isfinite(v) else v) for k, v in slow.items()}
-    expected = not (isinstance(model, PolynomialModel) and model.kind == "OE")
     return ResidualAnalysis(
         e,
         n,
@@ -555,7 +591,7 @@ def residuals(model: ArxModel, data: IOData, max_lag: int = 25, alpha: float = 0
         dof,
         pvals,
         alpha,
-        model.structure_name(),
+        name,
         expected,
         slow,
         max_lag,

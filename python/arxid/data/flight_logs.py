@@ -11,6 +11,7 @@ from typing import TypeVar
 import numpy as np
 
 from ..exceptions import DataError
+from .outputs import output_list
 
 __all__ = ["FlightLogReaders", "selector_lists"]
 
@@ -45,9 +46,14 @@ class FlightLogReaders:
 
     @classmethod
     def _from_grid(
-        cls: type[_T], values: Mapping[str, np.ndarray], units: Mapping[str, str], ts: float, n_inputs: int
+        cls: type[_T],
+        values: Mapping[str, np.ndarray],
+        units: Mapping[str, str],
+        ts: float,
+        n_inputs: int,
+        n_outputs: int = 1,
     ) -> _T:
-        """Signals on one grid as an IOData: the output first, then ``n_inputs`` inputs, then extras."""
+        """Signals on one grid as an IOData: the outputs first, then the inputs, then extras."""
         raise NotImplementedError  # IOData builds itself
 
     @classmethod
@@ -55,7 +61,7 @@ class FlightLogReaders:
         cls: type[_T],
         path,
         *,
-        output: str,
+        output: str | Sequence[str],
         inputs: Sequence[str],
         extra: Sequence[str] = (),
         log: int = 1,
@@ -74,8 +80,8 @@ class FlightLogReaders:
         Parameters
         ----------
         path : str or Path
-        output : str
-            E.g. ``"gyroADC[0]"`` (roll rate).
+        output : str or sequence of str
+            E.g. ``"gyroADC[0]"`` (roll rate), or several (``["gyroADC[0]", "gyroADC[1]", "gyroADC[2]"]``).
         inputs : sequence of str
             E.g. ``["pidsum[0]"]`` or ``["axisP[0]", "axisI[0]", "axisD[0]"]``.
         extra : sequence of str
@@ -99,15 +105,16 @@ class FlightLogReaders:
         from .blackbox import read_blackbox
 
         inputs, extra = selector_lists(inputs, extra)
-        sig = read_blackbox(path, [output, *inputs, *extra], log=log, hold=inputs, ts=ts, max_gap=max_gap)
-        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs))
+        outputs = output_list(output)
+        sig = read_blackbox(path, [*outputs, *inputs, *extra], log=log, hold=inputs, ts=ts, max_gap=max_gap)
+        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs), len(outputs))
 
     @classmethod
     def from_dataflash(
         cls: type[_T],
         path,
         *,
-        output: str,
+        output: str | Sequence[str],
         inputs: Sequence[str],
         extra: Sequence[str] = (),
         instance: int | None = None,
@@ -124,8 +131,8 @@ class FlightLogReaders:
         Parameters
         ----------
         path : str or Path
-        output : str
-            E.g. ``"RATE.R"`` (ArduCopter's roll rate, deg/s).
+        output : str or sequence of str
+            E.g. ``"RATE.R"`` (ArduCopter's roll rate, deg/s), or several.
         inputs : sequence of str
             E.g. ``["RATE.ROut"]`` (the roll rate controller's output).
         extra : sequence of str
@@ -149,5 +156,6 @@ class FlightLogReaders:
         from .dataflash import read_dataflash
 
         inputs, extra = selector_lists(inputs, extra)
-        sig = read_dataflash(path, [output, *inputs, *extra], instance=instance, hold=inputs, ts=ts, max_gap=max_gap)
-        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs))
+        outputs = output_list(output)
+        sig = read_dataflash(path, [*outputs, *inputs, *extra], instance=instance, hold=inputs, ts=ts, max_gap=max_gap)
+        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs), len(outputs))

@@ -5,15 +5,16 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..exceptions import DataError
-from .csvio import CsvFile
 from .flight_logs import FlightLogReaders, selector_lists
+from .outputs import OutputField, SeveralOutputs, checked_outputs, output_list
 from .samples import as_float_samples, check_sampling_time, freeze_owned
+from .tables import TableReaders
 
 __all__ = ["IOData"]
 
@@ -25,21 +26,25 @@ def _sample_at(time: float, ts: float, n: int) -> int:
 
 
 @dataclass(frozen=True, eq=False)
-class IOData(FlightLogReaders):
-    """Sampled output and inputs of one or more experiments.
+class IOData(SeveralOutputs, TableReaders, FlightLogReaders):
+    """Sampled output(s) and inputs of one or more experiments.
 
     Parameters
     ----------
-    y : array_like of shape (n_samples,)
-        Measured output.
+    y : array_like of shape (n_samples,) or (n_samples, n_outputs)
+        Measured output, or several outputs as columns (then name them in ``output_name``).
     u : array_like of shape (n_samples,) or (n_samples, n_inputs)
         Measured inputs.
     ts : float
         Sampling time in seconds, > 0.
-    output_name, input_names : str, sequence of str
-        Signal names (default ``"y"`` and ``"u1"``, ``"u2"``, ...).
-    output_unit, input_units : str, sequence of str
-        Units, for printing and plots.
+    output_name : str or sequence of str
+        Output name (default ``"y"``), or one name per output column of ``y``.
+    input_names : sequence of str
+        Input names (default ``"u1"``, ``"u2"``, ...).
+    output_unit : str or sequence of str
+        Unit of the output, or of each output (one string: the same for all).
+    input_units : sequence of str
+        Units of the inputs, for printing and plots.
     extra : mapping of str to array_like of shape (n_samples,), optional
         Logged signals that are not model inputs but that diagnostics and effects can use
         (battery voltage, temperature).
@@ -52,20 +57,31 @@ class IOData(FlightLogReaders):
     NaN marks a missing sample. Regression rows whose regressors touch a NaN are left out, and
     counted in the fit report. Infinite values are refused.
 
+    Data of several outputs feed :func:`arxid.ssest` and the checks of a state-space model. Their
+    ``y``, ``output_name`` and ``output_unit`` mean one output, so reading them is an error that
+    says to pick one with ``data.output(name)``; ``outputs``, ``output_names`` and
+    ``output_units`` give all of them.
+
     Examples
     --------
     >>> import numpy as np, arxid
     >>> d = arxid.IOData(np.zeros(100), np.ones(100), ts=0.01, output_name="roll")
     >>> d.n_samples, d.n_inputs
     (100, 1)
+    >>> rates = arxid.IOData(np.zeros((100, 3)), np.ones((100, 4)), ts=0.01, output_name=["p", "q", "r"])
+    >>> rates.n_outputs, rates.output("q").output_name
+    (3, 'q')
     """
 
-    y: np.ndarray
+    if TYPE_CHECKING:
+        y: np.ndarray
+    else:  # a field without a default (the guard's class access raises AttributeError)
+        y: OutputField[np.ndarray] = OutputField()
     u: np.ndarray
     ts: float
-    output_name: str = "y"
+    output_name: OutputField[str] = OutputField("y")
     input_names: tuple[str, ...] = ()
-    output_unit: str = ""
+    output_unit: OutputField[str] = OutputField("")
     input_units: tuple[str, ...] = ()
     extra: Mapping[str, np.ndarray] = field(default_factory=dict)
     extra_units: Mapping[str, str] = field(default_factory=dict)
@@ -73,7 +89,8 @@ class IOData(FlightLogReaders):
 
     def __post_init__(self):
         self._check_optional_fields()
-        y = as_float_samples("y (output)", self.y, 1)
+        raw = self.__dict__  # the output fields as given (reading them checks for one output)
+        y, output_name, output_unit = checked_outputs(raw["y"], raw["output_name"], raw["output_unit"])
         u = as_float_samples("u (inputs)", self.u, 2)
         n = y.shape[0]
         if n == 0:
@@ -103,7 +120,7 @@ class IOData(FlightLogReaders):
             if arr.shape[0] != n:
                 raise DataError(f"extra signal {k!r} has {arr.shape[0]} samples but the data have {n}")
             extra[str(k)] = arr
-        all_names = (str(self.output_name),) + names + tuple(extra)
+        all_names = (output_name if isinstance(output_name, tuple) else (output_name,)) + names + tuple(extra)
         dup = {x for x in all_names if all_names.count(x) > 1}
         if dup:
             raise DataError(f"signal names must be unique; repeated: {sorted(dup)}")
@@ -115,7 +132,8 @@ class IOData(FlightLogReaders):
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "ts", ts)
-        object.__setattr__(self, "output_name", str(self.output_name))
+        object.__setattr__(self, "output_name", output_name)
+        object.__setattr__(self, "output_unit", output_unit)
         object.__setattr__(self, "input_names", tuple(str(x) for x in names))
         object.__setattr__(self, "input_units", units)
         object.__setattr__(self, "extra", extra)
@@ -141,9 +159,6 @@ class IOData(FlightLogReaders):
             raise DataError(f"experiment_starts must be a sequence of sample indices, got {starts!r:.80}")
         if not all(isinstance(v, numbers.Integral) and not isinstance(v, bool) for v in starts):
             raise DataError(f"experiment_starts must hold integer sample indices, got {list(starts)!r:.80}")
-        for name in ("output_name", "output_unit"):
-            if not isinstance(getattr(self, name), str):
-                raise DataError(f"{name} must be a string, got {getattr(self, name)!r:.80}")
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -164,133 +179,11 @@ class IOData(FlightLogReaders):
         return cls(y, u, ts, **kwargs)
 
     @classmethod
-    def from_pandas(
-        cls,
-        df,
-        *,
-        output: str,
-        inputs: Sequence[str],
-        extra: Sequence[str] = (),
-        ts: float | None = None,
-        time: str | None = None,
-        units: Mapping[str, str] | None = None,
-        resample: bool = False,
-    ) -> IOData:
-        """Build from a pandas DataFrame by column names.
-
-        Parameters
-        ----------
-        df : pandas.DataFrame
-        output : str
-            Output column.
-        inputs : sequence of str
-            Input columns.
-        extra : sequence of str
-            Logged signals kept for diagnostics.
-        ts : float, optional
-            Sampling time; when omitted, ``time`` must name a time column sampled uniformly.
-        time : str, optional
-            Time column (seconds).
-        units : mapping of str to str, optional
-            Unit of each column, by name.
-        resample : bool
-            Put jittered samples onto a uniform grid of step ``ts`` (default: the median step of
-            ``time``): inputs held between samples, the other columns interpolated linearly, gaps
-            longer than 3 steps NaN (see :func:`arxid.data.resample.resample`). Needs ``time``.
-
-        Returns
-        -------
-        IOData
-        """
-        columns = {str(c): np.asarray(df[c]) for c in df.columns}
-        return cls._from_columns(
-            columns,
-            output=output,
-            inputs=inputs,
-            extra=extra,
-            ts=ts,
-            time=time,
-            units=units,
-            source="DataFrame",
-            resample=resample,
-        )
-
-    @classmethod
-    def from_csv(
-        cls,
-        path,
-        *,
-        output: str,
-        inputs: Sequence[str],
-        extra: Sequence[str] = (),
-        ts: float | None = None,
-        time: str | None = None,
-        delimiter: str | None = None,
-        units: Mapping[str, str] | None = None,
-        resample: bool = False,
-    ) -> IOData:
-        """Read a CSV file with a header row.
-
-        Empty cells and ``nan`` are missing samples (NaN). A header ``vbat[V]`` names the signal
-        ``vbat`` with unit ``V``; other characters that cannot appear in an effect are replaced by
-        ``_`` (the raw header text is accepted too when selecting columns).
-
-        Parameters
-        ----------
-        path : str or Path
-        output, inputs, extra, ts, time
-            As in :meth:`from_pandas`.
-        delimiter : str, optional
-            Column separator; sniffed from the header when omitted.
-        units : mapping of str to str, optional
-            Unit of each column, by name.
-        resample : bool
-            Put a time column with jitter onto a uniform grid, as in :meth:`from_pandas`.
-
-        Returns
-        -------
-        IOData
-
-        Examples
-        --------
-        A log whose time stamps jitter by a tenth of a step:
-
-        >>> import numpy as np, tempfile, os
-        >>> t = np.arange(500) * 0.01 + np.random.default_rng(1).uniform(-1e-3, 1e-3, 500)
-        >>> path = os.path.join(tempfile.mkdtemp(), "log.csv")
-        >>> np.savetxt(path, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,y,u", comments="")
-        >>> d = IOData.from_csv(path, output="y", inputs=["u"], time="t", resample=True)
-        >>> round(d.ts, 3), d.n_samples > 490
-        (0.01, True)
-        """
-        table = CsvFile.open(path, delimiter, check=False)  # read() checks the whole file in the same pass
-        # "vbat[V]" becomes the signal "vbat" with unit "V", so effects such as "u1*vbat" can name it;
-        # the raw header text is still accepted in output=/inputs=/extra=/time=.
-        rename = table.rename
-        output = rename.get(output, output)
-        time = rename.get(time, time) if time else time
-        inputs = [rename.get(c, c) for c in ([inputs] if isinstance(inputs, str) else inputs)]
-        extra = [rename.get(c, c) for c in ([extra] if isinstance(extra, str) else extra)]
-        units = {**table.units, **{rename.get(k, k): v for k, v in (units or {}).items()}}
-        columns = table.read([output, *inputs, *extra] + ([time] if time else []))
-        return cls._from_columns(
-            columns,
-            output=output,
-            inputs=inputs,
-            extra=extra,
-            ts=ts,
-            time=time,
-            units=units,
-            source=table.path.name,
-            resample=resample,
-        )
-
-    @classmethod
     def from_ulog(
         cls,
         path,
         *,
-        output: str,
+        output: str | Sequence[str],
         inputs: Sequence[str],
         extra: Sequence[str] = (),
         ts: float | None = None,
@@ -309,8 +202,9 @@ class IOData(FlightLogReaders):
         ----------
         path : str or Path
             A ``.ulg`` file.
-        output : str
-            ``topic.field``, e.g. ``"vehicle_angular_velocity.xyz[0]"``.
+        output : str or sequence of str
+            ``topic.field``, e.g. ``"vehicle_angular_velocity.xyz[0]"``, or several for data of
+            several outputs.
         inputs : sequence of str
             Command fields, e.g. ``["actuator_controls_0.control[0]"]``.
         extra : sequence of str
@@ -328,90 +222,35 @@ class IOData(FlightLogReaders):
         from .ulog import read_ulog
 
         inputs, extra = selector_lists(inputs, extra)
-        sig = read_ulog(path, [output, *inputs, *extra], hold=inputs, ts=ts, max_gap=max_gap)
-        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs))
+        outputs = output_list(output)
+        sig = read_ulog(path, [*outputs, *inputs, *extra], hold=inputs, ts=ts, max_gap=max_gap)
+        return cls._from_grid(sig.values, sig.units, sig.ts, len(inputs), len(outputs))
 
     @classmethod
-    def _from_grid(cls, values: Mapping[str, np.ndarray], units: Mapping[str, str], ts: float, n_inputs: int) -> IOData:
-        """An IOData of signals on one grid: the output first, then ``n_inputs`` inputs, then extras."""
+    def _from_grid(
+        cls, values: Mapping[str, np.ndarray], units: Mapping[str, str], ts: float, n_inputs: int, n_outputs: int = 1
+    ) -> IOData:
+        """An IOData of signals on one grid: ``n_outputs`` outputs first, then ``n_inputs`` inputs,
+        then extras."""
         names = list(values)
-        out, ins, ext = names[0], names[1 : 1 + n_inputs], names[1 + n_inputs :]
+        outs, ins, ext = names[:n_outputs], names[n_outputs : n_outputs + n_inputs], names[n_outputs + n_inputs :]
         return cls(
-            values[out],
+            np.column_stack([values[c] for c in outs]),
             np.column_stack([values[c] for c in ins]),
             ts,
-            output_name=out,
+            output_name=outs,
             input_names=tuple(ins),
-            output_unit=units[out],
+            output_unit=[units[c] for c in outs],
             input_units=tuple(units[c] for c in ins),
             extra={c: values[c] for c in ext},
             extra_units={c: units[c] for c in ext},
         )
 
-    @classmethod
-    def _from_columns(cls, columns, *, output, inputs, extra, ts, time, units, source, resample=False) -> IOData:
-        if isinstance(inputs, str):
-            inputs = [inputs]
-        if isinstance(extra, str):
-            extra = [extra]
-        wanted = [output, *inputs, *extra] + ([time] if time else [])
-        missing = [c for c in wanted if c not in columns]
-        if missing:
-            raise DataError(f"{source} has no column(s) {missing}; available: {sorted(columns)}")
-        if not inputs:
-            raise DataError("name at least one input column")
-        if resample:
-            return cls._resampled(columns, output, inputs, extra, ts, time, dict(units or {}), source)
-        if ts is None:
-            if not time:
-                raise DataError("give the sampling time ts=... or the name of a time column time=...")
-            t = columns[time]
-            with np.errstate(over="ignore", invalid="ignore"):
-                dt = np.diff(t)
-            if len(dt) == 0 or not np.all(np.isfinite(t)):
-                raise DataError(f"time column {time!r} must be finite and hold at least two samples")
-            if not np.all(np.isfinite(dt)):
-                raise DataError(
-                    f"the steps of time column {time!r} overflow (times from {t.min():g} to {t.max():g} s); "
-                    "give the time in seconds"
-                )
-            ts = float(np.median(dt))
-            if ts <= 0 or np.max(np.abs(dt - ts)) > 1e-6 * max(abs(ts), 1.0) + 1e-3 * ts:
-                raise DataError(
-                    f"time column {time!r} is not uniformly sampled (steps from {dt.min():g} to {dt.max():g}); "
-                    "pass resample=True (CLI: --resample) to put it on a uniform grid (inputs held, the other "
-                    "signals interpolated, long gaps missing)"
-                )
-        units = dict(units or {})
-        return cls(
-            columns[output],
-            np.column_stack([columns[c] for c in inputs]),
-            ts,
-            output_name=output,
-            input_names=tuple(inputs),
-            output_unit=units.get(output, ""),
-            input_units=tuple(units.get(c, "") for c in inputs),
-            extra={c: columns[c] for c in extra},
-            extra_units={c: units[c] for c in extra if c in units},
-        )
-
-    @classmethod
-    def _resampled(cls, columns, output, inputs, extra, ts, time, units, source) -> IOData:
-        """Columns sampled at the times of column ``time`` (with jitter) on a uniform grid."""
-        from .resample import resample
-
-        if not time:
-            raise DataError("resample=True needs the time column: pass time=... (CLI: --time COL)")
-        t = np.asarray(columns[time], dtype=np.float64)
-        names = [output, *inputs, *extra]
-        grid = resample({c: (t, columns[c]) for c in names}, hold=inputs, ts=ts, source=source)
-        return cls._from_grid(grid.values, {c: units.get(c, "") for c in names}, grid.ts, len(inputs))
-
     # ------------------------------------------------------------------ shape and lookup
     @property
     def n_samples(self) -> int:
         """Number of samples (all experiments together)."""
-        return int(self.y.shape[0])
+        return int(self.u.shape[0])
 
     @property
     def n_inputs(self) -> int:
@@ -439,18 +278,18 @@ class IOData(FlightLogReaders):
 
     @property
     def n_missing(self) -> int:
-        """Number of samples where the output or an input is NaN."""
-        return int((np.isnan(self.y) | np.isnan(self.u).any(axis=1)).sum())
+        """Number of samples where an output or an input is NaN."""
+        return int((np.isnan(self.outputs).any(axis=1) | np.isnan(self.u).any(axis=1)).sum())
 
     @property
     def output_measured(self) -> bool:
         """Whether any output sample is measured (not NaN)."""
-        return bool(np.isfinite(self.y).any())
+        return bool(np.isfinite(self.outputs).any())
 
     @property
     def signal_names(self) -> tuple[str, ...]:
         """Output, input and extra signal names, in that order."""
-        return (self.output_name,) + self.input_names + tuple(self.extra)
+        return self.output_names + self.input_names + tuple(self.extra)
 
     def signal(self, name: str) -> np.ndarray:
         """The output, an input or an extra signal by name.
@@ -466,7 +305,9 @@ class IOData(FlightLogReaders):
         ndarray of shape (n_samples,)
             The samples (read-only).
         """
-        if name == self.output_name or name == "y":
+        if name in self.output_names:
+            return self.outputs[:, self.output_names.index(name)]
+        if name == "y":
             return self.y
         if name in self.input_names:
             return self.u[:, self.input_names.index(name)]
@@ -489,7 +330,9 @@ class IOData(FlightLogReaders):
         str
             The unit, ``""`` when none was given.
         """
-        if name in (self.output_name, "y"):
+        if name in self.output_names:
+            return self.output_units[self.output_names.index(name)]
+        if name == "y":
             return self.output_unit
         if name in self.input_names:
             return self.input_units[self.input_names.index(name)]
@@ -497,9 +340,8 @@ class IOData(FlightLogReaders):
 
     # ------------------------------------------------------------------ transformations
     def _take(self, idx: np.ndarray | slice, starts: Iterable[int]) -> IOData:
-        return replace(
-            self,
-            y=self.y[idx],
+        return self.with_samples(
+            y=self.outputs[idx],
             u=self.u[idx],
             extra={k: v[idx] for k, v in self.extra.items()},
             experiment_starts=tuple(starts),
@@ -573,10 +415,10 @@ class IOData(FlightLogReaders):
         """
         if kind not in ("mean", "linear"):
             raise DataError(f"detrend kind must be 'mean' or 'linear', got {kind!r}")
-        y = self.y.copy()
+        y = self.outputs.copy()
         u = self.u.copy()
         for a, b in self.segments:
-            for col in [y[a:b]] + [u[a:b, i] for i in range(self.n_inputs)]:
+            for col in [y[a:b, j] for j in range(self.n_outputs)] + [u[a:b, i] for i in range(self.n_inputs)]:
                 ok = np.isfinite(col)
                 if not ok.any():
                     continue
@@ -589,7 +431,7 @@ class IOData(FlightLogReaders):
                     else:
                         coef = np.polyfit(t[ok], col[ok], 1)
                         col -= np.polyval(coef, t)
-        return replace(self, y=y, u=u)
+        return self.with_samples(y=y, u=u)
 
     def with_signals(self, *, u=None, input_names=None, input_units=None, extra=None) -> IOData:
         """A copy with other inputs and/or extra signals (same output, ts and experiments).
@@ -612,7 +454,7 @@ class IOData(FlightLogReaders):
             kw.update(u=u, input_names=tuple(input_names or ()), input_units=tuple(input_units or ()))
         if extra is not None:
             kw["extra"] = extra
-        return replace(self, **kw)
+        return self.with_samples(**kw)
 
     @staticmethod
     def merge(datasets: Sequence[IOData]) -> IOData:
@@ -639,7 +481,7 @@ class IOData(FlightLogReaders):
                 raise DataError(f"cannot merge experiments sampled at ts={first.ts} and ts={d.ts}; resample first")
             if (
                 d.input_names != first.input_names
-                or d.output_name != first.output_name
+                or d.output_names != first.output_names
                 or set(d.extra) != set(first.extra)
             ):
                 raise DataError("merged experiments must have the same output, inputs and extra signals")
@@ -647,9 +489,8 @@ class IOData(FlightLogReaders):
         for d in datasets:
             starts += [off + s for s in d.experiment_starts]
             off += d.n_samples
-        return replace(
-            first,
-            y=freeze_owned(np.concatenate([d.y for d in datasets])),
+        return first.with_samples(
+            y=freeze_owned(np.concatenate([d.outputs for d in datasets])),
             u=freeze_owned(np.concatenate([d.u for d in datasets])),
             extra={k: freeze_owned(np.concatenate([d.extra[k] for d in datasets])) for k in first.extra},
             experiment_starts=tuple(starts),
@@ -661,13 +502,13 @@ class IOData(FlightLogReaders):
         Returns
         -------
         pandas.DataFrame
-            Columns ``time``, the output, the inputs and the extra signals.
+            Columns ``time``, the outputs, the inputs and the extra signals.
         """
         try:
             import pandas as pd
         except ImportError:  # pragma: no cover
             raise ImportError("to_pandas needs pandas: pip install 'arxid[pandas]'") from None
-        cols = {"time": self.time, self.output_name: self.y}
+        cols = {"time": self.time, **{n: self.outputs[:, i] for i, n in enumerate(self.output_names)}}
         cols.update({n: self.u[:, i] for i, n in enumerate(self.input_names)})
         cols.update(self.extra)
         return pd.DataFrame(cols)
@@ -681,7 +522,7 @@ class IOData(FlightLogReaders):
         parts = [
             f"IOData: {self.n_samples} samples, ts = {self.ts:g} s ({dur:g} s), "
             f"{self.n_experiments} experiment{'s' if self.n_experiments > 1 else ''}",
-            f"  output: {self.output_name}{unit(self.output_name)}",
+            f"  output{'s' if self.n_outputs > 1 else ''}: " + ", ".join(n + unit(n) for n in self.output_names),
             "  inputs: " + ", ".join(n + unit(n) for n in self.input_names),
         ]
         if self.extra:

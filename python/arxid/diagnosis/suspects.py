@@ -49,6 +49,7 @@ from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
+from ..models.state_space import StateSpaceModel
 from .candidates import auto_candidates, output_integrates, physics
 from .disturbance import Disturbance, remaining_disturbance
 from .extension import Candidate, candidate_list
@@ -60,7 +61,15 @@ from .scoring import Scoring
 from .sensor_shapes import rank_sensors, sensor_suspects
 from .shapes import ValidationEvidence, prefer_shapes, score_shapes
 
-__all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON"]
+__all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON", "NOT_FOR_STATE_SPACE"]
+
+#: Why a state-space model has no search for a missing effect, and what to use instead.
+NOT_FOR_STATE_SPACE = (
+    "the search for a missing effect is not available for a state-space model: it adds candidate terms "
+    "to the regressors of an ARX or polynomial model, which a state-space model does not have. Check it "
+    "with arxid.residuals and arxid.where_it_fails (each output), or diagnose an ARX model of one output: "
+    "arxid.diagnose(arxid.arx(data.output(name), na, nb, nk))"
+)
 
 #: k used for the validation error of a plant with an integrator (free run drifts).
 INTEGRATING_HORIZON = 10
@@ -88,7 +97,8 @@ def diagnose(
     Parameters
     ----------
     model : ArxModel
-        A fitted model.
+        A fitted model (ARX or polynomial; a state-space model is refused with what to use
+        instead, :data:`NOT_FOR_STATE_SPACE`).
     data : IOData, optional
         Estimation data (default: the data the model was fitted on).
     validation : IOData, optional
@@ -146,6 +156,8 @@ def diagnose(
     >>> d.top.effect
     'through(u1^2.005)'
     """
+    if isinstance(model, StateSpaceModel):
+        raise ArxidError(NOT_FOR_STATE_SPACE)
     model = check_model(model)
     polynomial = isinstance(model, PolynomialModel)
     data, validation, same = _data_pair(model, data, validation)

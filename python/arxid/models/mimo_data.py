@@ -1,5 +1,6 @@
 """Several outputs as one set of signals: the arrays and the stretches without missing samples
-that state-space estimation and prediction read (one :class:`~arxid.IOData` per output)."""
+that state-space estimation and prediction read (an :class:`~arxid.IOData` of several outputs, or
+one per output)."""
 
 from __future__ import annotations
 
@@ -45,7 +46,8 @@ def gather(data: Any) -> Signals:
     Parameters
     ----------
     data : IOData or sequence of IOData
-        One IOData per output, all with the same inputs, sampling time and experiments.
+        Data of one or several outputs, or a sequence of them with the same inputs, sampling time
+        and experiments (their outputs side by side).
     """
     parts = _outputs(data)
     first = parts[0]
@@ -53,11 +55,13 @@ def gather(data: Any) -> Signals:
         if d.ts != first.ts or d.experiment_starts != first.experiment_starts or d.u.shape != first.u.shape:
             raise DataError("the outputs' data must share their sampling time, experiments and inputs")
         if not np.array_equal(d.u, first.u, equal_nan=True):
-            raise DataError(f"output {d.output_name!r} comes with other input samples than {first.output_name!r}")
-    names = tuple(d.output_name for d in parts)
+            raise DataError(
+                f"output(s) {list(d.output_names)} come with other input samples than {list(first.output_names)}"
+            )
+    names = tuple(name for d in parts for name in d.output_names)
     if len(set(names)) != len(names):
         raise DataError(f"output names must be unique, got {list(names)}")
-    y = np.column_stack([d.y for d in parts])  # a new array: the caller's data stay as they are
+    y = np.column_stack([d.outputs for d in parts])  # a new array: the caller's data stay as they are
     u = np.array(first.u, dtype=float)
     finite = np.isfinite(y).all(axis=1) & np.isfinite(u).all(axis=1)
     segments = []

@@ -186,6 +186,11 @@ class StateSpaceModel:
             raise DataError(f"the prediction horizon k must be a whole number of samples >= 1 or inf, got {k!r}")
         signals = gather(data)
         self._check_signals(signals.u.shape[1], signals.y.shape[1])
+        if signals.output_names != self.output_names and set(signals.output_names) == set(self.output_names):
+            raise DataError(  # the columns are read in order: the same names shuffled would be misread
+                f"the data's outputs {list(signals.output_names)} are in another order than the model's "
+                f"{list(self.output_names)}; pass them in the model's order (arxid.compare matches them by name)"
+            )
         if initial not in ("estimate", "zero"):
             raise DataError(f'initial must be "estimate" or "zero", got {initial!r}')
         x0s = self._initial_states(signals) if initial == "estimate" else np.zeros((len(signals.segments), self.order))

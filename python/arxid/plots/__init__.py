@@ -16,6 +16,7 @@ from .diagnostics import (
     plot_ladder,
     plot_residuals,
 )
+from .state_space import plot_coupling, plot_singular_values
 from .sweep import plot_sweep
 
 __all__ = [
@@ -30,4 +31,6 @@ __all__ = [
     "plot_residuals",
     "plot_sweep",
     "plot_bode",
+    "plot_singular_values",
+    "plot_coupling",
 ]

@@ -48,6 +48,8 @@ __all__ = [
     "RateLoopPlant",
     "pid_rate_loop",
     "quadrotor_axis",
+    "body_rates",
+    "RATE_INPUTS",
     "thrust_stand",
     "thrust_stand_static",
 ]
@@ -97,3 +99,62 @@ def quadrotor_axis(
     mixed = Mixer(frame).apply(src, channels=(f"{axis}_torque",))
     ex = {k: v for k, v in mixed.extra.items() if k not in ("w1", "w2", "w3", "w4")}
     return mixed.with_signals(extra=ex)
+
+
+#: What drives the body rates in :func:`body_rates`.
+RATE_INPUTS = ("commands", "torques")
+
+
+def body_rates(data: IOData, inputs: str = "commands", frame: str = "plus", extra=("vbat",)) -> IOData:
+    """Identification data of the three body rates at once: data of several outputs for
+    :func:`arxid.ssest`.
+
+    Parameters
+    ----------
+    data : IOData
+        A flight log with ``p, q, r``, the motor commands ``d1..d4`` as inputs and the motor speeds
+        ``w1..w4`` (as :func:`quadrotor_flight` logs them).
+    inputs : {"commands", "torques"}
+        The four motor commands (PWM duty, as flown), or the mixer's three pseudo-torques from the
+        logged motor speeds (``roll_torque``, ``pitch_torque``, ``yaw_torque``, in (rad/s)^2).
+    frame : {"plus", "x"}
+        Mixer frame for ``"torques"`` (the simulator flies a plus frame).
+    extra : sequence of str
+        Logged signals kept as extra signals.
+
+    Returns
+    -------
+    IOData
+        Outputs ``p, q, r`` [rad/s]; inputs as chosen; the experiments of ``data``.
+
+    Examples
+    --------
+    >>> from arxid.datasets import body_rates, quadrotor_flight
+    >>> rates = body_rates(quadrotor_flight(seed=1, duration=2.0, output="p"))
+    >>> rates.output_names, rates.input_names
+    (('p', 'q', 'r'), ('d1', 'd2', 'd3', 'd4'))
+    """
+    from .mixer import CHANNELS, Mixer
+
+    if inputs not in RATE_INPUTS:
+        raise DataError(f"inputs must be one of {list(RATE_INPUTS)}, got {inputs!r}")
+    rates = np.column_stack([data.signal(name) for name in ("p", "q", "r")])
+    if inputs == "commands":
+        u, names, units = data.u, data.input_names, data.input_units
+    else:
+        channels = ("roll_torque", "pitch_torque", "yaw_torque")
+        mixed = Mixer(frame)(np.column_stack([data.signal(f"w{i}") for i in range(1, 5)]))
+        u = mixed[:, [CHANNELS.index(c) for c in channels]]
+        names, units = channels, ("(rad/s)^2",) * 3
+    return IOData(
+        rates,
+        u,
+        data.ts,
+        output_name=["p", "q", "r"],
+        input_names=names,
+        output_unit=[data.unit(name) for name in ("p", "q", "r")],
+        input_units=units,
+        extra={name: data.signal(name) for name in extra},
+        extra_units={name: data.unit(name) for name in extra},
+        experiment_starts=data.experiment_starts,
+    )
