@@ -322,7 +322,7 @@ class AddedVariableTest:
         ndarray of shape (n_params + q,) or None
             None when Φ or the stripped block is ill-conditioned (then fit ``[Φ | z]`` itself).
         """
-        if self._theta is None or self._keep is not None:
+        if self._theta is None or self._keep is not None or self._r is None:
             return None
         b, zz, ze = self._cross(z)
         g = zz - b.T @ b  # z̃'z̃, with z̃ = z stripped of Φ
@@ -337,6 +337,7 @@ class AddedVariableTest:
 
     def _projected(self, phi_z: np.ndarray) -> np.ndarray:
         """Q'z from Φ'z (R⁻ᵀ of the scaled products, on the independent columns)."""
+        assert self._r is not None
         pz = phi_z / self._scale[:, None]
         return solve_upper_transposed(self._r, pz if self._keep is None else pz[self._keep])
 

@@ -53,6 +53,7 @@ from ..selection.parsimony import diebold_mariano
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
+from .shape_cost import ShapeCost
 
 __all__ = [
     "MIN_SCAN_LEVELS",
@@ -145,13 +146,6 @@ def _fit(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> ArxMo
     return ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=effects).fit(data, first_lag=model.first_lag_)
 
 
-def _rss(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> float:
-    try:
-        return float(_fit(model, data, shape, const).rss_)
-    except ArxidError:
-        return math.inf
-
-
 def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> InputShape:
     """The shape's parameters with the lowest one-step error on ``data``: a grid (a saturation's
     two levels in turn), then a local search from its best point (each value tried is a refit)."""
@@ -159,8 +153,10 @@ def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> Inpu
     x = x[np.isfinite(x)]
     kind, name = shape.kind, shape.signal
 
+    loss = ShapeCost(model, data, kind, name, const)
+
     def cost(params) -> float:
-        return _rss(model, data, InputShape(kind, name, tuple(float(v) for v in np.atleast_1d(params))), const)
+        return loss(tuple(float(v) for v in np.atleast_1d(params)))
 
     def best(values: np.ndarray, make) -> InputShape:
         shapes = [make(float(v)) for v in values]
