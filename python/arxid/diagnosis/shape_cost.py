@@ -4,9 +4,9 @@ parameters: what a scan of a dead zone's width or a saturation's levels minimise
 Each value is the residual sum of squares of the model refitted with the input replaced by f(u),
 and only the input's own lag columns change between values. So the other columns (the output lags,
 the other inputs, the effects, the offset) are reduced once to an orthonormal basis Q, and a value
-costs the projection of the shaped lags, Z − Q(QᵀZ), and a least-squares fit of the projected output
-on them (QR of a few columns): the refit's loss to rounding, without a refit (a few hundred of
-those were most of a short diagnosis).
+costs the projection of the shaped lags, Z − Q(QᵀZ), and the R factor of them beside the projected
+output (QR of a few columns; its last diagonal entry is the residual's norm): the refit's loss to
+rounding, without a refit (a few hundred of those were most of a short diagnosis).
 
 A value the refit would refuse is refused alike: a shaped lag that depends on the other columns
 (a dead zone wider than the input, a saturation that leaves a constant) is rank deficient by the
@@ -130,10 +130,13 @@ class _Projection:
         z = series[self.index]
         if not np.isfinite(z).all():
             return self.cost.refit(shape)
-        z_perp = z - self.q @ (self.q.T @ z)
-        qz, rz = np.linalg.qr(z_perp)
+        k = z.shape[1]
+        # R of [Z − Q(QᵀZ) | y⊥] (no Q formed): its last diagonal entry is the residual's norm.
+        stacked = np.empty((z.shape[0], k + 1))
+        stacked[:, :k] = z - self.q @ (self.q.T @ z)
+        stacked[:, k] = self.y_perp
+        r = np.linalg.qr(stacked, mode="r")
         norms = np.sqrt(np.einsum("ij,ij->j", z, z))
-        if not (np.abs(np.diag(rz)) > self.tol * norms).all():
+        if not (np.abs(np.diag(r)[:k]) > self.tol * norms).all():
             return math.inf  # a shaped lag the other columns (or the lags before it) already span
-        e = self.y_perp - qz @ (qz.T @ self.y_perp)
-        return float(e @ e)
+        return float(r[k, k] ** 2)
