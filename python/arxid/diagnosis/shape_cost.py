@@ -135,7 +135,7 @@ class _Projection:
         stacked = np.empty((z.shape[0], k + 1))
         stacked[:, :k] = z - self.q @ (self.q.T @ z)
         stacked[:, k] = self.y_perp
-        r = np.linalg.qr(stacked, mode="r")
+        r = np.asarray(np.linalg.qr(stacked, mode="r"))
         norms = np.sqrt(np.einsum("ij,ij->j", z, z))
         if not (np.abs(np.diag(r)[:k]) > self.tol * norms).all():
             return math.inf  # a shaped lag the other columns (or the lags before it) already span
