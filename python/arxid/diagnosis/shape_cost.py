@@ -25,8 +25,8 @@ import numpy as np
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
-from ..models.effects import compile_effects, parse_effect, shape_series
-from ..models.input_shapes import InputShape
+from ..models.effects import compile_effects
+from ..models.input_shapes import InputShape, parse_shape
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
@@ -50,7 +50,8 @@ class ShapeCost:
     data : IOData
         Estimation data.
     kind, signal : str
-        The shape family and the input it replaces.
+        The shape family (one with parameters: a power, a saturation, a dead zone) and the input
+        it replaces.
     const : bool
         Refit with an offset.
     """
@@ -92,6 +93,9 @@ class _Projection:
 
     def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray, tol: float):
         self.cost, self.index, self.q, self.y_perp, self.tol = cost, index, q, y_perp, tol
+        data = cost.data
+        self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
+        self.signal = data.signal(cost.signal)
 
     @classmethod
     def build(cls, cost: ShapeCost, shape: InputShape) -> _Projection | None:
@@ -122,10 +126,13 @@ class _Projection:
         return cls(cost, index, q, y_perp, tol)
 
     def rss(self, shape: InputShape) -> float:
-        data = self.cost.data
         try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
-            series = shape_series(parse_effect(shape.effect, data), data)
+            read = parse_shape(shape.text, self.names, shape.effect)
         except ArxidError:
+            return math.inf
+        with np.errstate(over="ignore", invalid="ignore"):
+            series = read.evaluate(self.signal)
+        if np.isinf(series).any():  # beyond the float range: a data error to the refit
             return math.inf
         z = series[self.index]
         if not np.isfinite(z).all():
