@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
+from .triangular import cholesky_solve
 
 __all__ = [
     "nested_fits",
@@ -171,8 +172,6 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     >>> np.round(least_squares(x, y), 12).tolist()
     [2.0, -1.0]
     """
-    from scipy.linalg import cho_solve
-
     n, p = x.shape
     if p and n > p:
         d = column_norms(x)
@@ -180,9 +179,9 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> np.ndarray:
             g = (x.T @ x) / np.outer(d, d)
             w = np.linalg.eigvalsh(g)
             if w.min() > 1e-10 * w.max():
-                c = (np.linalg.cholesky(g), True)
-                coef = cho_solve(c, (x.T @ y) / d) / d
-                coef += cho_solve(c, (x.T @ (y - x @ coef)) / d) / d
+                c = np.linalg.cholesky(g)
+                coef = cholesky_solve(c, (x.T @ y) / d, lower=True) / d
+                coef += cholesky_solve(c, (x.T @ (y - x @ coef)) / d, lower=True) / d
                 return coef
     if n <= p:
         return np.linalg.lstsq(x, y, rcond=None)[0]

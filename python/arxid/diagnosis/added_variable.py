@@ -23,6 +23,7 @@ import numpy as np
 from .._base import _core
 from .._base.nested import blocked_r, column_norms
 from .._base.probabilities import f_sf
+from .._base.triangular import cholesky_solve, solve_upper, solve_upper_transposed
 
 __all__ = [
     "all_finite",
@@ -131,9 +132,7 @@ class AddedVariableTest:
     def _solve(self, v: np.ndarray) -> np.ndarray:
         """θ with R'R (θ scale) = v / scale: least-squares coefficients from Φ'v."""
         assert self._r is not None
-        from scipy.linalg import cho_solve
-
-        return cho_solve((self._r, False), v / self._scale) / self._scale
+        return cholesky_solve(self._r, v / self._scale) / self._scale
 
     @property
     def q(self) -> np.ndarray:
@@ -323,9 +322,7 @@ class AddedVariableTest:
         ndarray of shape (n_params + q,) or None
             None when Φ or the stripped block is ill-conditioned (then fit ``[Φ | z]`` itself).
         """
-        from scipy.linalg import solve_triangular
-
-        if self._theta is None or self._keep is not None:
+        if self._theta is None or self._keep is not None or self._r is None:
             return None
         b, zz, ze = self._cross(z)
         g = zz - b.T @ b  # z̃'z̃, with z̃ = z stripped of Φ
@@ -335,15 +332,14 @@ class AddedVariableTest:
         if np.linalg.eigvalsh(g / np.outer(d, d)).min() <= 1e-8:
             return None
         gamma = np.linalg.solve(g, ze)
-        fitted_z = solve_triangular(self._r, b) / self._scale[:, None]  # Φ⁺z
+        fitted_z = solve_upper(self._r, b) / self._scale[:, None]  # Φ⁺z
         return np.concatenate([self._theta - fitted_z @ gamma, gamma])
 
     def _projected(self, phi_z: np.ndarray) -> np.ndarray:
         """Q'z from Φ'z (R⁻ᵀ of the scaled products, on the independent columns)."""
-        from scipy.linalg import solve_triangular
-
+        assert self._r is not None
         pz = phi_z / self._scale[:, None]
-        return solve_triangular(self._r, pz if self._keep is None else pz[self._keep], trans="T")
+        return solve_upper_transposed(self._r, pz if self._keep is None else pz[self._keep])
 
     def _tested(
         self, z: np.ndarray | Callable[[], np.ndarray], b: np.ndarray, zz: np.ndarray, ze: np.ndarray
@@ -523,26 +519,44 @@ def _independent(r: np.ndarray, p: int) -> tuple[np.ndarray | None, np.ndarray |
     """From R of [Φ | y] (p + 1 columns): the independent columns of Φ (None: all), the R of those
     columns and the least-squares coefficients of y on them (zero on the others); R None when Φ has
     no independent column or too few rows."""
-    from scipy.linalg import qr, solve_triangular
-
     theta = np.zeros(p)
     if p == 0 or r.shape[0] <= p:
         return None, None, theta
     d = np.abs(np.diag(r)[:p])
     if d.min() > 1e-12 * d.max():
-        theta[:] = solve_triangular(r[:p, :p], r[:p, p])
+        theta[:] = solve_upper(r[:p, :p], r[:p, p])
         return None, r[:p, :p], theta
     # Exactly dependent columns (a lag listed twice, ...): keep a largest independent set, the
     # span of Φ unchanged; R of the kept columns and y from the small factor.
-    _, rp, piv = qr(r[:p, :p], pivoting=True, mode="economic")
-    dp = np.abs(np.diag(rp))
+    piv, dp = _pivoted_diagonal(r[:p, :p])
     k = int(np.sum(dp > 1e-12 * dp.max())) if dp.max() > 0 else 0
     if k == 0:
         return None, None, theta
     keep = np.sort(piv[:k])
     r2 = np.asarray(np.linalg.qr(r[:, np.append(keep, p)], mode="r"))
-    theta[keep] = solve_triangular(r2[:k, :k], r2[:k, k])
+    theta[keep] = solve_upper(r2[:k, :k], r2[:k, k])
     return keep, r2[:k, :k], theta
+
+
+def _pivoted_diagonal(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The column order and |diagonal| of a QR factorisation with column pivoting (the column of
+    largest remaining norm first, LAPACK's geqp3 rule), by Householder steps on a small matrix."""
+    a = np.array(a, dtype=float)
+    n, p = a.shape
+    piv = np.arange(p)
+    diag = np.zeros(min(n, p))
+    for j in range(min(n, p)):
+        m = j + int(np.argmax(np.einsum("ij,ij->j", a[j:, j:], a[j:, j:])))
+        a[:, [j, m]], piv[[j, m]] = a[:, [m, j]], piv[[m, j]]
+        x = a[j:, j]
+        alpha = -math.copysign(float(np.linalg.norm(x)), x[0])
+        v = x.copy()
+        v[0] -= alpha
+        vv = float(v @ v)
+        if vv > 0:
+            a[j:, j:] -= np.outer(v, (2.0 / vv) * (v @ a[j:, j:]))
+        diag[j] = abs(alpha)
+    return piv, diag
 
 
 def holm(p: np.ndarray) -> np.ndarray:

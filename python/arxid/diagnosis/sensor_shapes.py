@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._base.local_search import simplex_minimum
 from ..checks import prediction
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -61,8 +62,6 @@ def _fitted(model: ArxModel, data: IOData, sensor: SensorShape) -> tuple[WienerM
 
 def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float) -> tuple[float, WienerModel]:
     """A local search from the grid's best parameters (Nelder–Mead; each point a fit and a free run)."""
-    from scipy import optimize  # only a diagnosis that scans a sensor shape needs it
-
     kind, start = w.sensor.kind, np.array(w.sensor.params)
     scale = np.maximum(np.abs(start), 1e-3) * 0.05
     simplex = [start] + [start + np.eye(start.size)[i] * scale[i] for i in range(start.size)]
@@ -74,10 +73,10 @@ def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float) -> tupl
             return math.inf
         return _fitted(model, data, sensor)[1]
 
-    res = optimize.minimize(cost, start, method="Nelder-Mead", options={"initial_simplex": simplex, "maxfev": 40})
-    if not res.fun < rms:
+    found, fun = simplex_minimum(cost, np.array(simplex), maxfev=40)
+    if not fun < rms:
         return rms, w
-    better, after = _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in res.x))))
+    better, after = _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in found))))
     return (after, better) if better is not None else (rms, w)
 
 

@@ -40,6 +40,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._base.local_search import bounded_minimum, simplex_minimum
 from .._base.probabilities import f_sf
 from ..checks import prediction
 from ..data.iodata import IOData
@@ -52,6 +53,7 @@ from ..selection.parsimony import diebold_mariano
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
+from .shape_cost import ShapeCost
 
 __all__ = [
     "MIN_SCAN_LEVELS",
@@ -144,24 +146,17 @@ def _fit(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> ArxMo
     return ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=effects).fit(data, first_lag=model.first_lag_)
 
 
-def _rss(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> float:
-    try:
-        return float(_fit(model, data, shape, const).rss_)
-    except ArxidError:
-        return math.inf
-
-
 def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> InputShape:
     """The shape's parameters with the lowest one-step error on ``data``: a grid (a saturation's
     two levels in turn), then a local search from its best point (each value tried is a refit)."""
-    from scipy import optimize  # only a diagnosis that scans a shape needs it
-
     x = np.asarray(data.u[:, candidate_input_names(data).index(shape.signal)], dtype=float)
     x = x[np.isfinite(x)]
     kind, name = shape.kind, shape.signal
 
+    loss = ShapeCost(model, data, kind, name, const)
+
     def cost(params) -> float:
-        return _rss(model, data, InputShape(kind, name, tuple(float(v) for v in np.atleast_1d(params))), const)
+        return loss(tuple(float(v) for v in np.atleast_1d(params)))
 
     def best(values: np.ndarray, make) -> InputShape:
         shapes = [make(float(v)) for v in values]
@@ -177,17 +172,15 @@ def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> Inpu
         step = span / THRESHOLD_STEPS
         start = np.array(down.params)
         simplex = [start, start + [step, 0.0], start + [0.0, step]]
-        res = optimize.minimize(
-            cost, start, method="Nelder-Mead", options={"initial_simplex": simplex, "xatol": 1e-3 * step, "maxfev": 60}
-        )
-        found = res.x if res.fun <= cost(start) else start
+        found, fun = simplex_minimum(cost, np.array(simplex), maxfev=60, xatol=1e-3 * step)
+        found = found if fun <= cost(start) else start
         return InputShape(kind, name, (float(min(found)), float(max(found))))
     grid = POWER_GRID if kind in ("power", "signed power") else _half_widths(x)
     first = best(grid, lambda v: InputShape(kind, name, (v,)))
     i = int(np.argmin(np.abs(grid - first.params[0])))
     bounds = (grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)])
-    res = optimize.minimize_scalar(cost, bounds=bounds, method="bounded", options={"xatol": 1e-4 * bounds[1]})
-    return InputShape(kind, name, (float(res.x),)) if res.fun <= cost(first.params) else first
+    at, fun = bounded_minimum(cost, bounds, xatol=1e-4 * bounds[1])
+    return InputShape(kind, name, (float(at),)) if fun <= cost(first.params) else first
 
 
 def _half_widths(x: np.ndarray) -> np.ndarray:

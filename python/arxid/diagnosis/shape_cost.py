@@ -1,0 +1,149 @@
+"""The one-step error of a model whose input acts through a shape, for many values of the shape's
+parameters: what a scan of a dead zone's width or a saturation's levels minimises.
+
+Each value is the residual sum of squares of the model refitted with the input replaced by f(u),
+and only the input's own lag columns change between values. So the other columns (the output lags,
+the other inputs, the effects, the offset) are reduced once to an orthonormal basis Q, and a value
+costs the projection of the shaped lags, Z − Q(QᵀZ), and the R factor of them beside the projected
+output (QR of a few columns; its last diagonal entry is the residual's norm): the refit's loss to
+rounding, without a refit (a few hundred of those were most of a short diagnosis).
+
+A value the refit would refuse is refused alike: a shaped lag that depends on the other columns
+(a dead zone wider than the input, a saturation that leaves a constant) is rank deficient by the
+core's own rule, and a shaped input that leaves the float range is a data error; both cost +inf.
+Where the shortcut cannot stand for the refit (its first value disagrees with the refit, or the
+other columns are themselves dependent), every value is refitted.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..data.iodata import IOData
+from ..exceptions import ArxidError
+from ..models.arx_model import ArxModel
+from ..models.effects import compile_effects
+from ..models.input_shapes import InputShape, parse_shape
+from ..models.regressors import regressor_columns, regressor_matrix
+from .candidates import candidate_input_names
+
+__all__ = ["ShapeCost"]
+
+#: The shortcut's loss must match the refit's to this relative difference at the first value.
+_AGREEMENT = 1e-9
+#: The core's rank rule: a column is dependent when the sine of its angle to the columns before it
+#: is at most (rows · machine epsilon · 10).
+_RANK_FACTOR = 10.0 * np.finfo(float).eps
+
+
+class ShapeCost:
+    """``cost(params)``: the one-step residual sum of squares of ``model`` refitted on ``data`` with
+    the input ``signal`` replaced by the shape ``kind`` at ``params`` (+inf where the refit fails).
+
+    Parameters
+    ----------
+    model : ArxModel
+        The fitted model (its orders, effects and first lag).
+    data : IOData
+        Estimation data.
+    kind, signal : str
+        The shape family (one with parameters: a power, a saturation, a dead zone) and the input
+        it replaces.
+    const : bool
+        Refit with an offset.
+    """
+
+    def __init__(self, model: ArxModel, data: IOData, kind: str, signal: str, const: bool):
+        self.model, self.data, self.kind, self.signal, self.const = model, data, kind, signal, const
+        self.column = candidate_input_names(data).index(signal)
+        self._fast: _Projection | None = None
+        self._checked = False
+
+    def __call__(self, params: tuple[float, ...]) -> float:
+        shape = InputShape(self.kind, self.signal, tuple(float(v) for v in params))
+        if not self._checked:  # the first value: refitted, and the shortcut set up against it
+            self._checked = True
+            exact = self.refit(shape)
+            if math.isfinite(exact):
+                fast = _Projection.build(self, shape)
+                if fast is not None and abs(fast.rss(shape) - exact) <= _AGREEMENT * exact:
+                    self._fast = fast
+            return exact
+        return self._fast.rss(shape) if self._fast is not None else self.refit(shape)
+
+    def effects(self, shape: InputShape) -> list[str]:
+        return [*self.model.effects, shape.effect] + (["const"] if self.const else [])
+
+    def refit(self, shape: InputShape) -> float:
+        """The loss of the refit itself."""
+        m = self.model
+        try:
+            fitted = ArxModel(na=m.na_, nb=m.nb_, nk=m.nk_, effects=self.effects(shape))
+            return float(fitted.fit(self.data, first_lag=m.first_lag_).rss_)
+        except ArxidError:
+            return math.inf
+
+
+class _Projection:
+    """The other columns' basis and the projected output, fixed across the shape's values; the
+    shaped lags are read from the shaped series at fixed sample indices."""
+
+    def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray, tol: float):
+        self.cost, self.index, self.q, self.y_perp, self.tol = cost, index, q, y_perp, tol
+        data = cost.data
+        self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
+        self.signal = data.signal(cost.signal)
+
+    @classmethod
+    def build(cls, cost: ShapeCost, shape: InputShape) -> _Projection | None:
+        m, data = cost.model, cost.data
+        try:
+            layout = compile_effects(cost.effects(shape), data, m.nb_, m.nk_)
+        except ArxidError:
+            return None
+        phi, y, rows = regressor_matrix(data, m.na_, layout, m.first_lag_)
+        # The shaped input's columns are those that move when its series does, each its series at a
+        # fixed lag: found by writing the sample numbers in as the series.
+        numbered = layout.u.copy()
+        numbered[:, cost.column] = np.arange(data.n_samples) + 0.5 * data.n_samples  # distinct from every value
+        moved = regressor_columns(data, m.na_, replace(layout, u=numbered), rows, range(phi.shape[1]))
+        which = np.flatnonzero((moved != phi).any(axis=0))
+        if which.size == 0:
+            return None
+        index = np.round(moved[:, which] - 0.5 * data.n_samples).astype(np.intp)
+        if not np.array_equal(layout.u[index, cost.column], phi[:, which]):
+            return None  # not a plain lag of the series: the refit decides
+        other = np.delete(phi, which, axis=1)
+        tol = _RANK_FACTOR * max(phi.shape)
+        q, r = np.linalg.qr(other)
+        norms = np.linalg.norm(other, axis=0)
+        if other.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
+            return None  # dependent columns besides the shape: the refit decides
+        y_perp = y - q @ (q.T @ y)
+        return cls(cost, index, q, y_perp, tol)
+
+    def rss(self, shape: InputShape) -> float:
+        try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
+            read = parse_shape(shape.text, self.names, shape.effect)
+        except ArxidError:
+            return math.inf
+        with np.errstate(over="ignore", invalid="ignore"):
+            series = read.evaluate(self.signal)
+        if np.isinf(series).any():  # beyond the float range: a data error to the refit
+            return math.inf
+        z = series[self.index]
+        if not np.isfinite(z).all():
+            return self.cost.refit(shape)
+        k = z.shape[1]
+        # R of [Z − Q(QᵀZ) | y⊥] (no Q formed): its last diagonal entry is the residual's norm.
+        stacked = np.empty((z.shape[0], k + 1))
+        stacked[:, :k] = z - self.q @ (self.q.T @ z)
+        stacked[:, k] = self.y_perp
+        r = np.asarray(np.linalg.qr(stacked, mode="r"))
+        norms = np.sqrt(np.einsum("ij,ij->j", z, z))
+        if not (np.abs(np.diag(r)[:k]) > self.tol * norms).all():
+            return math.inf  # a shaped lag the other columns (or the lags before it) already span
+        return float(r[k, k] ** 2)

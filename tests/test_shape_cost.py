@@ -1,0 +1,70 @@
+"""The shortcut of a shape scan gives the refit's one-step loss: the shaped lags projected against
+the model's other columns, on seeded Hammerstein plants (a dead zone, a saturation, a power law)
+with two inputs, an offset and an output term; and +inf wherever the refit refuses the value."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+import arxid
+from arxid.diagnosis.shape_cost import ShapeCost
+
+
+def plant(seed: int, n: int = 1500) -> arxid.IOData:
+    rng = np.random.default_rng(seed)
+    u1 = np.repeat(rng.uniform(-1.5, 1.5, n // 10 + 1), 10)[:n]
+    u2 = rng.standard_normal(n)
+    dz = np.sign(u1) * np.maximum(np.abs(u1) - 0.4, 0.0)
+    y = lfilter([0, 0.3, 0.15], [1, -1.2, 0.45], dz) + lfilter([0, 0.2], [1, -0.5], u2) + 0.3
+    y += 0.01 * rng.standard_normal(n)
+    return arxid.IOData(y, np.column_stack([u1, u2]), 0.01, input_names=["u", "w"])
+
+
+@pytest.mark.parametrize(
+    ("kind", "values", "effects", "const"),
+    [
+        ("dead zone", [(0.1,), (0.4,), (0.77,), (1.2,)], [], True),
+        ("saturation", [(-0.6, 0.8), (-1.0, 0.3), (-2.0, 1.0)], [], False),
+        ("signed power", [(0.5,), (1.0,), (2.3,)], ["y^2"], True),
+    ],
+)
+def test_shortcut_equals_the_refit(kind, values, effects, const):
+    data = plant(1)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=effects).fit(data)
+    cost = ShapeCost(model, data, kind, "u", const)
+    first = cost(values[0])  # refitted, and the shortcut checked against it
+    assert cost._fast is not None
+    assert first == cost.refit(arxid.models.input_shapes.InputShape(kind, "u", values[0]))
+    for v in values:
+        shape = arxid.models.input_shapes.InputShape(kind, "u", v)
+        assert cost(v) == pytest.approx(cost.refit(shape), rel=1e-10)
+
+
+def test_refused_values_cost_infinity_as_the_refit_does():
+    """A dead zone wider than the input leaves zero columns; the refit calls them rank deficient."""
+    data = plant(2)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    cost = ShapeCost(model, data, "dead zone", "u", True)
+    cost((0.2,))
+    assert cost._fast is not None
+    shape = arxid.models.input_shapes.InputShape("dead zone", "u", (5.0,))
+    assert math.isinf(cost.refit(shape))
+    assert math.isinf(cost((5.0,)))
+
+
+def test_missing_samples_keep_the_refits_rows():
+    data = plant(3)
+    y = data.y.copy()
+    y[[100, 101, 700]] = np.nan
+    data = arxid.IOData(y, data.u, 0.01, input_names=["u", "w"])
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    cost = ShapeCost(model, data, "dead zone", "u", False)
+    cost((0.3,))
+    assert cost._fast is not None
+    for c in (0.35, 0.5):
+        shape = arxid.models.input_shapes.InputShape("dead zone", "u", (c,))
+        assert cost((c,)) == pytest.approx(cost.refit(shape), rel=1e-10)
