@@ -17,9 +17,9 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid.data.logs import merged_parts
+from arxid.diagnosis.cluster_records import diagnose_fleet, diagnose_logs
 from arxid.diagnosis.extension import candidate_list
-from arxid.diagnosis.fleet_diagnose import diagnose_fleet, diagnose_logs
-from arxid.diagnosis.fleet_refit import FleetRefits
+from arxid.diagnosis.pooled_refits import PooledRefits as FleetRefits
 from arxid.diagnosis.scoring import Scoring
 from arxid.exceptions import ArxidError
 from arxid.fleet.cluster import WorkerLogs
