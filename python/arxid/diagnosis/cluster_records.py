@@ -337,18 +337,7 @@ class ClusterRecords:
         return FleetDiagnosis(d, _evidence(self.statistics[i], d, self.logs.names, d.alpha))
 
     def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]:
-        """The model's validation RMS and fit percent at ``horizon``, pooled over the logs.
-
-        Parameters
-        ----------
-        model : ArxModel
-        horizon : int or None
-        initial : {"zero", "estimate"}
-
-        Returns
-        -------
-        tuple of (float, float)
-        """
+        """As :meth:`arxid.diagnosis.suspects.Records.measure`, pooled over the logs (one round trip)."""
         score = self.refits.scores(model, [("val", horizon, initial)])[0]
         return score.rms, score.fit
 

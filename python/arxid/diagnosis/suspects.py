@@ -65,7 +65,6 @@ __all__ = [
     "diagnose",
     "Baseline",
     "Diagnosis",
-    "OneRecord",
     "Records",
     "Suspect",
     "auto_candidates",
@@ -352,25 +351,100 @@ class Records(Protocol):
     same: bool  # the validation data are the estimation data
     here: bool  # the samples are in this process
 
-    def check(self, model: ArxModel) -> None: ...
+    def check(self, model: ArxModel) -> None:
+        """Raise :class:`~arxid.ArxidError` for a model these records cannot diagnose.
 
-    def baseline(self, model: ArxModel, horizon: int | None, initial: str, max_lag: int) -> Any: ...
+        Parameters
+        ----------
+        model : ArxModel
+        """
+
+    def baseline(self, model: ArxModel, horizon: int | None, initial: str, max_lag: int) -> Any:
+        """Start the model's validation errors (:class:`Baseline`, with its residual tests up to
+        ``max_lag`` where the residuals are here).
+
+        Parameters
+        ----------
+        model : ArxModel
+        horizon : int or None
+        initial : {"zero", "estimate"}
+        max_lag : int
+
+        Returns
+        -------
+        object
+            Its ``result()`` is the :class:`Baseline` (awaited after the scoring).
+        """
 
     def candidates(
         self, candidates: str | Sequence[str], model: ArxModel, loop_signals: tuple[str, ...]
-    ) -> tuple[list[Candidate], bool]: ...
+    ) -> tuple[list[Candidate], bool]:
+        """The candidates to test (``"auto"``: from the records' signals) and whether they were automatic.
 
-    def scoring(self, model: ArxModel, cands: list[Candidate]) -> CandidateScoring: ...
+        Parameters
+        ----------
+        candidates : "auto" or sequence of str
+        model : ArxModel
+        loop_signals : tuple of str
+            Signals ``"auto"`` leaves out.
+
+        Returns
+        -------
+        tuple of (list of Candidate, bool)
+        """
+        raise NotImplementedError
+
+    def scoring(self, model: ArxModel, cands: list[Candidate]) -> CandidateScoring:
+        """The added-variable tests of the candidates, where the records are.
+
+        Parameters
+        ----------
+        model : ArxModel
+        cands : list of Candidate
+
+        Returns
+        -------
+        CandidateScoring
+        """
+        raise NotImplementedError
 
     def judge(
         self, model: ArxModel, horizon: int | None, base_rms: float, min_improvement: float, initial: str
-    ) -> Judge: ...
+    ) -> Judge:
+        """The judge that refits and validates candidates on these records.
 
-    def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]: ...
+        Parameters
+        ----------
+        model : ArxModel
+        horizon : int or None
+        base_rms, min_improvement : float
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        Judge
+        """
+        raise NotImplementedError
+
+    def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]:
+        """The model's validation RMS and fit percent at ``horizon`` (a ladder's step).
+
+        Parameters
+        ----------
+        model : ArxModel
+        horizon : int or None
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        tuple of (float, float)
+        """
+        raise NotImplementedError
 
 
 class OneRecord:
-    """One record in this process: its estimation and validation data (a fleet of one).
+    """One record in this process: its estimation and validation data (a fleet of one). Each
+    method is that of :class:`Records`.
 
     Parameters
     ----------
@@ -409,18 +483,7 @@ class OneRecord:
         return Judge(model, self.estimation, self.validation, horizon, base_rms, min_improvement, initial)
 
     def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]:
-        """The model's validation RMS and fit percent at ``horizon`` (one prediction).
-
-        Parameters
-        ----------
-        model : ArxModel
-        horizon : int or None
-        initial : {"zero", "estimate"}
-
-        Returns
-        -------
-        tuple of (float, float)
-        """
+        """As :meth:`Records.measure`, from one prediction."""
         pred, _ = prediction(model, self.validation, horizon, initial)
         return metrics.prediction_rms(self.validation.y, pred), metrics.fit_percent(self.validation.y, pred)
 
