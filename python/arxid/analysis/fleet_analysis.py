@@ -32,10 +32,9 @@ from ..exceptions import ArxidError, OrderError
 from ..fleet.cluster import WorkerLogs
 from ..models.arx_model import ArxModel
 from ..models.polynomial import check_initial
-from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import SweepResult, sweep
 from .conclusion import Conclusion
-from .pipeline import DEFAULT_SPLIT, FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_lists, grid_of
+from .pipeline import FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_lists, grid_of
 
 __all__ = ["FleetAnalysis", "analyse_fleet", "FLEET_ANALYSIS_NOTE"]
 
@@ -180,47 +179,24 @@ def analyse_fleet(
     logs: Sequence[Any],
     client: Any,
     *,
-    split: float = DEFAULT_SPLIT,
-    read: Any = None,
-    orders: Sequence | None = None,
-    grid: Mapping[str, Any] | None = None,
-    horizon: int | None = None,
-    expect: str | None = None,
-    max_steps: int = 3,
-    initial: str = "zero",
-    grow: bool | None = None,
-    max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
+    split: float,
+    read: Any,
+    orders: Sequence | None,
+    grid: Mapping[str, Any] | None,
+    horizon: int | None,
+    expect: str | None,
+    max_steps: int,
+    initial: str,
+    grow: bool | None,
+    max_seconds: float | None,
     **diagnose_kwargs: Any,
 ) -> FleetAnalysis:
-    """Analyse a fleet of logs where they are, on a Dask cluster.
+    """:func:`arxid.analyse` of a fleet of logs where they are, on a Dask cluster (``client=``).
 
     Parameters
     ----------
-    logs : sequence of IOData or file paths
-        The logs (files are read by the workers, with ``read``).
-    client : dask.distributed.Client
-    split : float
-        Estimation share of each log (its last ``1 - split`` validates; default 0.7).
-    read : dict or callable, optional
-        How to read file paths (see :func:`arxid.data.logs.load_experiment`).
-    orders : (na, nb, nk), optional
-        A fixed structure; else the fleet sweep over ``grid`` chooses it.
-    grid : mapping with keys na, nb, nk, optional
-        Sweep grid (missing keys take :data:`arxid.DEFAULT_GRID`), swept as given unless ``grow``.
-    grow : bool or None
-        Grow the grid while the choice sits on its edge and growing improves it, each larger grid
-        swept where the logs are. None (default): the default grid grows, a given one does not
-        (as :func:`arxid.analyse` in process).
-    max_seconds : float or None
-        Time budget of the grid search in seconds (default 30).
-    horizon : int, optional
-        Validation error measure: None = free run; k = k-step-ahead prediction.
-    expect : {None, "stable", "integrating", "double-integrating"}
-        What the physics says (the sweep's step sanity check).
-    max_steps : int
-        Largest number of effects the ladder adds.
-    initial : {"zero", "estimate"}
-        Initial conditions of every validation error (see :func:`arxid.compare`).
+    logs, client, split, read, orders, grid, horizon, expect, max_steps, initial, grow, max_seconds
+        As in :func:`arxid.analyse` (``logs`` its ``data``).
     **diagnose_kwargs
         Passed to the diagnosis (``candidates``, ``alpha``, ``min_improvement`` ...).
 
