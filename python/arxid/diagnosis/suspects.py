@@ -30,6 +30,13 @@ and the model refitted with it), :mod:`~arxid.diagnosis.scoring` (step 2 and the
 :mod:`~arxid.diagnosis.judge` (steps 3 and 4) and :mod:`~arxid.diagnosis.result` (the suspects and
 the diagnosis). :class:`~arxid.diagnosis.ladder.Ladder` then adds the best significant suspect,
 re-diagnoses, and repeats — the error falls step by step.
+
+The procedure is written once, wherever the records are (:class:`Records`): one record in this
+process (:class:`OneRecord`, what :func:`diagnose` makes of ``data`` and ``validation``), or a fleet's
+logs on a Dask cluster (:class:`~arxid.diagnosis.cluster_records.ClusterRecords`), whose scoring,
+refits and validation errors come from sums made where the logs are. The stages that need the
+samples in this process (shapes, masked pairs, sensor shapes, residual tests, the dependence table)
+run for a record here only.
 """
 
 from __future__ import annotations
