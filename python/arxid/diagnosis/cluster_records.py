@@ -42,7 +42,7 @@ from .judge import Judge, refit_indices
 from .pooled_refits import PooledRefits
 from .result import Diagnosis
 from .statistics import RegressorStatistics, combine_statistics, share_statistics
-from .suspects import INTEGRATING_HORIZON, baseline_errors, diagnose
+from .suspects import INTEGRATING_HORIZON, Baseline, baseline_errors, diagnose
 
 __all__ = [
     "ClusterRecords",
@@ -297,7 +297,8 @@ class ClusterRecords:
             "hold out a larger share of each log"
         )
         rms = lambda k, i: (got[k, i].rms, got[k, i].diverged)  # noqa: E731
-        return _Done(baseline_errors(model, horizon, initial, rms, lambda k, i: got[k, i].fit, too_short))
+        at, base_rms = baseline_errors(model, horizon, initial, rms, lambda k, i: got[k, i].fit, too_short)
+        return _Done(Baseline(at, base_rms, got[1, "zero"].rms, got[at, initial].fit))
 
     def candidates(
         self, candidates: str | Sequence[str], model: ArxModel, loop_signals: tuple[str, ...]

@@ -279,7 +279,7 @@ def baseline_errors(
     rms: Callable[[int | None, str], tuple[float, bool]],
     fit: Callable[[int | None, str], float],
     too_short: str,
-) -> Baseline:
+) -> tuple[int | None, float]:
     """The baseline's rule, wherever the records are: a free run that drifts or diverges is measured
     :data:`INTEGRATING_HORIZON` steps ahead.
 
@@ -292,13 +292,14 @@ def baseline_errors(
         ``rms(k, initial)``: the validation RMS (inf when the prediction diverged, NaN without a
         predicted sample) and whether it diverged.
     fit : callable
-        ``fit(k, initial)``: the validation fit percent.
+        ``fit(k, initial)``: the validation fit percent (of the free run, for the settling evidence).
     too_short : str
         The message when no validation sample has a prediction.
 
     Returns
     -------
-    Baseline
+    tuple of (int or None, float)
+        The horizon of the validation error, and the error there.
     """
     if horizon is None:
         free = None  # no settling to speak of without a stable, converging free run
@@ -311,7 +312,7 @@ def baseline_errors(
     if horizon is None and math.isinf(base_rms):
         horizon = INTEGRATING_HORIZON
         base_rms = rms(horizon, initial)[0]
-    return Baseline(horizon, base_rms, rms(1, "zero")[0], fit(horizon, initial))
+    return horizon, base_rms
 
 
 def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int, initial: str) -> Baseline:
@@ -336,14 +337,15 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
         f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
         f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)"
     )
-    base = baseline_errors(model, horizon, initial, rms, fit, too_short)
+    horizon, base_rms = baseline_errors(model, horizon, initial, rms, fit, too_short)
+    pred = predicted(horizon, initial)[0]
     try:
         rtests = residuals(model, validation, max_lag=max_lag)
     except ArxidError:
-        return base
-    pred = predicted(base.horizon, initial)[0]
-    rest = remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
-    return replace(base, residual_tests=rtests, disturbance=rest)
+        rtests = None
+    rest = None if rtests is None else remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
+    # the one-step prediction last: it is not held while the residual tests run
+    return Baseline(horizon, base_rms, rms(1, "zero")[0], metrics.fit_percent(validation.y, pred), rtests, rest)
 
 
 @runtime_checkable
