@@ -17,9 +17,9 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid.data.logs import merged_parts
+from arxid.diagnosis.cluster_records import diagnose_fleet, diagnose_logs
 from arxid.diagnosis.extension import candidate_list
-from arxid.diagnosis.fleet_diagnose import diagnose_fleet, diagnose_logs
-from arxid.diagnosis.fleet_refit import FleetRefits
+from arxid.diagnosis.pooled_refits import PooledRefits as FleetRefits
 from arxid.diagnosis.scoring import Scoring
 from arxid.exceptions import ArxidError
 from arxid.fleet.cluster import WorkerLogs
@@ -215,3 +215,38 @@ def test_fleet_analysis_with_missing_samples(dask_client):
     _assert_same(fleet, local)
     assert np.isfinite(next(s.score for s in fleet.diagnosis.suspects if s.effect == "na+1"))
     assert fleet.logs_with_effect == tuple(with_effect)
+
+
+def test_one_record_given_as_records_is_the_same_diagnosis():
+    """``diagnose(model, OneRecord(est, val))`` is ``diagnose(model, est, val)``: the records are where
+    the procedure runs, not a second procedure."""
+    from arxid.diagnosis.suspects import OneRecord
+
+    est, val = _log(21, "battery").split(0.7)
+    model = arxid.arx(est, 2, 2, 1)
+    direct = arxid.diagnose(model, est, val, candidates=CANDIDATES)
+    given = arxid.diagnose(model, OneRecord(est, val), candidates=CANDIDATES)
+    assert [s.effect for s in given.suspects] == [s.effect for s in direct.suspects]
+    assert given.top is not None and given.top.effect == "u1*vbat"
+    for a, b in zip(given.suspects, direct.suspects, strict=True):
+        assert _close(a.score, b.score) and _close(a.rms_sim_val_after, b.rms_sim_val_after), a.effect
+    with pytest.raises(ArxidError, match="records hold their own validation data"):
+        arxid.diagnose(model, OneRecord(est, val), val)
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        ("arxid.diagnosis.fleet_diagnose", "arxid.diagnosis.cluster_records"),
+        ("arxid.diagnosis.fleet_scoring", "arxid.diagnosis.statistics"),
+        ("arxid.diagnosis.fleet_refit", "arxid.diagnosis.pooled_refits"),
+    ],
+)
+def test_the_fleet_modules_old_paths_still_import(old, new):
+    import importlib
+    import sys
+
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}"):
+        module = importlib.import_module(old)
+    assert module is importlib.import_module(new)

@@ -29,6 +29,9 @@ MOVED = {
     "arxid.uncertainty": "arxid.checks.bands",
     "arxid.ladder": "arxid.diagnosis.ladder",
     "arxid.sanity": "arxid.selection.sanity",
+    "arxid.diagnosis.fleet_diagnose": "arxid.diagnosis.cluster_records",
+    "arxid.diagnosis.fleet_scoring": "arxid.diagnosis.statistics",
+    "arxid.diagnosis.fleet_refit": "arxid.diagnosis.pooled_refits",
 }
 
 #: Public modules of the ``arxid`` namespace (``arxid.datasets``, ...) that live in a subpackage:

@@ -5,7 +5,7 @@ The logs are read by the workers and stay there (:class:`arxid.fleet.cluster.Wor
 shares' factors) or from the fleet sweep (``arxid.sweep(logs, client=...)``) and the in-process
 choice (:func:`arxid.analysis.pipeline.choose`; its step sanity check and refit read the chosen
 structure's data on the client, as a fleet sweep's result does). Then the diagnosis and the ladder
-run on sufficient statistics where the logs are (:func:`arxid.diagnosis.fleet_diagnose.diagnose_fleet`):
+run on sufficient statistics where the logs are (:func:`arxid.diagnosis.cluster_records.diagnose_fleet`):
 the same suspects, statistics and ladder errors as :func:`arxid.analyse` on the logs merged as
 experiments of one IOData (``arxid.data.logs.merged_parts``) with the same orders, to rounding; and
 which logs the missing effect shows in.
@@ -18,27 +18,23 @@ re-chosen as effects are added) and does not take out earlier effects a later on
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
-from .._base.formatting import format_value, horizon_label, json_safe, text_table
-from ..diagnosis.candidates import physics
-from ..diagnosis.fleet_diagnose import FleetDiagnosis, diagnose_fleet
-from ..diagnosis.fleet_refit import FleetRefits
-from ..diagnosis.ladder import Ladder, LadderStep, next_rung
-from ..diagnosis.result import Diagnosis
+from .._base.formatting import text_table
+from ..diagnosis.cluster_records import ClusterRecords, FleetDiagnosis
+from ..diagnosis.ladder import Ladder
+from ..diagnosis.pooled_refits import PooledRefits
 from ..exceptions import ArxidError, OrderError
 from ..fleet.cluster import WorkerLogs
 from ..models.arx_model import ArxModel
 from ..models.polynomial import check_initial
-from ..selection.growth import DEFAULT_GROWTH_SECONDS
 from ..selection.search import SweepResult, sweep
-from .pipeline import DEFAULT_SPLIT, FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_lists, grid_of
-from .verdicts import ladder_headline
+from .conclusion import Conclusion
+from .pipeline import FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_lists, grid_of
 
 __all__ = ["FleetAnalysis", "analyse_fleet", "FLEET_ANALYSIS_NOTE"]
 
@@ -49,8 +45,8 @@ FLEET_ANALYSIS_NOTE = (
 )
 
 
-@dataclass(frozen=True, eq=False)
-class FleetAnalysis:
+@dataclass(frozen=True, eq=False, kw_only=True)
+class FleetAnalysis(Conclusion):
     """What arxid concludes about a fleet of logs analysed where they are.
 
     Attributes
@@ -76,27 +72,7 @@ class FleetAnalysis:
     """
 
     logs: tuple[str, ...]
-    grid: OrderGrid | None
-    sweep: SweepResult | None
-    choice: Choice
-    model: ArxModel
-    horizon: int | None
-    diagnosis: Diagnosis
-    ladder: Ladder
     fleet: FleetDiagnosis
-    timings: dict
-    notes: tuple[str, ...] = ()
-
-    @property
-    def final_model(self) -> ArxModel:
-        """The model of the ladder's last step."""
-        return self.ladder.final_model
-
-    @property
-    def missing_effect(self) -> str | None:
-        """The best significant suspect, or None."""
-        top = self.diagnosis.top
-        return None if top is None else top.effect
 
     @property
     def logs_with_effect(self) -> tuple[str, ...]:
@@ -113,83 +89,42 @@ class FleetAnalysis:
         -------
         dict
         """
-        out = self.diagnosis.to_dict(self.ladder)
+        out = super().to_dict()
         g = self.grid
         out.update(
             {
-                "choice": self.choice.to_dict(),
                 "grid": None if g is None else {"na": list(g["na"]), "nb": list(g["nb"]), "nk": list(g["nk"])},
                 "logs": list(self.logs),
                 "fleet": self.fleet.to_dict(),
-                "notes": list(self.notes),
-                "error_fall": self.ladder.error_fall(),
                 "timings": dict(self.timings),
             }
         )
         return out
 
-    def to_json(self, indent: int | None = 2) -> str:
-        """JSON of :meth:`to_dict` (NaN and inf become null).
-
-        Parameters
-        ----------
-        indent : int or None
-
-        Returns
-        -------
-        str
-        """
-        return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
-
-    def summary_lines(self, n_suspects: int = 12) -> list[str]:
-        """The text report of ``arxid diagnose`` on a fleet.
-
-        Parameters
-        ----------
-        n_suspects : int
-            Rows of the suspect table.
-
-        Returns
-        -------
-        list of str
-        """
-        d = self.diagnosis
-        lines = [f"fleet of {len(self.logs)} logs analysed on the Dask cluster"]
-        lines.append(f"model: {self.model.structure_name()} ({self.choice.reason})")
-        lines.append(
-            f"validation ({horizon_label(self.horizon)}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
-            f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"
-        )
-        rows = [
-            [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after, s.explained_by or "-", d.why(s)]
-            for i, s in enumerate(d.suspects[:n_suspects], start=1)
+    def _head_lines(self) -> list[str]:
+        return [
+            f"fleet of {len(self.logs)} logs analysed on the Dask cluster",
+            f"model: {self.model.structure_name()} ({self.choice.reason})",
+            self._validation_line(),
         ]
-        if rows:
-            head = ["rank", "effect", "score", "p-value", "significant", "val. RMS after", "explained by", "why"]
-            lines += ["", text_table(head, rows, title="suspects (missing effects, ranked):")]
-        lines += [
-            "",
-            f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect",
-        ]
-        lines.append(self.fleet.sentence())
+
+    def _evidence_lines(self) -> list[str]:
+        """Which logs the missing effect shows in, and its test on each log."""
+        lines = [self.fleet.sentence()]
         if self.fleet.evidence:
             rows = [[e.log, e.rows, e.score, e.f_statistic, e.p_adjusted, e.significant] for e in self.fleet.evidence]
             head = ["log", "rows", "partial corr.", "F", "p (Holm)", "shows it"]
             lines += ["", text_table(head, rows, title=f"{self.missing_effect} in each log:")]
-        if len(self.ladder):
-            lines += ["", str(self.ladder)]
-            headline = ladder_headline(self.ladder)
-            lines += [headline] if headline else []
-        return lines + ["", *self.notes]
+        return lines
 
-    def __str__(self) -> str:
-        return "\n".join(self.summary_lines())
+    def _tail_lines(self) -> list[str]:
+        return ["", *self.notes]
 
 
 def _structure(
     logs: WorkerLogs,
     sources: Sequence[Any],
-    refits: FleetRefits,
+    refits: PooledRefits,
     orders: Sequence | None,
     grid: Mapping | None,
     options: dict,
@@ -218,7 +153,8 @@ def _structure(
 def fleet_ladder(
     model: ArxModel, logs: WorkerLogs, max_steps: int, horizon: int | None, initial: str, diagnose_kwargs: dict
 ) -> tuple[Ladder, FleetDiagnosis]:
-    """The greedy ladder of :meth:`Ladder.run` (orders kept) with every diagnosis made on the fleet.
+    """:meth:`Ladder.run` (orders kept) on the fleet's records, and its first diagnosis with the logs
+    the missing effect shows in.
 
     Parameters
     ----------
@@ -228,86 +164,39 @@ def fleet_ladder(
     horizon : int or None
     initial : {"zero", "estimate"}
     diagnose_kwargs : dict
-        Passed to :func:`diagnose_fleet`.
+        Passed to :func:`arxid.diagnose`.
 
     Returns
     -------
     tuple of (Ladder, FleetDiagnosis)
-        The ladder and its first diagnosis.
     """
-    refits = FleetRefits(logs)
-    first = diagnose_fleet(model, logs, horizon=horizon, initial=initial, **diagnose_kwargs)
-    d = first.diagnosis
-    ladder = Ladder(d.validation, d.horizon, initial)
-
-    def measured(m: ArxModel, added: str, base: Diagnosis) -> LadderStep:
-        # A diagnosis of ``m`` at the ladder's measure has measured it already (one round trip less).
-        if base.model is m and base.horizon == ladder.horizon:
-            rms, fit = base.rms_sim_val, base.fit_val
-        else:
-            score = refits.scores(m, [("val", ladder.horizon, initial)])[0]
-            rms, fit = score.rms, score.fit
-        text = physics(added, logs.head) if added else ""
-        return LadderStep(added, m, tuple(m.effects), m.structure_name(), rms, fit, ladder.horizon, text)
-
-    ladder.steps.append(measured(model, "", d))
-    ladder.diagnoses.append(d)
-    for _ in range(int(max_steps)):
-        rung = next_rung(d)
-        if rung is None or rung.model is None:
-            break
-        model = rung.model
-        d = diagnose_fleet(model, logs, horizon=d.horizon, initial=initial, **diagnose_kwargs).diagnosis
-        ladder.steps.append(measured(model, rung.effect, d))
-        ladder.diagnoses.append(d)
-    return ladder, first
+    records = ClusterRecords(logs)
+    ladder = Ladder.run(model, records, max_steps=max_steps, horizon=horizon, initial=initial, **diagnose_kwargs)
+    return ladder, records.evidence(ladder.diagnoses[0], 0)
 
 
 def analyse_fleet(
     logs: Sequence[Any],
     client: Any,
     *,
-    split: float = DEFAULT_SPLIT,
-    read: Any = None,
-    orders: Sequence | None = None,
-    grid: Mapping[str, Any] | None = None,
-    horizon: int | None = None,
-    expect: str | None = None,
-    max_steps: int = 3,
-    initial: str = "zero",
-    grow: bool | None = None,
-    max_seconds: float | None = DEFAULT_GROWTH_SECONDS,
+    split: float,
+    read: Any,
+    orders: Sequence | None,
+    grid: Mapping[str, Any] | None,
+    horizon: int | None,
+    expect: str | None,
+    max_steps: int,
+    initial: str,
+    grow: bool | None,
+    max_seconds: float | None,
     **diagnose_kwargs: Any,
 ) -> FleetAnalysis:
-    """Analyse a fleet of logs where they are, on a Dask cluster.
+    """:func:`arxid.analyse` of a fleet of logs where they are, on a Dask cluster (``client=``).
 
     Parameters
     ----------
-    logs : sequence of IOData or file paths
-        The logs (files are read by the workers, with ``read``).
-    client : dask.distributed.Client
-    split : float
-        Estimation share of each log (its last ``1 - split`` validates; default 0.7).
-    read : dict or callable, optional
-        How to read file paths (see :func:`arxid.data.logs.load_experiment`).
-    orders : (na, nb, nk), optional
-        A fixed structure; else the fleet sweep over ``grid`` chooses it.
-    grid : mapping with keys na, nb, nk, optional
-        Sweep grid (missing keys take :data:`arxid.DEFAULT_GRID`), swept as given unless ``grow``.
-    grow : bool or None
-        Grow the grid while the choice sits on its edge and growing improves it, each larger grid
-        swept where the logs are. None (default): the default grid grows, a given one does not
-        (as :func:`arxid.analyse` in process).
-    max_seconds : float or None
-        Time budget of the grid search in seconds (default 30).
-    horizon : int, optional
-        Validation error measure: None = free run; k = k-step-ahead prediction.
-    expect : {None, "stable", "integrating", "double-integrating"}
-        What the physics says (the sweep's step sanity check).
-    max_steps : int
-        Largest number of effects the ladder adds.
-    initial : {"zero", "estimate"}
-        Initial conditions of every validation error (see :func:`arxid.compare`).
+    logs, client, split, read, orders, grid, horizon, expect, max_steps, initial, grow, max_seconds
+        As in :func:`arxid.analyse` (``logs`` its ``data``).
     **diagnose_kwargs
         Passed to the diagnosis (``candidates``, ``alpha``, ``min_improvement`` ...).
 
@@ -328,7 +217,7 @@ def analyse_fleet(
     on_workers = WorkerLogs(client, logs, read, 1.0 - float(split))
     timings["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    refits = FleetRefits(on_workers)
+    refits = PooledRefits(on_workers)
     options = {"horizon": horizon, "expect": expect, "read": read, "auto_extend": grow, "growth_seconds": max_seconds}
     res, model, choice, g = _structure(on_workers, logs, refits, orders, grid, options)
     timings["sweep"] = time.perf_counter() - t0
@@ -342,7 +231,17 @@ def analyse_fleet(
     if not math.isfinite(first.diagnosis.rms_sim_val):
         notes += ("The chosen model's validation error is not finite.",)
     return FleetAnalysis(
-        tuple(on_workers.names), g, res, choice, model, ladder.horizon, first.diagnosis, ladder, first, timings, notes
+        grid=g,
+        sweep=res,
+        choice=choice,
+        model=model,
+        horizon=ladder.horizon,
+        diagnosis=first.diagnosis,
+        ladder=ladder,
+        timings=timings,
+        logs=tuple(on_workers.names),
+        fleet=first,
+        notes=notes,
     )
 
 

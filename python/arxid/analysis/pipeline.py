@@ -32,7 +32,7 @@ from functools import cached_property, partial
 from typing import Any
 
 from .._base.background import Background, in_two, one_blas_thread
-from .._base.formatting import format_value, horizon_label, json_safe, text_table
+from .._base.formatting import format_value, horizon_label
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
 from ..checks.feedback import FeedbackTest
@@ -40,7 +40,6 @@ from ..checks.frequency import FrequencyCheck, frequency_check
 from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.static_map import shape_map_dict, shape_maps
-from ..diagnosis.suspects import Diagnosis
 from ..exceptions import ArxidError, OrderError
 from ..frequency_domain import FrequencyResponse, frf
 from ..models.arguments import check_data, check_horizon
@@ -62,6 +61,7 @@ from .closed_loop import (
     reference_names,
     still_references,
 )
+from .conclusion import Conclusion
 from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
 from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
 
@@ -71,8 +71,8 @@ __all__ = ["Analysis", "Choice", "OrderGrid", "analyse", "choose", "grid_of", "D
 DEFAULT_SPLIT = 0.7
 
 
-@dataclass(frozen=True, eq=False)
-class Analysis:
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Analysis(Conclusion):
     """Everything arxid concludes about one data set, as result objects.
 
     Attributes
@@ -125,17 +125,8 @@ class Analysis:
 
     estimation: IOData
     validation: IOData
-    grid: OrderGrid | None
-    sweep: SweepResult | None
-    choice: Choice
-    model: ArxModel
-    horizon: int | None
-    diagnosis: Diagnosis
-    ladder: Ladder
     comparison: Comparison
     failures: tuple[FailureAnalysis, ...]
-    timings: dict
-    notes: tuple[str, ...] = ()
     frequency: tuple[FrequencyCheck, ...] = ()
     bands: tuple[ResponseBand, ...] = ()
     initial: str = "zero"
@@ -173,11 +164,6 @@ class Analysis:
         return shape_maps(self.final_model, self.estimation)
 
     @property
-    def final_model(self) -> ArxModel:
-        """The model of the ladder's last step (the chosen model when nothing was added)."""
-        return self.ladder.final_model
-
-    @property
     def grid_text(self) -> str:
         """The order ranges of the last grid swept as text, e.g. ``na 1..4, nb 1..3, nk 0..5`` (empty
         when orders were given)."""
@@ -197,12 +183,6 @@ class Analysis:
     def residual_tests(self) -> ResidualAnalysis | None:
         """Residual tests of the chosen model on the validation data (those of the diagnosis)."""
         return self.diagnosis.residual_tests
-
-    @property
-    def missing_effect(self) -> str | None:
-        """The best significant suspect, or None when nothing significant is missing."""
-        top = self.diagnosis.top
-        return None if top is None else top.effect
 
     @property
     def error_fall(self) -> float | None:
@@ -226,18 +206,15 @@ class Analysis:
         -------
         dict
         """
-        out = self.diagnosis.to_dict(self.ladder)
+        out = super().to_dict()
         out.update(
             {
-                "choice": self.choice.to_dict(),
                 "grid": None if self.grid is None else grid_lists(self.grid),
                 "grid_growth": None if self.grid_growth is None else self.grid_growth.to_dict(),
                 "sweep": None if self.sweep is None else self.sweep.summary(),
                 "comparison": self.comparison.to_dict(),
                 "where_it_fails": [f.to_dict() for f in self.failures],
-                "notes": list(self.notes),
                 "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
-                "error_fall": self.ladder.error_fall(),
                 "feedback": None if self.feedback is None else json.loads(self.feedback.to_json()),
                 "closed_loop": None if self.closed_loop is None else self.closed_loop.to_dict(),
                 "input_shapes": [shape_map_dict(*pair) for pair in self.input_shapes],
@@ -245,47 +222,16 @@ class Analysis:
         )
         return out
 
-    def to_json(self, indent: int | None = 2) -> str:
-        """JSON of :meth:`to_dict` (NaN and inf become null).
-
-        Parameters
-        ----------
-        indent : int or None
-
-        Returns
-        -------
-        str
-        """
-        return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
-
-    def __str__(self) -> str:
-        return "\n".join(self.summary_lines())
-
-    def summary_lines(self, n_suspects: int = 12) -> list[str]:
-        """The text report of ``arxid diagnose``: model, choice, validation, residual tests,
-        suspects, verdict and ladder.
-
-        Parameters
-        ----------
-        n_suspects : int
-            Rows of the suspect table.
-
-        Returns
-        -------
-        list of str
-        """
+    def _head_lines(self) -> list[str]:
+        """Model, choice, validation, notes, residual tests and frequency checks."""
         d = self.diagnosis
-        what = horizon_label(self.horizon)
         lines = [f"model: {self.model.structure_name()} ({self.choice.reason})"]
         lines += [f"  skipped {s}: {w}" for s, w in self.choice.skipped[:3]]
         if self.choice.grid_edge:
             lines.append(f"  {self.choice.grid_edge}")
         if self.grid_growth is not None and (self.grid_growth.grew or self.grid_growth.stop != "inside"):
             lines += [f"  {line}" for line in self.grid_growth.lines()]
-        lines.append(
-            f"validation ({what}): RMS {format_value(d.rms_sim_val)}, one-step RMS "
-            f"{format_value(d.rms_pred_val)}, fit {format_value(d.fit_val)} %"
-        )
+        lines.append(self._validation_line())
         if negative_fit_note(d.fit_val):
             lines.append(f"  ({negative_fit_note(d.fit_val)})")
         lines += self.notes
@@ -293,15 +239,6 @@ class Analysis:
             lines += ["", "residual tests:"] + [f"  {t}" for t in residual_sentences(self.residual_tests, d)]
             lines += ["", "details:", str(self.residual_tests)]
         lines += ["", *[f"frequency check of {f.model_name}: {f.summary}" for f in self.frequency]]
-        lines += self._suspect_lines(n_suspects)
-        lines += [
-            "",
-            f"missing effect: {self.missing_effect}" if self.missing_effect else "no significant missing effect",
-        ]
-        if len(self.ladder):
-            lines += ["", str(self.ladder)]
-            headline = ladder_headline(self.ladder)
-            lines += [headline] if headline else []
         return lines
 
     def short_summary(self) -> list[str]:
@@ -324,17 +261,6 @@ class Analysis:
             else "No frequency check (the validation data are too short)."
         )
         return [f"Model {self.model.structure_name()}: {fit}; {missing}.", ladder, freq]
-
-    def _suspect_lines(self, n: int) -> list[str]:
-        d = self.diagnosis
-        rows = [
-            [str(i), s.effect, s.score, s.p_value, s.significant, s.rms_sim_val_after, s.explained_by or "-", d.why(s)]
-            for i, s in enumerate(d.suspects[:n], start=1)
-        ]
-        if not rows:
-            return []
-        head = ["rank", "effect", "score", "p-value", "significant", "val. RMS after", "explained by", "why"]
-        return ["", text_table(head, rows, title="suspects (missing effects, ranked):")]
 
 
 # ----------------------------------------------------------------------------------------- stages
@@ -628,24 +554,24 @@ def analyse(
         method = replace(method, loop_closing=closing)
     notes = _notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
     return Analysis(
-        est,
-        val,
-        g,
-        res,
-        choice,
-        chosen,
-        ladder.horizon,
-        ladder.diagnoses[0],
-        ladder,
-        cmp,
-        failures,
-        timings,
-        notes + delay_notes(chosen, est, method is not None and method.closed),
-        freq,
-        bands,
-        initial,
-        fb,
-        method,
+        grid=g,
+        sweep=res,
+        choice=choice,
+        model=chosen,
+        horizon=ladder.horizon,
+        diagnosis=ladder.diagnoses[0],
+        ladder=ladder,
+        timings=timings,
+        estimation=est,
+        validation=val,
+        comparison=cmp,
+        failures=failures,
+        notes=notes + delay_notes(chosen, est, method is not None and method.closed),
+        frequency=freq,
+        bands=bands,
+        initial=initial,
+        feedback=fb,
+        closed_loop=method,
     )
 
 

@@ -17,9 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
-from ..checks import error_rms, prediction
+from ..checks import error_rms
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model
@@ -29,7 +28,7 @@ from ..models.wiener import WienerModel
 from .candidates import physics
 from .restructure import linear_name, order_change, rechoose_structure
 from .result import Diagnosis, Suspect
-from .suspects import diagnose
+from .suspects import OneRecord, Records, diagnose
 
 __all__ = ["Ladder", "LadderStep", "next_rung"]
 
@@ -166,6 +165,9 @@ class Ladder:
         self.initial = check_initial(initial)
         self.steps: list[LadderStep] = []
         self.diagnoses: list[Diagnosis] = []
+        #: The records :meth:`run` diagnoses, when given as such (a fleet's logs on a cluster): every
+        #: step is measured where they are.
+        self.records: Records | None = None
 
     def add(
         self,
@@ -226,15 +228,16 @@ class Ladder:
         return step
 
     def _step(self, model: ArxModel, added: str, val: IOData, replaces: tuple[str, ...]) -> LadderStep:
-        pred, _ = prediction(model, val, self.horizon, self.initial)
-        data = model.data_ if model.data_ is not None else val
+        where = self.records if self.records is not None else OneRecord(val, val)  # measured where they are
+        rms, fit = where.measure(model, self.horizon, self.initial)
+        data = model.data_ if model.data_ is not None else where.head
         return LadderStep(
             added,
             model,
             tuple(model.effects),
             model.structure_name(),
-            metrics.prediction_rms(val.y, pred),
-            metrics.fit_percent(val.y, pred),
+            rms,
+            fit,
             self.horizon,
             model.sensor.physics() if isinstance(model, WienerModel) else physics(added, data) if added else "",
             replaces=replaces,
@@ -274,7 +277,7 @@ class Ladder:
     def run(
         cls,
         model: ArxModel,
-        data: IOData | None = None,
+        data: IOData | Records | None = None,
         validation: IOData | None = None,
         *,
         max_steps: int = 3,
@@ -295,7 +298,9 @@ class Ladder:
         model : ArxModel
             Starting model.
         data, validation : IOData
-            Estimation and validation data (see :func:`diagnose`).
+            Estimation and validation data (see :func:`diagnose`); or the records of a fleet as
+            ``data`` (:class:`arxid.diagnosis.cluster_records.ClusterRecords`: every step is
+            diagnosed and measured where the logs are, and no earlier effect is taken out).
         max_steps : int
             Largest number of suspects added.
         horizon : int or None
@@ -322,6 +327,8 @@ class Ladder:
         data = data if data is not None else model.data_
         d = diagnose(model, data, validation, horizon=horizon, initial=initial, **diagnose_kwargs)
         ladder = cls(d.validation, d.horizon, initial)
+        if isinstance(data, Records):
+            ladder.records = data
         ladder.add(model)
         ladder.diagnoses.append(d)
         for _ in range(int(max_steps)):

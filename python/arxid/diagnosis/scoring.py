@@ -35,19 +35,127 @@ from .added_variable import AddedVariableResult, AddedVariableTest, all_finite, 
 from .candidates import scan_threshold, signal_thresholds
 from .extension import Candidate, layout_for
 
-__all__ = ["Scoring", "scored_entry"]
+__all__ = ["CandidateScoring", "Scoring", "input_index", "scored_entry"]
 
 _Key = TypeVar("_Key")
 
 
-class Scoring:
-    """Added-variable tests of every candidate against the model's regressors on common rows."""
+class CandidateScoring:
+    """The scoring's rules, whatever holds the samples: every candidate's own added-variable test
+    (:meth:`_singles`), ``abs(u)`` and ``pos(u)`` merged into one hypothesis, the strong effects
+    paired with an offset, and Holm's correction over all.
+
+    A subclass says how a block of columns is tested: :class:`Scoring` from the record's rows,
+    :class:`arxid.diagnosis.statistics.RegressorStatistics` from the records' triangular factors.
+    It sets ``model``, ``notes``, ``input_names`` and ``base_regressors`` (the model's regressor
+    names), and gives :meth:`_singles`, :meth:`_on_model_rows`, :meth:`_coefficients` and
+    :meth:`_tested_with_offset`.
+    """
+
+    model: ArxModel
+    notes: dict[str, str]
+    input_names: tuple[str, ...]
+    base_regressors: list[str]
+
+    def _singles(self) -> list[dict]:
+        """Every candidate's own test, as :func:`scored_entry` (a candidate that cannot be tested
+        gets a note instead)."""
+        raise NotImplementedError
+
+    def _on_model_rows(self, label: str) -> bool:
+        """Whether the candidate was tested on the model's rows (only those are paired)."""
+        raise NotImplementedError
+
+    def _coefficients(self, label: str) -> np.ndarray:
+        """Least-squares coefficients of y on the model's regressors and the candidate's columns."""
+        raise NotImplementedError
+
+    def _tested_with_offset(self, cands: list[Candidate]) -> Iterator[tuple[Candidate, AddedVariableResult | None]]:
+        """Each candidate's columns tested with a column of ones beside them."""
+        raise NotImplementedError
+
+    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
+        """Every candidate's added-variable test, one-direction terms merged, the strong effects
+        paired with an offset, and the Holm-corrected p-values.
+
+        Parameters
+        ----------
+        alpha : float
+        n_pairs : int
+
+        Returns
+        -------
+        tuple of (list of dict, dict of str to str)
+            The scored entries (:func:`scored_entry` with ``p_adj``) and the notes.
+        """
+        scored = self._one_direction_term(self._singles())
+        if "const" not in self.model.effects and n_pairs > 0:
+            scored += self._pairs_with_offset(scored, alpha, n_pairs)
+        for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
+            s["p_adj"] = float(pa)
+        return scored, self.notes
+
+    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
+        """``abs(u)`` and ``pos(u)`` are one hypothesis when u is in the model (|u| = 2 pos(u) − u):
+        keep ``abs(u)`` when the fitted gains for u > 0 and u < 0 have opposite signs (a response
+        that ignores the direction), else ``pos(u)`` (different gains for the two directions)."""
+        labels = {s["c"].label for s in scored}
+        p = len(self.base_regressors)
+        drop = set()
+        for label in labels:
+            m = re.fullmatch(r"pos\((\w+)\)", label)
+            if not m or f"abs({m[1]})" not in labels or not self._on_model_rows(label):
+                continue
+            idx = input_index(self.input_names, m[1])
+            name = f"{self.input_names[idx]}(" if idx >= 0 else None
+            own = [j for j, nm in enumerate(self.base_regressors) if name is not None and nm.startswith(name)]
+            coef = self._coefficients(label)
+            negative = float(np.sum(coef[own]))
+            positive = negative + float(np.sum(coef[p:]))
+            drop.add(f"abs({m[1]})" if positive * negative >= 0 else label)
+        return [s for s in scored if s["c"].label not in drop]
+
+    def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
+        """Strong effects tried together with ``const`` (asymmetric Coulomb friction, an output
+        that was not detrended: the effect only helps together with a constant)."""
+        adj = holm(np.array([s["p"] for s in scored]))
+        strong = sorted(
+            (
+                s
+                for s, pa in zip(scored, adj)
+                if pa < alpha
+                and s["c"].kind == "effect"
+                and s["c"].label not in ("const", "time")
+                and self._on_model_rows(s["c"].label)
+            ),
+            key=lambda s: s["p"],
+        )
+        have = {s["c"].label for s in scored}
+        pairs = [s["c"] for s in strong[:n_pairs] if f"{s['c'].label}+const" not in have]
+        out = []
+        for c, res in self._tested_with_offset(pairs):
+            if res is not None:
+                pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
+                out.append(scored_entry(pc, res))
+        return out
+
+
+def input_index(names: tuple[str, ...], signal: str) -> int:
+    """The index of input ``signal`` (a name, or ``u1``, ``u2`` ...); -1 when it is no input."""
+    idx = names.index(signal) if signal in names else int(signal[1:]) - 1 if signal[1:].isdigit() else -1
+    return idx if 0 <= idx < len(names) else -1
+
+
+class Scoring(CandidateScoring):
+    """Added-variable tests of every candidate against the model's regressors on the record's rows."""
 
     def __init__(self, model: ArxModel, data: IOData, cands: list[Candidate]):
         self.model, self.data, self.cands = model, data, cands
         self.notes: dict[str, str] = {}
+        self.input_names = data.input_names
         self.base_layout = compile_effects(model.effects, data, model.nb_, model.nk_)
-        self.base_names = set(regressor_names(data.output_name, model.na_, self.base_layout))
+        self.base_regressors = regressor_names(data.output_name, model.na_, self.base_layout)
+        self.base_names = set(self.base_regressors)
         lag = max(model.first_lag_, max_lag(model.na_, self.base_layout))
         self.prepared = []
         self._lags: dict[str, EffectLayout] = {}  # each candidate's layout without samples
@@ -81,15 +189,21 @@ class Scoring:
         self.single_z = _Rebuilt(self)
         self._threshold_lags: dict[tuple[str, str], tuple[int, int]] = {}
 
-    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
+    def _singles(self) -> list[dict]:
         scored = self._score_all()
-        scored += [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
-        scored = self._one_direction_term(scored)
-        if "const" not in self.model.effects and n_pairs > 0:
-            scored += self._pairs_with_offset(scored, alpha, n_pairs)
-        for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
-            s["p_adj"] = float(pa)
-        return scored, self.notes
+        return scored + [s for s in (self._scan(sig, group) for sig, group in self.scans.items()) if s is not None]
+
+    def _on_model_rows(self, label: str) -> bool:
+        return label in self.single_z
+
+    def _coefficients(self, label: str) -> np.ndarray:
+        z = self.single_z[label]
+        coef = self.proj0.coefficients(z)
+        return least_squares(np.column_stack([self.phi0, z]), self.y0) if coef is None else coef  # ill-conditioned
+
+    def _tested_with_offset(self, cands: list[Candidate]) -> Iterator[tuple[Candidate, AddedVariableResult | None]]:
+        for c, res, _ in self._grouped_tests(((c, self.single_z[c.label]) for c in cands), offset=True):
+            yield c, res
 
     def _columns(self, c: Candidate) -> tuple[np.ndarray, np.ndarray]:
         """The candidate's new columns and their rows: the model's rows unless its columns are
@@ -278,38 +392,12 @@ class Scoring:
         scored["p"] = min(1.0, scored["p"] * n)
         return scored
 
-    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
-        """``abs(u)`` and ``pos(u)`` are one hypothesis when u is in the model (|u| = 2 pos(u) − u):
-        keep ``abs(u)`` when the fitted gains for u > 0 and u < 0 have opposite signs (a response
-        that ignores the direction), else ``pos(u)`` (different gains for the two directions)."""
-        by_label = {s["c"].label: s for s in scored}
-        names = self.data.input_names
-        drop = set()
-        for label in by_label:
-            m = re.fullmatch(r"pos\((\w+)\)", label)
-            if not m or f"abs({m[1]})" not in by_label or label not in self.single_z:
-                continue
-            sig = m[1]
-            idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
-            base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
-            own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
-            z = self.single_z[label]
-            coef = self.proj0.coefficients(z)
-            if coef is None:  # ill-conditioned: the fit itself
-                coef = least_squares(np.column_stack([self.phi0, z]), self.y0)
-            negative = float(np.sum(coef[own]))
-            positive = negative + float(np.sum(coef[self.phi0.shape[1] :]))
-            drop.add(f"abs({sig})" if positive * negative >= 0 else label)
-        return [s for s in scored if s["c"].label not in drop]
-
     def _threshold_shape(self, signal: str, c: float) -> str:
         """``dz`` or ``sat``: whichever, in place of the input itself, leaves the smaller residual."""
-        names = self.data.input_names
-        idx = names.index(signal) if signal in names else int(signal[1:]) - 1 if signal[1:].isdigit() else -1
-        if not 0 <= idx < len(names):
+        idx = input_index(self.input_names, signal)
+        if idx < 0:
             return "dz"
-        base = regressor_names(self.data.output_name, self.model.na_, self.base_layout)
-        keep = [j for j, nm in enumerate(base) if not nm.startswith(f"{names[idx]}(")]
+        keep = [j for j, nm in enumerate(self.base_regressors) if not nm.startswith(f"{self.input_names[idx]}(")]
         rss = {op: self._shape_rss(op, keep, signal, c) for op in ("dz", "sat")}
         return min(rss, key=lambda k: rss[k])
 
@@ -381,30 +469,6 @@ class Scoring:
             scored_pair = scored_entry(pair, res)
             scored_pair["p_adj"] = min(1.0, res.p_value * (len(scored) + n_partners))
             out.append(scored_pair)
-        return out
-
-    def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
-        """Strong effects tried together with ``const`` (asymmetric Coulomb friction, an output
-        that was not detrended: the effect only helps together with a constant)."""
-        adj = holm(np.array([s["p"] for s in scored]))
-        strong = sorted(
-            (
-                s
-                for s, pa in zip(scored, adj)
-                if pa < alpha
-                and s["c"].kind == "effect"
-                and s["c"].label not in ("const", "time")
-                and s["c"].label in self.single_z
-            ),
-            key=lambda s: s["p"],
-        )
-        have = {s["c"].label for s in scored}
-        pairs = [s["c"] for s in strong[:n_pairs] if f"{s['c'].label}+const" not in have]
-        out = []
-        for c, res, _ in self._grouped_tests(((c, self.single_z[c.label]) for c in pairs), offset=True):
-            if res is not None:
-                pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
-                out.append(scored_entry(pc, res))
         return out
 
 

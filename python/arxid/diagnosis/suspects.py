@@ -30,6 +30,13 @@ and the model refitted with it), :mod:`~arxid.diagnosis.scoring` (step 2 and the
 :mod:`~arxid.diagnosis.judge` (steps 3 and 4) and :mod:`~arxid.diagnosis.result` (the suspects and
 the diagnosis). :class:`~arxid.diagnosis.ladder.Ladder` then adds the best significant suspect,
 re-diagnoses, and repeats — the error falls step by step.
+
+The procedure is written once, wherever the records are (:class:`Records`): one record in this
+process (:class:`OneRecord`, what :func:`diagnose` makes of ``data`` and ``validation``), or a fleet's
+logs on a Dask cluster (:class:`~arxid.diagnosis.cluster_records.ClusterRecords`), whose scoring,
+refits and validation errors come from sums made where the logs are. The stages that need the
+samples in this process (shapes, masked pairs, sensor shapes, residual tests, the dependence table)
+run for a record here only.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -57,11 +65,21 @@ from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
 from .nonlinearity import NonlinearDependence, nonlinear_dependence
 from .polynomial_scoring import score_polynomial
 from .result import Diagnosis, Suspect
-from .scoring import Scoring
+from .scoring import CandidateScoring, Scoring
 from .sensor_shapes import rank_sensors, sensor_suspects
 from .shapes import ValidationEvidence, prefer_shapes, score_shapes
 
-__all__ = ["diagnose", "Diagnosis", "Suspect", "auto_candidates", "INTEGRATING_HORIZON", "NOT_FOR_STATE_SPACE"]
+__all__ = [
+    "diagnose",
+    "Baseline",
+    "Diagnosis",
+    "Records",
+    "Suspect",
+    "auto_candidates",
+    "baseline_errors",
+    "INTEGRATING_HORIZON",
+    "NOT_FOR_STATE_SPACE",
+]
 
 #: Why a state-space model has no search for a missing effect, and what to use instead.
 NOT_FOR_STATE_SPACE = (
@@ -78,7 +96,7 @@ INTEGRATING_HORIZON = 10
 @one_blas_thread()  # the baseline runs beside the scoring on the cores BLAS's threads would take
 def diagnose(
     model: ArxModel,
-    data: IOData | None = None,
+    data: IOData | Records | None = None,
     validation: IOData | None = None,
     *,
     candidates: str | Sequence[str] = "auto",
@@ -99,8 +117,10 @@ def diagnose(
     model : ArxModel
         A fitted model (ARX or polynomial; a state-space model is refused with what to use
         instead, :data:`NOT_FOR_STATE_SPACE`).
-    data : IOData, optional
-        Estimation data (default: the data the model was fitted on).
+    data : IOData or Records, optional
+        Estimation data (default: the data the model was fitted on); or the records of a fleet
+        (:class:`arxid.diagnosis.cluster_records.ClusterRecords`: every stage runs where its logs
+        are, and the stages that need the samples in this process are left out).
     validation : IOData, optional
         Data the refitted candidates are judged on (default: ``data``; give separate data —
         a drift-tracking candidate only shows its harm there).
@@ -159,44 +179,50 @@ def diagnose(
     if isinstance(model, StateSpaceModel):
         raise ArxidError(NOT_FOR_STATE_SPACE)
     model = check_model(model)
+    if isinstance(data, Records):  # the records of a fleet, or one record already checked
+        if validation is not None:
+            raise ArxidError("records hold their own validation data: give no validation= with them")
+        records = data
+    else:
+        records = OneRecord(*_data_pair(model, data, validation))
+    records.check(model)
     polynomial = isinstance(model, PolynomialModel)
-    data, validation, same = _data_pair(model, data, validation)
-    horizon = check_horizon(horizon)
-    initial = check_initial(initial)
+    horizon, initial = check_horizon(horizon), check_initial(initial)
     if not 0 < alpha < 1:
         raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
-    # The baseline reads the validation data only: beside the scoring, on the second core.
-    baseline = Background(_baseline, model, validation, horizon, residual_max_lag, initial)
+    data, validation, loop_signals = records.estimation, records.validation, tuple(loop_signals)
+    pending = records.baseline(model, horizon, initial, residual_max_lag)
     try:
-        cands, auto = candidate_list(candidates, model, data, tuple(loop_signals))
-        scoring = None if polynomial else Scoring(model, data, cands)
+        cands, auto = records.candidates(candidates, model, loop_signals)
+        scoring = None if polynomial else records.scoring(model, cands)
         scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
     except Exception:
-        baseline.result()  # the baseline's error first, as when it ran before the scoring
+        pending.result()  # the baseline's error first, as when it ran before the scoring
         raise
-    base = baseline.result()
-    if scoring is not None and auto:  # shapes that replace an input compete on equal terms
+    base = pending.result()
+    samples = records.here and isinstance(scoring, Scoring) and auto  # the stages that read the samples here
+    if samples:  # shapes that replace an input compete on equal terms
         evidence = ValidationEvidence(model, validation, base.horizon, initial)
-        scored = scored + score_shapes(model, data, evidence, tuple(loop_signals))
-    judge = Judge(model, data, validation, base.horizon, base.rms, min_improvement, initial)
+        scored = scored + score_shapes(model, data, evidence, loop_signals)
+    judge = records.judge(model, base.horizon, base.rms, min_improvement, initial)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
-    suspects = judge.conditional_on_top(prefer_shapes(suspects, data, min_improvement))
-    if scoring is not None and auto and not any(s.significant for s in suspects):
+    suspects = judge.conditional_on_top(prefer_shapes(suspects, records.head, min_improvement))
+    if samples and isinstance(scoring, Scoring) and not any(s.significant for s in suspects):
         # Two effects can hide each other: try the strongest candidate with its strongest partner.
         masked = scoring.masked_pairs(scored, alpha)
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
-    if scoring is not None and auto:  # the output read through a static shape (Wiener)
+    if samples:  # the output read through a static shape (Wiener)
         sensors = sensor_suspects(model, data, validation, base.horizon, initial, base.rms)
         suspects = rank_sensors(suspects, sensors, alpha, min_improvement)
-    suspects = finish_suspects(notes, cands, suspects, data)
+    suspects = finish_suspects(notes, cands, suspects, records.head)
     # The dependence test runs when the diagnosis is first asked for it (a ladder asks its last
     # diagnosis only), never beside the scoring: its design (~0.4 GiB at 2M rows) on top of the
     # other stages' arrays would take the analysis of a 4M-sample record past 1 GiB.
-    dependence = () if polynomial else partial(_dependence, model, data, alpha)
+    dependence = partial(_dependence, model, data, alpha) if records.here and not polynomial else ()
     return Diagnosis(
         model,
         data,
@@ -210,7 +236,7 @@ def diagnose(
         alpha,
         min_improvement,
         len(scored),
-        same,
+        records.same,
         dependence,
         base.disturbance,
     )
@@ -227,6 +253,7 @@ def _dependence(model: ArxModel, data: IOData, alpha: float) -> tuple[NonlinearD
 # stages of the procedure
 # ---------------------------------------------------------------------------------------------
 def _data_pair(model: ArxModel, data: IOData | None, validation: IOData | None) -> tuple[IOData, IOData, bool]:
+    """The estimation and validation data, checked alike, and whether they are the same."""
     if data is None:
         data = model.data_
         if data is None:
@@ -245,63 +272,242 @@ def _data_pair(model: ArxModel, data: IOData | None, validation: IOData | None) 
 
 
 @dataclass(frozen=True)
-class _Baseline:
+class Baseline:
+    """The model's validation errors, before any candidate: at ``horizon`` (None: free run), one
+    step ahead, the fit percent at ``horizon``, and the residual tests and slow disturbance (None
+    where the residual sequence is not in this process)."""
+
     horizon: int | None
     rms: float
     rms_one_step: float
     fit: float
-    residual_tests: ResidualAnalysis | None
-    disturbance: Disturbance | None
+    residual_tests: ResidualAnalysis | None = None
+    disturbance: Disturbance | None = None
 
 
-def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int, initial: str) -> _Baseline:
-    """The model's validation errors; a free run that drifts or diverges is measured k steps ahead.
+def baseline_errors(
+    model: ArxModel,
+    horizon: int | None,
+    initial: str,
+    rms: Callable[[int | None, str], tuple[float, bool]],
+    fit: Callable[[int | None, str], float],
+    too_short: str,
+) -> tuple[int | None, float]:
+    """The baseline's rule, wherever the records are: a free run that drifts or diverges is measured
+    :data:`INTEGRATING_HORIZON` steps ahead.
+
+    Parameters
+    ----------
+    model : ArxModel
+    horizon : int or None
+    initial : {"zero", "estimate"}
+    rms : callable
+        ``rms(k, initial)``: the validation RMS (inf when the prediction diverged, NaN without a
+        predicted sample) and whether it diverged.
+    fit : callable
+        ``fit(k, initial)``: the validation fit percent (of the free run, for the settling evidence).
+    too_short : str
+        The message when no validation sample has a prediction.
+
+    Returns
+    -------
+    tuple of (int or None, float)
+        The horizon of the validation error, and the error there.
+    """
+    if horizon is None:
+        free = None  # no settling to speak of without a stable, converging free run
+        if model.is_stable and not rms(None, "zero")[1]:
+            free = fit(None, "zero")
+        horizon = INTEGRATING_HORIZON if output_integrates(model, free) else None
+    base_rms = rms(horizon, initial)[0]
+    if math.isnan(base_rms):
+        raise DataError(too_short)
+    if horizon is None and math.isinf(base_rms):
+        horizon = INTEGRATING_HORIZON
+        base_rms = rms(horizon, initial)[0]
+    return horizon, base_rms
+
+
+def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag: int, initial: str) -> Baseline:
+    """The model's validation errors (:func:`baseline_errors`) and residual tests on one record.
     Each prediction is made once (a free run of a long record is a pass over it) and measured as
     :func:`arxid.checks.error_rms` measures it."""
     made: dict[tuple[int | None, str], tuple[np.ndarray, bool]] = {}
 
     def predicted(k: int | None, init: str) -> tuple[np.ndarray, bool]:
         if (k, init) not in made:
-            pred, diverged = prediction(model, validation, k, init)
-            made[k, init] = (pred, diverged)
+            made[k, init] = prediction(model, validation, k, init)
         return made[k, init]
 
-    def rms(k: int | None, init: str) -> float:
-        return metrics.prediction_rms(validation.y, predicted(k, init)[0])  # inf when it diverged
+    def rms(k: int | None, init: str) -> tuple[float, bool]:
+        pred, diverged = predicted(k, init)
+        return metrics.prediction_rms(validation.y, pred), diverged  # inf when it diverged
 
-    if horizon is None and output_integrates(model, _free_run_fit(model, validation, predicted)):
-        horizon = INTEGRATING_HORIZON
-    base_rms = rms(horizon, initial)
-    if math.isnan(base_rms):  # no sample of the validation data has a prediction
-        raise DataError(
-            f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
-            f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)"
-        )
-    if horizon is None and math.isinf(base_rms):
-        horizon = INTEGRATING_HORIZON
-        base_rms = rms(horizon, initial)
-    pred, _ = predicted(horizon, initial)
+    def fit(k: int | None, init: str) -> float:
+        return metrics.fit_percent(validation.y, predicted(k, init)[0])
+
+    too_short = (
+        f"the validation data ({validation.n_samples} samples) are too short for a prediction by "
+        f"{model.structure_name()}; give longer validation data (or a smaller estimation fraction)"
+    )
+    horizon, base_rms = baseline_errors(model, horizon, initial, rms, fit, too_short)
+    pred = predicted(horizon, initial)[0]
     try:
         rtests = residuals(model, validation, max_lag=max_lag)
     except ArxidError:
         rtests = None
-    rest = None
-    if rtests is not None:
-        rest = remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
-    fit = metrics.fit_percent(validation.y, pred)
-    return _Baseline(horizon, base_rms, rms(1, "zero"), fit, rtests, rest)
+    rest = None if rtests is None else remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
+    # the one-step prediction last: it is not held while the residual tests run
+    return Baseline(horizon, base_rms, rms(1, "zero")[0], metrics.fit_percent(validation.y, pred), rtests, rest)
 
 
-def _free_run_fit(
-    model: ArxModel, validation: IOData, predicted: Callable[[int | None, str], tuple[np.ndarray, bool]]
-) -> float | None:
-    """The model's free-run fit on the validation data, percent (None when it diverges or has a
-    pole on or outside the unit circle: then there is no settling to speak of); ``predicted(k,
-    initial)`` gives (prediction, diverged)."""
-    if not model.is_stable:
-        return None
-    pred, diverged = predicted(None, "zero")
-    return None if diverged else metrics.fit_percent(validation.y, pred)
+@runtime_checkable
+class Records(Protocol):
+    """Where the records of a diagnosis are, and how each stage that reads them runs there:
+    :class:`OneRecord` in this process, or a fleet's logs on a cluster
+    (:class:`arxid.diagnosis.cluster_records.ClusterRecords`)."""
+
+    estimation: IOData  # as this process sees them (a fleet's: names and sizes, samples on demand)
+    validation: IOData
+    head: IOData  # the first samples of the estimation data: the signals' names and units
+    same: bool  # the validation data are the estimation data
+    here: bool  # the samples are in this process
+
+    def check(self, model: ArxModel) -> None:
+        """Raise :class:`~arxid.ArxidError` for a model these records cannot diagnose.
+
+        Parameters
+        ----------
+        model : ArxModel
+        """
+
+    def baseline(self, model: ArxModel, horizon: int | None, initial: str, max_lag: int) -> Any:
+        """Start the model's validation errors (:class:`Baseline`, with its residual tests up to
+        ``max_lag`` where the residuals are here).
+
+        Parameters
+        ----------
+        model : ArxModel
+        horizon : int or None
+        initial : {"zero", "estimate"}
+        max_lag : int
+
+        Returns
+        -------
+        object
+            Its ``result()`` is the :class:`Baseline` (awaited after the scoring).
+        """
+
+    def candidates(
+        self, candidates: str | Sequence[str], model: ArxModel, loop_signals: tuple[str, ...]
+    ) -> tuple[list[Candidate], bool]:
+        """The candidates to test (``"auto"``: from the records' signals) and whether they were automatic.
+
+        Parameters
+        ----------
+        candidates : "auto" or sequence of str
+        model : ArxModel
+        loop_signals : tuple of str
+            Signals ``"auto"`` leaves out.
+
+        Returns
+        -------
+        tuple of (list of Candidate, bool)
+        """
+        raise NotImplementedError
+
+    def scoring(self, model: ArxModel, cands: list[Candidate]) -> CandidateScoring:
+        """The added-variable tests of the candidates, where the records are.
+
+        Parameters
+        ----------
+        model : ArxModel
+        cands : list of Candidate
+
+        Returns
+        -------
+        CandidateScoring
+        """
+        raise NotImplementedError
+
+    def judge(
+        self, model: ArxModel, horizon: int | None, base_rms: float, min_improvement: float, initial: str
+    ) -> Judge:
+        """The judge that refits and validates candidates on these records.
+
+        Parameters
+        ----------
+        model : ArxModel
+        horizon : int or None
+        base_rms, min_improvement : float
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        Judge
+        """
+        raise NotImplementedError
+
+    def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]:
+        """The model's validation RMS and fit percent at ``horizon`` (a ladder's step).
+
+        Parameters
+        ----------
+        model : ArxModel
+        horizon : int or None
+        initial : {"zero", "estimate"}
+
+        Returns
+        -------
+        tuple of (float, float)
+        """
+        raise NotImplementedError
+
+
+class OneRecord:
+    """One record in this process: its estimation and validation data (a fleet of one). Each
+    method is that of :class:`Records`.
+
+    Parameters
+    ----------
+    estimation, validation : IOData
+    same : bool
+        ``validation`` is ``estimation``.
+    """
+
+    here = True
+
+    def __init__(self, estimation: IOData, validation: IOData, same: bool = False):
+        self.estimation, self.validation, self.same = estimation, validation, same
+        self.head = estimation
+
+    def check(self, model: ArxModel) -> None:
+        """Every model can be diagnosed on one record."""
+
+    def baseline(self, model: ArxModel, horizon: int | None, initial: str, max_lag: int) -> Background:
+        """The baseline, started beside the scoring (it reads the validation data only)."""
+        return Background(_baseline, model, self.validation, horizon, max_lag, initial)
+
+    def candidates(
+        self, candidates: str | Sequence[str], model: ArxModel, loop_signals: tuple[str, ...]
+    ) -> tuple[list[Candidate], bool]:
+        """:func:`~arxid.diagnosis.extension.candidate_list` on the estimation data."""
+        return candidate_list(candidates, model, self.estimation, loop_signals)
+
+    def scoring(self, model: ArxModel, cands: list[Candidate]) -> Scoring:
+        """The scoring on the record's rows."""
+        return Scoring(model, self.estimation, cands)
+
+    def judge(
+        self, model: ArxModel, horizon: int | None, base_rms: float, min_improvement: float, initial: str
+    ) -> Judge:
+        """The judge refitting on the record."""
+        return Judge(model, self.estimation, self.validation, horizon, base_rms, min_improvement, initial)
+
+    def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]:
+        """As :meth:`Records.measure`, from one prediction."""
+        pred, _ = prediction(model, self.validation, horizon, initial)
+        return metrics.prediction_rms(self.validation.y, pred), metrics.fit_percent(self.validation.y, pred)
 
 
 def _unscored(notes: dict[str, str], cands: list[Candidate], suspects: list[Suspect]) -> list[Suspect]:

@@ -1,21 +1,21 @@
-"""The missing-effect diagnosis of an ARX model over a fleet's logs kept on a Dask cluster
-(:func:`diagnose_fleet`): the procedure of :mod:`arxid.diagnosis.suspects`, with every stage that
-needs the samples done where the logs are.
+"""The records of a diagnosis kept on a Dask cluster (a fleet's logs): :class:`ClusterRecords`
+runs each stage of the one diagnosis (:func:`arxid.diagnose`, given these records) where the
+logs are, and :func:`diagnose_fleet` adds which logs the missing effect shows in.
 
-* Candidate scoring (step 2) from the shares' triangular factors (:mod:`~.fleet_scoring`).
+* Candidate scoring (step 2) from the shares' triangular factors (:mod:`~.statistics`).
 * Refits (steps 3 to 5) from the shares' factors of each refit's regressors, and validation errors
   (free run or k steps ahead) simulated on each share's own logs, pooled from their sums
-  (:mod:`~.fleet_refit`; a free run is not a statistic of the regressors).
-* The judging rules themselves are the in-process ones: :class:`~.judge.Judge` with its refits
-  done on the fleet (:class:`FleetJudge`), :func:`~.judge.demote_pairs`, Holm's correction and the
-  ranking of :func:`~.suspects.finish_suspects`.
+  (:mod:`~.pooled_refits`; a free run is not a statistic of the regressors).
+* Everything else is the procedure's own: the baseline's rule, :class:`~.judge.Judge` (its refits
+  done on the fleet, :class:`PooledJudge`), :func:`~.judge.demote_pairs`, Holm's correction and the
+  ranking.
 
 The result equals :func:`arxid.diagnose` on the logs merged as experiments of one IOData (each log's
 last share validating) to rounding, with these stages left out on a fleet, said in
 :attr:`FleetDiagnosis.notes`: the residual tests and the slow-disturbance share of the baseline (they
-need the whole residual sequence), the nonlinear-dependence table, threshold scans, and the search for
-two effects that hide each other (run in process only when ``candidates="auto"`` finds nothing).
-``candidates="auto"`` is the union of the candidates each share's logs suggest.
+need the whole residual sequence), the nonlinear-dependence table, threshold scans, shapes and the
+search for two effects that hide each other. ``candidates="auto"`` is the union of the candidates
+each share's logs suggest.
 
 Which logs the missing effect shows in: the added-variable test of the top suspect on each log's own
 rows (its partial correlation, F and p-value, Holm-corrected over the logs): :class:`LogEvidence`.
@@ -31,21 +31,28 @@ from typing import Any
 import numpy as np
 
 from .._base.formatting import finite_or_none
-from ..exceptions import ArxidError, DataError
+from ..exceptions import ArxidError
 from ..fleet.cluster import WorkerLogs
-from ..models.arguments import check_horizon, check_model
 from ..models.arx_model import ArxModel
-from ..models.polynomial import PolynomialModel, check_initial
+from ..models.polynomial import PolynomialModel
 from .added_variable import holm
-from .candidates import auto_candidates, output_integrates
+from .candidates import auto_candidates
 from .extension import Candidate, candidate_list
-from .fleet_refit import FleetRefits
-from .fleet_scoring import FleetStatistics, combine_statistics, share_statistics
-from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs, refit_indices
+from .judge import Judge, refit_indices
+from .pooled_refits import PooledRefits
 from .result import Diagnosis
-from .suspects import INTEGRATING_HORIZON, finish_suspects
+from .statistics import RegressorStatistics, combine_statistics, share_statistics
+from .suspects import INTEGRATING_HORIZON, Baseline, baseline_errors, diagnose
 
-__all__ = ["FleetDiagnosis", "FleetJudge", "LogEvidence", "diagnose_fleet", "diagnose_logs", "FLEET_NOTES"]
+__all__ = [
+    "ClusterRecords",
+    "FleetDiagnosis",
+    "PooledJudge",
+    "LogEvidence",
+    "diagnose_fleet",
+    "diagnose_logs",
+    "FLEET_NOTES",
+]
 
 #: What the diagnosis of a fleet leaves out (see the module's docstring).
 FLEET_NOTES = (
@@ -54,13 +61,13 @@ FLEET_NOTES = (
 )
 
 
-class FleetJudge(Judge):
+class PooledJudge(Judge):
     """:class:`~arxid.diagnosis.judge.Judge` whose refits and validation errors are made where the
     logs are.
 
     Parameters
     ----------
-    refits : FleetRefits
+    refits : PooledRefits
     model : ArxModel
     data, validation : IOData
         The merged parts as the client sees them (names and sizes; never read here).
@@ -71,7 +78,7 @@ class FleetJudge(Judge):
 
     shares_factor = False  # the data are on the workers: every refit goes through refit()
 
-    def __init__(self, refits: FleetRefits, model: ArxModel, data: Any, validation: Any, *args: Any):
+    def __init__(self, refits: PooledRefits, model: ArxModel, data: Any, validation: Any, *args: Any):
         super().__init__(model, data, validation, *args)
         self.refits = refits
         self._done: dict[tuple, Any] = {}
@@ -233,85 +240,120 @@ class FleetDiagnosis:
         }
 
 
-@dataclass(frozen=True)
-class _Baseline:
-    horizon: int | None
-    rms: float
-    rms_one_step: float
-    fit: float
+class _Done:
+    """A result already made (the pooled baseline), read as the in-process one is awaited."""
+
+    def __init__(self, value: Any):
+        self.value = value
+
+    def result(self) -> Any:
+        return self.value
 
 
-def _baseline(refits: FleetRefits, model: ArxModel, horizon: int | None, initial: str) -> _Baseline:
-    """As the in-process baseline (:mod:`arxid.diagnosis.suspects`), from pooled scores (one round trip)."""
-    free, asked, one, k = refits.scores(
-        model,
-        [("val", None, "zero"), ("val", horizon, initial), ("val", 1, "zero"), ("val", INTEGRATING_HORIZON, initial)],
-    )
-    free_fit = None if not model.is_stable or free.diverged else free.fit
-    at = horizon
-    if horizon is None and output_integrates(model, free_fit):
-        at = INTEGRATING_HORIZON
-    score = k if at == INTEGRATING_HORIZON and horizon is None else asked
-    if math.isnan(score.rms):
-        raise DataError(
-            f"the validation parts of the logs are too short for a prediction by {model.structure_name()}; "
-            "hold out a larger share of each log"
-        )
-    if at is None and math.isinf(score.rms):
-        at, score = INTEGRATING_HORIZON, k
-    return _Baseline(at, score.rms, one.rms, score.fit)
+def _auto_labels(share: tuple, model: ArxModel, loop_signals: tuple[str, ...]) -> list[str]:
+    return list(auto_candidates(model, share[0], loop_signals))
 
 
-def _candidates(logs: WorkerLogs, model: ArxModel, candidates: str | Sequence[str]) -> tuple[list[Candidate], bool]:
-    """The candidates, parsed against the logs' signals; ``"auto"``: those any share's logs suggest."""
-    auto = isinstance(candidates, str)
-    if auto:
-        if candidates != "auto":
-            raise ArxidError(f"candidates must be 'auto' or a list of effect strings, got {candidates!r}")
-        labels: list[str] = []
-        for share in logs.client.gather(logs.each(_auto_labels, model)):
-            labels += [lab for lab in share if lab not in labels]
-        candidates = labels
-    cands, _ = candidate_list(candidates, model, logs.head)
-    return cands, auto
-
-
-def _auto_labels(share: tuple, model: ArxModel) -> list[str]:
-    return list(auto_candidates(model, share[0]))
-
-
-def fleet_statistics(logs: WorkerLogs, model: ArxModel, cands: list[Candidate]) -> FleetStatistics:
-    """The factors of the model's regressors and its candidates' columns, per log, from the workers.
+class ClusterRecords:
+    """A fleet's logs read by the workers of a Dask cluster, each stage of the diagnosis run there.
 
     Parameters
     ----------
     logs : WorkerLogs
-    model : ArxModel
-    cands : list of Candidate
+        Read with a validation share (``validation=`` fraction).
 
-    Returns
-    -------
-    FleetStatistics
+    Attributes
+    ----------
+    statistics : list of RegressorStatistics
+        Each scoring's statistics, in order (each log's factor: which logs the missing effect shows in).
     """
-    outs = logs.client.gather(logs.each(share_statistics, model, cands, "const" not in model.effects))
-    order = [j for group in logs.groups for j in group]
-    return combine_statistics(model, cands, outs, order, logs.signals)
+
+    here = False  # the samples stay on the workers
+    same = False
+
+    def __init__(self, logs: WorkerLogs):
+        self.logs = logs
+        self.refits = PooledRefits(logs)
+        self.estimation, validation = logs.on_demand()
+        self.head = logs.head
+        self.validation: Any = validation
+        self.statistics: list[RegressorStatistics] = []
+
+    def check(self, model: ArxModel) -> None:
+        """ARX models only, on logs read with a validation share."""
+        if isinstance(model, PolynomialModel):
+            raise ArxidError("the diagnosis of a fleet refits ARX models only; give an ARX model (or orders)")
+        if self.logs.validation is None:
+            raise ArxidError(
+                "the diagnosis of a fleet needs each log's validation share: read the logs with validation=0.3"
+            )
+
+    def baseline(self, model: ArxModel, horizon: int | None, initial: str, max_lag: int) -> _Done:
+        """The baseline from pooled scores (one round trip for every error its rule may ask)."""
+        asked = [(None, "zero"), (horizon, initial), (1, "zero"), (INTEGRATING_HORIZON, initial)]
+        got = dict(zip(asked, self.refits.scores(model, [("val", k, i) for k, i in asked])))
+        too_short = (
+            f"the validation parts of the logs are too short for a prediction by {model.structure_name()}; "
+            "hold out a larger share of each log"
+        )
+        rms = lambda k, i: (got[k, i].rms, got[k, i].diverged)  # noqa: E731
+        at, base_rms = baseline_errors(model, horizon, initial, rms, lambda k, i: got[k, i].fit, too_short)
+        return _Done(Baseline(at, base_rms, got[1, "zero"].rms, got[at, initial].fit))
+
+    def candidates(
+        self, candidates: str | Sequence[str], model: ArxModel, loop_signals: tuple[str, ...]
+    ) -> tuple[list[Candidate], bool]:
+        """The candidates, parsed against the logs' signals; ``"auto"``: those any share's logs suggest."""
+        auto = isinstance(candidates, str)
+        if auto:
+            if candidates != "auto":
+                raise ArxidError(f"candidates must be 'auto' or a list of effect strings, got {candidates!r}")
+            labels: list[str] = []
+            for share in self.logs.client.gather(self.logs.each(_auto_labels, model, loop_signals)):
+                labels += [lab for lab in share if lab not in labels]
+            candidates = labels
+        cands, _ = candidate_list(candidates, model, self.logs.head)
+        return cands, auto
+
+    def scoring(self, model: ArxModel, cands: list[Candidate]) -> RegressorStatistics:
+        """The factors of the model's regressors and its candidates' columns, per log, from the workers."""
+        logs = self.logs
+        outs = logs.client.gather(logs.each(share_statistics, model, cands, "const" not in model.effects))
+        order = [j for group in logs.groups for j in group]
+        self.statistics.append(combine_statistics(model, cands, outs, order, logs.signals))
+        return self.statistics[-1]
+
+    def evidence(self, d: Diagnosis, i: int = -1) -> FleetDiagnosis:
+        """``d`` (the ``i``-th diagnosis of these records) with the logs its top suspect shows in.
+
+        Parameters
+        ----------
+        d : Diagnosis
+        i : int
+
+        Returns
+        -------
+        FleetDiagnosis
+        """
+        return FleetDiagnosis(d, _evidence(self.statistics[i], d, self.logs.names, d.alpha))
+
+    def measure(self, model: ArxModel, horizon: int | None, initial: str) -> tuple[float, float]:
+        """As :meth:`arxid.diagnosis.suspects.Records.measure`, pooled over the logs (one round trip)."""
+        score = self.refits.scores(model, [("val", horizon, initial)])[0]
+        return score.rms, score.fit
+
+    def judge(
+        self, model: ArxModel, horizon: int | None, base_rms: float, min_improvement: float, initial: str
+    ) -> PooledJudge:
+        """The judge refitting on the workers."""
+        return PooledJudge(
+            self.refits, model, self.estimation, self.validation, horizon, base_rms, min_improvement, initial
+        )
 
 
-def diagnose_fleet(
-    model: ArxModel,
-    logs: WorkerLogs,
-    *,
-    candidates: str | Sequence[str] = "auto",
-    horizon: int | None = None,
-    alpha: float = 0.01,
-    min_improvement: float = 0.05,
-    n_refit: int = 8,
-    n_pairs: int = 8,
-    simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
-    initial: str = "zero",
-) -> FleetDiagnosis:
-    """Rank the physical effects an ARX model misses over a fleet of logs kept on a Dask cluster.
+def diagnose_fleet(model: ArxModel, logs: WorkerLogs, **options: Any) -> FleetDiagnosis:
+    """:func:`arxid.diagnose` of a fleet of logs kept on a Dask cluster (the same procedure,
+    :func:`arxid.diagnose` given :class:`ClusterRecords`), with the logs the top suspect shows in.
 
     Parameters
     ----------
@@ -319,8 +361,8 @@ def diagnose_fleet(
         A fitted ARX model (its rows start ``model.first_lag_`` into each log).
     logs : WorkerLogs
         The fleet, read by the workers with a validation share (``validation=`` fraction).
-    candidates, horizon, alpha, min_improvement, n_refit, n_pairs, simple_explanations, initial
-        As in :func:`arxid.diagnose`.
+    **options
+        As in :func:`arxid.diagnose` (``candidates``, ``horizon``, ``alpha`` ...).
 
     Returns
     -------
@@ -331,39 +373,12 @@ def diagnose_fleet(
     ArxidError
         For a polynomial model, or logs read without a validation share.
     """
-    model = check_model(model)
-    if isinstance(model, PolynomialModel):
-        raise ArxidError("the diagnosis of a fleet refits ARX models only; give an ARX model (or orders)")
-    if logs.validation is None:
-        raise ArxidError(
-            "the diagnosis of a fleet needs each log's validation share: read the logs with validation=0.3"
-        )
-    horizon, initial = check_horizon(horizon), check_initial(initial)
-    if not 0 < alpha < 1:
-        raise ArxidError(f"alpha must be between 0 and 1, got {alpha}")
-    if not 0 <= min_improvement < 1:
-        raise ArxidError(f"min_improvement must be in [0, 1), got {min_improvement}")
-    refits = FleetRefits(logs)
-    est, val = logs.on_demand()
-    assert val is not None  # checked above
-    base = _baseline(refits, model, horizon, initial)
-    cands, auto = _candidates(logs, model, candidates)
-    stats = fleet_statistics(logs, model, cands)
-    scored, notes = stats.run(alpha, n_pairs)
-    judge = FleetJudge(refits, model, est, val, base.horizon, base.rms, min_improvement, initial)
-    suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
-    suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple_explanations)
-    suspects = judge.conditional_on_top(suspects)
-    suspects = finish_suspects(notes, cands, suspects, logs.head)
-    d = Diagnosis(
-        model, est, val, base.horizon, base.rms, base.rms_one_step, base.fit, tuple(suspects), None, alpha,
-        min_improvement, len(scored), False,
-    )  # fmt: skip
-    return FleetDiagnosis(d, _evidence(stats, d, logs.names, alpha))
+    records = ClusterRecords(logs)
+    return records.evidence(diagnose(model, records, **options))
 
 
 def diagnose_logs(
-    model: ArxModel, logs: Sequence[Any], client: Any, *, split: float = 0.7, read: Any = None, **kwargs: Any
+    model: ArxModel, logs: Sequence[Any], client: Any, *, split: float = 0.7, read: Any = None, **options: Any
 ) -> FleetDiagnosis:
     """:func:`diagnose_fleet` of a list of logs: the workers of ``client`` read them (``read`` as in
     :func:`arxid.data.logs.load_experiment`) and hold out the last ``1 - split`` of each for validation.
@@ -377,8 +392,8 @@ def diagnose_logs(
     split : float
         Estimation share of each log.
     read : dict or callable, optional
-    **kwargs
-        As in :func:`diagnose_fleet`.
+    **options
+        As in :func:`arxid.diagnose`.
 
     Returns
     -------
@@ -386,10 +401,10 @@ def diagnose_logs(
     """
     if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
         raise ArxidError(f"split must be the estimation fraction of each log between 0 and 1, got {split!r}")
-    return diagnose_fleet(model, WorkerLogs(client, logs, read, 1.0 - float(split)), **kwargs)
+    return diagnose_fleet(model, WorkerLogs(client, logs, read, 1.0 - float(split)), **options)
 
 
-def _evidence(stats: FleetStatistics, d: Diagnosis, names: Sequence[str], alpha: float) -> tuple[LogEvidence, ...]:
+def _evidence(stats: RegressorStatistics, d: Diagnosis, names: Sequence[str], alpha: float) -> tuple[LogEvidence, ...]:
     """The top suspect's added-variable test on each log alone, Holm-corrected over the logs."""
     top = d.top
     if top is None:
@@ -425,3 +440,7 @@ def _logs_of(tests: list, rows: Sequence[int], names: Sequence[str], alpha: floa
         )
         for name, n, t, pa in zip(names, rows, tests, adj)
     )
+
+
+#: The name this class had before the records of a diagnosis were one concept.
+FleetJudge = PooledJudge

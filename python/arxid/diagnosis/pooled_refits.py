@@ -1,5 +1,6 @@
-"""Refits and validation errors of ARX models over a fleet's logs kept on a Dask cluster: the two
-steps of the missing-effect diagnosis that need the samples, done where the logs are.
+"""Refits and validation errors of ARX models pooled over records kept where they are (a fleet's
+logs on a Dask cluster): the two steps of the missing-effect diagnosis that need the samples, done
+where the records are, and only their sums brought back.
 
 A refit reduces each share's regressors ``[Φ | y]`` (on the rows an in-process fit with the same
 ``first_lag`` uses, :func:`arxid.models.regressors.regressor_matrix`) to its triangular factor; the
@@ -33,7 +34,7 @@ from ..models.arx_solver import solve_factor
 from ..models.effects import compile_effects
 from ..models.regressors import max_lag, regressor_matrix, regressor_names, row_bound
 
-__all__ = ["FleetRefits", "PooledScore", "aligned", "share_refit_factor", "share_scores"]
+__all__ = ["PooledRefits", "FleetRefits", "PooledScore", "aligned", "share_refit_factor", "share_scores"]
 
 
 def share_refit_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: tuple, first_lag: int) -> tuple:
@@ -210,7 +211,7 @@ class PooledScore:
         return cls(rms, metrics.fit_percent_of_parts([p[5] for p in parts]), diverged)
 
 
-class FleetRefits:
+class PooledRefits:
     """ARX refits and validation errors over the logs of a :class:`arxid.fleet.cluster.WorkerLogs`.
 
     Parameters
@@ -237,36 +238,16 @@ class FleetRefits:
         -------
         ArxModel
             Without ``data_``; ``fit_percent_`` is the one-step fit over every log.
-        """
-        return self.fit_scored(na, nb, nk, effects, first_lag)[0]
-
-    def fit_scored(
-        self, na: int, nb: tuple, nk: tuple, effects: Sequence[str], first_lag: int = 0, specs: Sequence[tuple] = ()
-    ) -> tuple[ArxModel, list[PooledScore]]:
-        """:meth:`fit`, and the fitted model's scores for ``specs``.
-
-        Parameters
-        ----------
-        na : int
-        nb, nk : tuple of int
-        effects : sequence of str
-        first_lag : int
-        specs : sequence of (part, horizon, initial)
-            See :func:`share_scores`.
-
-        Returns
-        -------
-        tuple of (ArxModel, list of PooledScore)
 
         Raises
         ------
         ArxidError
             When the model cannot be fitted (too few rows, collinear regressors).
         """
-        out = self.fit_many([(na, tuple(nb), tuple(nk), tuple(effects), first_lag)], specs)[0]
+        out = self.fit_many([(na, tuple(nb), tuple(nk), tuple(effects), first_lag)])[0]
         if isinstance(out, ArxidError):
             raise out
-        return out
+        return out[0]
 
     def fit_many(self, structures: Sequence[tuple], specs: Sequence[tuple] = ()) -> list[Any]:
         """Several refits in two round trips: the factors of all, then the scores of all.
@@ -315,19 +296,6 @@ class FleetRefits:
                 result.append(m)
         return result
 
-    def one_step_fit(self, model: ArxModel) -> float:
-        """The model's one-step fit percent on the estimation parts of every log.
-
-        Parameters
-        ----------
-        model : ArxModel
-
-        Returns
-        -------
-        float
-        """
-        return self.scores(model, [("est", 1, "zero")])[0].fit
-
     def scores(self, model: ArxModel, specs: Sequence[tuple]) -> list[PooledScore]:
         """The model's prediction errors over every log, one per ``specs`` (one round trip).
 
@@ -344,17 +312,6 @@ class FleetRefits:
         outs = self.logs.client.gather(self.logs.each(share_scores, model, list(specs)))
         return [PooledScore.of([o[i] for o in outs]) for i in range(len(specs))]
 
-    def error(self, model: ArxModel, horizon: int | None, initial: str = "zero") -> float:
-        """The validation error as :func:`arxid.checks.error_rms` gives it on the merged validation logs.
 
-        Parameters
-        ----------
-        model : ArxModel
-        horizon : int or None
-        initial : {"zero", "estimate"}
-
-        Returns
-        -------
-        float
-        """
-        return self.scores(model, [("val", horizon, initial)])[0].rms
+#: The name this class had while only a fleet used it.
+FleetRefits = PooledRefits

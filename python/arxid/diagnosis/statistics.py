@@ -1,5 +1,7 @@
-"""Scoring the candidates of an ARX model over a fleet's logs from sufficient statistics (step 2 of
-the procedure in :mod:`arxid.diagnosis.suspects`, where the logs are).
+"""The sufficient statistics of the candidate scoring: per-record triangular factors of the model's
+regressors, the candidates' columns and the output, and the scoring read off them (step 2 of the
+procedure in :mod:`arxid.diagnosis.suspects` for records kept where they are, such as a fleet's logs
+on a Dask cluster; the rules are :class:`~arxid.diagnosis.scoring.CandidateScoring`'s).
 
 Each share builds, on its own logs and exactly as :class:`~arxid.diagnosis.scoring.Scoring` builds
 them on the merged data, the model's regressors Φ, every candidate's new columns z and the output y
@@ -22,7 +24,7 @@ signal; they are left out with a note (give the threshold, ``dz(u1,0.2)``, to te
 
 from __future__ import annotations
 
-import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,11 +32,11 @@ import numpy as np
 
 from ..exceptions import DataError
 from ..models.arx_model import ArxModel
-from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, holm, stripped_test
+from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, stripped_test
 from .extension import Candidate
-from .scoring import Scoring, scored_entry
+from .scoring import CandidateScoring, Scoring, scored_entry
 
-__all__ = ["FactorTest", "FleetStatistics", "combine_statistics", "share_statistics"]
+__all__ = ["FactorTest", "RegressorStatistics", "combine_statistics", "share_statistics"]
 
 #: Why a candidate is not scored on a fleet.
 SCAN_NOTE = "a threshold scan needs the whole fleet's quantiles: give the threshold, e.g. dz(u1,0.2)"
@@ -153,8 +155,9 @@ class FactorTest(AddedVariableTest):
 
 
 @dataclass
-class FleetStatistics:
-    """The shares' factors of one model and its candidates, combined, and the scoring done on them.
+class RegressorStatistics(CandidateScoring):
+    """The records' factors of one model and its candidates, combined, and the scoring done on them
+    (the rules of :class:`~arxid.diagnosis.scoring.CandidateScoring`, each block tested from R).
 
     Attributes
     ----------
@@ -192,6 +195,7 @@ class FleetStatistics:
         if n <= self.p + 2:
             raise DataError(f"too few regression rows ({n}) to diagnose a model with {self.p} parameters")
         self.test = FactorTest(_square_r(np.vstack(self.factors)), n, self.p)
+        self.base_regressors = list(self.model.regressor_names_)
 
     def index(self, label: str) -> np.ndarray:
         """The columns of R of a candidate (``""``: the column of ones).
@@ -207,37 +211,29 @@ class FleetStatistics:
         at, k = self.columns[label]
         return np.arange(at, at + k)
 
-    def scorable(self) -> list[Candidate]:
-        """The candidates with columns in R and no note against them, in the order given."""
-        return [c for c in self.cands if c.label in self.columns and c.label not in self.notes]
-
-    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
-        """Every candidate's added-variable test, one-direction terms merged, the strong effects paired
-        with an offset, and the Holm-corrected p-values: :meth:`Scoring.run` on the fleet's R.
-
-        Parameters
-        ----------
-        alpha : float
-        n_pairs : int
-
-        Returns
-        -------
-        tuple of (list of dict, dict of str to str)
-            The scored entries (:func:`arxid.diagnosis.scoring.scored_entry`) and the notes.
-        """
+    def _singles(self) -> list[dict]:
         scored = []
-        for c in self.scorable():
+        for c in self.cands:
+            if c.label not in self.columns or c.label in self.notes:
+                continue
             res, why = self._own_test(c.label) if c.label in self.own else self.test.test(self.index(c.label))
             if res is None:
                 self.notes[c.label] = why
                 continue
             scored.append(scored_entry(c, res))
-        scored = self._one_direction_term(scored)
-        if "const" not in self.model.effects and n_pairs > 0 and "" in self.columns:
-            scored += self._pairs_with_offset(scored, alpha, n_pairs)
-        for s, pa in zip(scored, holm(np.array([s["p"] for s in scored]))):
-            s["p_adj"] = float(pa)
-        return scored, self.notes
+        return scored
+
+    def _on_model_rows(self, label: str) -> bool:
+        return label in self.columns and label not in self.own
+
+    def _coefficients(self, label: str) -> np.ndarray:
+        return self.test.coefficients(self.index(label))
+
+    def _tested_with_offset(self, cands: list[Candidate]) -> Iterator[tuple[Candidate, AddedVariableResult | None]]:
+        if "" not in self.columns:  # no column of ones: the model has an offset
+            return
+        for c in cands:
+            yield c, self.test.test(np.concatenate([self.index(c.label), self.index("")]))[0]
 
     def _own_test(self, label: str) -> tuple[AddedVariableResult | None, str]:
         """A candidate with missing samples tested on the rows both have (as :meth:`Scoring._score`)."""
@@ -246,50 +242,6 @@ class FleetStatistics:
         if n <= self.p + k + 2:
             return None, "too few rows where its signal exists"
         return FactorTest(_square_r(np.vstack(factors)), n, self.p).test(np.arange(self.p, self.p + k))
-
-    def _one_direction_term(self, scored: list[dict]) -> list[dict]:
-        """As :meth:`Scoring._one_direction_term`: ``abs(u)`` or ``pos(u)``, from the gains fitted in R."""
-        labels = {s["c"].label for s in scored}
-        names, drop = self.input_names, set()
-        base = list(self.model.regressor_names_)  # the model's regressors, named as the scoring names them
-        for label in labels:
-            m = re.fullmatch(r"pos\((\w+)\)", label)
-            if not m or f"abs({m[1]})" not in labels or label in self.own:
-                continue
-            sig = m[1]
-            idx = names.index(sig) if sig in names else int(sig[1:]) - 1 if sig[1:].isdigit() else -1
-            own = [j for j, nm in enumerate(base) if 0 <= idx < len(names) and nm.startswith(f"{names[idx]}(")]
-            coef = self.test.coefficients(self.index(label))
-            negative = float(np.sum(coef[own]))
-            positive = negative + float(np.sum(coef[self.p :]))
-            drop.add(f"abs({sig})" if positive * negative >= 0 else label)
-        return [s for s in scored if s["c"].label not in drop]
-
-    def _pairs_with_offset(self, scored: list[dict], alpha: float, n_pairs: int) -> list[dict]:
-        """As :meth:`Scoring._pairs_with_offset`, on the fleet's R."""
-        adj = holm(np.array([s["p"] for s in scored]))
-        strong = sorted(
-            (
-                s
-                for s, pa in zip(scored, adj)
-                if pa < alpha
-                and s["c"].kind == "effect"
-                and s["c"].label not in ("const", "time")
-                and s["c"].label not in self.own
-            ),
-            key=lambda s: s["p"],
-        )
-        have = {s["c"].label for s in scored}
-        out = []
-        for s in strong[:n_pairs]:
-            c = s["c"]
-            if f"{c.label}+const" in have:
-                continue
-            res, _ = self.test.test(np.concatenate([self.index(c.label), self.index("")]))
-            if res is not None:
-                pc = Candidate(f"{c.label}+const", c.effects + ("const",), c.na, c.nb, c.nk, "pair")
-                out.append(scored_entry(pc, res))
-        return out
 
     def per_log_own(self, label: str) -> list[AddedVariableResult | None]:
         """The test of a candidate with missing samples on each log's own common rows.
@@ -327,7 +279,7 @@ class FleetStatistics:
 
 def combine_statistics(
     model: ArxModel, cands: list[Candidate], outs: list[tuple], order: list[int], sig: Any
-) -> FleetStatistics:
+) -> RegressorStatistics:
     """The shares' statistics (:func:`share_statistics`) as those of the fleet, logs in the fleet's order.
 
     Parameters
@@ -342,7 +294,7 @@ def combine_statistics(
 
     Returns
     -------
-    FleetStatistics
+    RegressorStatistics
     """
     factors, rows = [None] * len(order), [0] * len(order)
     notes: dict[str, str] = {}
@@ -365,4 +317,8 @@ def combine_statistics(
         for j, (f, n) in zip(order, [(f, n) for fs, ns in parts for f, n in zip(fs, ns)]):
             per[j], counts[j] = f, n
         own[label] = (per, counts)
-    return FleetStatistics(model, cands, factors, rows, columns, notes, p, sig.input_names, sig.output_name, own)
+    return RegressorStatistics(model, cands, factors, rows, columns, notes, p, sig.input_names, sig.output_name, own)
+
+
+#: The name this class had while only a fleet used it.
+FleetStatistics = RegressorStatistics
