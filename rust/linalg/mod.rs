@@ -5,7 +5,7 @@
 pub mod dense;
 pub mod finite_sums;
 pub mod lagged_products;
-pub mod levenberg;
 pub mod lagged_qr;
+pub mod levenberg;
 pub mod qr;
 pub mod simd;

@@ -17,6 +17,7 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use super::hankel::Signals;
+use super::response::StateSpaceRef;
 use crate::error::{ArxError, Result};
 use crate::linalg::qr::{reduce_appended, stack_and_reduce, BLOCK_ROWS};
 
@@ -75,21 +76,15 @@ impl Innovation {
     /// # Errors
     /// `ShapeMismatch` naming what does not fit.
     pub fn check(&self, segments: usize) -> Result<()> {
-        let (n, nu, ny) = (self.a.nrows(), self.b.ncols(), self.c.nrows());
+        StateSpaceRef { a: self.a.as_ref(), b: self.b.as_ref(), c: self.c.as_ref(), d: self.d.as_ref() }.check()?;
+        let (n, ny) = (self.a.nrows(), self.c.nrows());
         let shapes = [
-            ("A's columns", self.a.ncols(), n),
-            ("B's rows", self.b.nrows(), n),
-            ("C's columns", self.c.ncols(), n),
-            ("D's rows", self.d.nrows(), ny),
-            ("D's columns", self.d.ncols(), nu),
             ("K's rows", self.k.nrows(), n),
             ("K's columns", self.k.ncols(), ny),
             ("the initial states (one per stretch of data)", self.x0.len(), segments),
         ];
-        for (what, got, expected) in shapes {
-            if got != expected {
-                return Err(ArxError::ShapeMismatch { what: what.into(), expected, got });
-            }
+        if let Some((what, got, expected)) = shapes.into_iter().find(|&(_, got, expected)| got != expected) {
+            return Err(ArxError::ShapeMismatch { what: what.into(), expected, got });
         }
         if let Some(x) = self.x0.iter().find(|x| x.len() != n) {
             return Err(ArxError::ShapeMismatch { what: "an initial state".into(), expected: n, got: x.len() });
@@ -171,21 +166,48 @@ impl Innovation {
 #[derive(Clone)]
 struct Predictor {
     x: Vec<f64>,
-    /// ∂x̂/∂θ, column-major n × p (empty when only the errors are wanted).
+    /// ∂x̂/∂θ, row-major n × p (empty when only the errors are wanted): each update is n²
+    /// contiguous axpys of length p.
     sens: Vec<f64>,
 }
 
-/// The model's matrices as the predictor loop reads them (A − KC and B − KD formed once).
-struct Step<'m> {
-    m: &'m Innovation,
-    layout: Layout,
-    abar: Mat<f64>,
-    bbar: Mat<f64>,
+/// A matrix as row-major values, for the sample loops.
+fn row_major(m: &Mat<f64>) -> Vec<f64> {
+    (0..m.nrows()).flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)])).collect()
 }
 
-impl<'m> Step<'m> {
-    fn new(m: &'m Innovation, layout: Layout) -> Self {
-        Self { m, layout, abar: m.predictor_a(), bbar: &m.b - &m.k * &m.d }
+/// `out = Σ_k weights[k] · rows[k]` for `p`-wide rows.
+fn combine(weights: &[f64], rows: &[f64], p: usize, out: &mut [f64]) {
+    out.fill(0.0);
+    for (&w, row) in weights.iter().zip(rows.chunks_exact(p)) {
+        for (o, v) in out.iter_mut().zip(row) {
+            *o += w * v;
+        }
+    }
+}
+
+/// The model's matrices as the predictor loop reads them (row-major; A − KC and B − KD formed once).
+struct Step {
+    layout: Layout,
+    abar: Vec<f64>,
+    bbar: Vec<f64>,
+    c: Vec<f64>,
+    d: Vec<f64>,
+    k: Vec<f64>,
+    x0: Vec<Vec<f64>>,
+}
+
+impl Step {
+    fn new(m: &Innovation, layout: Layout) -> Self {
+        Self {
+            layout,
+            abar: row_major(&m.predictor_a()),
+            bbar: row_major(&(&m.b - &m.k * &m.d)),
+            c: row_major(&m.c),
+            d: row_major(&m.d),
+            k: row_major(&m.k),
+            x0: m.x0.clone(),
+        }
     }
 
     fn start(&self, segment: usize, sensitivities: bool) -> Predictor {
@@ -193,18 +215,18 @@ impl<'m> Step<'m> {
         let mut sens = if sensitivities { vec![0.0; n * p] } else { Vec::new() };
         if sensitivities && self.layout.n_initial > 0 {
             for i in 0..n {
-                sens[(self.layout.x0() + segment * n + i) * n + i] = 1.0;
+                sens[i * p + self.layout.x0() + segment * n + i] = 1.0;
             }
         }
-        Predictor { x: self.m.x0[segment].clone(), sens }
+        Predictor { x: self.x0[segment].clone(), sens }
     }
 
     /// ε(t) into `eps` (length ny).
     fn error(&self, x: &[f64], u: &[f64], y: &[f64], eps: &mut [f64]) {
         let (n, nu) = (self.layout.n, self.layout.nu);
         for (o, e) in eps.iter_mut().enumerate() {
-            let cx: f64 = (0..n).map(|i| self.m.c[(o, i)] * x[i]).sum();
-            let du: f64 = (0..nu).map(|j| self.m.d[(o, j)] * u[j]).sum();
+            let cx: f64 = self.c[o * n..(o + 1) * n].iter().zip(x).map(|(a, b)| a * b).sum();
+            let du: f64 = self.d[o * nu..(o + 1) * nu].iter().zip(u).map(|(a, b)| a * b).sum();
             *e = y[o] - cx - du;
         }
     }
@@ -212,68 +234,50 @@ impl<'m> Step<'m> {
     /// One sample on: x̂ (and the sensitivities, when held) advanced with `eps` = ε(t).
     fn advance(&self, p: &mut Predictor, u: &[f64], y: &[f64], eps: &[f64], scratch: &mut Vec<f64>) {
         let Layout { n, nu, ny, .. } = self.layout;
-        let next: Vec<f64> = (0..n)
-            .map(|i| {
-                (0..n).map(|k| self.abar[(i, k)] * p.x[k]).sum::<f64>()
-                    + (0..nu).map(|j| self.bbar[(i, j)] * u[j]).sum::<f64>()
-                    + (0..ny).map(|j| self.m.k[(i, j)] * y[j]).sum::<f64>()
-            })
-            .collect();
         if !p.sens.is_empty() {
+            let width = p.sens.len() / n;
             scratch.resize(p.sens.len(), 0.0);
-            for (s, d) in p.sens.chunks_exact(n).zip(scratch.chunks_exact_mut(n)) {
-                for (i, v) in d.iter_mut().enumerate() {
-                    *v = (0..n).map(|k| self.abar[(i, k)] * s[k]).sum();
-                }
+            for (i, out) in scratch.chunks_exact_mut(width).enumerate() {
+                combine(&self.abar[i * n..(i + 1) * n], &p.sens, width, out);
             }
             self.add_forcing(scratch, &p.x, u, eps);
             std::mem::swap(&mut p.sens, scratch);
         }
-        p.x = next;
+        let dot = |row: &[f64], v: &[f64]| row.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
+        let mut next = [0.0; 64];
+        let next = if n <= 64 { &mut next[..n] } else { &mut vec![0.0; n][..] };
+        for (i, v) in next.iter_mut().enumerate() {
+            *v = dot(&self.abar[i * n..(i + 1) * n], &p.x)
+                + dot(&self.bbar[i * nu..(i + 1) * nu], u)
+                + dot(&self.k[i * ny..(i + 1) * ny], y);
+        }
+        p.x.copy_from_slice(next);
     }
 
-    /// Adds the forcing f_k(t) of every parameter to the propagated sensitivities `s`.
+    /// Adds the forcing f_k(t) of every parameter to the propagated sensitivities `s` (row-major).
     fn add_forcing(&self, s: &mut [f64], x: &[f64], u: &[f64], eps: &[f64]) {
         let l = self.layout;
-        let (n, nu, ny) = (l.n, l.nu, l.ny);
-        let k = &self.m.k;
-        for i in 0..n {
-            for j in 0..n {
-                s[(i * n + j) * n + i] += x[j];
-            }
-            for j in 0..nu {
-                s[(l.b() + i * nu + j) * n + i] += u[j];
-            }
-            for j in 0..ny {
-                s[(l.k() + i * ny + j) * n + i] += eps[j];
-            }
-        }
-        for o in 0..ny {
-            for j in 0..n {
-                let col = (l.c() + o * n + j) * n;
-                (0..n).for_each(|r| s[col + r] -= k[(r, o)] * x[j]);
-            }
-            for j in 0..nu {
-                let col = (l.d() + o * nu + j) * n;
-                (0..n).for_each(|r| s[col + r] -= k[(r, o)] * u[j]);
+        let (n, nu, ny, p) = (l.n, l.nu, l.ny, l.n_params());
+        for (i, row) in s.chunks_exact_mut(p).enumerate() {
+            row[i * n..(i + 1) * n].iter_mut().zip(x).for_each(|(v, xj)| *v += xj);
+            row[l.b() + i * nu..l.b() + (i + 1) * nu].iter_mut().zip(u).for_each(|(v, uj)| *v += uj);
+            row[l.k() + i * ny..l.k() + (i + 1) * ny].iter_mut().zip(eps).for_each(|(v, ej)| *v += ej);
+            for o in 0..ny {
+                let gain = self.k[i * ny + o];
+                row[l.c() + o * n..l.c() + (o + 1) * n].iter_mut().zip(x).for_each(|(v, xj)| *v -= gain * xj);
+                row[l.d() + o * nu..l.d() + (o + 1) * nu].iter_mut().zip(u).for_each(|(v, uj)| *v -= gain * uj);
             }
         }
     }
 
-    /// Writes the Jacobian row of output `o` (∂ε_o/∂θ) and ε_o into row `row` of `work`.
-    fn jacobian_row(&self, work: &mut Mat<f64>, row: usize, p: &Predictor, u: &[f64], o: usize, eps: f64) {
+    /// The Jacobian row of output `o` (∂ε_o/∂θ) into `row` (length p).
+    fn jacobian_row(&self, row: &mut [f64], p: &Predictor, u: &[f64], o: usize) {
         let l = self.layout;
         let n = l.n;
-        for (col, s) in p.sens.chunks_exact(n).enumerate() {
-            work[(row, col)] = -(0..n).map(|i| self.m.c[(o, i)] * s[i]).sum::<f64>();
-        }
-        for j in 0..n {
-            work[(row, l.c() + o * n + j)] -= p.x[j];
-        }
-        for j in 0..l.nu {
-            work[(row, l.d() + o * l.nu + j)] -= u[j];
-        }
-        work[(row, l.n_params())] = eps;
+        combine(&self.c[o * n..(o + 1) * n], &p.sens, l.n_params(), row);
+        row.iter_mut().for_each(|v| *v = -*v);
+        row[l.c() + o * n..l.c() + (o + 1) * n].iter_mut().zip(&p.x).for_each(|(v, xj)| *v -= xj);
+        row[l.d() + o * l.nu..l.d() + (o + 1) * l.nu].iter_mut().zip(u).for_each(|(v, uj)| *v -= uj);
     }
 }
 
@@ -344,7 +348,7 @@ pub fn jacobian_factor(
 
 /// R of the Jacobian rows of samples `t0..t1`, from predictor `p` at `t0`.
 fn chunk_factor(
-    step: &Step<'_>,
+    step: &Step,
     s: &Signals<'_>,
     (t0, t1): (usize, usize),
     mut p: Predictor,
@@ -353,7 +357,7 @@ fn chunk_factor(
     let (nu, ny) = (s.n_inputs, s.n_outputs);
     let q = step.layout.n_params() + 1;
     let mut work = Mat::<f64>::zeros(q + BLOCK_ROWS, q);
-    let (mut filled, mut eps, mut scratch) = (0, vec![0.0; ny], Vec::new());
+    let (mut filled, mut eps, mut scratch, mut row) = (0, vec![0.0; ny], Vec::new(), vec![0.0; q - 1]);
     for t in t0..t1 {
         if filled + ny > BLOCK_ROWS {
             if cancel.load(Ordering::Relaxed) {
@@ -365,7 +369,11 @@ fn chunk_factor(
         let (u, y) = (&s.u[t * nu..(t + 1) * nu], &s.y[t * ny..(t + 1) * ny]);
         step.error(&p.x, u, y, &mut eps);
         for (o, &e) in eps.iter().enumerate() {
-            step.jacobian_row(&mut work, q + filled, &p, u, o, e);
+            step.jacobian_row(&mut row, &p, u, o);
+            for (k, &v) in row.iter().enumerate() {
+                work[(q + filled, k)] = v;
+            }
+            work[(q + filled, q - 1)] = e;
             filled += 1;
         }
         step.advance(&mut p, u, y, &eps, &mut scratch);
@@ -423,7 +431,8 @@ mod tests {
                 let (mut up, mut down) = (theta.clone(), theta.clone());
                 up[k] += h;
                 down[k] -= h;
-                let (e1, e0) = (errors(&m.with_theta(layout, &up), layout, &s), errors(&m.with_theta(layout, &down), layout, &s));
+                let (e1, e0) =
+                    (errors(&m.with_theta(layout, &up), layout, &s), errors(&m.with_theta(layout, &down), layout, &s));
                 e1.iter().zip(&e0).map(|(a, b)| (a - b) / (2.0 * h)).collect()
             })
             .collect();

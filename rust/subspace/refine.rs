@@ -364,6 +364,10 @@ mod tests {
         let two = [(0, 5), (5, 9)];
         let s = Signals { segments: &two, ..s };
         assert!(matches!(refine(&t, &s, RefineOptions::default(), &never), Err(ArxError::ShapeMismatch { .. })));
-        assert_eq!(refine(&t, &Signals { segments: &segments, ..s }, RefineOptions::default(), &AtomicBool::new(true)).unwrap_err(), ArxError::Interrupted);
+        assert_eq!(
+            refine(&t, &Signals { segments: &segments, ..s }, RefineOptions::default(), &AtomicBool::new(true))
+                .unwrap_err(),
+            ArxError::Interrupted
+        );
     }
 }

@@ -106,12 +106,22 @@ def _input_matrices(a, c, u, y, segments, estimate_x0: bool) -> tuple[np.ndarray
 
 
 def _refine(
-    model: StateSpaceModel, u: np.ndarray, y: np.ndarray, segments: list[tuple[int, int]], options: dict[str, Any]
+    model: StateSpaceModel,
+    u: np.ndarray,
+    y: np.ndarray,
+    segments: list[tuple[int, int]],
+    *,
+    estimate_initial: bool,
+    stable: bool,
+    n_threads: int,
 ) -> StateSpaceModel:
     """The prediction-error refinement of ``model`` in the Rust core (see ``rust/subspace/refine.rs``)."""
-    as_c = np.ascontiguousarray
-    matrices = [as_c(m) for m in (model.a, model.b, model.c, model.d, model.k, model.initial_states)]
-    out = _core.subspace_refine(*matrices, u, y, segments, **options)
+    a, b, c, d, k, x0 = (
+        np.ascontiguousarray(m) for m in (model.a, model.b, model.c, model.d, model.k, model.initial_states)
+    )
+    out = _core.subspace_refine(
+        a, b, c, d, k, x0, u, y, segments, estimate_initial=estimate_initial, stable=stable, n_threads=n_threads
+    )
     report = Refinement(
         start_loss=float(out["start_loss"]),
         loss=float(out["loss"]),
@@ -241,6 +251,7 @@ def ssest(
     if all(hi - lo > 2 * lags for lo, hi in segments):
         model = replace(model, k=_kalman_gain(model, signals, segments, lags))
     if refine:
-        options = {"estimate_initial": initial == "estimate", "stable": stable, "n_threads": n_threads}
-        model = _refine(model, u, y, segments, options)
+        model = _refine(
+            model, u, y, segments, estimate_initial=initial == "estimate", stable=stable, n_threads=n_threads
+        )
     return model
