@@ -19,6 +19,7 @@ use rayon::prelude::*;
 use super::hankel::Signals;
 use super::response::StateSpaceRef;
 use crate::error::{ArxError, Result};
+use crate::linalg::dense::rows_product;
 use crate::linalg::qr::{reduce_appended, stack_and_reduce, BLOCK_ROWS};
 
 /// A state-space model in innovation form with one initial state per segment of its data.
@@ -176,16 +177,6 @@ fn row_major(m: &Mat<f64>) -> Vec<f64> {
     (0..m.nrows()).flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)])).collect()
 }
 
-/// `out = Σ_k weights[k] · rows[k]` for `p`-wide rows.
-fn combine(weights: &[f64], rows: &[f64], p: usize, out: &mut [f64]) {
-    out.fill(0.0);
-    for (&w, row) in weights.iter().zip(rows.chunks_exact(p)) {
-        for (o, v) in out.iter_mut().zip(row) {
-            *o += w * v;
-        }
-    }
-}
-
 /// The model's matrices as the predictor loop reads them (row-major; A − KC and B − KD formed once).
 struct Step {
     layout: Layout,
@@ -235,11 +226,8 @@ impl Step {
     fn advance(&self, p: &mut Predictor, u: &[f64], y: &[f64], eps: &[f64], scratch: &mut Vec<f64>) {
         let Layout { n, nu, ny, .. } = self.layout;
         if !p.sens.is_empty() {
-            let width = p.sens.len() / n;
             scratch.resize(p.sens.len(), 0.0);
-            for (i, out) in scratch.chunks_exact_mut(width).enumerate() {
-                combine(&self.abar[i * n..(i + 1) * n], &p.sens, width, out);
-            }
+            rows_product(&self.abar, &p.sens, n, 0, scratch);
             self.add_forcing(scratch, &p.x, u, eps);
             std::mem::swap(&mut p.sens, scratch);
         }
@@ -274,7 +262,7 @@ impl Step {
     fn jacobian_row(&self, row: &mut [f64], p: &Predictor, u: &[f64], o: usize) {
         let l = self.layout;
         let n = l.n;
-        combine(&self.c[o * n..(o + 1) * n], &p.sens, l.n_params(), row);
+        rows_product(&self.c[o * n..(o + 1) * n], &p.sens, n, 0, row);
         row.iter_mut().for_each(|v| *v = -*v);
         row[l.c() + o * n..l.c() + (o + 1) * n].iter_mut().zip(&p.x).for_each(|(v, xj)| *v -= xj);
         row[l.d() + o * l.nu..l.d() + (o + 1) * l.nu].iter_mut().zip(u).for_each(|(v, uj)| *v -= uj);

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use super::hankel::Signals;
 use super::pseudo_inverse;
 use crate::error::{ArxError, Result};
+use crate::linalg::dense::rows_product;
 use crate::linalg::qr::{reduce_appended, stack_and_reduce, BLOCK_ROWS};
 
 /// What [`input_matrices`] estimates.
@@ -72,14 +73,9 @@ impl Sensitivity {
         let n = at.len().isqrt();
         let w = self.s.len() / n;
         let nu = u.len();
-        scratch.clear();
         scratch.resize(self.s.len(), 0.0);
+        rows_product(at, &self.s, n, self.live, scratch);
         for (i, out) in scratch.chunks_exact_mut(w).enumerate() {
-            for (&weight, row) in at[i * n..(i + 1) * n].iter().zip(self.s.chunks_exact(w)) {
-                for (o, v) in out[self.live..].iter_mut().zip(&row[self.live..]) {
-                    *o += weight * v;
-                }
-            }
             for (o, forced) in out[free..].chunks_exact_mut(nu).enumerate() {
                 let weight = c[o * n + i];
                 for (f, &uj) in forced.iter_mut().zip(u) {
