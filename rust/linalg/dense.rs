@@ -113,25 +113,6 @@ pub fn expm(a: &[f64], n: usize) -> Option<Vec<f64>> {
     Some(e)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn expm_of_a_rotation_and_a_large_matrix() {
-        // exp([[0, -w], [w, 0]]) = rotation by w.
-        let w = 7.3;
-        let e = expm(&[0.0, -w, w, 0.0], 2).unwrap();
-        let exact = [w.cos(), -w.sin(), w.sin(), w.cos()];
-        for (a, b) in e.iter().zip(exact) {
-            assert!((a - b).abs() < 1e-13, "{a} vs {b}");
-        }
-        // Diagonal with a large entry (scaling and squaring).
-        let e = expm(&[-40.0, 0.0, 0.0, 0.5], 2).unwrap();
-        assert!((e[0] - (-40.0f64).exp()).abs() < 1e-25 && (e[3] - 0.5f64.exp()).abs() < 1e-14);
-    }
-}
-
 /// `out = m · s` over the columns `from..` of `w`-wide rows (`m` row-major r × n, `s` row-major
 /// n × w, `out` r × w; its columns before `from` are set to zero): r·n contiguous axpys, in AVX2
 /// vectors where the CPU has them (the same sums in the same order, so the same bits).
@@ -161,5 +142,24 @@ fn rows_product_impl(m: &[f64], s: &[f64], n: usize, from: usize, out: &mut [f64
                 *o += weight * v;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn expm_of_a_rotation_and_a_large_matrix() {
+        // exp([[0, -w], [w, 0]]) = rotation by w.
+        let w = 7.3;
+        let e = expm(&[0.0, -w, w, 0.0], 2).unwrap();
+        let exact = [w.cos(), -w.sin(), w.sin(), w.cos()];
+        for (a, b) in e.iter().zip(exact) {
+            assert!((a - b).abs() < 1e-13, "{a} vs {b}");
+        }
+        // Diagonal with a large entry (scaling and squaring).
+        let e = expm(&[-40.0, 0.0, 0.0, 0.5], 2).unwrap();
+        assert!((e[0] - (-40.0f64).exp()).abs() < 1e-25 && (e[3] - 0.5f64.exp()).abs() < 1e-14);
     }
 }
