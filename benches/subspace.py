@@ -10,7 +10,10 @@ CPU time of all the process's threads (other processes on a shared machine infla
 not the CPU time). nfoursid forms an N × N matrix and cannot run 100,000 samples (75 GiB), so all
 three are compared again at 5,000 samples.
 
-Target (issue 44): arxid at least 10x faster than either peer, with an equal or better fit.
+Target (issue 44): arxid at least 10x faster than either peer, with an equal or better fit. The
+prediction-error refinement (``refine=True``) is timed once beside them, with its fit and how much
+it lowered the one-step prediction error on the estimation data (white output noise: little to gain;
+it pays with coloured noise).
 
     pip install 'arxid[bench]'   # the peers
     python benches/subspace.py [--samples 100000] [--repeats 3]
@@ -100,6 +103,11 @@ def compare(n_samples: int, repeats: int, peers) -> None:
     arxid_fit = model.fit_percent(val)
     print(
         f"  {'arxid.ssest N4SID':19s} {wall:8.3f} s (CPU {cpu:7.2f} s)  fit {np.array2string(arxid_fit, precision=2)} %"
+    )
+    wall_r, cpu_r, refined = timed(lambda: arxid.ssest(data, order=ORDER, horizon=HORIZON, refine=True), 1)
+    print(
+        f"  {'  + refine=True':19s} {wall_r:8.3f} s (CPU {cpu_r:7.2f} s)  "
+        f"fit {np.array2string(refined.fit_percent(val), precision=2)} %  ({refined.refinement})"
     )
     for name, fn in peers:
         try:

@@ -1,5 +1,6 @@
-//! Small dense matrices (row-major `n × n`): products, solves by Gaussian elimination, and the
-//! matrix exponential by Padé-13 scaling and squaring (Higham 2005).
+//! Small dense matrices (row-major): products, solves by Gaussian elimination, the
+//! matrix exponential by Padé-13 scaling and squaring (Higham 2005), and the product that steps a
+//! bank of small filters sample by sample.
 
 /// `a · b` of row-major `n × n` matrices.
 pub fn matmul(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
@@ -110,6 +111,38 @@ pub fn expm(a: &[f64], n: usize) -> Option<Vec<f64>> {
         e = matmul(&e, &e, n);
     }
     Some(e)
+}
+
+/// `out = m · s` over the columns `from..` of `w`-wide rows (`m` row-major r × n, `s` row-major
+/// n × w, `out` r × w; its columns before `from` are set to zero): r·n contiguous axpys, in AVX2
+/// vectors where the CPU has them (the same sums in the same order, so the same bits).
+pub fn rows_product(m: &[f64], s: &[f64], n: usize, from: usize, out: &mut [f64]) {
+    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+    if crate::linalg::simd::avx2_fma() {
+        // SAFETY: the CPU supports the features the function is compiled for.
+        return unsafe { rows_product_avx2(m, s, n, from, out) };
+    }
+    rows_product_impl(m, s, n, from, out);
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn rows_product_avx2(m: &[f64], s: &[f64], n: usize, from: usize, out: &mut [f64]) {
+    rows_product_impl(m, s, n, from, out);
+}
+
+/// Loops, not closures: a closure is compiled without the caller's target features.
+#[inline(always)]
+fn rows_product_impl(m: &[f64], s: &[f64], n: usize, from: usize, out: &mut [f64]) {
+    let w = s.len() / n.max(1);
+    out.fill(0.0);
+    for (weights, target) in m.chunks_exact(n).zip(out.chunks_exact_mut(w)) {
+        for (&weight, row) in weights.iter().zip(s.chunks_exact(w)) {
+            for (o, v) in target[from..].iter_mut().zip(&row[from..]) {
+                *o += weight * v;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

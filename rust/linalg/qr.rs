@@ -65,6 +65,18 @@ pub fn fill_from_samples(dst: &mut [f64], values: &[f64], block: &[usize], strid
     }
 }
 
+/// Reduces the first `q + filled` rows of `work` (q × q R so far on top, `filled` new rows below,
+/// q = its columns) to R on top, zero below the diagonal: one step of a streamed QR.
+pub fn reduce_appended(work: &mut Mat<f64>, filled: usize) {
+    let q = work.ncols();
+    qr_r_in_place(work.as_mut().subrows_mut(0, q + filled));
+    for j in 0..q {
+        for i in (j + 1)..q {
+            work[(i, j)] = 0.0; // Householder vectors, not R
+        }
+    }
+}
+
 /// Stacks square upper-triangular factors and returns the R of the stack.
 pub fn stack_and_reduce(blocks: &[Mat<f64>], q: usize) -> Mat<f64> {
     match blocks.len() {

@@ -1,51 +1,16 @@
 //! The prediction-error search: Gauss–Newton steps with Levenberg–Marquardt damping, solved by QR
 //! of the Jacobian, from the start until the loss stops falling.
 
-use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::arx::fit::inverse_gram;
 use crate::error::{ArxError, Result};
-use crate::linalg::qr::{back_substitute, check_rank, rank_tolerance, small_qr};
+use crate::linalg::levenberg::damped_step;
+pub use crate::linalg::levenberg::Termination;
+use crate::linalg::qr::{check_rank, rank_tolerance};
 use crate::pem::gradient::{evaluate, jacobian_r, sum_squares, Evaluation};
 use crate::pem::polynomial::{Initial, PolyStructure, Polys, Segments};
 use crate::pem::start::start;
-
-/// Why the iterations stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Termination {
-    /// The full Gauss–Newton step would lower the loss by less than the tolerance (a minimum).
-    Converged,
-    /// An accepted step lowered the loss by less than the tolerance.
-    SmallImprovement,
-    /// The iteration limit was reached first.
-    MaxIterations,
-    /// No damped step lowered the loss although the gradient is not negligible.
-    Stalled,
-}
-
-impl Termination {
-    /// True when the end point is a (local) minimum by the first-order test.
-    pub fn converged(self) -> bool {
-        matches!(self, Termination::Converged | Termination::SmallImprovement)
-    }
-}
-
-impl fmt::Display for Termination {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Termination::Converged => {
-                "converged: a Gauss-Newton step would improve the loss by less than the tolerance"
-            }
-            Termination::SmallImprovement => "converged: the last step improved the loss by less than the tolerance",
-            Termination::MaxIterations => "stopped at the iteration limit before converging",
-            Termination::Stalled => {
-                "stalled: no damped step lowered the loss although the gradient is not negligible (poor scaling or a \
-                 non-smooth point)"
-            }
-        })
-    }
-}
 
 /// Settings of [`pem`].
 #[derive(Debug, Clone)]
@@ -239,26 +204,6 @@ pub fn pem(
         fit.initial_states = init.segments.into_iter().zip(init.states).collect();
     }
     Ok(fit)
-}
-
-/// Levenberg–Marquardt step: minimises $\|R_{11}\delta + r\|^2 + \lambda \|\mathrm{diag}(s)\,\delta\|^2$
-/// by QR of the stacked $[R_{11}, r; \sqrt\lambda\,\mathrm{diag}(s), 0]$.
-fn damped_step(r: &[f64], p: usize, lambda: f64, scale: &[f64]) -> Vec<f64> {
-    let (q, m) = (p + 1, 2 * p);
-    let mut a = vec![0.0; m * q];
-    for j in 0..q {
-        for i in 0..=j.min(p - 1) {
-            a[i + j * m] = r[i + j * q];
-        }
-    }
-    for j in 0..p {
-        a[p + j + j * m] = lambda.sqrt() * scale[j];
-    }
-    small_qr(&mut a, m, q);
-    let rhs: Vec<f64> = (0..p).map(|i| a[i + p * m]).collect();
-    let mut delta = vec![0.0; p];
-    back_substitute(&a, m, &rhs, &mut delta);
-    delta.iter().map(|d| -d).collect()
 }
 
 #[cfg(test)]

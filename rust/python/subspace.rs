@@ -6,7 +6,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::run::run;
+use crate::subspace::innovation::Innovation;
 use crate::subspace::input_matrices::{input_matrices, Unknowns};
+use crate::subspace::refine::{refine, RefineOptions};
 use crate::subspace::response::{respond, StateSpaceRef};
 use crate::subspace::{identify, Horizons, Signals, SubspaceOptions, Weighting};
 
@@ -133,4 +135,57 @@ pub fn state_space_response<'py>(
     let y = y.to_pyarray(py).reshape([samples, ny])?;
     let x = x.to_pyarray(py).reshape([samples, n])?;
     Ok((y, x))
+}
+
+/// The prediction-error refinement of the innovation-form model (a, b, c, d, k) with one initial
+/// state per segment (rows of `x0`) on the segments of `u` and `y`. Returns a dict: `a`, `b`, `c`,
+/// `d`, `k`, `x0`, `start_loss`, `loss` (mean squared one-step errors), `losses`, `iterations`,
+/// `termination`, `converged`, `n_free`.
+#[pyfunction]
+#[pyo3(signature = (a, b, c, d, k, x0, u, y, segments, estimate_initial = true, stable = false, max_iterations = 50, tolerance = 1e-7, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+pub fn subspace_refine<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    b: PyReadonlyArray2<'py, f64>,
+    c: PyReadonlyArray2<'py, f64>,
+    d: PyReadonlyArray2<'py, f64>,
+    k: PyReadonlyArray2<'py, f64>,
+    x0: PyReadonlyArray2<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    y: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    estimate_initial: bool,
+    stable: bool,
+    max_iterations: usize,
+    tolerance: f64,
+    n_threads: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s = signals(&u, &y, &segments)?;
+    let x0 = view(&x0)?;
+    let start = Innovation {
+        a: view(&a)?.to_owned(),
+        b: view(&b)?.to_owned(),
+        c: view(&c)?.to_owned(),
+        d: view(&d)?.to_owned(),
+        k: view(&k)?.to_owned(),
+        x0: (0..x0.nrows()).map(|i| (0..x0.ncols()).map(|j| x0[(i, j)]).collect()).collect(),
+    };
+    let options = RefineOptions { max_iterations, tolerance, estimate_initial, stable, parallel: n_threads != 1 };
+    let fit = run(py, n_threads, |cancel| refine(&start, &s, options, cancel))?;
+    let m = &fit.model;
+    let out = PyDict::new(py);
+    for (name, matrix_value) in [("a", &m.a), ("b", &m.b), ("c", &m.c), ("d", &m.d), ("k", &m.k)] {
+        out.set_item(name, matrix(py, matrix_value)?)?;
+    }
+    let n = m.a.nrows();
+    out.set_item("x0", matrix(py, &faer::Mat::from_fn(m.x0.len(), n, |i, j| m.x0[i][j]))?)?;
+    out.set_item("start_loss", fit.start_loss)?;
+    out.set_item("loss", fit.loss)?;
+    out.set_item("losses", PyArray1::from_vec(py, fit.losses))?;
+    out.set_item("iterations", fit.iterations)?;
+    out.set_item("termination", fit.termination.to_string())?;
+    out.set_item("converged", fit.termination.converged())?;
+    out.set_item("n_free", fit.n_free)?;
+    Ok(out)
 }

@@ -2,8 +2,10 @@
 //!
 //! With A and C known, the simulated output is linear in B, D and x0 (Verhaegen & Verdult 2007,
 //! §9.2.4): `y(t) = C Aᵗ x0 + Σ_{k<t} C A^{t−1−k} B u(k) + D u(t) + v(t)`. Each output sample is one
-//! regression row; its B columns come from the state sensitivity `S(t+1) = A S(t) + u(t)ᵀ ⊗ I`,
-//! its x0 columns from `C Aᵗ`. Rows are reduced by Householder QR block by block, so N never
+//! regression row; its x0 and B columns are the rows of `C_o Aᵗ` and `Σ_k C_o A^{t−1−k} u_j(k)`,
+//! run as the transposed filters `ξ(t+1) = Aᵀ ξ(t) + C_oᵀ u_j(t)` (n states per output and input:
+//! n²·ny·nu operations a sample, where the state sensitivities ∂x/∂B would take n³·nu and a
+//! product with C on top). Rows are reduced by Householder QR block by block, so N never
 //! sets the memory. A segment's x0 columns touch only its own rows: each segment is reduced on
 //! its own, its x0 rows kept for the back substitution, the rest stacked into the shared problem.
 
@@ -15,7 +17,8 @@ use rayon::prelude::*;
 use super::hankel::Signals;
 use super::pseudo_inverse;
 use crate::error::{ArxError, Result};
-use crate::linalg::qr::{qr_r_in_place, stack_and_reduce, BLOCK_ROWS};
+use crate::linalg::dense::rows_product;
+use crate::linalg::qr::{reduce_appended, stack_and_reduce, BLOCK_ROWS};
 
 /// What [`input_matrices`] estimates.
 #[derive(Debug)]
@@ -35,62 +38,56 @@ pub struct Unknowns {
     pub initial_state: bool,
 }
 
-/// Reduces the first `q + filled` rows of `work` (R so far on top, new rows below) to R on top.
-fn reduce(work: &mut Mat<f64>, filled: usize) {
-    let q = work.ncols();
-    qr_r_in_place(work.as_mut().subrows_mut(0, q + filled));
-    for j in 0..q {
-        for i in (j + 1)..q {
-            work[(i, j)] = 0.0; // Householder vectors, not R
-        }
-    }
-}
-
-/// `dst = a · src` for column-major `n × m` blocks (`a` n × n): the sensitivity recursion, without
-/// allocation.
-fn propagate(a: MatRef<'_, f64>, src: &[f64], dst: &mut [f64], n: usize) {
-    for (s, d) in src.chunks_exact(n).zip(dst.chunks_exact_mut(n)) {
-        for (i, v) in d.iter_mut().enumerate() {
-            *v = (0..n).map(|k| a[(i, k)] * s[k]).sum();
-        }
-    }
-}
-
-/// The sensitivities at a sample: `sens` (∂x/∂B, column-major n × (n·nu), column j·n + i for
-/// B[i, j]) and `free` (Aᵗ, n × n, zero once it has died out).
+/// The regressor filters at a sample, row-major n × w: for each output o, `(Aᵀ)ᵗ C_oᵀ` (the x0
+/// columns, when estimated: the first `f·ny` columns, f = 1) and, for each input j,
+/// `Σ_k (Aᵀ)^{t−1−k} C_oᵀ u_j(k)` (column `f·ny + o·nu + j`). Row-major, so each update is n²
+/// contiguous axpys; the x0 filters are dropped (zero) once they have died out.
 #[derive(Clone)]
 struct Sensitivity {
-    sens: Vec<f64>,
-    free: Vec<f64>,
-    decaying: bool,
+    s: Vec<f64>,
+    /// First column still changing (f·ny once the x0 filters have died out).
+    live: usize,
+}
+
+/// A matrix as row-major values, for the sample loops.
+fn row_major(m: MatRef<'_, f64>) -> Vec<f64> {
+    (0..m.nrows()).flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)])).collect()
 }
 
 impl Sensitivity {
-    fn start(n: usize, nu: usize) -> Self {
-        let free = (0..n * n).map(|k| if k % (n + 1) == 0 { 1.0 } else { 0.0 }).collect();
-        Self { sens: vec![0.0; n * n * nu], free, decaying: true }
-    }
-
-    /// One sample on: `S ← A S + u ⊗ I`, `Aᵗ ← A Aᵗ` (while `initial_state`).
-    fn step(&mut self, a: MatRef<'_, f64>, u: &[f64], initial_state: bool, scratch: &mut Vec<f64>) {
-        let n = a.nrows();
-        scratch.resize(self.sens.len(), 0.0);
-        propagate(a, &self.sens, scratch, n);
-        std::mem::swap(&mut self.sens, scratch);
-        for (j, &uj) in u.iter().enumerate() {
+    /// At a segment's first sample (`c` row-major ny × n).
+    fn start(n: usize, nu: usize, ny: usize, x0: bool, c: &[f64]) -> Self {
+        let free = if x0 { ny } else { 0 };
+        let w = free + ny * nu;
+        let mut s = vec![0.0; n * w];
+        for o in 0..free {
             for i in 0..n {
-                self.sens[(j * n + i) * n + i] += uj;
+                s[i * w + o] = c[o * n + i];
             }
         }
-        if initial_state && self.decaying {
-            scratch.resize(self.free.len(), 0.0);
-            propagate(a, &self.free, &mut scratch[..n * n], n);
-            self.free.copy_from_slice(&scratch[..n * n]);
-            // Once Aᵗ has died out, stop before it turns subnormal (100x slower arithmetic).
-            if self.free.iter().all(|v| v.abs() < 1e-150) {
-                self.free.fill(0.0);
-                self.decaying = false;
+        Self { s, live: 0 }
+    }
+
+    /// One sample on: `ξ ← Aᵀ ξ + C_oᵀ u_j` (`at` = Aᵀ row-major n × n, `c` row-major ny × n).
+    fn step(&mut self, at: &[f64], c: &[f64], free: usize, u: &[f64], scratch: &mut Vec<f64>) {
+        let n = at.len().isqrt();
+        let w = self.s.len() / n;
+        let nu = u.len();
+        scratch.resize(self.s.len(), 0.0);
+        rows_product(at, &self.s, n, self.live, scratch);
+        for (i, out) in scratch.chunks_exact_mut(w).enumerate() {
+            for (o, forced) in out[free..].chunks_exact_mut(nu).enumerate() {
+                let weight = c[o * n + i];
+                for (f, &uj) in forced.iter_mut().zip(u) {
+                    *f += weight * uj;
+                }
             }
+        }
+        std::mem::swap(&mut self.s, scratch);
+        // Once Aᵗ has died out, stop before it turns subnormal (100x slower arithmetic).
+        if self.live < free && self.s.chunks_exact(w).all(|row| row[..free].iter().all(|v| v.abs() < 1e-150)) {
+            self.s.chunks_exact_mut(w).for_each(|row| row[..free].fill(0.0));
+            self.live = free;
         }
     }
 }
@@ -115,9 +112,11 @@ fn chunk_factor(
     let nx0 = if unknowns.initial_state { n } else { 0 };
     let nd = if unknowns.feedthrough { ny * nu } else { 0 };
     let q = nx0 + n * nu + nd + 1;
+    let free = if unknowns.initial_state { ny } else { 0 };
+    let w = free + ny * nu;
+    let (at, c) = (row_major(a.transpose()), row_major(c));
     let mut work = Mat::<f64>::zeros(q + BLOCK_ROWS, q);
-    let mut filled = 0;
-    let mut scratch = Vec::new();
+    let (mut filled, mut scratch) = (0, Vec::new());
     for t in t0..t1 {
         let u = &s.u[t * nu..(t + 1) * nu];
         for o in 0..ny {
@@ -125,16 +124,17 @@ fn chunk_factor(
                 if cancel.load(Ordering::Relaxed) {
                     return Err(ArxError::Interrupted);
                 }
-                reduce(&mut work, filled);
+                reduce_appended(&mut work, filled);
                 filled = 0;
             }
             let row = q + filled;
-            let c_row = |col: &[f64]| (0..n).map(|k| c[(o, k)] * col[k]).sum::<f64>();
-            for (i, col) in state.free.chunks_exact(n).take(nx0).enumerate() {
-                work[(row, i)] = c_row(col);
-            }
-            for (k, col) in state.sens.chunks_exact(n).enumerate() {
-                work[(row, nx0 + k)] = c_row(col);
+            for (i, xi) in state.s.chunks_exact(w).enumerate() {
+                if nx0 > 0 {
+                    work[(row, i)] = xi[o];
+                }
+                for j in 0..nu {
+                    work[(row, nx0 + j * n + i)] = xi[free + o * nu + j];
+                }
             }
             for j in 0..nd / ny.max(1) {
                 for oo in 0..ny {
@@ -144,9 +144,9 @@ fn chunk_factor(
             work[(row, q - 1)] = s.y[t * ny + o];
             filled += 1;
         }
-        state.step(a, u, unknowns.initial_state, &mut scratch);
+        state.step(&at, &c, free, u, &mut scratch);
     }
-    reduce(&mut work, filled);
+    reduce_appended(&mut work, filled);
     Ok(work.as_ref().subrows(0, q).to_owned())
 }
 
@@ -159,24 +159,25 @@ fn segment_factor(
     unknowns: Unknowns,
     cancel: &AtomicBool,
 ) -> Result<Mat<f64>> {
-    let nu = s.n_inputs;
-    let mut state = Sensitivity::start(a.nrows(), nu);
-    let mut scratch = Vec::new();
-    let mut chunks = Vec::new();
+    let (n, nu, ny) = (a.nrows(), s.n_inputs, s.n_outputs);
+    let nx0 = if unknowns.initial_state { n } else { 0 };
+    let free = if unknowns.initial_state { ny } else { 0 };
+    let (at, c_rows) = (row_major(a.transpose()), row_major(c));
+    let mut state = Sensitivity::start(n, nu, ny, unknowns.initial_state, &c_rows);
+    let (mut scratch, mut chunks) = (Vec::new(), Vec::new());
     for t0 in (start..end).step_by(CHUNK_SAMPLES) {
         let t1 = (t0 + CHUNK_SAMPLES).min(end);
         chunks.push(((t0, t1), state.clone()));
         for t in t0..t1 {
-            state.step(a, &s.u[t * nu..(t + 1) * nu], unknowns.initial_state, &mut scratch);
+            state.step(&at, &c_rows, free, &s.u[t * nu..(t + 1) * nu], &mut scratch);
         }
     }
     let factors = chunks
         .into_par_iter()
         .map(|(range, at)| chunk_factor(a, c, s, range, at, unknowns, cancel))
         .collect::<Result<Vec<_>>>()?;
-    let nx0 = if unknowns.initial_state { a.nrows() } else { 0 };
-    let nd = if unknowns.feedthrough { s.n_outputs * nu } else { 0 };
-    Ok(stack_and_reduce(&factors, nx0 + a.nrows() * nu + nd + 1))
+    let nd = if unknowns.feedthrough { ny * nu } else { 0 };
+    Ok(stack_and_reduce(&factors, nx0 + n * nu + nd + 1))
 }
 
 /// B (and D, and each segment's x0, as `unknowns` asks) minimising the simulation error of the

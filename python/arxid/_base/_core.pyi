@@ -59,6 +59,7 @@ __all__ = [
     "state_space_response",
     "subspace_identify",
     "subspace_input_matrices",
+    "subspace_refine",
     "ar_filter_rows",
     "lfilter",
 ]
@@ -384,4 +385,20 @@ def subspace_input_matrices(
     feedthrough: bool = True,
     initial_state: bool = True,
 ) -> tuple[_F, _F, _F]: ...
+def subspace_refine(
+    a: _F,
+    b: _F,
+    c: _F,
+    d: _F,
+    k: _F,
+    x0: _F,
+    u: _F,
+    y: _F,
+    segments: Sequence[tuple[int, int]],
+    estimate_initial: bool = True,
+    stable: bool = False,
+    max_iterations: int = 50,
+    tolerance: float = 1e-7,
+    n_threads: int = 0,
+) -> dict[str, Any]: ...
 def state_space_response(a: _F, b: _F, c: _F, d: _F, x0: _F, u: _F) -> tuple[_F, _F]: ...

@@ -19,13 +19,44 @@ from .._base.optional import require
 from ..exceptions import DataError
 from .mimo_data import Signals, gather
 
-__all__ = ["StateSpaceModel"]
+__all__ = ["StateSpaceModel", "Refinement"]
 
 
 def _response(a, b, c, d, x0, u) -> tuple[np.ndarray, np.ndarray]:
     """Outputs and states of (a, b, c, d) from x0 driven by u, computed in the Rust core."""
     as_c = np.ascontiguousarray
     return _core.state_space_response(as_c(a), as_c(b), as_c(c), as_c(d), as_c(x0, dtype=float), as_c(u, dtype=float))
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """How the prediction-error refinement of a subspace estimate went.
+
+    Attributes
+    ----------
+    start_loss, loss : float
+        Mean squared one-step prediction error (over samples and outputs, in the outputs' units
+        squared) of the subspace estimate and of the refined model, on the estimation data.
+    iterations : int
+        Accepted Levenberg–Marquardt steps.
+    converged : bool
+        Whether the search stopped at a minimum (otherwise at the iteration limit, or stalled).
+    termination : str
+        Why the search stopped, in words.
+    """
+
+    start_loss: float
+    loss: float
+    iterations: int
+    converged: bool
+    termination: str
+
+    def __str__(self) -> str:
+        drop = 100.0 * (1.0 - self.loss / self.start_loss) if self.start_loss > 0 else 0.0
+        return (
+            f"prediction-error refinement: mean squared one-step error {self.start_loss:.4g} -> {self.loss:.4g} "
+            f"({drop:.1f} % lower) in {self.iterations} step(s); {self.termination}"
+        )
 
 
 @dataclass(frozen=True)
@@ -58,6 +89,9 @@ class StateSpaceModel:
         Past and future horizons (samples) of the block-Hankel data.
     order_fixed : bool
         Whether the caller fixed the order.
+    refinement : Refinement or None
+        How the prediction-error refinement went (``ssest(..., refine=True)``); None when the
+        model is the subspace estimate itself.
 
     Notes
     -----
@@ -79,6 +113,7 @@ class StateSpaceModel:
     order_criterion: np.ndarray = field(default_factory=lambda: np.zeros(0))
     horizon: tuple[int, int] = (0, 0)
     order_fixed: bool = False
+    refinement: Refinement | None = None
 
     # ------------------------------------------------------------------ shape
     @property
@@ -307,4 +342,6 @@ class StateSpaceModel:
             lines.append(
                 f"  canonical correlations (first {min(self.order + 3, self.canonical_correlations.size)}): {shown}"
             )
+        if self.refinement is not None:
+            lines.append(f"  {self.refinement}")
         return "\n".join(lines)
