@@ -5,13 +5,11 @@ onto one time grid with :func:`arxid.data.resample.resample`. :class:`~arxid.IOD
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import TypeVar
 
-import numpy as np
-
 from ..exceptions import DataError
-from .outputs import output_list
+from .outputs import GridBuilt, output_list
 
 __all__ = ["FlightLogReaders", "selector_lists"]
 
@@ -41,20 +39,8 @@ def selector_lists(inputs, extra) -> tuple[list[str], list[str]]:
     return inputs, extra
 
 
-class FlightLogReaders:
+class FlightLogReaders(GridBuilt):
     """Constructors of :class:`~arxid.IOData` from flight logs (the class inherits them)."""
-
-    @classmethod
-    def _from_grid(
-        cls: type[_T],
-        values: Mapping[str, np.ndarray],
-        units: Mapping[str, str],
-        ts: float,
-        n_inputs: int,
-        n_outputs: int = 1,
-    ) -> _T:
-        """Signals on one grid as an IOData: the outputs first, then the inputs, then extras."""
-        raise NotImplementedError  # IOData builds itself
 
     @classmethod
     def from_blackbox(

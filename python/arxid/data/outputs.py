@@ -10,7 +10,7 @@ inherits from :class:`SeveralOutputs`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any, Generic, TypeVar, cast
 
@@ -19,11 +19,12 @@ import numpy as np
 from ..exceptions import DataError
 from .samples import as_float_samples
 
-__all__ = ["OutputField", "SeveralOutputs", "checked_outputs", "output_list", "several_outputs_error"]
+__all__ = ["GridBuilt", "OutputField", "SeveralOutputs", "checked_outputs", "output_list", "several_outputs_error"]
 
 _T = TypeVar("_T")
 _NO_DEFAULT = object()
 _S = TypeVar("_S", bound="SeveralOutputs")
+_G = TypeVar("_G", bound="GridBuilt")
 
 
 def output_list(output: Any) -> list[str]:
@@ -216,3 +217,19 @@ def checked_outputs(y: Any, name: Any, unit: Any) -> tuple[np.ndarray, Any, Any]
     if samples.shape[1] != len(names):
         raise DataError(f"{len(names)} output names given for {samples.shape[1]} output columns of y")
     return samples, tuple(names), tuple(units)
+
+
+class GridBuilt:
+    """What the readers (tables, flight logs) build on: signals on one grid made into an IOData."""
+
+    @classmethod
+    def _from_grid(
+        cls: type[_G],
+        values: Mapping[str, np.ndarray],
+        units: Mapping[str, str],
+        ts: float,
+        n_inputs: int,
+        n_outputs: int = 1,
+    ) -> _G:
+        """Signals on one grid as an IOData: the outputs first, then the inputs, then extras."""
+        raise NotImplementedError  # IOData builds itself

@@ -12,27 +12,15 @@ import numpy as np
 
 from ..exceptions import DataError
 from .csvio import CsvFile
-from .outputs import output_list
+from .outputs import GridBuilt, output_list
 
 __all__ = ["TableReaders"]
 
 _T = TypeVar("_T", bound="TableReaders")
 
 
-class TableReaders:
+class TableReaders(GridBuilt):
     """Constructors of :class:`~arxid.IOData` from tables (the class inherits them)."""
-
-    @classmethod
-    def _from_grid(
-        cls: type[_T],
-        values: Mapping[str, np.ndarray],
-        units: Mapping[str, str],
-        ts: float,
-        n_inputs: int,
-        n_outputs: int = 1,
-    ) -> _T:
-        """Signals on one grid as an IOData: the outputs first, then the inputs, then extras."""
-        raise NotImplementedError  # IOData builds itself
 
     @classmethod
     def from_pandas(
