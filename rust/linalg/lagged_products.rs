@@ -49,6 +49,23 @@ pub fn lagged_products(a: &[f64], b: &[f64], first: isize, last: isize, cancel: 
     Ok(out)
 }
 
+/// `Σ x(i) y(i)` over the shorter length, in the lanes of the block sums (FMA where the CPU has it).
+pub fn dot_product(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+    if avx2_fma() {
+        // SAFETY: the CPU supports the features the function is compiled for.
+        return unsafe { dot_avx2(&x[..n], &y[..n]) };
+    }
+    dot::<false>(&x[..n], &y[..n])
+}
+
+#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn dot_avx2(x: &[f64], y: &[f64]) -> f64 {
+    dot::<true>(x, y)
+}
+
 /// The sums of one block of samples `[lo, hi)` of `a`, one per lag from `first`.
 fn block_products(a: &[f64], b: &[f64], (lo, hi): (usize, usize), first: isize, width: usize) -> Vec<f64> {
     #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]

@@ -13,9 +13,8 @@ use rayon::prelude::*;
 use crate::arx::columns::{columns_in, envelope};
 use crate::arx::structure::{fill_row, Data, Structure};
 use crate::error::{ArxError, Result};
-use crate::sweep::least_squares::{
-    factor_grid, rss_from_r, simulate_all, StructureResult, SweepOptions, Swept, NAN_SCORE,
-};
+use crate::sweep::grid_factors::{factor_grid, rows_of, rss_from_r};
+use crate::sweep::least_squares::{simulate_all, StructureResult, SweepOptions, Swept, NAN_SCORE};
 
 /// Rows per block of the moment accumulation (fixed, so results do not depend on the threads).
 const BLOCK: usize = 4096;
@@ -203,7 +202,7 @@ pub fn iv_sweep(
     let heartbeat = || progress(0);
     let f = factor_grid(est, val, structures, opts.parallel, &heartbeat)?;
     let env = envelope(structures)?;
-    let rows = crate::sweep::least_squares::rows_of(est, &env, f.first_lag);
+    let rows = rows_of(est, &env, f.first_lag);
     let mom = moments(est, inst, &env, &rows, opts.parallel, &heartbeat);
     drop(rows);
     if mom.n_rows < mom.p {
@@ -215,7 +214,7 @@ pub fn iv_sweep(
         match solve(&mom, &cols) {
             Ok((theta, cov)) => {
                 let rss_est = rss_from_r(&f.r_est, f.q, &cols, &theta);
-                let rss_val = f.r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, f.q, &cols, &theta));
+                let rss_val = f.rss_val(&cols, &theta);
                 let r = StructureResult {
                     theta,
                     rss_est,

@@ -10,14 +10,16 @@ use crate::arx::columns::columns_in;
 // `arxid::sweep::envelope`).
 pub use crate::arx::columns::envelope;
 use crate::arx::fit::solve_subset;
-use crate::arx::reduce::{reduce, reduce_with};
-use crate::arx::structure::{usable_rows, Data, Structure};
+use crate::arx::reduce::reduce;
+use crate::arx::structure::{Data, Structure};
 use crate::error::{ArxError, Result};
 use crate::linalg::qr::{to_col_major, BLOCK_ROWS};
 use crate::simulate::lanes::{free_run_rms_lanes, input_columns, LANES};
 use crate::simulate::predict::{predict, predict_k_linear};
 use crate::simulate::score::{divergence_limit, score, SimScore};
+use crate::sweep::grid_factors::{factor_grid, rows_of, GridFactors};
 use crate::sweep::one_step::{one_step_all, Factors, OneStep};
+use crate::sweep::validation_gram::ValidationLoss;
 
 /// How a sweep validates its structures. A simulation is stopped as diverged by the core's one
 /// rule, [`divergence_limit`] of the measured output of the data set it runs on.
@@ -103,31 +105,6 @@ pub struct StructureResult {
     pub stage: u8,
 }
 
-/// `‖R[:, cols ∪ y] · [−θ; 1]‖²`: the residual sum of squares of θ on the rows that produced R.
-pub(crate) fn rss_from_r(r: &[f64], q: usize, cols: &[usize], theta: &[f64]) -> f64 {
-    let mut v = vec![0.0; q];
-    for (c, &j) in cols.iter().enumerate() {
-        for i in 0..q {
-            v[i] -= r[i + j * q] * theta[c];
-        }
-    }
-    for i in 0..q {
-        v[i] += r[i + (q - 1) * q];
-    }
-    v.iter().map(|x| x * x).sum()
-}
-
-/// Regression rows of the envelope: every sample from `first_lag` into each experiment when the data
-/// are complete (no per-row check needed), else the rows [`usable_rows`] keeps.
-pub(crate) fn rows_of(d: &Data, env: &Structure, first_lag: usize) -> Vec<usize> {
-    if env.output_terms.is_empty() && d.y.iter().all(|v| v.is_finite()) && d.u.iter().all(|v| v.is_finite()) {
-        let lag = first_lag.max(env.max_lag());
-        d.segments().into_iter().flat_map(|(a, b)| (a + lag).min(b)..b).collect()
-    } else {
-        usable_rows(d, env, first_lag).0
-    }
-}
-
 /// Whether the lane kernel applies: free run of linear structures on finite data.
 fn lanes_apply(d: &Data, env: &Structure, opts: &SweepOptions) -> bool {
     opts.horizon.is_none()
@@ -170,77 +147,15 @@ fn simulate_group(
     }
 }
 
-/// The triangular factors every structure of a grid is solved from.
-pub(crate) struct GridFactors {
-    pub(crate) env: Structure,
-    pub(crate) first_lag: usize,
-    pub(crate) q: usize,
-    pub(crate) r_est: Vec<f64>,
-    pub(crate) n_est: usize,
-    pub(crate) r_val: Option<Vec<f64>>,
-    pub(crate) n_val: usize,
-}
-
-/// Checks the grid and reduces the envelope's regressor on both data sets to R.
-pub(crate) fn factor_grid(
-    est: &Data,
-    val: Option<&Data>,
-    structures: &[Structure],
-    parallel: bool,
-    heartbeat: &(dyn Fn() + Sync),
-) -> Result<GridFactors> {
-    let keep_going = || {
-        heartbeat();
-        true
-    };
-    let env = envelope(structures)?;
-    env.check(est.m)?;
-    check_all(structures, est.m, parallel)?;
-    let first_lag = env.max_lag();
-    let q = env.n_params() + 1;
-    let bound = est.max_rows(first_lag);
-    if bound < q {
-        return Err(ArxError::TooFewSamples { needed: q, got: bound });
-    }
-    let rows = rows_of(est, &env, first_lag);
-    if rows.len() < q {
-        return Err(ArxError::TooFewSamples { needed: q, got: rows.len() });
-    }
-    let n_est = rows.len();
-    let r_est = to_col_major(&reduce_with(est, &env, &rows, parallel, &keep_going));
-    drop(rows);
-    let (r_val, n_val) = match val {
-        Some(v) => {
-            if v.m != est.m {
-                return Err(ArxError::ShapeMismatch { what: "validation inputs".into(), expected: est.m, got: v.m });
-            }
-            let vrows = rows_of(v, &env, first_lag);
-            let n = vrows.len();
-            (Some(to_col_major(&reduce_with(v, &env, &vrows, parallel, &keep_going))), n)
-        }
-        None => (None, 0),
-    };
-    Ok(GridFactors { env, first_lag, q, r_est, n_est, r_val, n_val })
-}
-
-/// Checks every structure against `m` inputs; the error is the first structure's in grid order,
-/// however many threads look.
-fn check_all(structures: &[Structure], m: usize, parallel: bool) -> Result<()> {
-    if parallel && structures.par_iter().all(|s| s.check(m).is_ok()) {
-        return Ok(());
-    }
-    structures.iter().try_for_each(|s| s.check(m))
-}
-
 pub(crate) const NAN_SCORE: SimScore =
     SimScore { rms: f64::NAN, n: 0, diverged: false, norm: f64::NAN, mean: f64::NAN };
 
 /// Exact QR solve of one structure from the factors, with its one-step losses (stage 2).
-fn fit_exact(f: &GridFactors, s: &Structure) -> StructureResult {
+fn fit_exact(f: &GridFactors<'_>, s: &Structure) -> StructureResult {
     let cols = columns_in(&f.env, s);
     match solve_subset(&f.r_est, f.q, &cols, f.n_est) {
         Ok((theta, rss_est, _)) => {
-            let rss_val = f.r_val.as_ref().map_or(f64::NAN, |rv| rss_from_r(rv, f.q, &cols, &theta));
+            let rss_val = f.rss_val(&cols, &theta);
             StructureResult { theta, rss_est, rss_val, sim_est: NAN_SCORE, sim_val: NAN_SCORE, error: None, stage: 2 }
         }
         Err(e) => StructureResult {
@@ -265,10 +180,10 @@ fn two_stage_fits(
     parallel: bool,
     heartbeat: &(dyn Fn() + Sync),
 ) -> Result<(Vec<StructureResult>, Vec<usize>)> {
-    let factors = Factors::new(&f.r_est, f.r_val.as_deref(), f.q, f.n_est);
+    let factors = Factors::new(&f.r_est, f.val.as_ref(), f.q, f.n_est);
     let stage1 = one_step_all(&factors, &f.env, structures, parallel, heartbeat)?;
     let key = |r: &OneStep| {
-        let v = if f.r_val.is_some() { r.rss_val } else { r.rss_est };
+        let v = if f.val.is_some() { r.rss_val } else { r.rss_est };
         if v.is_finite() {
             v
         } else {
@@ -432,7 +347,8 @@ pub fn fits_from_factors(
     if n_est < q {
         return Err(ArxError::TooFewSamples { needed: q, got: n_est });
     }
-    let f = GridFactors { first_lag: env.max_lag(), env, q, r_est, n_est, r_val, n_val };
+    let f =
+        GridFactors { first_lag: env.max_lag(), env, q, r_est, n_est, val: r_val.map(ValidationLoss::Factor), n_val };
     match top {
         Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, parallel, &|| {}),
         _ => {

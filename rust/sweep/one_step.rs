@@ -18,6 +18,7 @@ use crate::arx::columns::columns_into;
 use crate::arx::fit::solve_subset;
 use crate::arx::structure::Structure;
 use crate::error::{ArxError, Result};
+use crate::sweep::validation_gram::ValidationLoss;
 
 /// Below this squared sine of the angle between a new column and the span of the columns before
 /// it, the normal equations lose too many digits and the structure is solved by QR instead.
@@ -42,8 +43,9 @@ pub struct OneStep {
 pub struct Factors<'a> {
     /// Column-major (q × q) R of `[Φ_env | y]` on the estimation rows.
     pub r_est: &'a [f64],
-    /// Same on the validation rows.
-    pub r_val: Option<&'a [f64]>,
+    /// What the validation losses come from: the same factor on the validation rows, or their Gram
+    /// matrix.
+    pub(crate) val: Option<&'a ValidationLoss<'a>>,
     pub q: usize,
     pub n_est: usize,
     /// Row-major q × q $R^\top R$.
@@ -51,7 +53,7 @@ pub struct Factors<'a> {
 }
 
 impl<'a> Factors<'a> {
-    pub fn new(r_est: &'a [f64], r_val: Option<&'a [f64]>, q: usize, n_est: usize) -> Self {
+    pub(crate) fn new(r_est: &'a [f64], val: Option<&'a ValidationLoss<'a>>, q: usize, n_est: usize) -> Self {
         let mut gram = vec![0.0; q * q];
         for a in 0..q {
             for b in a..q {
@@ -61,7 +63,7 @@ impl<'a> Factors<'a> {
                 gram[b * q + a] = v;
             }
         }
-        Factors { r_est, r_val, q, n_est, gram }
+        Factors { r_est, val, q, n_est, gram }
     }
 }
 
@@ -206,7 +208,13 @@ fn one(f: &Factors, w: &mut Scratch) -> OneStep {
             }
         }
     };
-    let rss_val = f.r_val.map_or(f64::NAN, |rv| residual(rv, q, cols, &theta, res));
+    let rss_val = match f.val {
+        None => f64::NAN,
+        Some(ValidationLoss::Factor(rv)) => residual(rv, q, cols, &theta, res),
+        Some(ValidationLoss::Gram(g)) => {
+            g.rss(cols, &theta).unwrap_or_else(|| residual(g.factor(), q, cols, &theta, res))
+        }
+    };
     OneStep { theta, rss_est, rss_val, error: None }
 }
 
@@ -306,7 +314,10 @@ pub fn one_step_all(
     parallel: bool,
     heartbeat: &(dyn Fn() + Sync),
 ) -> Result<Vec<OneStep>> {
-    if f.q != env.n_params() + 1 || f.r_est.len() != f.q * f.q || f.r_val.is_some_and(|r| r.len() != f.q * f.q) {
+    if f.q != env.n_params() + 1
+        || f.r_est.len() != f.q * f.q
+        || matches!(f.val, Some(ValidationLoss::Factor(r)) if r.len() != f.q * f.q)
+    {
         return Err(ArxError::InvalidStructure("the factors do not match the grid's envelope".into()));
     }
     let kmax = structures.iter().map(Structure::n_params).max().unwrap_or(0);
@@ -379,7 +390,8 @@ mod tests {
         let rows = usable_rows(&d, &env, lag).0;
         let q = env.n_params() + 1;
         let r = to_col_major(&reduce(&d, &env, &rows, false));
-        let f = Factors::new(&r, Some(&r), q, rows.len());
+        let rv = ValidationLoss::Factor(r.clone());
+        let f = Factors::new(&r, Some(&rv), q, rows.len());
         let got = one_step_all(&f, &env, &grid, true, &|| {}).unwrap();
         let serial = one_step_all(&f, &env, &grid, false, &|| {}).unwrap();
         for ((s, a), b) in grid.iter().zip(&got).zip(&serial) {
