@@ -111,7 +111,8 @@ class BesideFit:
         i = self.names.index(shape.signal)
         other = data.signal(shape.other) if shape.other else None
         u = np.column_stack([data.u, shape.evaluate(data.u[:, i], other)])
-        extended = data.with_signals(u=u, input_names=[*data.input_names, "shape_"], input_units=[*data.input_units, ""])
+        names, units = [*data.input_names, "shape_"], [*data.input_units, ""]
+        extended = data.with_signals(u=u, input_names=names, input_units=units)
         nb, nk = (*model.nb_, model.nb_[i]), (*model.nk_, model.nk_[i])
         effects = [*model.effects] + (["const"] if const else [])
         fitted = ArxModel(na=model.na_, nb=nb, nk=nk, effects=effects).fit(extended, first_lag=model.first_lag_)
