@@ -1,7 +1,7 @@
 """The encompassing test of a shape from one reduction of the model's columns gives the refit's F
 statistic: seeded two-input plants whose first input acts through a dead zone, with and without an
 offset, an additive effect of the input, missing samples, and a modulating signal with gaps (where
-the refit decides)."""
+the refit decides). The shape models fitted from one envelope factor equal their own fits."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid.diagnosis.shape_beside import BesideFit
-from arxid.diagnosis.shapes import _f_test
+from arxid.diagnosis.shapes import ShapeFits, _f_test
 from arxid.exceptions import ArxidError
 from arxid.models.input_shapes import InputShape
 
@@ -80,3 +80,19 @@ def test_a_shape_the_model_spans_is_refused_as_the_refit_refuses_it():
         fit.refit(wide, False)
     with pytest.raises(ArxidError):
         fit(wide, False)
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+def test_the_shape_models_from_one_envelope_equal_their_own_fits(gaps):
+    data = plant(7, gaps=gaps)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    pairs = [(shape, const) for shape in SHAPES for const in (False, True)]
+    fits = ShapeFits(model, data, pairs)
+    assert (fits.envelope is None) == gaps  # data with gaps: each refitted on its own rows
+    for shape, const in pairs:
+        got = fits.fit(shape, const)
+        effects = [shape.effect] + (["const"] if const else [])
+        own = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=effects).fit(data)
+        assert got.regressor_names_ == own.regressor_names_ and got.n_rows_ == own.n_rows_
+        np.testing.assert_allclose(got.parameters_, own.parameters_, rtol=1e-9, atol=1e-12)
+        assert got.rss_ == pytest.approx(own.rss_, rel=1e-10)
