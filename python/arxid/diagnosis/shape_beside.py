@@ -93,17 +93,20 @@ class BesideFit:
         m, data = self.model, self.data
         layout = compile_effects(m.effects, data, m.nb_, m.nk_)
         phi, y, rows = regressor_matrix(data, m.na_, layout, m.first_lag_)
-        basis = orthonormal_basis(phi) if rows.size == m.n_rows_ else None
+        if rows.size != m.n_rows_:
+            return
+        for i in range(data.n_inputs):
+            which, index, plain = input_lags(data, m.na_, layout, i, phi, rows)
+            ok = which.size and plain.sum() == m.nb_[i]
+            self._lags[i] = index[:, plain] if ok else None
+        basis = orthonormal_basis(phi)
+        del phi  # the largest array here: gone before the projections
         if basis is None:
             return
         y_perp = y - basis @ (basis.T @ y)
         if not abs(float(y_perp @ y_perp) - m.rss_) <= _AGREEMENT * m.rss_:
             return  # the basis does not stand for the model's fit
         self._basis = basis, y_perp
-        for i in range(data.n_inputs):
-            which, index, plain = input_lags(data, m.na_, layout, i, phi, rows)
-            ok = which.size and plain.sum() == m.nb_[i]
-            self._lags[i] = index[:, plain] if ok else None
 
     def refit(self, shape: InputShape, const: bool) -> Beside:
         """The refit itself: the shaped input as one more input with the input's own lags."""

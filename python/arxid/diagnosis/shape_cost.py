@@ -137,14 +137,18 @@ def input_lags(
 
     The input's columns are those that move when its series does: found by writing the sample
     numbers in as the series."""
+    half = 0.5 * data.n_samples
     numbered = layout.u.copy()
-    numbered[:, column] = np.arange(data.n_samples) + 0.5 * data.n_samples  # distinct from every value
+    numbered[:, column] = np.arange(data.n_samples) + half  # distinct from every value
     moved = regressor_columns(data, na, replace(layout, u=numbered), rows, range(phi.shape[1]))
-    which = np.flatnonzero((moved != phi).any(axis=0))
-    read = moved[:, which] - 0.5 * data.n_samples
-    plain = ((read >= 0) & (read < data.n_samples) & (read == np.round(read))).all(axis=0)
-    index = np.where(plain, read, 0).astype(np.intp)
-    plain &= (layout.u[index, column] == phi[:, which]).all(axis=0)
+    which = np.array([j for j in range(phi.shape[1]) if (moved[:, j] != phi[:, j]).any()], dtype=np.intp)
+    index = np.zeros((rows.size, which.size), dtype=np.intp)
+    plain = np.zeros(which.size, dtype=bool)
+    for c, j in enumerate(which):  # a column at a time: a few row-long temporaries, not a matrix of them
+        read = moved[:, j] - half
+        if ((read >= 0) & (read < data.n_samples) & (read == np.round(read))).all():
+            index[:, c] = read
+            plain[c] = np.array_equal(layout.u[index[:, c], column], phi[:, j])
     return which, index, plain
 
 
@@ -152,7 +156,8 @@ def orthonormal_basis(columns: np.ndarray) -> np.ndarray | None:
     """Q of the columns' QR, or None when one depends on those before it by the core's rank rule."""
     q, r = np.linalg.qr(columns)
     tol = _RANK_FACTOR * max(columns.shape)
-    if columns.shape[1] and not (np.abs(np.diag(r)) > tol * np.linalg.norm(columns, axis=0)).all():
+    norms = np.sqrt(np.einsum("ij,ij->j", columns, columns))
+    if columns.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
         return None
     return q
 
