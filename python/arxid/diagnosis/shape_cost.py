@@ -30,7 +30,7 @@ from ..models.input_shapes import InputShape, parse_shape
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
-__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_rss"]
+__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_rss", "tall_r"]
 
 #: The shortcut's loss must match the refit's to this relative difference at the first value.
 _AGREEMENT = 1e-9
@@ -170,8 +170,23 @@ def projected_rss(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> float
     stacked = np.empty((z.shape[0], k + 1))
     stacked[:, :k] = z - basis @ (basis.T @ z)
     stacked[:, k] = y_perp
-    r = np.asarray(np.linalg.qr(stacked, mode="r"))
+    r = tall_r(stacked)
     norms = np.sqrt(np.einsum("ij,ij->j", z, z))
     if not (np.abs(np.diag(r)[:k]) > _RANK_FACTOR * z.shape[0] * norms).all():
         return math.inf
     return float(r[k, k] ** 2)
+
+
+#: Rows of each block whose R factors :func:`tall_r` stacks.
+_BLOCK_ROWS = 4096
+
+
+def tall_r(a: np.ndarray) -> np.ndarray:
+    """R of a tall matrix of a few columns, up to the signs of its rows: the R factors of blocks of
+    rows (one batched QR), stacked and reduced again. Householder's accuracy at a half to a quarter of
+    the time of one QR of the whole matrix (whose reflections each pass over every row)."""
+    whole = a.shape[0] // _BLOCK_ROWS * _BLOCK_ROWS
+    if whole <= _BLOCK_ROWS:
+        return np.asarray(np.linalg.qr(a, mode="r"))
+    blocks = np.linalg.qr(a[:whole].reshape(-1, _BLOCK_ROWS, a.shape[1]), mode="r").reshape(-1, a.shape[1])
+    return np.asarray(np.linalg.qr(np.vstack([blocks, a[whole:]]), mode="r"))
