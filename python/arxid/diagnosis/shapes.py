@@ -14,7 +14,8 @@ doubled (Bonferroni over the two tests), then multiplied by the number of shapes
 a scan tried:
 
 * the estimation data's encompassing test: the shape's columns (and the offset), added *beside*
-  the input with its lags, lower the one-step error (partial F-test): the input acts nonlinearly;
+  the input with its lags, lower the one-step error (partial F-test, from one reduction of the
+  model's columns: :mod:`.shape_beside`): the input acts nonlinearly;
 * the validation data's Diebold–Mariano test of the shape model's errors against the model's: a
   staircase's estimation data may hold too few levels to show a shape, the validation data hold
   others.
