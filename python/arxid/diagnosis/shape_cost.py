@@ -183,10 +183,10 @@ _BLOCK_ROWS = 4096
 
 def tall_r(a: np.ndarray) -> np.ndarray:
     """R of a tall matrix of a few columns, up to the signs of its rows: the R factors of blocks of
-    rows (one batched QR), stacked and reduced again. Householder's accuracy at a half to a quarter of
-    the time of one QR of the whole matrix (whose reflections each pass over every row)."""
+    rows (one batched QR), stacked and reduced again. Householder's accuracy in about half the time
+    of one QR of the whole matrix (whose reflections each pass over every row)."""
     whole = a.shape[0] // _BLOCK_ROWS * _BLOCK_ROWS
     if whole <= _BLOCK_ROWS:
         return np.asarray(np.linalg.qr(a, mode="r"))
-    blocks = np.linalg.qr(a[:whole].reshape(-1, _BLOCK_ROWS, a.shape[1]), mode="r").reshape(-1, a.shape[1])
+    blocks = np.asarray(np.linalg.qr(a[:whole].reshape(-1, _BLOCK_ROWS, a.shape[1]), mode="r")).reshape(-1, a.shape[1])
     return np.asarray(np.linalg.qr(np.vstack([blocks, a[whole:]]), mode="r"))
