@@ -68,3 +68,15 @@ def test_missing_samples_keep_the_refits_rows():
     for c in (0.35, 0.5):
         shape = arxid.models.input_shapes.InputShape("dead zone", "u", (c,))
         assert cost((c,)) == pytest.approx(cost.refit(shape), rel=1e-10)
+
+
+@pytest.mark.parametrize("rows", [50, 4096 * 3, 4096 * 5 + 17])
+def test_the_blocked_r_factor_is_householders(rows):
+    from arxid.diagnosis.shape_cost import tall_r
+
+    a = np.random.default_rng(rows).standard_normal((rows, 4)) @ np.array(
+        [[1.0, 0.9, 0.0, 1.0], [0.0, 0.1, 0.0, 2.0], [0.0, 0.0, 1e-3, 0.5], [0.0, 0.0, 0.0, 1e-2]]
+    )
+    got, want = tall_r(a), np.linalg.qr(a, mode="r")
+    signs = np.sign(np.diag(got)) * np.sign(np.diag(want))
+    np.testing.assert_allclose(signs[:, None] * got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())

@@ -25,12 +25,12 @@ import numpy as np
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
-from ..models.effects import compile_effects
+from ..models.effects import EffectLayout, compile_effects
 from ..models.input_shapes import InputShape, parse_shape
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
-__all__ = ["ShapeCost"]
+__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_rss", "tall_r"]
 
 #: The shortcut's loss must match the refit's to this relative difference at the first value.
 _AGREEMENT = 1e-9
@@ -91,8 +91,8 @@ class _Projection:
     """The other columns' basis and the projected output, fixed across the shape's values; the
     shaped lags are read from the shaped series at fixed sample indices."""
 
-    def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray, tol: float):
-        self.cost, self.index, self.q, self.y_perp, self.tol = cost, index, q, y_perp, tol
+    def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray):
+        self.cost, self.index, self.q, self.y_perp = cost, index, q, y_perp
         data = cost.data
         self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
         self.signal = data.signal(cost.signal)
@@ -105,25 +105,14 @@ class _Projection:
         except ArxidError:
             return None
         phi, y, rows = regressor_matrix(data, m.na_, layout, m.first_lag_)
-        # The shaped input's columns are those that move when its series does, each its series at a
-        # fixed lag: found by writing the sample numbers in as the series.
-        numbered = layout.u.copy()
-        numbered[:, cost.column] = np.arange(data.n_samples) + 0.5 * data.n_samples  # distinct from every value
-        moved = regressor_columns(data, m.na_, replace(layout, u=numbered), rows, range(phi.shape[1]))
-        which = np.flatnonzero((moved != phi).any(axis=0))
-        if which.size == 0:
-            return None
-        index = np.round(moved[:, which] - 0.5 * data.n_samples).astype(np.intp)
-        if not np.array_equal(layout.u[index, cost.column], phi[:, which]):
-            return None  # not a plain lag of the series: the refit decides
-        other = np.delete(phi, which, axis=1)
-        tol = _RANK_FACTOR * max(phi.shape)
-        q, r = np.linalg.qr(other)
-        norms = np.linalg.norm(other, axis=0)
-        if other.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
+        which, index, plain = input_lags(data, m.na_, layout, cost.column, phi, rows)
+        if which.size == 0 or not plain.all():
+            return None  # a column not a plain lag of the shaped series: the refit decides
+        basis = orthonormal_basis(np.delete(phi, which, axis=1))
+        if basis is None:
             return None  # dependent columns besides the shape: the refit decides
-        y_perp = y - q @ (q.T @ y)
-        return cls(cost, index, q, y_perp, tol)
+        y_perp = y - basis @ (basis.T @ y)
+        return cls(cost, index, basis, y_perp)
 
     def rss(self, shape: InputShape) -> float:
         try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
@@ -137,13 +126,67 @@ class _Projection:
         z = series[self.index]
         if not np.isfinite(z).all():
             return self.cost.refit(shape)
-        k = z.shape[1]
-        # R of [Z − Q(QᵀZ) | y⊥] (no Q formed): its last diagonal entry is the residual's norm.
-        stacked = np.empty((z.shape[0], k + 1))
-        stacked[:, :k] = z - self.q @ (self.q.T @ z)
-        stacked[:, k] = self.y_perp
-        r = np.asarray(np.linalg.qr(stacked, mode="r"))
-        norms = np.sqrt(np.einsum("ij,ij->j", z, z))
-        if not (np.abs(np.diag(r)[:k]) > self.tol * norms).all():
-            return math.inf  # a shaped lag the other columns (or the lags before it) already span
-        return float(r[k, k] ** 2)
+        return projected_rss(self.q, self.y_perp, z)  # inf: a shaped lag the other columns span
+
+
+def input_lags(
+    data: IOData, na: int, layout: EffectLayout, column: int, phi: np.ndarray, rows: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The columns of ``phi`` that move with input ``column``, per row and column the sample each
+    reads, and whether each is a plain lag of the input (not a product or power of it).
+
+    The input's columns are those that move when its series does: found by writing the sample
+    numbers in as the series."""
+    half = 0.5 * data.n_samples
+    numbered = layout.u.copy()
+    numbered[:, column] = np.arange(data.n_samples) + half  # distinct from every value
+    moved = regressor_columns(data, na, replace(layout, u=numbered), rows, range(phi.shape[1]))
+    which = np.array([j for j in range(phi.shape[1]) if (moved[:, j] != phi[:, j]).any()], dtype=np.intp)
+    index = np.zeros((rows.size, which.size), dtype=np.intp)
+    plain = np.zeros(which.size, dtype=bool)
+    for c, j in enumerate(which):  # a column at a time: a few row-long temporaries, not a matrix of them
+        read = moved[:, j] - half
+        if ((read >= 0) & (read < data.n_samples) & (read == np.round(read))).all():
+            index[:, c] = read
+            plain[c] = np.array_equal(layout.u[index[:, c], column], phi[:, j])
+    return which, index, plain
+
+
+def orthonormal_basis(columns: np.ndarray) -> np.ndarray | None:
+    """Q of the columns' QR, or None when one depends on those before it by the core's rank rule."""
+    q, r = np.linalg.qr(columns)
+    tol = _RANK_FACTOR * max(columns.shape)
+    norms = np.sqrt(np.einsum("ij,ij->j", columns, columns))
+    if columns.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
+        return None
+    return q
+
+
+def projected_rss(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> float:
+    """The residual sum of squares of ``y`` on the basis's columns and ``z`` (``y_perp`` is y less
+    its projection on the basis): R of [Z − Q(QᵀZ) | y⊥] (no Q formed), its last diagonal entry the
+    residual's norm; +inf when a column of ``z`` depends on the basis or on those before it."""
+    k = z.shape[1]
+    stacked = np.empty((z.shape[0], k + 1))
+    stacked[:, :k] = z - basis @ (basis.T @ z)
+    stacked[:, k] = y_perp
+    r = tall_r(stacked)
+    norms = np.sqrt(np.einsum("ij,ij->j", z, z))
+    if not (np.abs(np.diag(r)[:k]) > _RANK_FACTOR * z.shape[0] * norms).all():
+        return math.inf
+    return float(r[k, k] ** 2)
+
+
+#: Rows of each block whose R factors :func:`tall_r` stacks.
+_BLOCK_ROWS = 4096
+
+
+def tall_r(a: np.ndarray) -> np.ndarray:
+    """R of a tall matrix of a few columns, up to the signs of its rows: the R factors of blocks of
+    rows (one batched QR), stacked and reduced again. Householder's accuracy in about half the time
+    of one QR of the whole matrix (whose reflections each pass over every row)."""
+    whole = a.shape[0] // _BLOCK_ROWS * _BLOCK_ROWS
+    if whole <= _BLOCK_ROWS:
+        return np.asarray(np.linalg.qr(a, mode="r"))
+    blocks = np.asarray(np.linalg.qr(a[:whole].reshape(-1, _BLOCK_ROWS, a.shape[1]), mode="r")).reshape(-1, a.shape[1])
+    return np.asarray(np.linalg.qr(np.vstack([blocks, a[whole:]]), mode="r"))

@@ -14,7 +14,8 @@ doubled (Bonferroni over the two tests), then multiplied by the number of shapes
 a scan tried:
 
 * the estimation data's encompassing test: the shape's columns (and the offset), added *beside*
-  the input with its lags, lower the one-step error (partial F-test): the input acts nonlinearly;
+  the input with its lags, lower the one-step error (partial F-test, from one reduction of the
+  model's columns: :mod:`.shape_beside`): the input acts nonlinearly;
 * the validation data's Diebold–Mariano test of the shape model's errors against the model's: a
   staircase's estimation data may hold too few levels to show a shape, the validation data hold
   others.
@@ -47,12 +48,14 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.effects import parse_effect
+from ..models.envelope import EnvelopeFactor
 from ..models.input_shapes import InputShape
 from ..models.iv import IvModel
 from ..selection.parsimony import diebold_mariano
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
+from .shape_beside import BesideFit
 from .shape_cost import ShapeCost
 
 __all__ = [
@@ -64,6 +67,7 @@ __all__ = [
     "prefer_shapes",
     "validation_p",
     "ValidationEvidence",
+    "ShapeFits",
 ]
 
 #: Distinct values an input needs before a shape's parameter is estimated from the data.
@@ -141,11 +145,6 @@ def _threshold_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tupl
     ]
 
 
-def _fit(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> ArxModel:
-    effects = [*model.effects, shape.effect] + (["const"] if const else [])
-    return ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=effects).fit(data, first_lag=model.first_lag_)
-
-
 def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> InputShape:
     """The shape's parameters with the lowest one-step error on ``data``: a grid (a saturation's
     two levels in turn), then a local search from its best point (each value tried is a refit)."""
@@ -215,17 +214,48 @@ def score_shapes(
         return []
     offsets = (False, True) if "const" not in model.effects else (False,)
     n_shapes = len(shapes) * len(offsets)
+    scan_data = data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES]
+    # the offset a shape may need is in the scan: the parameter is found with it
+    shapes = [(_scan(model, scan_data, shape, offsets[-1]) if n > 1 else shape, n) for shape, n in shapes]
+    fits = ShapeFits(model, data, [(shape, const) for shape, _ in shapes for const in offsets])
+    beside = BesideFit(model, data)
     out = []
     for shape, n in shapes:
-        if n > 1:  # the offset a shape may need is in the scan: the parameter is found with it
-            shape = _scan(model, data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES], shape, offsets[-1])
         tried = n_shapes * n  # Bonferroni: every shape, and every value a scan tried
-
         for const in offsets:
-            entry = _scored(model, data, shape, const, evidence)
+            entry = _scored(model, shape, const, evidence, beside, fits)
             if entry is not None:
                 out.append({**entry, "p_adj": min(1.0, entry["p"] * tried)})
     return out
+
+
+class ShapeFits:
+    """The models with an input replaced by each shape (and an offset), fitted from one factor of
+    their envelope (:mod:`arxid.models.envelope`: one pass of the core over the data, not one per
+    shape); on data with gaps each is refitted on its own rows."""
+
+    def __init__(self, model: ArxModel, data: IOData, shapes: Sequence[tuple[InputShape, bool]]):
+        self.model, self.data = model, data
+        self.specs = [self._spec(shape, const) for shape, const in shapes]
+        self.envelope: EnvelopeFactor | None = None
+        if len(self.specs) > 1:
+            try:
+                self.envelope = EnvelopeFactor(data, self.specs, model.first_lag_)
+            except ArxidError:  # data with gaps, or a shape that cannot be compiled
+                self.envelope = None
+
+    def _spec(self, shape: InputShape, const: bool) -> tuple:
+        m = self.model
+        return (m.na_, m.nb_, m.nk_, [*m.effects, shape.effect] + (["const"] if const else []))
+
+    def fit(self, shape: InputShape, const: bool) -> ArxModel:
+        """The model with ``shape`` (raises as its own fit raises)."""
+        spec = self._spec(shape, const)
+        fitted = ArxModel(na=spec[0], nb=spec[1], nk=spec[2], effects=spec[3])
+        i = self.specs.index(spec) if spec in self.specs else -1
+        if self.envelope is not None and i >= 0 and self.envelope.has(i):
+            return fitted.fit_in(self.envelope, i)
+        return fitted.fit(self.data, first_lag=self.model.first_lag_)
 
 
 class ValidationEvidence:
@@ -245,32 +275,23 @@ class ValidationEvidence:
         return validation_p(self._base, self._errors(fitted))
 
 
-def _scored(model: ArxModel, data: IOData, shape: InputShape, const: bool, evidence: ValidationEvidence) -> dict | None:
+def _scored(
+    model: ArxModel, shape: InputShape, const: bool, evidence: ValidationEvidence, fit: BesideFit, fits: ShapeFits
+) -> dict | None:
     """One shape as the judge reads a candidate, with the smaller p-value of its two tests, doubled."""
     try:
-        beside, q = _beside(model, data, shape, const)
-        p_val = evidence.p_value(_fit(model, data, shape, const))
+        beside = fit(shape, const)  # the shape's columns (and the offset) beside the input's
+        p_val = evidence.p_value(fits.fit(shape, const))
     except ArxidError:
         return None
-    f, p_est = _f_test(model.rss_, beside.rss_, q, beside.n_rows_ - beside.n_params)
+    q = model.nb_[fit.names.index(shape.signal)] + int(const)
+    f, p_est = _f_test(model.rss_, beside.rss, q, beside.n_rows - beside.n_params)
     p = min(1.0, 2 * min(p_est, p_val))
     label = shape.effect + ("+const" if const else "")
     effects = (shape.effect, "const") if const else (shape.effect,)
     c = Candidate(label, effects, model.na_, tuple(model.nb_), tuple(model.nk_), "shape")
-    score = math.sqrt(max(0.0, 1.0 - beside.rss_ / model.rss_)) if model.rss_ > 0 else 0.0
+    score = math.sqrt(max(0.0, 1.0 - beside.rss / model.rss_)) if model.rss_ > 0 else 0.0
     return {"c": c, "score": score, "f": f, "p": p, "q": q}
-
-
-def _beside(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> tuple[ArxModel, int]:
-    """The model with the shaped input as one more input (the input's own lags) and the offset."""
-    i = candidate_input_names(data).index(shape.signal)
-    other = data.signal(shape.other) if shape.other else None
-    u = np.column_stack([data.u, shape.evaluate(data.u[:, i], other)])
-    extended = data.with_signals(u=u, input_names=[*data.input_names, "shape_"], input_units=[*data.input_units, ""])
-    nb, nk = (*model.nb_, model.nb_[i]), (*model.nk_, model.nk_[i])
-    effects = [*model.effects] + (["const"] if const else [])
-    fitted = ArxModel(na=model.na_, nb=nb, nk=nk, effects=effects).fit(extended, first_lag=model.first_lag_)
-    return fitted, model.nb_[i] + int(const)
 
 
 def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:

@@ -1,0 +1,98 @@
+"""The encompassing test of a shape from one reduction of the model's columns gives the refit's F
+statistic: seeded two-input plants whose first input acts through a dead zone, with and without an
+offset, an additive effect of the input, missing samples, and a modulating signal with gaps (where
+the refit decides). The shape models fitted from one envelope factor equal their own fits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+import arxid
+from arxid.diagnosis.shape_beside import BesideFit
+from arxid.diagnosis.shapes import ShapeFits, _f_test
+from arxid.exceptions import ArxidError
+from arxid.models.input_shapes import InputShape
+
+
+def plant(seed: int, n: int = 2000, gaps: bool = False) -> arxid.IOData:
+    rng = np.random.default_rng(seed)
+    u1 = np.repeat(rng.uniform(-1.5, 1.5, n // 10 + 1), 10)[:n]
+    u2 = rng.standard_normal(n)
+    v = 4.0 - np.linspace(0.0, 0.6, n) + 0.01 * rng.standard_normal(n)
+    dz = np.sign(u1) * np.maximum(np.abs(u1) - 0.4, 0.0)
+    y = lfilter([0, 0.3, 0.15], [1, -1.2, 0.45], dz * v / 4) + lfilter([0, 0.2], [1, -0.5], u2) + 0.3
+    y += 0.01 * rng.standard_normal(n)
+    if gaps:
+        y[[100, 101, 700, 1500]] = np.nan
+        v[[300, 1200]] = np.nan
+    return arxid.IOData(y, np.column_stack([u1, u2]), 0.01, input_names=["u", "w"], extra={"v": v})
+
+
+SHAPES = [
+    InputShape("dead zone", "u", (0.4,)),
+    InputShape("dead zone", "u", (0.9,)),
+    InputShape("signed power", "u", (2.0,)),
+    InputShape("saturation", "u", (-0.7, 0.8)),
+    InputShape("product", "u", (), "v"),
+    InputShape("signed power", "w", (0.5,)),
+]
+
+
+def f_statistic(model: arxid.ArxModel, beside, q: int) -> float:
+    return _f_test(model.rss_, beside.rss, q, beside.n_rows - beside.n_params)[0]
+
+
+@pytest.mark.parametrize(("effects", "gaps"), [((), False), ((), True), (("u^2",), False), (("const",), True)])
+def test_the_f_statistic_equals_the_refits(effects, gaps):
+    data = plant(4, gaps=gaps)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=effects).fit(data)
+    fit = BesideFit(model, data)
+    offsets = (False,) if "const" in effects else (False, True)
+    for shape in SHAPES:
+        for const in offsets:
+            q = model.nb_[["u", "w"].index(shape.signal)] + int(const)
+            fast, exact = fit(shape, const), fit.refit(shape, const)
+            assert fast.n_rows == exact.n_rows and fast.n_params == exact.n_params
+            assert fast.rss == pytest.approx(exact.rss, rel=1e-10)
+            assert f_statistic(model, fast, q) == pytest.approx(f_statistic(model, exact, q), rel=1e-9)
+    # the shortcut stood for the refits (a modulating signal with gaps is refitted: other rows)
+    assert fit._basis is not None and fit._lags[0] is not None and fit._lags[1] is not None
+
+
+def test_the_dead_zone_is_the_significant_shape():
+    data = plant(5)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    fit = BesideFit(model, data)
+    f_dz = f_statistic(model, fit(InputShape("dead zone", "u", (0.4,)), False), 2)
+    f_w = f_statistic(model, fit(InputShape("signed power", "w", (0.5,)), False), 1)  # w acts linearly
+    assert f_dz > 100 * f_w
+
+
+def test_a_shape_the_model_spans_is_refused_as_the_refit_refuses_it():
+    """A dead zone wider than the input gives zero columns: rank deficient to the refit and here."""
+    data = plant(6)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    fit = BesideFit(model, data)
+    wide = InputShape("dead zone", "u", (5.0,))
+    with pytest.raises(ArxidError):
+        fit.refit(wide, False)
+    with pytest.raises(ArxidError):
+        fit(wide, False)
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+def test_the_shape_models_from_one_envelope_equal_their_own_fits(gaps):
+    data = plant(7, gaps=gaps)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    pairs = [(shape, const) for shape in SHAPES for const in (False, True)]
+    fits = ShapeFits(model, data, pairs)
+    assert (fits.envelope is None) == gaps  # data with gaps: each refitted on its own rows
+    for shape, const in pairs:
+        got = fits.fit(shape, const)
+        effects = [shape.effect] + (["const"] if const else [])
+        own = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=effects).fit(data)
+        assert got.regressor_names_ == own.regressor_names_ and got.n_rows_ == own.n_rows_
+        np.testing.assert_allclose(got.parameters_, own.parameters_, rtol=1e-9, atol=1e-12)
+        assert got.rss_ == pytest.approx(own.rss_, rel=1e-10)
