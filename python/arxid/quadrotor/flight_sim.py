@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -406,8 +407,8 @@ class _Airframe:
     a0: float
     a1: float
     a2: float
-    a0_i: np.ndarray  # a0 of each motor (motor mismatch)
-    kt_i: np.ndarray  # thrust coefficient of each motor
+    a0_i: tuple[float, ...]  # a0 of each motor (motor mismatch)
+    kt_i: tuple[float, ...]  # thrust coefficient of each motor
     dm: int  # samples by which the logged attitude and rates lag the true ones
     vnom: float
     cap: float  # battery capacity [C]
@@ -432,8 +433,8 @@ class _Airframe:
             a0=a0,
             a1=a1,
             a2=a2,
-            a0_i=a0 * (1 + mis),
-            kt_i=par.thrust_coefficient * (1 + mis * 0.5),
+            a0_i=tuple((a0 * (1 + mis)).tolist()),
+            kt_i=tuple((par.thrust_coefficient * (1 + mis * 0.5)).tolist()),
             dm=max(par.delay_samples - 1, 0) if eff["delay"] else 0,
             vnom=par.nominal_voltage,
             cap=par.capacity_mah * 3.6,
@@ -442,31 +443,57 @@ class _Airframe:
 
 
 class _FlightLog:
-    """Per-sample records of :func:`_fly` (true attitude and rates, speeds, duty, battery, forces)."""
+    """Per-sample records of :func:`_fly` (true attitude and rates, speeds, duty, battery, forces).
 
-    def __init__(self, n: int):
-        self.ang = np.zeros((n, 3))
-        self.rate = np.zeros((n, 3))
-        self.w = np.zeros((n, 4))
-        self.duty = np.zeros((n, 4))
-        self.vbat = np.zeros(n)
-        self.thrust = np.zeros(n)
-        self.torque = np.zeros((n, 3))
-        self.z = np.zeros(n)
-        self.current = np.zeros(n)
+    The loop appends rows of Python floats to lists and :meth:`arrays` stacks them once at the end:
+    writing a numpy row per sample, and the numpy scalars it hands back, cost several times the
+    arithmetic itself. Python floats are the same IEEE doubles, so the log is bit for bit the same."""
 
-    def measured(self, k: int, noise: _Noise, dm: int) -> tuple[float, float, float, float, float, float]:
+    def __init__(self) -> None:
+        self.ang: list[tuple[float, float, float]] = []
+        self.rate: list[tuple[float, float, float]] = []
+        self.w: list[list[float]] = []
+        self.duty: list[list[float]] = []
+        self.vbat: list[float] = []
+        self.thrust: list[float] = []
+        self.torque: list[tuple[float, float, float]] = []
+        self.z: list[float] = []
+        self.current: list[float] = []
+
+    def measured(self, k: int, noise: _NoiseRows, dm: int) -> tuple[float, float, float, float, float, float]:
         """Delayed, noisy attitude and rates at sample ``k`` as the controller sees (and logs) them."""
-        ang, rate, nang, nrate = self.ang, self.rate, noise.attitude, noise.gyro
         j = k - dm if k >= dm else 0
-        return (
-            ang[j, 0] + nang[k, 0],
-            ang[j, 1] + nang[k, 1],
-            ang[j, 2] + nang[k, 2],
-            rate[j, 0] + nrate[k, 0],
-            rate[j, 1] + nrate[k, 1],
-            rate[j, 2] + nrate[k, 2],
-        )
+        (a0, a1, a2), (r0, r1, r2) = self.ang[j], self.rate[j]
+        (na0, na1, na2), (nr0, nr1, nr2) = noise.attitude[k], noise.gyro[k]
+        return a0 + na0, a1 + na1, a2 + na2, r0 + nr0, r1 + nr1, r2 + nr2
+
+    def arrays(self) -> _FlightArrays:
+        """The records as arrays of shape (n,) or (n, k)."""
+        return _FlightArrays(**{name: np.array(rows, dtype=float) for name, rows in vars(self).items()})
+
+
+@dataclass(frozen=True)
+class _FlightArrays:
+    """The records of :class:`_FlightLog` as arrays."""
+
+    ang: np.ndarray
+    rate: np.ndarray
+    w: np.ndarray
+    duty: np.ndarray
+    vbat: np.ndarray
+    thrust: np.ndarray
+    torque: np.ndarray
+    z: np.ndarray
+    current: np.ndarray
+
+
+class _NoiseRows:
+    """The noise the loop reads, as lists of Python-float rows (see :class:`_FlightLog`)."""
+
+    def __init__(self, noise: _Noise) -> None:
+        self.attitude = noise.attitude.tolist()
+        self.gyro = noise.gyro.tolist()
+        self.turbulence = noise.turbulence.tolist()
 
 
 class _Controller:
@@ -479,7 +506,9 @@ class _Controller:
     kpz, kdz, kiz = 9.0, 6.0, 3.0
 
     def __init__(self, ref: _References, air: _Airframe, ts: float):
-        self.ref, self.air, self.ts = ref, air, ts
+        # lists of Python floats: see _FlightLog
+        self.ref = SimpleNamespace(**{name: values.tolist() for name, values in vars(ref).items()})
+        self.air, self.ts = air, ts
         self.iphi = self.ith = self.iz = 0.0
 
     def duty(self, k: int, meas: tuple, z: float, zd: float) -> list[float]:
@@ -523,7 +552,7 @@ def battery_voltage(par: QuadrotorParameters, drawn: float, current: float, cap:
     return full - (full - empty) * min(drawn / cap, 1.0) - par.internal_resistance * current
 
 
-def _forces(air: _Airframe, wl: list, gust: np.ndarray) -> tuple[float, tuple[float, float, float]]:
+def _forces(air: _Airframe, wl: list, gust: list[float]) -> tuple[float, tuple[float, float, float]]:
     """Total thrust and body torques (with the gust torque) from the present motor speeds."""
     w1, w2, w3, w4 = wl
     kt_i, arm = air.kt_i, air.arm
@@ -578,22 +607,28 @@ class _RigidBody:
         self.p, self.q, self.r = p, q, r
 
 
-def _fly(ref: _References, noise: _Noise, air: _Airframe, par: QuadrotorParameters, ts: float) -> _FlightLog:
+def _fly(ref: _References, noise: _Noise, air: _Airframe, par: QuadrotorParameters, ts: float) -> _FlightArrays:
     """The closed loop, sample by sample: measure, control, battery, forces, log, motors, body."""
     n = ref.roll.shape[0]
-    log = _FlightLog(n)
+    log = _FlightLog()
+    rows = _NoiseRows(noise)
     body = _RigidBody()
     ctl = _Controller(ref, air, ts)
     wl = [math.sqrt(air.mass * _G / (4 * air.kt))] * 4  # hover
     drawn = current = 0.0
     for k in range(n):
-        log.ang[k] = (body.phi, body.th, body.psi)
-        log.rate[k] = (body.p, body.q, body.r)
-        duty = ctl.duty(k, log.measured(k, noise, air.dm), body.z, body.zd)
+        log.ang.append((body.phi, body.th, body.psi))
+        log.rate.append((body.p, body.q, body.r))
+        duty = ctl.duty(k, log.measured(k, rows, air.dm), body.z, body.zd)
         vb = battery_voltage(par, drawn, current, air.cap) if air.sag else air.vnom
-        thrust, torque = _forces(air, wl, noise.turbulence[k])
-        log.w[k], log.duty[k], log.vbat[k], log.thrust[k] = wl, duty, vb, thrust
-        log.torque[k], log.z[k], log.current[k] = torque, body.z, current
+        thrust, torque = _forces(air, wl, rows.turbulence[k])
+        log.w.append(wl)
+        log.duty.append(duty)
+        log.vbat.append(vb)
+        log.thrust.append(thrust)
+        log.torque.append(torque)
+        log.z.append(body.z)
+        log.current.append(current)
         new = _motor_speeds(air, wl, duty, vb, ts)
         w1, w2, w3, w4 = wl
         body.step(air, torque, -w1 + w2 - w3 + w4, thrust, ts)
@@ -602,11 +637,11 @@ def _fly(ref: _References, noise: _Noise, air: _Airframe, par: QuadrotorParamete
         current = pmech / (par.efficiency * vb) + par.avionics_current
         drawn += current * ts
         wl = new
-    return log
+    return log.arrays()
 
 
 def _flight_data(
-    log: _FlightLog,
+    log: _FlightArrays,
     ref: _References,
     noise: _Noise,
     air: _Airframe,

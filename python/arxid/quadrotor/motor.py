@@ -62,6 +62,21 @@ def _step(w: np.ndarray, v: np.ndarray, a0: float, a1: float, a2: float, ts: flo
     return (rp - rho * rm) / (1.0 - rho)
 
 
+def _riccati_run(w0: float, volts: list[float], a0: float, a1: float, a2: float, ts: float) -> np.ndarray:
+    """:func:`_step` over a record of one motor, in plain floats (~10x faster than numpy scalars)."""
+    out = [w0]
+    wk = w0
+    c1, c2, sq, ex = a1 * a1, 4.0 * a0 * a2, math.sqrt, math.exp
+    for vk in volts:
+        root = sq(max(c1 + c2 * vk, 0.0))
+        rp = (root - a1) / (2.0 * a2)
+        rm = (-a1 - root) / (2.0 * a2)
+        rho = (wk - rp) / (wk - rm) * ex(-root * ts)
+        wk = (rp - rho * rm) / (1.0 - rho)
+        out.append(wk)
+    return np.asarray(out)
+
+
 @dataclass(frozen=True)
 class MotorModel:
     """``dw/dt = a0*V - a1*w - a2*w^2``, ``V = vbat*duty`` (Sarıoğlu & Kural eqs. 21-22).
@@ -151,19 +166,12 @@ class MotorModel:
         w = np.empty_like(volts)
         w[0] = self.steady_speed(volts[0]) if w0 is None else w0
         a0, a1, a2 = float(self.a0), float(self.a1), float(self.a2)
-        if volts.ndim == 1 and a2 > 1e-15:
-            # scalar hot loop in plain floats: ~10x faster than numpy scalars
-            out = [float(w[0])]
-            wk = out[0]
-            c1, c2, sq, ex = a1 * a1, 4.0 * a0 * a2, math.sqrt, math.exp
-            for vk in volts[:-1].tolist():
-                root = sq(max(c1 + c2 * vk, 0.0))
-                rp = (root - a1) / (2.0 * a2)
-                rm = (-a1 - root) / (2.0 * a2)
-                rho = (wk - rp) / (wk - rm) * ex(-root * ts)
-                wk = (rp - rho * rm) / (1.0 - rho)
-                out.append(wk)
-            return np.asarray(out)
+        if a2 > 1e-15 and volts.ndim == 1:
+            return _riccati_run(float(w[0]), volts[:-1].tolist(), a0, a1, a2, ts)
+        if a2 > 1e-15:  # the motors are independent: one plain-float run each
+            for i in range(volts.shape[1]):
+                w[:, i] = _riccati_run(float(w[0, i]), volts[:-1, i].tolist(), a0, a1, a2, ts)
+            return w
         for k in range(volts.shape[0] - 1):
             w[k + 1] = _step(w[k], volts[k], a0, a1, a2, ts)
         return w
