@@ -30,9 +30,8 @@ __all__ = ["StateSpaceAnalysis", "analyse_state_space", "NO_EFFECT_SEARCH"]
 
 #: The line every state-space analysis carries about the diagnosis it does not run.
 NO_EFFECT_SEARCH = (
-    "No search for a missing effect: it adds candidate terms to an ARX or polynomial model's regressors, "
-    "which a state-space model does not have. The residual tests and where the error is large, per output, "
-    "are below; to search one output for a missing effect, analyse it alone (arxid diagnose --output NAME)."
+    "No search for a missing effect in this analysis: ask for it with diagnose=True (arxid ssest --diagnose), "
+    "or run arxid.diagnose(model, estimation, validation), which tests candidate terms on each output."
 )
 
 
