@@ -80,7 +80,7 @@ def test_the_analysis_checks_each_output_and_says_what_it_does_not_do(analysis):
 
 def test_the_report_holds_every_section_and_plot(analysis):
     page = render_state_space_html(analysis, source="decoupled.csv")
-    for section in ("order", "fit", "coupling", "residuals", "fails", "not-run"):
+    for section in ("order", "fit", "coupling", "residuals", "fails", "effects", "not-run"):
         assert f'id="{section}"' in page
     # singular values, a comparison and a residual plot per output, the coupling heat map
     assert page.count("<img ") == 1 + 3 + 1 + 3

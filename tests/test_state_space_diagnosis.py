@@ -118,3 +118,18 @@ def test_bad_input_gets_a_typed_error():
         arxid.diagnose(model, est, alpha=2.0)
     with pytest.raises(arxid.ArxidError, match="'auto' or a list"):
         arxid.diagnose(model, est, candidates="all")
+
+
+def test_ssest_cli_searches_each_output(tmp_path, capsys):
+    from arxid.analysis.cli import main
+
+    d = two_by_two(6, n=2400, battery=0.15, level=1.0)
+    path = tmp_path / "rates.csv"
+    columns = np.column_stack([d.outputs, d.u, d.extra["vbat"]])
+    np.savetxt(path, columns, delimiter=",", header="p,q,u1,u2,vbat", comments="")
+    args = ["ssest", str(path), "--output", "p,q", "--inputs", "u1,u2", "--extra", "vbat", "--ts", "0.01"]
+    assert main([*args, "--order", "4", "--diagnose", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    q, p = out["diagnosis"]["q"]["suspects"], out["diagnosis"]["p"]["suspects"]
+    assert q[0]["effect"] == "u1*vbat" and q[0]["significant"] and not any(s["significant"] for s in p)
+    assert not any("No search for a missing effect" in note for note in out["notes"])

@@ -141,7 +141,8 @@ class StateSpaceOutput:
 
     def extended(self, data: IOData, effects: Sequence[str]) -> StateSpaceOutput:
         """The diagnosed model estimated again on ``data`` with this view's effects and ``effects``
-        as extra inputs: :func:`arxid.ssest` at its order, method and horizons (refined when it was).
+        as extra inputs: :func:`arxid.ssest` at its order, method and horizons (refined when it was,
+        stable when it is).
 
         Parameters
         ----------
@@ -160,6 +161,7 @@ class StateSpaceOutput:
             base.order,
             method=base.method,
             horizon=base.horizon,
+            stable=base.is_stable,  # a stable model stays stable with the term (as ssest(stable=True) made it)
             refine=base.refinement is not None,
             n_threads=1,  # the judge refits two candidates at a time
         )
