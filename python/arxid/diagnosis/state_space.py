@@ -44,7 +44,7 @@ from .added_variable import holm
 from .candidates import INTEGRATING_HORIZON, auto_effects
 from .disturbance import remaining_disturbance
 from .extension import Candidate, candidate_list
-from .judge import Judge, demote_pairs
+from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
 from .ranking import finish_suspects
 from .result import Diagnosis
 from .scoring import scored_entry
@@ -109,7 +109,7 @@ def diagnose_state_space(
     min_improvement: float = 0.05,
     n_refit: int = 8,
     residual_max_lag: int = 25,
-    simple_explanations: Sequence[str] = ("const", "time"),
+    simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
     initial: str = "zero",
     loop_signals: Sequence[str] = (),
 ) -> Diagnosis | PerOutput[Diagnosis]:
