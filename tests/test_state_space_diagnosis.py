@@ -112,6 +112,19 @@ def test_apply_gives_the_refitted_model_of_every_output():
     assert "output q" in str(found)
 
 
+def test_a_term_that_does_not_act_barely_moves_the_refit():
+    """The refit nests the model (A, C and K held): white noise as an input, or a term of an output
+    the term does not drive, moves that output's validation error by about what one more input costs."""
+    rng = np.random.default_rng(9)
+    est, val = (two_by_two(s, battery=0.15) for s in (9, 1009))
+    est, val = (d.with_signals(extra={**d.extra, "noise": rng.standard_normal(d.n_samples)}) for d in (est, val))
+    view = StateSpaceOutput(arxid.ssest(est, order=4), "p")
+    before = view.validation_rms(val, None, "zero")
+    for effect in ("noise", "y^3", "u1*y"):
+        after = view.extended(est, [effect]).validation_rms(val, None, "zero")
+        assert after == pytest.approx(before, rel=0.01), effect
+
+
 def test_bad_input_gets_a_typed_error():
     est = two_by_two(5, n=600)
     model = arxid.ssest(est, order=4)

@@ -190,7 +190,9 @@ class StateSpaceOutput:
 def effect_columns(model: StateSpaceModel, data: IOData, output: str, effects: Sequence[str]) -> np.ndarray:
     """The effects' signals on ``data``, shape (n_samples, len(effects)); a term of the output is
     computed on ``model``'s free-run simulation of it, one sample back (it acts inside the plant,
-    before its dynamics).
+    before its dynamics). Where the measured signals exist but the effect has no value yet (a first
+    difference, or the term of the output, at the start of a record) it is zero, as if from rest:
+    a missing sample there would start the record one sample later, from another state.
 
     Parameters
     ----------
@@ -218,7 +220,12 @@ def effect_columns(model: StateSpaceModel, data: IOData, output: str, effects: S
             simulated = replace(one, y=y)
         z = effect_series(e, simulated)
         cols.append(np.concatenate([[np.nan], z[:-1]]))
-    return np.column_stack(cols) if cols else np.zeros((data.n_samples, 0))
+    if not cols:
+        return np.zeros((data.n_samples, 0))
+    z = np.column_stack(cols)
+    measured = np.isfinite(np.column_stack([data.outputs, data.u, *data.extra.values()])).all(axis=1)
+    z[measured[:, None] & ~np.isfinite(z)] = 0.0
+    return z
 
 
 #: Largest state count of one batched response when the regressors of many columns are computed
