@@ -78,10 +78,14 @@ def test_about_an_operating_point_the_gain_is_named_though_the_held_modes_recove
         assert not p.significant, (seed, p.top)
 
 
-def test_de_meaned_data_name_the_same_effect():
-    est, val = two_by_two(7, battery=0.15), two_by_two(1007, battery=0.15)
-    est, val = est.detrend(), val.detrend()
-    found = arxid.diagnose(arxid.ssest(est, order=4), est, val)
+def test_de_meaned_data_of_two_experiments_with_a_gap_name_the_same_effect():
+    est = arxid.IOData.merge([two_by_two(7, battery=0.15), two_by_two(8, battery=0.15)])
+    y = est.outputs.copy()
+    y[700:705, 0] = np.nan  # a few samples of p lost: three stretches, each with its initial state
+    est, val = est.with_outputs(y, ["p", "q"]).detrend(), two_by_two(1007, battery=0.15).detrend()
+    model = arxid.ssest(est, order=4)
+    assert len(model.initial_states) == 3
+    found = arxid.diagnose(model, est, val)
     assert found["q"].top.effect == "u1*vbat"
     assert found["q"].top.rms_sim_val_after == pytest.approx(NOISE, rel=0.12)
     assert not found["p"].significant
