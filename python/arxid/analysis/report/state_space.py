@@ -175,8 +175,8 @@ def _effect_section(a: StateSpaceAnalysis) -> Raw:
         [
             paragraph(
                 "Each output searched for the physical effect the model misses: candidate terms as extra inputs, "
-                "a Holm-corrected test on the estimation data, then the model estimated again with the best ones "
-                "and judged on the validation data (named only when the validation error falls by "
+                "a Holm-corrected test on the estimation data, then the model refitted with each of the best ones "
+                "(its modes held) and judged on the validation data (named only when the validation error falls by "
                 f"{100 * next(iter(a.diagnoses.values())).min_improvement:.0f} % or more)."
             ),
             table(["output", "missing effect", "validation error", "with it", "candidates"], rows),
