@@ -80,7 +80,7 @@ def test_the_analysis_checks_each_output_and_says_what_it_does_not_do(analysis):
 
 def test_the_report_holds_every_section_and_plot(analysis):
     page = render_state_space_html(analysis, source="decoupled.csv")
-    for section in ("order", "fit", "coupling", "residuals", "fails", "not-run"):
+    for section in ("order", "fit", "coupling", "residuals", "fails", "effects", "not-run"):
         assert f'id="{section}"' in page
     # singular values, a comparison and a residual plot per output, the coupling heat map
     assert page.count("<img ") == 1 + 3 + 1 + 3
@@ -89,9 +89,10 @@ def test_the_report_holds_every_section_and_plot(analysis):
     assert "arxid ssest --json" in page
 
 
-def test_diagnose_refuses_a_state_space_model_with_what_to_use(analysis):
-    with pytest.raises(arxid.ArxidError, match=r"not available for a state-space model.*arxid\.residuals"):
-        arxid.diagnose(analysis.model, analysis.estimation)
+def test_diagnose_takes_a_state_space_model_and_names_nothing_on_a_linear_plant(analysis):
+    found = arxid.diagnose(analysis.model, analysis.estimation, analysis.validation, candidates=["m1^2", "const"])
+    assert list(found) == NAMES
+    assert all(not d.significant and {s.effect for s in d.suspects} == {"m1^2", "const"} for d in found.values())
 
 
 @pytest.fixture

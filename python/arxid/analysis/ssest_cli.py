@@ -15,7 +15,8 @@ __all__ = ["add_ssest_command", "cmd_ssest", "EXAMPLE"]
 
 EXAMPLE = (
     "example:\n  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --ts 0.002 --detrend --stable --horizon 10\n"
-    "  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --ts 0.002 --order 6 -o rates.html --json"
+    "  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --ts 0.002 --order 6 -o rates.html --json\n"
+    "  arxid ssest rates.csv --output p,q,r --inputs m1,m2,m3,m4 --extra vbat --ts 0.002 --detrend --diagnose"
 )
 
 #: The subspace methods (arxid.models.subspace.METHODS), named here so that building the parser
@@ -58,6 +59,12 @@ def add_ssest_command(sub: Any, kw: dict[str, Any], common: Any) -> None:
         default="estimate",
         help="initial state of each validation record: fitted to it, or zero (default %(default)s)",
     )
+    p.add_argument(
+        "--diagnose",
+        action="store_true",
+        help="also search each output for a missing physical effect (candidate terms such as u1*vbat, judged on "
+        "the validation data)",
+    )
     p.add_argument("-o", metavar="REPORT.html", default=None, help="also write the HTML report to this file")
     p.add_argument("--title", help="report title")
     common(p)
@@ -76,7 +83,14 @@ def cmd_ssest(args: argparse.Namespace) -> int:
     if args.detrend:
         est, val = est.detrend(), val.detrend()
     a = analyse_state_space(
-        est, val, order=args.order, method=args.method, stable=args.stable, horizon=args.horizon, initial=args.initial
+        est,
+        val,
+        order=args.order,
+        method=args.method,
+        stable=args.stable,
+        horizon=args.horizon,
+        initial=args.initial,
+        diagnose=args.diagnose,
     )
     out: dict[str, Any] = a.to_dict()
     if args.o:

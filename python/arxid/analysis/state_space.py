@@ -3,20 +3,22 @@
 
 It estimates the model by subspace identification on the estimation data, then checks each output
 on the validation data as a single-output model is checked: its fit, its residual tests and where
-its error is large; and it measures the cross-coupling of the inputs and outputs. The search for a
-missing effect is not run: it extends ARX regressors, which a state-space model does not have.
+its error is large; and it measures the cross-coupling of the inputs and outputs. With
+``diagnose=True`` it also searches each output for a missing effect (:func:`arxid.diagnose`).
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from .._base.formatting import finite_or_none, horizon_label, json_safe, text_table
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, residuals, where_it_fails
 from ..data.iodata import IOData
+from ..diagnosis.result import Diagnosis
+from ..diagnosis.suspects import diagnose as diagnose_model
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon
 from ..models.polynomial import check_initial
@@ -30,9 +32,8 @@ __all__ = ["StateSpaceAnalysis", "analyse_state_space", "NO_EFFECT_SEARCH"]
 
 #: The line every state-space analysis carries about the diagnosis it does not run.
 NO_EFFECT_SEARCH = (
-    "No search for a missing effect: it adds candidate terms to an ARX or polynomial model's regressors, "
-    "which a state-space model does not have. The residual tests and where the error is large, per output, "
-    "are below; to search one output for a missing effect, analyse it alone (arxid diagnose --output NAME)."
+    "No search for a missing effect in this analysis: ask for it with diagnose=True (arxid ssest --diagnose), "
+    "or run arxid.diagnose(model, estimation, validation), which tests candidate terms on each output."
 )
 
 
@@ -61,6 +62,8 @@ class StateSpaceAnalysis:
         What the analysis did not do, and why.
     timings : dict of str to float
         Seconds per step.
+    diagnoses : dict of str to Diagnosis
+        Each output's search for a missing effect (empty unless asked for).
     """
 
     model: StateSpaceModel
@@ -74,6 +77,7 @@ class StateSpaceAnalysis:
     initial: str
     notes: tuple[str, ...]
     timings: dict[str, float]
+    diagnoses: dict[str, Diagnosis] = field(default_factory=dict)
 
     @property
     def fit_percent(self) -> dict[str, float]:
@@ -120,7 +124,24 @@ class StateSpaceAnalysis:
             text_table(head, self.output_rows()),
         ]
         lines += [f"({note})" for note in map(negative_fit_note, self.fit_percent.values()) if note][:1]
-        lines += ["", str(self.coupling), "", *self.notes]
+        lines += ["", str(self.coupling)]
+        lines += ["", *self.effect_lines()] if self.diagnoses else []
+        return lines + ["", *self.notes]
+
+    def effect_lines(self) -> list[str]:
+        """One line per output: the missing effect found, with the validation error before and after.
+
+        Returns
+        -------
+        list of str
+        """
+        lines = ["missing effects (validation error before -> after):"]
+        for name, d in self.diagnoses.items():
+            top = d.top
+            if top is None:
+                lines.append(f"  {name}: none found ({d.rms_sim_val:.4g})")
+            else:
+                lines.append(f"  {name}: {top.effect} ({d.rms_sim_val:.4g} -> {top.rms_sim_val_after:.4g})")
         return lines
 
     def to_dict(self) -> dict:
@@ -158,6 +179,7 @@ class StateSpaceAnalysis:
                     for name, c in self.comparisons.items()
                 },
                 "coupling": self.coupling.to_dict(),
+                "diagnosis": {name: d.to_dict() for name, d in self.diagnoses.items()},
                 "notes": list(self.notes),
                 "timings": self.timings,
             }
@@ -196,6 +218,7 @@ def analyse_state_space(
     initial: str = "estimate",
     split: float = DEFAULT_SPLIT,
     max_lag: int = 25,
+    diagnose: bool = False,
 ) -> StateSpaceAnalysis:
     """Estimate a state-space model and check each output on validation data.
 
@@ -217,6 +240,9 @@ def analyse_state_space(
         Estimation share of ``data`` when no validation data are given.
     max_lag : int
         Largest lag of the residual tests.
+    diagnose : bool
+        Also search each output for a missing effect (:func:`arxid.diagnose`, at ``horizon`` from
+        the ``initial`` state).
 
     Returns
     -------
@@ -235,7 +261,7 @@ def analyse_state_space(
     model = ssest(est, order, method=method, stable=stable)
     lap("estimation")
     comparisons = _by_output(compare(model, val, horizon, initial), val)
-    notes = [NO_EFFECT_SEARCH]
+    notes = [] if diagnose else [NO_EFFECT_SEARCH]
     try:
         tests = _by_output(residuals(model, val, max_lag), val)
     except ArxidError as exc:
@@ -243,8 +269,23 @@ def analyse_state_space(
         notes.append(f"No residual tests: {exc}.")
     failures = _by_output(where_it_fails(model, val, horizon, initial=initial), val)
     lap("checks")
+    diagnoses = {}
+    if diagnose:
+        diagnoses = _by_output(diagnose_model(model, est, val, horizon=horizon, initial=initial), val)
+        lap("diagnosis")
     if not model.is_stable:
         notes.append("The model is unstable (a pole on or outside the unit circle): estimate with stable=True.")
     return StateSpaceAnalysis(
-        model, est, val, comparisons, tests, failures, coupling(model, val), horizon, initial, tuple(notes), timings
+        model,
+        est,
+        val,
+        comparisons,
+        tests,
+        failures,
+        coupling(model, val),
+        horizon,
+        initial,
+        tuple(notes),
+        timings,
+        diagnoses,
     )

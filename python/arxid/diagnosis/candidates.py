@@ -38,7 +38,9 @@ from .polynomial import structure_changes
 __all__ = [
     "CATALOGUE",
     "CatalogueEntry",
+    "INTEGRATING_HORIZON",
     "auto_candidates",
+    "auto_effects",
     "candidate_input_names",
     "changes_sign",
     "output_integrates",
@@ -51,6 +53,8 @@ __all__ = [
 SIGN_CHANGE_SHARE = 0.02
 #: Distinct values of |x| needed before a threshold is scanned on x.
 MIN_THRESHOLD_LEVELS = 20
+#: k used for the validation error of a plant with an integrator (free run drifts).
+INTEGRATING_HORIZON = 10
 
 
 @dataclass(frozen=True)
@@ -220,6 +224,29 @@ def auto_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] =
         The effect strings first, then the structure changes (``na+1``, ``nb+1``, ``nk-1``, ...).
         ``dz(u1)`` and ``sat(u1)`` without a threshold ask the diagnosis to scan it.
     """
+    have = set(model.effects)
+    ins = candidate_input_names(data)
+    effects = auto_effects(data, lambda: output_integrates(model), loop_signals)
+    return [e for e in effects if e not in have] + _dynamics_candidates(model, ins)
+
+
+def auto_effects(data: IOData, integrates: Callable[[], bool], loop_signals: Sequence[str] = ()) -> list[str]:
+    """The effects of :func:`auto_candidates`, for any model of ``data``'s output.
+
+    Parameters
+    ----------
+    data : IOData
+        The data of one output.
+    integrates : callable
+        Whether the model integrates the output (a position: ``sign(y)`` is then not offered);
+        asked only when the output changes sign.
+    loop_signals : sequence of str
+        Extra signals of a feedback loop, never candidates.
+
+    Returns
+    -------
+    list of str
+    """
     # Effects are written in the grammar's words: a name that is not an identifier (``rpm[1/min]``)
     # is called u1, u2, ... for an input and left out for an extra signal.
     ins = candidate_input_names(data)
@@ -236,7 +263,7 @@ def auto_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] =
     out += [f"abs({a})" for i, a in enumerate(ins) if changes_sign(data.u[:, i])]
     if changes_sign(data.y):
         out.append("abs(y)")
-        if not output_integrates(model):
+        if not integrates():
             out.append("sign(y)")
     out.append("sign(dy)")
     out += [f"sign(d{a})" for a in ins]
@@ -245,9 +272,7 @@ def auto_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] =
             out += [f"dz({a})", f"sat({a})"]
         if changes_sign(data.u[:, i]):
             out.append(f"pos({a})")
-    out += ["const", "time"]
-    have = set(model.effects)
-    return [e for e in out if e not in have] + _dynamics_candidates(model, ins)
+    return out + ["const", "time"]
 
 
 def candidate_input_names(data: IOData) -> list[str]:

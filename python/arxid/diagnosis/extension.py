@@ -133,6 +133,9 @@ def candidate_list(
 def refit(model: ArxModel, data: IOData, c) -> ArxModel:
     """``model`` refitted on ``data`` with candidate ``c`` (a :class:`Candidate`, or a suspect
     reporting one) added."""
+    extended = getattr(model, "extended", None)
+    if extended is not None:  # one output of a state-space model refits itself (its effects as inputs)
+        return extended(data, c.effects)
     if isinstance(model, PolynomialModel):  # a structure change, or effects as extra inputs
         if c.kind == "dynamics":
             label = c.label if isinstance(c, Candidate) else c.effect

@@ -40,12 +40,15 @@ from .added_variable import AddedVariableResult, AddedVariableTest
 __all__ = [
     "effect_columns",
     "with_effects",
+    "appended_inputs",
     "score_effects",
     "refit_with_effects",
     "structure_changes",
     "score_structure",
     "refit_structure",
     "OUTPUT_TERM_NOTE",
+    "whitened_test",
+    "WhitenedTest",
 ]
 
 #: Refits of a model with a term of the output, each computing the term on the previous refit's
@@ -114,6 +117,23 @@ def with_effects(data: IOData, effects: Sequence[str], source: PolynomialModel |
         raise OrderError(f"{'+'.join(effects)} {OUTPUT_TERM_NOTE}")
     if source is not None:
         data = complete_inputs(data, source.input_names_, source.derived_inputs)
+    return appended_inputs(data, effects, z)
+
+
+def appended_inputs(data: IOData, effects: Sequence[str], z: np.ndarray) -> IOData:
+    """``data`` with the columns ``z`` of ``effects`` appended as inputs named by the effects (one
+    named like a signal of ``data`` gets ``_input``: ``vbat_input``).
+
+    Parameters
+    ----------
+    data : IOData
+    effects : sequence of str
+    z : ndarray of shape (n_samples, len(effects))
+
+    Returns
+    -------
+    IOData
+    """
     taken = set(data.signal_names)
     return data.with_signals(
         u=np.hstack([data.u, z]),
@@ -178,25 +198,52 @@ def score_effects(
     if eps is None or len(eps) <= model.n_params + q + 2:
         return None, "too few samples where its signal exists"
     own = jac[:, np.r_[0:at_b, at_b + q : at_b + q + model.n_params - at_b]]
-    return _test(own, eps, jac[:, at_b : at_b + q])
+    return whitened_test(own, eps, jac[:, at_b : at_b + q])
 
 
-def _test(own: np.ndarray, eps: np.ndarray, new: np.ndarray) -> tuple[AddedVariableResult | None, str]:
+def whitened_test(own: np.ndarray, eps: np.ndarray, new: np.ndarray) -> tuple[AddedVariableResult | None, str]:
     """The partial F-test of ``new`` beside ``own`` on the prediction error, after the prediction
     error and every gradient column are filtered by the AR model of the prediction error (order by
     AIC, at most ``MAX_WHITENING_ORDER``). An output-error model leaves coloured noise in its
     prediction error; untreated, it makes the F-test's p-values far too small (generalised least
     squares: the test of a model whose noise model is that AR)."""
-    a = _ar_whitener(eps)
-    p = len(a)
+    return WhitenedTest(own, eps).test(new)
 
-    def whiten(x: np.ndarray) -> np.ndarray:
+
+class WhitenedTest:
+    """:func:`whitened_test` of many candidates beside the same ``own`` columns and error: the AR
+    model and the factor of ``own`` are found once.
+
+    Parameters
+    ----------
+    own : ndarray of shape (n_rows, n_own)
+    eps : ndarray of shape (n_rows,)
+    """
+
+    def __init__(self, own: np.ndarray, eps: np.ndarray):
+        self.a = _ar_whitener(eps)
+        self.added = AddedVariableTest(self.whiten(own), self.whiten(eps))
+
+    def whiten(self, x: np.ndarray) -> np.ndarray:
+        """``x`` (rows in time order) filtered by the AR model of the error; its first rows are lost."""
+        p = len(self.a)
         out = x[p:].copy()
-        for i, ai in enumerate(a, start=1):
+        for i, ai in enumerate(self.a, start=1):
             out += ai * x[p - i : len(x) - i]
         return out
 
-    return AddedVariableTest(whiten(own), whiten(eps)).test(whiten(new))
+    def test(self, new: np.ndarray) -> tuple[AddedVariableResult | None, str]:
+        """The partial F-test of the columns ``new`` (same rows as ``own``).
+
+        Parameters
+        ----------
+        new : ndarray of shape (n_rows, q)
+
+        Returns
+        -------
+        AddedVariableResult or None, str
+        """
+        return self.added.test(self.whiten(new))
 
 
 def _ar_whitener(e: np.ndarray) -> np.ndarray:
@@ -391,7 +438,7 @@ def score_structure(
     eps, jac = _gradient(aug, full, theta, model.first_lag_)
     if eps is None or len(eps) <= len(theta) + 2:
         return None, "too few samples"
-    return _test(jac[:, ~new], eps, jac[:, new])
+    return whitened_test(jac[:, ~new], eps, jac[:, new])
 
 
 def _pad(orders: tuple, model: PolynomialModel) -> tuple:

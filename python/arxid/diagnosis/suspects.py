@@ -43,31 +43,33 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, overload, runtime_checkable
 
 import numpy as np
 
 from .._base import metrics
 from .._base.background import Background, one_blas_thread
-from ..checks import ResidualAnalysis, prediction, residuals
+from ..checks import PerOutput, ResidualAnalysis, prediction, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
 from ..models.state_space import StateSpaceModel
-from .candidates import auto_candidates, output_integrates, physics
+from .candidates import INTEGRATING_HORIZON, auto_candidates, output_integrates
 from .disturbance import Disturbance, remaining_disturbance
 from .extension import Candidate, candidate_list
 from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
 from .nonlinearity import NonlinearDependence, nonlinear_dependence
 from .polynomial_scoring import score_polynomial
+from .ranking import finish_suspects
 from .result import Diagnosis, Suspect
 from .scoring import CandidateScoring, Scoring
 from .sensor_shapes import rank_sensors, sensor_suspects
 from .shapes import ValidationEvidence, prefer_shapes, score_shapes
+from .state_space import diagnose_state_space
 
 __all__ = [
     "diagnose",
@@ -78,24 +80,50 @@ __all__ = [
     "auto_candidates",
     "baseline_errors",
     "INTEGRATING_HORIZON",
-    "NOT_FOR_STATE_SPACE",
 ]
 
-#: Why a state-space model has no search for a missing effect, and what to use instead.
-NOT_FOR_STATE_SPACE = (
-    "the search for a missing effect is not available for a state-space model: it adds candidate terms "
-    "to the regressors of an ARX or polynomial model, which a state-space model does not have. Check it "
-    "with arxid.residuals and arxid.where_it_fails (each output), or diagnose an ARX model of one output: "
-    "arxid.diagnose(arxid.arx(data.output(name), na, nb, nk))"
-)
 
-#: k used for the validation error of a plant with an integrator (free run drifts).
-INTEGRATING_HORIZON = 10
+@overload
+def diagnose(
+    model: StateSpaceModel,
+    data: IOData | None = ...,
+    validation: IOData | None = ...,
+    *,
+    candidates: str | Sequence[str] = ...,
+    horizon: int | None = ...,
+    alpha: float = ...,
+    min_improvement: float = ...,
+    n_refit: int = ...,
+    n_pairs: int = ...,
+    residual_max_lag: int = ...,
+    simple_explanations: Sequence[str] = ...,
+    initial: str = ...,
+    loop_signals: Sequence[str] = ...,
+) -> Diagnosis | PerOutput[Diagnosis]: ...
+
+
+@overload
+def diagnose(
+    model: ArxModel,
+    data: IOData | Records | None = ...,
+    validation: IOData | None = ...,
+    *,
+    candidates: str | Sequence[str] = ...,
+    horizon: int | None = ...,
+    alpha: float = ...,
+    min_improvement: float = ...,
+    n_refit: int = ...,
+    n_pairs: int = ...,
+    residual_max_lag: int = ...,
+    simple_explanations: Sequence[str] = ...,
+    initial: str = ...,
+    loop_signals: Sequence[str] = ...,
+) -> Diagnosis: ...
 
 
 @one_blas_thread()  # the baseline runs beside the scoring on the cores BLAS's threads would take
 def diagnose(
-    model: ArxModel,
+    model: ArxModel | StateSpaceModel,
     data: IOData | Records | None = None,
     validation: IOData | None = None,
     *,
@@ -109,16 +137,17 @@ def diagnose(
     simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
     initial: str = "zero",
     loop_signals: Sequence[str] = (),
-) -> Diagnosis:
+) -> Diagnosis | PerOutput[Diagnosis]:
     """Rank the physical effects (and structure changes) the model is missing.
 
     Parameters
     ----------
-    model : ArxModel
-        A fitted model (ARX or polynomial; a state-space model is refused with what to use
-        instead, :data:`NOT_FOR_STATE_SPACE`).
+    model : ArxModel or StateSpaceModel
+        A fitted model: ARX, polynomial, or state-space (each output diagnosed on its own, see
+        :mod:`arxid.diagnosis.state_space`).
     data : IOData or Records, optional
-        Estimation data (default: the data the model was fitted on); or the records of a fleet
+        Estimation data (default: the data the model was fitted on; required, with every output,
+        for a state-space model); or the records of a fleet
         (:class:`arxid.diagnosis.cluster_records.ClusterRecords`: every stage runs where its logs
         are, and the stages that need the samples in this process are left out).
     validation : IOData, optional
@@ -161,7 +190,9 @@ def diagnose(
     Returns
     -------
     Diagnosis
-        ``suspects`` ranked by validated improvement; ``apply(k)`` refits with suspect k.
+        ``suspects`` ranked by validated improvement; ``apply(k)`` refits with suspect k. For a
+        state-space model of several outputs, a :class:`~arxid.checks.PerOutput` of diagnoses by
+        output name.
 
     Examples
     --------
@@ -176,8 +207,21 @@ def diagnose(
     >>> d.top.effect
     'through(u1^2.005)'
     """
-    if isinstance(model, StateSpaceModel):
-        raise ArxidError(NOT_FOR_STATE_SPACE)
+    if isinstance(model, StateSpaceModel):  # each output on its own (arxid.diagnosis.state_space)
+        return diagnose_state_space(
+            model,
+            data,  # type: ignore[arg-type]  # a fleet's records are refused as not an IOData
+            validation,
+            candidates=candidates,
+            horizon=horizon,
+            alpha=alpha,
+            min_improvement=min_improvement,
+            n_refit=n_refit,
+            residual_max_lag=residual_max_lag,
+            simple_explanations=simple_explanations,
+            initial=initial,
+            loop_signals=loop_signals,
+        )
     model = check_model(model)
     if isinstance(data, Records):  # the records of a fleet, or one record already checked
         if validation is not None:
@@ -508,48 +552,3 @@ class OneRecord:
         """As :meth:`Records.measure`, from one prediction."""
         pred, _ = prediction(model, self.validation, horizon, initial)
         return metrics.prediction_rms(self.validation.y, pred), metrics.fit_percent(self.validation.y, pred)
-
-
-def _unscored(notes: dict[str, str], cands: list[Candidate], suspects: list[Suspect]) -> list[Suspect]:
-    """Candidates that could not be scored, with the reason, so the table says why they are absent."""
-    have = {s.effect for s in suspects}
-    by_label = {c.label: c for c in cands}
-    nan = math.nan
-    return [
-        Suspect(lab, c.kind, c.effects, c.na, c.nb, c.nk, nan, nan, nan, nan, 0, nan, nan, False, why, None)
-        for lab, why in notes.items()
-        if lab not in have and (c := by_label.get(lab)) is not None
-    ]
-
-
-def _rank_key(s: Suspect) -> tuple:
-    """Significant first (lowest validation error first), then refitted by error, then by p-value."""
-    after = s.rms_sim_val_after
-    refitted = not math.isnan(after)
-    p = s.p_value if math.isfinite(s.p_value) else 2.0
-    return (not s.significant, not refitted, after if refitted else 0.0, p, -np.nan_to_num(s.score))
-
-
-def finish_suspects(
-    notes: dict[str, str], cands: list[Candidate], suspects: list[Suspect], data: IOData
-) -> list[Suspect]:
-    """The last step of :func:`diagnose`, shared with the diagnosis of a fleet: the candidates that
-    could not be scored added with their reason, the physics of each suspect, and the ranking.
-
-    Parameters
-    ----------
-    notes : dict of str to str
-        Why a candidate was not scored, by label.
-    cands : list of Candidate
-    suspects : list of Suspect
-        The judged suspects.
-    data : IOData
-        The estimation data (their signal names tell inputs from logged signals).
-
-    Returns
-    -------
-    list of Suspect
-        Ranked: significant first, then refitted by validation error, then by p-value.
-    """
-    suspects = suspects + _unscored(notes, cands, suspects)
-    return sorted((replace(s, physics=s.physics or physics(s.effect, data)) for s in suspects), key=_rank_key)

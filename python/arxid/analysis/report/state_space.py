@@ -162,6 +162,28 @@ def _failure_section(a: StateSpaceAnalysis) -> Raw:
     )
 
 
+def _effect_section(a: StateSpaceAnalysis) -> Raw:
+    if not a.diagnoses:
+        return paragraph("Not searched (arxid ssest --diagnose, or analyse_state_space(..., diagnose=True)).")
+    rows = []
+    for name, d in a.diagnoses.items():
+        top = d.top
+        found = "none" if top is None else f"{top.effect}" + (f" — {top.physics}" if top.physics else "")
+        after = d.rms_sim_val if top is None else top.rms_sim_val_after
+        rows.append([name, found, number(d.rms_sim_val), number(after), len(d.suspects)])
+    return join(
+        [
+            paragraph(
+                "Each output searched for the physical effect the model misses: candidate terms as extra inputs, "
+                "a Holm-corrected test on the estimation data, then the model refitted with each of the best ones "
+                "(its modes held) and judged on the validation data (named only when the validation error falls by "
+                f"{100 * next(iter(a.diagnoses.values())).min_improvement:.0f} % or more)."
+            ),
+            table(["output", "missing effect", "validation error", "with it", "candidates"], rows),
+        ]
+    )
+
+
 def _not_available_section(a: StateSpaceAnalysis) -> Raw:
     return join([paragraph(n) for n in a.notes])
 
@@ -173,6 +195,7 @@ _SECTIONS = (
     ("coupling", "Cross-coupling", _coupling_section),
     ("residuals", "Residual tests of each output", _residual_section),
     ("fails", "Where each output fails", _failure_section),
+    ("effects", "Missing effects of each output", _effect_section),
     ("not-run", "What this report does not do", _not_available_section),
 )
 
