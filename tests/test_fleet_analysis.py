@@ -250,3 +250,21 @@ def test_the_fleet_modules_old_paths_still_import(old, new):
     with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}"):
         module = importlib.import_module(old)
     assert module is importlib.import_module(new)
+
+
+@pytest.mark.parametrize("options", [{"orders": (2, 2, 1), "max_steps": 2}, {"max_steps": 1}])
+def test_one_record_on_a_cluster_is_the_analysis_in_process(dask_client, options):
+    """``analyse(data)`` and ``analyse([data], client=...)`` (a fleet of one) give the same answers to
+    rounding: structure (the given orders, or the default grid swept and grown where the log is),
+    ranking, statistics, fits and ladder errors; the one log is the log the effect shows in."""
+    data = _log(31, "battery")
+    local = arxid.analyse(data, candidates=CANDIDATES, **options)
+    fleet = arxid.analyse([data], client=dask_client, candidates=CANDIDATES, **options)
+    _assert_same(fleet, local)
+    assert local.missing_effect == "u1*vbat"
+    assert fleet.grid == local.grid and fleet.choice.rank == local.choice.rank
+    for f, s in zip(fleet.diagnosis.suspects, local.diagnosis.suspects, strict=True):
+        if s.model is not None:  # the refits' parameters, where the suspect was refitted
+            np.testing.assert_allclose(f.model.parameters_, s.model.parameters_, rtol=1e-9, atol=1e-13)
+    np.testing.assert_allclose(fleet.final_model.parameters_, local.final_model.parameters_, rtol=1e-9, atol=1e-13)
+    assert fleet.logs_with_effect == ("log 1",)

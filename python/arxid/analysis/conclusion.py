@@ -13,7 +13,7 @@ from ..diagnosis.ladder import Ladder
 from ..diagnosis.result import Diagnosis
 from ..models.arx_model import ArxModel
 from ..selection.search import SweepResult
-from .choice import Choice, OrderGrid
+from .choice import Choice, OrderGrid, grid_lists
 from .verdicts import ladder_headline
 
 __all__ = ["Conclusion"]
@@ -68,14 +68,16 @@ class Conclusion:
 
     def to_dict(self) -> dict:
         """The keys every analysis has: those of :meth:`Diagnosis.to_dict` with the ladder, ``choice``,
-        ``notes`` and ``error_fall`` (see :meth:`Ladder.error_fall`).
+        ``grid`` (the order grid asked for, None when the orders were given), ``notes`` and
+        ``error_fall`` (see :meth:`Ladder.error_fall`).
 
         Returns
         -------
         dict
         """
         out = self.diagnosis.to_dict(self.ladder)
-        out.update({"choice": self.choice.to_dict(), "notes": list(self.notes), "error_fall": self.ladder.error_fall()})
+        out.update({"choice": self.choice.to_dict(), "grid": None if self.grid is None else grid_lists(self.grid)})
+        out.update({"notes": list(self.notes), "error_fall": self.ladder.error_fall()})
         return out
 
     def to_json(self, indent: int | None = 2) -> str:

@@ -209,7 +209,6 @@ class Analysis(Conclusion):
         out = super().to_dict()
         out.update(
             {
-                "grid": None if self.grid is None else grid_lists(self.grid),
                 "grid_growth": None if self.grid_growth is None else self.grid_growth.to_dict(),
                 "sweep": None if self.sweep is None else self.sweep.summary(),
                 "comparison": self.comparison.to_dict(),
@@ -293,19 +292,49 @@ def _structure(
     if given is not None:
         model, choice = given_model(est, given, orders, grid)
         return None, model, choice, None
+    options: dict[str, Any] = dict(horizon=horizon, expect=expect, progress=progress, growth_seconds=max_seconds)
+    options.update(auto_extend=grow)
+    return chosen_structure(orders, grid, partial(arx, est), partial(sweep, est, validation=val), options)
+
+
+def chosen_structure(
+    orders: Sequence | None,
+    grid: Mapping | None,
+    fit: Callable[[Any, Any, Any], ArxModel],
+    swept: Callable[..., SweepResult],
+    options: dict[str, Any],
+) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
+    """The structure of an analysis, wherever its records are: the given orders fitted, or the
+    choice of the sweep (the default grid grown by :func:`arxid.sweep`'s rule, a given grid as given).
+
+    Parameters
+    ----------
+    orders : (na, nb, nk) or None
+    grid : mapping or None
+    fit : callable
+        ``fit(na, nb, nk)``: the model of the given orders fitted on the estimation records.
+    swept : callable
+        ``swept(**options)``: the sweep of the records (its grid among the options when one was given).
+    options : dict
+        Keyword arguments of the sweep; ``growth_seconds`` is the budget of the grid's growth.
+
+    Returns
+    -------
+    tuple of (SweepResult or None, ArxModel, Choice, OrderGrid or None)
+    """
     if orders is not None:
+        if grid is not None:
+            raise OrderError("give either orders or grid, not both")
         try:
             na, nb, nk = orders
         except (TypeError, ValueError):
             raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
-        model = arx(est, na, nb, nk)
+        model = fit(na, nb, nk)
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
     g = grid_of(grid)
-    # sweep's rule: the default grid grows while its choice sits on an edge, a given grid when asked
-    opts: dict[str, Any] = dict(horizon=horizon, expect=expect, progress=progress, growth_seconds=max_seconds)
-    opts.update(auto_extend=grow, **({} if grid is None else grid_lists(g)))
-    res = sweep(est, validation=val, **opts)
-    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=max_seconds)  # the record: why not
+    res = swept(**options, **({} if grid is None else grid_lists(g)))
+    # the record of the growth: why the grid did not grow, when it was not grown
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=options["growth_seconds"])
     model, choice = choose(res)
     return res, model, choice, g
 

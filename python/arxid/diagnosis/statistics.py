@@ -34,7 +34,7 @@ from ..exceptions import DataError
 from ..models.arx_model import ArxModel
 from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, stripped_test
 from .extension import Candidate
-from .scoring import CandidateScoring, Scoring, scored_entry
+from .scoring import TOO_FEW_COMMON_ROWS, CandidateScoring, Scoring, common_rows_test, scored_entry
 
 __all__ = ["FactorTest", "RegressorStatistics", "combine_statistics", "share_statistics"]
 
@@ -62,25 +62,21 @@ def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones
         the rows both have, and their counts, per log.
     """
     est = share[0]
-    sc = Scoring(model, est, cands)  # the model's rows and regressors, as in process
-    notes = dict(sc.notes)
+    sc = Scoring(model, est, cands)  # the model's rows, regressors and candidates' columns, as in process
     blocks, columns, at = [sc.phi0], {}, sc.phi0.shape[1]
     bounds = np.cumsum([0] + [s.n_est for s in share[2]])
     own: dict[str, tuple] = {}
-    for c in sc.prepared:
-        z, rows = sc._columns(c)
-        if z.shape[1] == 0:
-            notes[c.label] = "adds no regressor"
-            continue
-        if not (len(rows) == len(sc.rows0) and np.array_equal(rows, sc.rows0)):
+    for c, z, rows in sc.blocks():
+        if not sc.are_model_rows(rows):
             # Missing samples in its signal: tested on the rows both have, as in process, from a
             # factor of its own per log; zeros keep the layout of every share's R alike.
-            common, i0, i1 = np.intersect1d(sc.rows0, rows, return_indices=True)
-            own[c.label] = _per_log(np.column_stack([sc.phi0[i0], z[i1], sc.y0[i0]]), common, bounds)
+            phi, zc, y, common = sc.on_common_rows(z, rows)
+            own[c.label] = _per_log(np.column_stack([phi, zc, y]), common, bounds)
             z = np.zeros((len(sc.rows0), z.shape[1]))
         columns[c.label] = (at, z.shape[1])
         blocks.append(z)
         at += z.shape[1]
+    notes = dict(sc.notes)
     for c in cands:
         if c.kind == "scan":
             notes[c.label] = SCAN_NOTE
@@ -239,8 +235,8 @@ class RegressorStatistics(CandidateScoring):
         """A candidate with missing samples tested on the rows both have (as :meth:`Scoring._score`)."""
         factors, rows = self.own[label]
         n, k = int(sum(rows)), self.columns[label][1]
-        if n <= self.p + k + 2:
-            return None, "too few rows where its signal exists"
+        if not common_rows_test(n, self.p, k):
+            return None, TOO_FEW_COMMON_ROWS
         return FactorTest(_square_r(np.vstack(factors)), n, self.p).test(np.arange(self.p, self.p + k))
 
     def per_log_own(self, label: str) -> list[AddedVariableResult | None]:
