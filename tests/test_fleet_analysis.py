@@ -142,6 +142,14 @@ def test_per_log_test_is_the_in_process_test_on_that_log(dask_client):
     again = diagnose_logs(arxid.arx(est, 2, 2, 1), logs, dask_client, candidates=CANDIDATES)
     assert [s.effect for s in again.diagnosis.suspects] == [s.effect for s in fd.diagnosis.suspects]
     assert again.logs_with_effect == fd.logs_with_effect
+    # and from arxid.diagnose given the client, as arxid.analyse takes one
+    given = arxid.diagnose(arxid.arx(est, 2, 2, 1), logs, client=dask_client, candidates=CANDIDATES)
+    assert [s.effect for s in given.diagnosis.suspects] == [s.effect for s in fd.diagnosis.suspects]
+    scores = [[s.score for s in d.diagnosis.suspects] for d in (given, again)]
+    np.testing.assert_allclose(*scores, rtol=REL)
+    assert given.logs_with_effect == fd.logs_with_effect
+    with pytest.raises(ArxidError, match="give no validation= with client="):
+        arxid.diagnose(arxid.arx(est, 2, 2, 1), logs, logs[0], client=dask_client)
 
 
 def test_fleet_analysis_refuses_what_it_cannot_do(dask_client):

@@ -16,7 +16,7 @@ from ..selection.search import SweepResult
 from .choice import Choice, OrderGrid, grid_lists
 from .verdicts import ladder_headline
 
-__all__ = ["Conclusion"]
+__all__ = ["Conclusion", "concluded"]
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)  # every field by name: the subclasses add theirs
@@ -151,3 +151,34 @@ class Conclusion:
             headline = ladder_headline(self.ladder)
             lines += [headline] if headline else []
         return lines
+
+
+def concluded(
+    grid: OrderGrid | None, sweep: SweepResult | None, choice: Choice, model: ArxModel, ladder: Ladder, timings: dict
+) -> dict:
+    """The fields of a :class:`Conclusion` from its stages: the measure and first diagnosis are the
+    ladder's.
+
+    Parameters
+    ----------
+    grid : OrderGrid or None
+    sweep : SweepResult or None
+    choice : Choice
+    model : ArxModel
+    ladder : Ladder
+    timings : dict of str to float
+
+    Returns
+    -------
+    dict
+    """
+    return dict(
+        grid=grid,
+        sweep=sweep,
+        choice=choice,
+        model=model,
+        horizon=ladder.horizon,
+        diagnosis=ladder.diagnoses[0],
+        ladder=ladder,
+        timings=timings,
+    )

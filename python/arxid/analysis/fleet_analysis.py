@@ -34,8 +34,8 @@ from ..fleet.cluster import WorkerLogs
 from ..models.arx_model import ArxModel
 from ..models.polynomial import check_initial
 from ..selection.search import SweepResult, sweep
-from .conclusion import Conclusion
-from .pipeline import FLEET_ANALYSIS, Choice, OrderGrid, chosen_structure
+from .conclusion import Conclusion, concluded
+from .pipeline import FLEET_ANALYSIS, Choice, OrderGrid, chosen_structure, measure_notes
 
 __all__ = ["FleetAnalysis", "analyse_fleet", "FLEET_ANALYSIS_NOTE"]
 
@@ -210,23 +210,11 @@ def analyse_fleet(
     measure = res.horizon if res is not None else horizon
     ladder, first = fleet_ladder(model, on_workers, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
-    notes: tuple[str, ...] = (FLEET_ANALYSIS_NOTE,)
-    if res is not None and res.integrating:
-        notes += (f"The sweep found an integrating plant ({res.integrating_reason}).",)
+    notes = (FLEET_ANALYSIS_NOTE, *measure_notes(res, ladder.horizon, horizon))
     if not math.isfinite(first.diagnosis.rms_sim_val):
         notes += ("The chosen model's validation error is not finite.",)
     return FleetAnalysis(
-        grid=g,
-        sweep=res,
-        choice=choice,
-        model=model,
-        horizon=ladder.horizon,
-        diagnosis=first.diagnosis,
-        ladder=ladder,
-        timings=timings,
-        logs=tuple(on_workers.names),
-        fleet=first,
-        notes=notes,
+        **concluded(g, res, choice, model, ladder, timings), logs=tuple(on_workers.names), fleet=first, notes=notes
     )
 
 

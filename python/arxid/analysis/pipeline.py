@@ -61,7 +61,7 @@ from .closed_loop import (
     reference_names,
     still_references,
 )
-from .conclusion import Conclusion
+from .conclusion import Conclusion, concluded
 from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
 from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
 
@@ -379,7 +379,22 @@ def _frequency(model: ArxModel, val: IOData, horizon: int | None) -> tuple[Frequ
         return check, None
 
 
-def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
+def measure_notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
+    """Why the validation errors are k-step errors, when they are (the sweep found an integrating
+    plant, or the chosen model's free run diverges), wherever the records are.
+
+    Parameters
+    ----------
+    res : SweepResult or None
+    horizon : int or None
+        The ladder's measure.
+    requested : int or None
+        The measure asked for.
+
+    Returns
+    -------
+    tuple of str
+    """
     notes = []
     if res is not None and res.integrating:
         notes.append(
@@ -581,16 +596,9 @@ def analyse(
     if method is not None and method.closed:
         closing = loop_closing_sentences(chosen, est, val, method, ladder.horizon, initial)
         method = replace(method, loop_closing=closing)
-    notes = _notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
+    notes = measure_notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
     return Analysis(
-        grid=g,
-        sweep=res,
-        choice=choice,
-        model=chosen,
-        horizon=ladder.horizon,
-        diagnosis=ladder.diagnoses[0],
-        ladder=ladder,
-        timings=timings,
+        **concluded(g, res, choice, chosen, ladder, timings),
         estimation=est,
         validation=val,
         comparison=cmp,

@@ -382,6 +382,8 @@ def diagnose_logs(
     """
     if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
         raise ArxidError(f"split must be the estimation fraction of each log between 0 and 1, got {split!r}")
+    if options.pop("validation", None) is not None:
+        raise ArxidError("on a fleet each log's last share validates: give no validation= with client=")
     return diagnose_fleet(model, WorkerLogs(client, logs, read, 1.0 - float(split)), **options)
 
 

@@ -58,7 +58,7 @@ def share_refit_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: tup
     data = share[0]
     layout = compile_effects(effects, data, nb, nk)
     phi, y, rows = regressor_matrix(data, na, layout, first_lag)
-    r = _factor(np.column_stack([phi, y]))
+    r = cluster.square_factor(np.column_stack([phi, y]))
     lag = max(first_lag, max_lag(na, layout))
     bare = replace(layout, u=np.empty((0, layout.u.shape[1])))  # not a view: it would hold the samples
     return r, len(rows), row_bound(data, lag), bare, data.n_samples
@@ -97,13 +97,6 @@ def share_scores_many(share: tuple, models: Sequence[Any], specs: Sequence[tuple
     list of list of tuple
     """
     return [share_scores(share, m, specs) for m in models]
-
-
-def _factor(a: np.ndarray) -> np.ndarray:
-    """R of ``a`` as a square q × q factor (zero rows below when ``a`` has fewer rows than columns)."""
-    q = a.shape[1]
-    r = np.asarray(np.linalg.qr(a, mode="r")) if a.shape[0] else np.zeros((0, q))
-    return np.vstack([r, np.zeros((q - r.shape[0], q))]) if r.shape[0] < q else r
 
 
 def _combine_refit(a: tuple, b: tuple) -> tuple:

@@ -45,6 +45,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
+from importlib import import_module
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -109,6 +110,7 @@ def diagnose(
     simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
     initial: str = "zero",
     loop_signals: Sequence[str] = (),
+    client: Any = None,
 ) -> Diagnosis:
     """Rank the physical effects (and structure changes) the model is missing.
 
@@ -157,6 +159,10 @@ def diagnose(
         Logged signals of a feedback loop (its reference or setpoint, the controller's terms) that
         ``"auto"`` never proposes as extra inputs: they explain the output because the loop closes
         through them, not because the plant misses an effect.
+    client : dask.distributed.Client, optional
+        With a list of logs as ``data`` (IOData or file paths): diagnose the fleet where the logs are,
+        the last 30 % of each validating (:func:`arxid.diagnosis.cluster_records.diagnose_logs`, which
+        returns a :class:`~arxid.diagnosis.cluster_records.FleetDiagnosis`).
 
     Returns
     -------
@@ -176,6 +182,11 @@ def diagnose(
     >>> d.top.effect
     'through(u1^2.005)'
     """
+    if client is not None:  # by name: cluster_records imports this module
+        options = dict(candidates=candidates, horizon=horizon, alpha=alpha, min_improvement=min_improvement)
+        options.update(n_refit=n_refit, n_pairs=n_pairs, simple_explanations=simple_explanations, initial=initial)
+        options.update(residual_max_lag=residual_max_lag, loop_signals=loop_signals, validation=validation)
+        return import_module("arxid.diagnosis.cluster_records").diagnose_logs(model, data, client, **options)
     if isinstance(model, StateSpaceModel):
         raise ArxidError(NOT_FOR_STATE_SPACE)
     model = check_model(model)
