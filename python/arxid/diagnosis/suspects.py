@@ -183,9 +183,10 @@ def diagnose(
     'through(u1^2.005)'
     """
     if client is not None:  # by name: cluster_records imports this module
-        options = dict(candidates=candidates, horizon=horizon, alpha=alpha, min_improvement=min_improvement)
+        options: dict[str, Any] = dict(candidates=candidates, horizon=horizon, alpha=alpha)
+        options.update(min_improvement=min_improvement, validation=validation)
         options.update(n_refit=n_refit, n_pairs=n_pairs, simple_explanations=simple_explanations, initial=initial)
-        options.update(residual_max_lag=residual_max_lag, loop_signals=loop_signals, validation=validation)
+        options.update(residual_max_lag=residual_max_lag, loop_signals=loop_signals)
         return import_module("arxid.diagnosis.cluster_records").diagnose_logs(model, data, client, **options)
     if isinstance(model, StateSpaceModel):
         raise ArxidError(NOT_FOR_STATE_SPACE)
