@@ -142,6 +142,14 @@ def test_per_log_test_is_the_in_process_test_on_that_log(dask_client):
     again = diagnose_logs(arxid.arx(est, 2, 2, 1), logs, dask_client, candidates=CANDIDATES)
     assert [s.effect for s in again.diagnosis.suspects] == [s.effect for s in fd.diagnosis.suspects]
     assert again.logs_with_effect == fd.logs_with_effect
+    # and from arxid.diagnose given the client, as arxid.analyse takes one
+    given = arxid.diagnose(arxid.arx(est, 2, 2, 1), logs, client=dask_client, candidates=CANDIDATES)
+    assert [s.effect for s in given.diagnosis.suspects] == [s.effect for s in fd.diagnosis.suspects]
+    scores = [[s.score for s in d.diagnosis.suspects] for d in (given, again)]
+    np.testing.assert_allclose(*scores, rtol=REL)
+    assert given.logs_with_effect == fd.logs_with_effect
+    with pytest.raises(ArxidError, match="give no validation= with client="):
+        arxid.diagnose(arxid.arx(est, 2, 2, 1), logs, logs[0], client=dask_client)
 
 
 def test_fleet_analysis_refuses_what_it_cannot_do(dask_client):
@@ -250,3 +258,21 @@ def test_the_fleet_modules_old_paths_still_import(old, new):
     with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}"):
         module = importlib.import_module(old)
     assert module is importlib.import_module(new)
+
+
+@pytest.mark.parametrize("options", [{"orders": (2, 2, 1), "max_steps": 2}, {"max_steps": 1}])
+def test_one_record_on_a_cluster_is_the_analysis_in_process(dask_client, options):
+    """``analyse(data)`` and ``analyse([data], client=...)`` (a fleet of one) give the same answers to
+    rounding: structure (the given orders, or the default grid swept and grown where the log is),
+    ranking, statistics, fits and ladder errors; the one log is the log the effect shows in."""
+    data = _log(31, "battery")
+    local = arxid.analyse(data, candidates=CANDIDATES, **options)
+    fleet = arxid.analyse([data], client=dask_client, candidates=CANDIDATES, **options)
+    _assert_same(fleet, local)
+    assert local.missing_effect == "u1*vbat"
+    assert fleet.grid == local.grid and fleet.choice.rank == local.choice.rank
+    for f, s in zip(fleet.diagnosis.suspects, local.diagnosis.suspects, strict=True):
+        if s.model is not None:  # the refits' parameters, where the suspect was refitted
+            np.testing.assert_allclose(f.model.parameters_, s.model.parameters_, rtol=1e-9, atol=1e-13)
+    np.testing.assert_allclose(fleet.final_model.parameters_, local.final_model.parameters_, rtol=1e-9, atol=1e-13)
+    assert fleet.logs_with_effect == ("log 1",)

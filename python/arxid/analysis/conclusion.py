@@ -13,10 +13,10 @@ from ..diagnosis.ladder import Ladder
 from ..diagnosis.result import Diagnosis
 from ..models.arx_model import ArxModel
 from ..selection.search import SweepResult
-from .choice import Choice, OrderGrid
+from .choice import Choice, OrderGrid, grid_lists
 from .verdicts import ladder_headline
 
-__all__ = ["Conclusion"]
+__all__ = ["Conclusion", "concluded"]
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)  # every field by name: the subclasses add theirs
@@ -68,14 +68,16 @@ class Conclusion:
 
     def to_dict(self) -> dict:
         """The keys every analysis has: those of :meth:`Diagnosis.to_dict` with the ladder, ``choice``,
-        ``notes`` and ``error_fall`` (see :meth:`Ladder.error_fall`).
+        ``grid`` (the order grid asked for, None when the orders were given), ``notes`` and
+        ``error_fall`` (see :meth:`Ladder.error_fall`).
 
         Returns
         -------
         dict
         """
         out = self.diagnosis.to_dict(self.ladder)
-        out.update({"choice": self.choice.to_dict(), "notes": list(self.notes), "error_fall": self.ladder.error_fall()})
+        out.update({"choice": self.choice.to_dict(), "grid": None if self.grid is None else grid_lists(self.grid)})
+        out.update({"notes": list(self.notes), "error_fall": self.ladder.error_fall()})
         return out
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -149,3 +151,34 @@ class Conclusion:
             headline = ladder_headline(self.ladder)
             lines += [headline] if headline else []
         return lines
+
+
+def concluded(
+    grid: OrderGrid | None, sweep: SweepResult | None, choice: Choice, model: ArxModel, ladder: Ladder, timings: dict
+) -> dict:
+    """The fields of a :class:`Conclusion` from its stages: the measure and first diagnosis are the
+    ladder's.
+
+    Parameters
+    ----------
+    grid : OrderGrid or None
+    sweep : SweepResult or None
+    choice : Choice
+    model : ArxModel
+    ladder : Ladder
+    timings : dict of str to float
+
+    Returns
+    -------
+    dict
+    """
+    return dict(
+        grid=grid,
+        sweep=sweep,
+        choice=choice,
+        model=model,
+        horizon=ladder.horizon,
+        diagnosis=ladder.diagnoses[0],
+        ladder=ladder,
+        timings=timings,
+    )

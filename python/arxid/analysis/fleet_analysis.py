@@ -22,19 +22,20 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, cast
 
 from .._base.formatting import text_table
 from ..diagnosis.cluster_records import ClusterRecords, FleetDiagnosis
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.pooled_refits import PooledRefits
-from ..exceptions import ArxidError, OrderError
+from ..exceptions import ArxidError
 from ..fleet.cluster import WorkerLogs
 from ..models.arx_model import ArxModel
 from ..models.polynomial import check_initial
 from ..selection.search import SweepResult, sweep
-from .conclusion import Conclusion
-from .pipeline import FLEET_ANALYSIS, Choice, OrderGrid, choose, grid_lists, grid_of
+from .conclusion import Conclusion, concluded
+from .pipeline import FLEET_ANALYSIS, Choice, OrderGrid, chosen_structure, measure_notes
 
 __all__ = ["FleetAnalysis", "analyse_fleet", "FLEET_ANALYSIS_NOTE"]
 
@@ -90,15 +91,7 @@ class FleetAnalysis(Conclusion):
         dict
         """
         out = super().to_dict()
-        g = self.grid
-        out.update(
-            {
-                "grid": None if g is None else {"na": list(g["na"]), "nb": list(g["nb"]), "nk": list(g["nk"])},
-                "logs": list(self.logs),
-                "fleet": self.fleet.to_dict(),
-                "timings": dict(self.timings),
-            }
-        )
+        out.update({"logs": list(self.logs), "fleet": self.fleet.to_dict(), "timings": dict(self.timings)})
         return out
 
     def _head_lines(self) -> list[str]:
@@ -129,25 +122,17 @@ def _structure(
     grid: Mapping | None,
     options: dict,
 ) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
-    """The chosen structure: the given orders fitted where the logs are, or the fleet sweep's choice."""
-    if orders is not None:
-        if grid is not None:
-            raise OrderError("give either orders or grid, not both")
-        try:
-            na, nb, nk = orders
-        except (TypeError, ValueError):
-            raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
-        m = len(logs.signals.input_names)
+    """The chosen structure (:func:`~arxid.analysis.pipeline.chosen_structure`): the given orders
+    fitted where the logs are, or the fleet sweep's choice."""
+    m = len(logs.signals.input_names)
+
+    def fit(na: Any, nb: Any, nk: Any) -> ArxModel:
         nbs = tuple(nb) if isinstance(nb, (list, tuple)) else (int(nb),) * m
         nks = tuple(nk) if isinstance(nk, (list, tuple)) else (int(nk),) * m
-        model = refits.fit(int(na), nbs, nks, ())
-        return None, model, Choice(model.structure_name(), None, "the orders were given"), None
-    g = grid_of(grid)  # the grid of the in-process analysis, grown by the same rule (arxid.sweep's)
-    options.update(grid_lists(g) if grid is not None else {})
-    res = sweep(cast(Any, list(sources)), client=logs.client, validation=logs.validation, **options)
-    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=options["growth_seconds"])
-    model, choice = choose(res)
-    return res, model, choice, g
+        return refits.fit(int(na), nbs, nks, ())
+
+    swept = partial(sweep, cast(Any, list(sources)), client=logs.client, validation=logs.validation)
+    return chosen_structure(orders, grid, fit, swept, options)
 
 
 def fleet_ladder(
@@ -225,23 +210,11 @@ def analyse_fleet(
     measure = res.horizon if res is not None else horizon
     ladder, first = fleet_ladder(model, on_workers, max_steps, measure, initial, diagnose_kwargs)
     timings["diagnose"] = time.perf_counter() - t0
-    notes: tuple[str, ...] = (FLEET_ANALYSIS_NOTE,)
-    if res is not None and res.integrating:
-        notes += (f"The sweep found an integrating plant ({res.integrating_reason}).",)
+    notes = (FLEET_ANALYSIS_NOTE, *measure_notes(res, ladder.horizon, horizon))
     if not math.isfinite(first.diagnosis.rms_sim_val):
         notes += ("The chosen model's validation error is not finite.",)
     return FleetAnalysis(
-        grid=g,
-        sweep=res,
-        choice=choice,
-        model=model,
-        horizon=ladder.horizon,
-        diagnosis=first.diagnosis,
-        ladder=ladder,
-        timings=timings,
-        logs=tuple(on_workers.names),
-        fleet=first,
-        notes=notes,
+        **concluded(g, res, choice, model, ladder, timings), logs=tuple(on_workers.names), fleet=first, notes=notes
     )
 
 

@@ -61,7 +61,7 @@ from .closed_loop import (
     reference_names,
     still_references,
 )
-from .conclusion import Conclusion
+from .conclusion import Conclusion, concluded
 from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
 from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
 
@@ -209,7 +209,6 @@ class Analysis(Conclusion):
         out = super().to_dict()
         out.update(
             {
-                "grid": None if self.grid is None else grid_lists(self.grid),
                 "grid_growth": None if self.grid_growth is None else self.grid_growth.to_dict(),
                 "sweep": None if self.sweep is None else self.sweep.summary(),
                 "comparison": self.comparison.to_dict(),
@@ -293,19 +292,49 @@ def _structure(
     if given is not None:
         model, choice = given_model(est, given, orders, grid)
         return None, model, choice, None
+    options: dict[str, Any] = dict(horizon=horizon, expect=expect, progress=progress, growth_seconds=max_seconds)
+    options.update(auto_extend=grow)
+    return chosen_structure(orders, grid, partial(arx, est), partial(sweep, est, validation=val), options)
+
+
+def chosen_structure(
+    orders: Sequence | None,
+    grid: Mapping | None,
+    fit: Callable[[Any, Any, Any], ArxModel],
+    swept: Callable[..., SweepResult],
+    options: dict[str, Any],
+) -> tuple[SweepResult | None, ArxModel, Choice, OrderGrid | None]:
+    """The structure of an analysis, wherever its records are: the given orders fitted, or the
+    choice of the sweep (the default grid grown by :func:`arxid.sweep`'s rule, a given grid as given).
+
+    Parameters
+    ----------
+    orders : (na, nb, nk) or None
+    grid : mapping or None
+    fit : callable
+        ``fit(na, nb, nk)``: the model of the given orders fitted on the estimation records.
+    swept : callable
+        ``swept(**options)``: the sweep of the records (its grid among the options when one was given).
+    options : dict
+        Keyword arguments of the sweep; ``growth_seconds`` is the budget of the grid's growth.
+
+    Returns
+    -------
+    tuple of (SweepResult or None, ArxModel, Choice, OrderGrid or None)
+    """
     if orders is not None:
+        if grid is not None:
+            raise OrderError("give either orders or grid, not both")
         try:
             na, nb, nk = orders
         except (TypeError, ValueError):
             raise OrderError(f"orders must be (na, nb, nk), got {orders!r}") from None
-        model = arx(est, na, nb, nk)
+        model = fit(na, nb, nk)
         return None, model, Choice(model.structure_name(), None, "the orders were given"), None
     g = grid_of(grid)
-    # sweep's rule: the default grid grows while its choice sits on an edge, a given grid when asked
-    opts: dict[str, Any] = dict(horizon=horizon, expect=expect, progress=progress, growth_seconds=max_seconds)
-    opts.update(auto_extend=grow, **({} if grid is None else grid_lists(g)))
-    res = sweep(est, validation=val, **opts)
-    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=max_seconds)  # the record: why not
+    res = swept(**options, **({} if grid is None else grid_lists(g)))
+    # the record of the growth: why the grid did not grow, when it was not grown
+    res = res if res.growth is not None else res.extend(max_rounds=0, max_seconds=options["growth_seconds"])
     model, choice = choose(res)
     return res, model, choice, g
 
@@ -350,7 +379,22 @@ def _frequency(model: ArxModel, val: IOData, horizon: int | None) -> tuple[Frequ
         return check, None
 
 
-def _notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
+def measure_notes(res: SweepResult | None, horizon: int | None, requested: int | None) -> tuple[str, ...]:
+    """Why the validation errors are k-step errors, when they are (the sweep found an integrating
+    plant, or the chosen model's free run diverges), wherever the records are.
+
+    Parameters
+    ----------
+    res : SweepResult or None
+    horizon : int or None
+        The ladder's measure.
+    requested : int or None
+        The measure asked for.
+
+    Returns
+    -------
+    tuple of str
+    """
     notes = []
     if res is not None and res.integrating:
         notes.append(
@@ -552,16 +596,9 @@ def analyse(
     if method is not None and method.closed:
         closing = loop_closing_sentences(chosen, est, val, method, ladder.horizon, initial)
         method = replace(method, loop_closing=closing)
-    notes = _notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
+    notes = measure_notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
     return Analysis(
-        grid=g,
-        sweep=res,
-        choice=choice,
-        model=chosen,
-        horizon=ladder.horizon,
-        diagnosis=ladder.diagnoses[0],
-        ladder=ladder,
-        timings=timings,
+        **concluded(g, res, choice, chosen, ladder, timings),
         estimation=est,
         validation=val,
         comparison=cmp,

@@ -7,7 +7,7 @@ logs are, and :func:`diagnose_fleet` adds which logs the missing effect shows in
   (free run or k steps ahead) simulated on each share's own logs, pooled from their sums
   (:mod:`~.pooled_refits`; a free run is not a statistic of the regressors).
 * Everything else is the procedure's own: the baseline's rule, :class:`~.judge.Judge` (its refits
-  done on the fleet, :class:`PooledJudge`), :func:`~.judge.demote_pairs`, Holm's correction and the
+  done on the fleet, :class:`ClusterRefits`), :func:`~.judge.demote_pairs`, Holm's correction and the
   ranking.
 
 The result equals :func:`arxid.diagnose` on the logs merged as experiments of one IOData (each log's
@@ -38,7 +38,7 @@ from ..models.polynomial import PolynomialModel
 from .added_variable import holm
 from .candidates import auto_candidates
 from .extension import Candidate, candidate_list
-from .judge import Judge, refit_indices
+from .judge import Judge
 from .pooled_refits import PooledRefits
 from .result import Diagnosis
 from .statistics import RegressorStatistics, combine_statistics, share_statistics
@@ -47,7 +47,7 @@ from .suspects import INTEGRATING_HORIZON, Baseline, baseline_errors, diagnose
 __all__ = [
     "ClusterRecords",
     "FleetDiagnosis",
-    "PooledJudge",
+    "ClusterRefits",
     "LogEvidence",
     "diagnose_fleet",
     "diagnose_logs",
@@ -61,55 +61,37 @@ FLEET_NOTES = (
 )
 
 
-class PooledJudge(Judge):
-    """:class:`~arxid.diagnosis.judge.Judge` whose refits and validation errors are made where the
-    logs are.
+class ClusterRefits:
+    """:class:`~arxid.diagnosis.judge.CandidateRefits` on a fleet's logs: each refit fitted from the
+    shares' factors and validated on the shares' own logs (:class:`PooledRefits`), the refits
+    :meth:`~arxid.diagnosis.judge.Judge.suspects` makes done together (two round trips for all of
+    them instead of two for each).
 
     Parameters
     ----------
     refits : PooledRefits
     model : ArxModel
-    data, validation : IOData
-        The merged parts as the client sees them (names and sizes; never read here).
     horizon : int or None
-    base_rms, min_improvement : float
-    initial : {"zero", "estimate"}
     """
 
-    shares_factor = False  # the data are on the workers: every refit goes through refit()
-
-    def __init__(self, refits: PooledRefits, model: ArxModel, data: Any, validation: Any, *args: Any):
-        super().__init__(model, data, validation, *args)
-        self.refits = refits
+    def __init__(self, refits: PooledRefits, model: ArxModel, horizon: int | None):
+        self.refits, self.model, self.horizon = refits, model, horizon
         self._done: dict[tuple, Any] = {}
 
     def _key(self, model: ArxModel, c: Any, initial: str) -> tuple:
         effects = tuple(model.effects) + tuple(e for e in c.effects if e not in model.effects)
         return (id(model), c.na, tuple(c.nb), tuple(c.nk), effects, model.first_lag_, initial)
 
-    def suspects(self, scored: list[dict], notes: dict[str, str], alpha: float, n_refit: int | None) -> list:
-        """:meth:`Judge.suspects`, with the refits it makes done together first (two round trips for
-        all of them instead of two for each).
+    def prepare(self, cands: Sequence[Candidate], simple: Sequence[Candidate], initial: str) -> None:
+        """Every candidate refitted and validated in one batch (each simple explanation when it is compared)."""
+        keys = [self._key(self.model, c, initial) for c in cands]
+        structures = [(c.na, c.nb, c.nk, k[4], self.model.first_lag_) for c, k in zip(cands, keys)]
+        self._done.update(zip(keys, self.refits.fit_many(structures, [("val", self.horizon, initial)])))
 
-        Parameters
-        ----------
-        scored : list of dict
-        notes : dict of str to str
-        alpha : float
-        n_refit : int or None
+    def hold(self, cands: Sequence[Candidate]) -> None:
+        """Nothing ahead: each pair is refitted when asked."""
 
-        Returns
-        -------
-        list of Suspect
-        """
-        chosen = [scored[i]["c"] for i in sorted(refit_indices(scored, alpha, n_refit))]
-        keys = [self._key(self.model, c, self.initial) for c in chosen]
-        structures = [(c.na, c.nb, c.nk, k[4], self.model.first_lag_) for c, k in zip(chosen, keys)]
-        spec = ("val", self.horizon, self.initial)
-        self._done.update(zip(keys, self.refits.fit_many(structures, [spec])))
-        return super().suspects(scored, notes, alpha, n_refit)
-
-    def refit(self, model: ArxModel, c: Any, initial: str) -> tuple[ArxModel, float]:
+    def validated(self, model: ArxModel, c: Any, initial: str) -> tuple[ArxModel, float]:
         """``model`` refitted with ``c`` on every log, and its pooled validation error.
 
         Parameters
@@ -344,11 +326,10 @@ class ClusterRecords:
 
     def judge(
         self, model: ArxModel, horizon: int | None, base_rms: float, min_improvement: float, initial: str
-    ) -> PooledJudge:
+    ) -> Judge:
         """The judge refitting on the workers."""
-        return PooledJudge(
-            self.refits, model, self.estimation, self.validation, horizon, base_rms, min_improvement, initial
-        )
+        where = ClusterRefits(self.refits, model, horizon)
+        return Judge(model, self.estimation, self.validation, horizon, base_rms, min_improvement, initial, where)
 
 
 def diagnose_fleet(model: ArxModel, logs: WorkerLogs, **options: Any) -> FleetDiagnosis:
@@ -401,6 +382,8 @@ def diagnose_logs(
     """
     if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0 < split < 1:
         raise ArxidError(f"split must be the estimation fraction of each log between 0 and 1, got {split!r}")
+    if options.pop("validation", None) is not None:
+        raise ArxidError("on a fleet each log's last share validates: give no validation= with client=")
     return diagnose_fleet(model, WorkerLogs(client, logs, read, 1.0 - float(split)), **options)
 
 
@@ -440,7 +423,3 @@ def _logs_of(tests: list, rows: Sequence[int], names: Sequence[str], alpha: floa
         )
         for name, n, t, pa in zip(names, rows, tests, adj)
     )
-
-
-#: The name this class had before the records of a diagnosis were one concept.
-FleetJudge = PooledJudge

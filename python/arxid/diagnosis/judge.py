@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Protocol
 
 from .._base.background import in_two
 from ..data.iodata import IOData
@@ -17,7 +18,15 @@ from ..models.polynomial import PolynomialModel
 from .extension import Candidate, Refits, refit_and_validate
 from .result import Suspect
 
-__all__ = ["Judge", "demote_pairs", "refit_indices", "TIE_SHARE", "SIMPLE_EXPLANATIONS"]
+__all__ = [
+    "CandidateRefits",
+    "Judge",
+    "RecordRefits",
+    "demote_pairs",
+    "refit_indices",
+    "TIE_SHARE",
+    "SIMPLE_EXPLANATIONS",
+]
 
 #: Validation errors within this share of the lowest count as a tie between suspects of a
 #: polynomial model (the one adding fewer parameters is then the best).
@@ -30,32 +39,32 @@ SIMPLE_EXPLANATIONS = ("const", "time")
 _IN_WORDS = {"const": "an offset (const)", "time": "a slow trend (time)"}
 
 
-class Judge:
-    """Refits candidates and judges them by the validation error at the baseline's horizon."""
+class CandidateRefits(Protocol):
+    """The model refitted with candidates and validated where the records are: :class:`RecordRefits`
+    on one record in this process, or
+    :class:`~arxid.diagnosis.cluster_records.ClusterRefits` on a fleet's logs."""
 
-    #: Fit the candidates that keep the model's rows from one shared factor (:class:`Refits`); a
-    #: judge whose data live elsewhere (a fleet's) refits through :meth:`refit` only.
-    shares_factor = True
+    def prepare(self, cands: Sequence[Candidate], simple: Sequence[Candidate], initial: str) -> None:
+        """The candidates :meth:`Judge.suspects` is about to refit (and the simple explanations it
+        may compare them with), made together where that saves passes over the data or round trips.
 
-    def __init__(
-        self,
-        model: ArxModel,
-        data: IOData,
-        validation: IOData,
-        horizon: int | None,
-        base_rms: float,
-        min_improvement: float,
-        initial: str = "zero",
-    ):
-        self.model, self.data, self.validation = model, data, validation
-        self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
-        self.initial = initial
-        self.shared = Refits(model, data, ())
+        Parameters
+        ----------
+        cands, simple : sequence of Candidate
+        initial : {"zero", "estimate"}
+        """
 
-    def refit(self, model: ArxModel, c: Candidate, initial: str) -> tuple[ArxModel, float]:
+    def hold(self, cands: Sequence[Candidate]) -> None:
+        """Candidates that may be refitted next (the suspects paired with the best one).
+
+        Parameters
+        ----------
+        cands : sequence of Candidate
+        """
+
+    def validated(self, model: ArxModel, c: Candidate, initial: str) -> tuple[ArxModel, float]:
         """``model`` refitted with candidate ``c`` and its validation error at the judge's horizon
-        from the ``initial`` conditions: the one place the judge refits (a fleet's judge refits where
-        the logs are, :mod:`arxid.diagnosis.fleet_judge`).
+        from the ``initial`` conditions.
 
         Parameters
         ----------
@@ -67,7 +76,72 @@ class Judge:
         -------
         tuple of (ArxModel, float)
         """
+        raise NotImplementedError
+
+
+class RecordRefits:
+    """:class:`CandidateRefits` on one record in this process: the candidates that keep the model's
+    rows fitted from one shared factor (:class:`~arxid.diagnosis.extension.Refits`), the others one
+    by one.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data, validation : IOData
+    horizon : int or None
+    """
+
+    def __init__(self, model: ArxModel, data: IOData, validation: IOData, horizon: int | None):
+        self.model, self.data, self.validation, self.horizon = model, data, validation, horizon
+        self.shared = Refits(model, data, ())
+
+    def prepare(self, cands: Sequence[Candidate], simple: Sequence[Candidate], initial: str) -> None:
+        """The simple explanations in the shared factor too (every effect is compared with them),
+        from the factor of the last refits when it holds these candidates (the masked pairs'); every
+        refit's validation error from one pass over the validation data, where they can."""
+        self.shared = Refits(self.model, self.data, [*cands, *simple], self.shared)
+        self.shared.validate_all(cands, self.validation, self.horizon, initial)
+
+    def hold(self, cands: Sequence[Candidate]) -> None:
+        """The pairs from the factor the suspects were refitted from, when it holds them."""
+        self.shared = Refits(self.model, self.data, cands, self.shared)
+
+    def validated(self, model: ArxModel, c: Candidate, initial: str) -> tuple[ArxModel, float]:
+        """From the shared factor when it holds ``c`` (a refit of the judged model), else one by one."""
+        if model is self.model and self.shared.has(c):
+            return self.shared.validated(c, self.validation, self.horizon, initial)
         return refit_and_validate(model, self.data, self.validation, c, self.horizon, initial)
+
+
+class Judge:
+    """Refits candidates and judges them by the validation error at the baseline's horizon.
+
+    Parameters
+    ----------
+    model : ArxModel
+    data, validation : IOData
+    horizon : int or None
+    base_rms, min_improvement : float
+    initial : {"zero", "estimate"}
+    refits : CandidateRefits, optional
+        Where the refits are made (default: :class:`RecordRefits` on ``data`` and ``validation``).
+    """
+
+    def __init__(
+        self,
+        model: ArxModel,
+        data: IOData,
+        validation: IOData,
+        horizon: int | None,
+        base_rms: float,
+        min_improvement: float,
+        initial: str = "zero",
+        refits: CandidateRefits | None = None,
+    ):
+        self.model, self.data, self.validation = model, data, validation
+        self.horizon, self.base_rms, self.min_improvement = horizon, base_rms, min_improvement
+        self.initial = initial
+        self.refits = RecordRefits(model, data, validation, horizon) if refits is None else refits
 
     def _improvement(self, after: float) -> float:
         if math.isfinite(after) and math.isfinite(self.base_rms) and self.base_rms > 0:
@@ -78,15 +152,9 @@ class Judge:
         """Every candidate that passes the corrected test is refitted (only those can be significant),
         and the best ``n_refit`` by p-value so the table shows their effect (all when None)."""
         chosen = refit_indices(scored, alpha, n_refit)
-        if self.shares_factor:  # the simple explanations too: every effect is compared with them
-            m = self.model
-            simple = [Candidate(n, (n,), m.na_, m.nb_, m.nk_, "effect") for n in SIMPLE_EXPLANATIONS]
-            # from the factor of the last refits when it holds these candidates (the masked pairs')
-            self.shared = Refits(m, self.data, [scored[i]["c"] for i in sorted(chosen)] + simple, self.shared)
-            # every refit's validation error from one pass over the validation data, where they can
-            self.shared.validate_all(
-                [scored[i]["c"] for i in sorted(chosen)], self.validation, self.horizon, self.initial
-            )
+        m = self.model
+        simple = [Candidate(n, (n,), m.na_, m.nb_, m.nk_, "effect") for n in SIMPLE_EXPLANATIONS]
+        self.refits.prepare([scored[i]["c"] for i in sorted(chosen)], simple, self.initial)
         # Each refit is validated by a free run of the validation data: two at a time.
         return in_two(
             lambda i: self._suspect(scored[i], notes.get(scored[i]["c"].label, ""), alpha, i in chosen),
@@ -98,10 +166,7 @@ class Judge:
         after, fitted = math.nan, None
         if refit:
             try:
-                if self.shared.has(c):
-                    fitted, after = self.shared.validated(c, self.validation, self.horizon, self.initial)
-                else:
-                    fitted, after = self.refit(self.model, c, self.initial)
+                fitted, after = self.refits.validated(self.model, c, self.initial)
                 if not math.isfinite(after):
                     note = "free run diverges"
             except ArxidError as exc:
@@ -160,10 +225,7 @@ class Judge:
                 m = self.model
                 try:
                     c = Candidate(name, (name,), m.na_, m.nb_, m.nk_, "effect")
-                    if self.shared.has(c):
-                        after = self.shared.validated(c, self.validation, self.horizon, "zero")[1]
-                    else:
-                        after = self.refit(m, c, "zero")[1]
+                    after = self.refits.validated(m, c, "zero")[1]
                 except ArxidError:
                     after = math.nan
             if math.isfinite(after):
@@ -204,10 +266,8 @@ class Judge:
             # a tie goes to the simpler change: a delay that fits as well as one more coefficient
             near = [s for s in sig if s.rms_sim_val_after <= (1.0 + TIE_SHARE) * top.rms_sim_val_after]
             top = min(near, key=lambda s: (self._added_parameters(s), s.rms_sim_val_after))
-        if self.shares_factor and not isinstance(self.model, PolynomialModel):
-            # the pairs from the factor the suspects were refitted from, when it holds them
-            pairs = [self._with_top(s, top) for s in sig if s is not top]
-            self.shared = Refits(self.model, self.data, pairs, self.shared)
+        if not isinstance(self.model, PolynomialModel):
+            self.refits.hold([self._with_top(s, top) for s in sig if s is not top])
         return [s if not s.significant or s is top else self._given_top(s, top) for s in suspects]
 
     def _added_parameters(self, s: Suspect) -> int:
@@ -227,10 +287,7 @@ class Judge:
             return self._given_top_polynomial(s, top)
         both = self._with_top(s, top)
         try:
-            if self.shared.has(both):
-                after = self.shared.validated(both, self.validation, self.horizon, self.initial)[1]
-            else:
-                after = self.refit(m, both, self.initial)[1]
+            after = self.refits.validated(m, both, self.initial)[1]
         except ArxidError:
             after = math.nan
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:
@@ -245,7 +302,7 @@ class Judge:
         if top.model is not None:
             try:
                 c = Candidate(s.effect, s.effects, s.na, s.nb, s.nk, s.kind)
-                after = self.refit(top.model, c, self.initial)[1]
+                after = self.refits.validated(top.model, c, self.initial)[1]
             except ArxidError:
                 pass
         if math.isfinite(after) and after <= (1.0 - self.min_improvement) * top.rms_sim_val_after:

@@ -29,6 +29,7 @@ from ..checks.comparison import prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..fleet import cluster
+from ..fleet.fit import combine_share_factors
 from ..models.arx_model import ArxModel
 from ..models.arx_solver import solve_factor
 from ..models.effects import compile_effects
@@ -38,7 +39,10 @@ __all__ = ["PooledRefits", "FleetRefits", "PooledScore", "aligned", "share_refit
 
 
 def share_refit_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: tuple, first_lag: int) -> tuple:
-    """The factor of a share's regressors for one refit: R of ``[Φ | y]`` with its row counts.
+    """The factor of a share's regressors for one refit: R of ``[Φ | y]`` with its row counts, as
+    :func:`arxid.fleet.fit.share_factor` gives it for a fit, on the rows a refit of the model uses
+    (from ``first_lag`` on, around missing samples); combined as it by
+    :func:`~arxid.fleet.fit.combine_share_factors`.
 
     Parameters
     ----------
@@ -58,7 +62,7 @@ def share_refit_factor(share: tuple, na: int, nb: tuple, nk: tuple, effects: tup
     data = share[0]
     layout = compile_effects(effects, data, nb, nk)
     phi, y, rows = regressor_matrix(data, na, layout, first_lag)
-    r = _factor(np.column_stack([phi, y]))
+    r = cluster.square_factor(np.column_stack([phi, y]))
     lag = max(first_lag, max_lag(na, layout))
     bare = replace(layout, u=np.empty((0, layout.u.shape[1])))  # not a view: it would hold the samples
     return r, len(rows), row_bound(data, lag), bare, data.n_samples
@@ -80,7 +84,7 @@ def share_refit_factors(share: tuple, structures: Sequence[tuple]) -> list[tuple
 
 
 def _combine_refits(a: list, b: list) -> list:
-    return [_combine_refit(x, y) for x, y in zip(a, b, strict=True)]
+    return [combine_share_factors(x, y) for x, y in zip(a, b, strict=True)]
 
 
 def share_scores_many(share: tuple, models: Sequence[Any], specs: Sequence[tuple]) -> list[list[tuple]]:
@@ -97,17 +101,6 @@ def share_scores_many(share: tuple, models: Sequence[Any], specs: Sequence[tuple
     list of list of tuple
     """
     return [share_scores(share, m, specs) for m in models]
-
-
-def _factor(a: np.ndarray) -> np.ndarray:
-    """R of ``a`` as a square q × q factor (zero rows below when ``a`` has fewer rows than columns)."""
-    q = a.shape[1]
-    r = np.asarray(np.linalg.qr(a, mode="r")) if a.shape[0] else np.zeros((0, q))
-    return np.vstack([r, np.zeros((q - r.shape[0], q))]) if r.shape[0] < q else r
-
-
-def _combine_refit(a: tuple, b: tuple) -> tuple:
-    return cluster.stack_factors(a[0], b[0]), a[1] + b[1], a[2] + b[2], a[3], a[4] + b[4]
 
 
 def share_scores(share: tuple, model: Any, specs: Sequence[tuple]) -> list[tuple]:

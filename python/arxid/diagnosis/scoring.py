@@ -35,7 +35,7 @@ from .added_variable import AddedVariableResult, AddedVariableTest, all_finite, 
 from .candidates import scan_threshold, signal_thresholds
 from .extension import Candidate, layout_for
 
-__all__ = ["CandidateScoring", "Scoring", "input_index", "scored_entry"]
+__all__ = ["CandidateScoring", "Scoring", "TOO_FEW_COMMON_ROWS", "common_rows_test", "input_index", "scored_entry"]
 
 _Key = TypeVar("_Key")
 
@@ -247,13 +247,12 @@ class Scoring(CandidateScoring):
         slots: list[dict | None] = []
 
         def on_model_rows() -> Iterator[tuple[tuple[int, Candidate], np.ndarray]]:
-            for c in self.prepared:
-                got = self._columns_of(c)
-                if got is not None and len(got[1]) == len(self.rows0) and np.array_equal(got[1], self.rows0):
+            for c, z, rows in self.blocks():
+                if self.are_model_rows(rows):
                     slots.append(None)
-                    yield (len(slots) - 1, c), got[0]
-                elif got is not None:
-                    slots.append(self._score_on_common_rows(c, *got))
+                    yield (len(slots) - 1, c), z
+                else:
+                    slots.append(self._score_on_common_rows(c, z, rows))
 
         for (i, c), res, why in self._grouped_tests(on_model_rows()):
             if res is None:
@@ -285,6 +284,52 @@ class Scoring(CandidateScoring):
         for (key, _), (res, why) in zip(group, self.proj0.tests([z for _, z in group], offset)):
             yield key, res, why
 
+    def blocks(self) -> Iterator[tuple[Candidate, np.ndarray, np.ndarray]]:
+        """Every prepared candidate with its new columns and their rows (the model's, unless its
+        columns are missing there), one candidate at a time: what each candidate's test reads,
+        wherever it is tested (here, or from the factors of a fleet's shares,
+        :func:`arxid.diagnosis.statistics.share_statistics`). A candidate without columns gets a
+        note instead.
+
+        Yields
+        ------
+        tuple of (Candidate, ndarray of shape (n_rows, q), ndarray of int)
+        """
+        for c in self.prepared:
+            got = self._columns_of(c)
+            if got is not None:
+                yield c, *got
+
+    def are_model_rows(self, rows: np.ndarray) -> bool:
+        """Whether ``rows`` are the model's regression rows.
+
+        Parameters
+        ----------
+        rows : ndarray of int
+
+        Returns
+        -------
+        bool
+        """
+        return len(rows) == len(self.rows0) and np.array_equal(rows, self.rows0)
+
+    def on_common_rows(self, z: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The model's regressors, a candidate's columns ``z`` (on ``rows``) and the output on the
+        rows both have, and those rows: where a candidate with missing samples is tested.
+
+        Parameters
+        ----------
+        z : ndarray of shape (len(rows), q)
+        rows : ndarray of int
+
+        Returns
+        -------
+        tuple of (ndarray, ndarray, ndarray, ndarray)
+            Φ, z, y and the common rows.
+        """
+        common, i0, i1 = np.intersect1d(self.rows0, rows, return_indices=True)
+        return self.phi0[i0], z[i1], self.y0[i0], common
+
     def _columns_of(self, c: Candidate) -> tuple[np.ndarray, np.ndarray] | None:
         """A candidate's new columns and their rows (None, with a note, when it has none)."""
         try:
@@ -299,11 +344,11 @@ class Scoring(CandidateScoring):
 
     def _score_on_common_rows(self, c: Candidate, z: np.ndarray, rows: np.ndarray) -> dict | None:
         """A candidate with missing samples: tested on the rows both it and the model have."""
-        common, i0, i1 = np.intersect1d(self.rows0, rows, return_indices=True)
-        if len(common) <= self.phi0.shape[1] + z.shape[1] + 2:
-            self.notes[c.label] = "too few rows where its signal exists"
+        phi, z, y, common = self.on_common_rows(z, rows)
+        if not common_rows_test(len(common), phi.shape[1], z.shape[1]):
+            self.notes[c.label] = TOO_FEW_COMMON_ROWS
             return None
-        res, why = AddedVariableTest(self.phi0[i0], self.y0[i0]).test(z[i1])
+        res, why = AddedVariableTest(phi, y).test(z)
         if res is None:
             self.notes[c.label] = why
             return None
@@ -496,6 +541,25 @@ class _Rebuilt(dict):
             c = recipe[1]
             return sc._columns(c)[0]
         return sc._threshold_columns(*recipe[1:])[1]
+
+
+#: Why a candidate with missing samples on the model's rows is not tested.
+TOO_FEW_COMMON_ROWS = "too few rows where its signal exists"
+
+
+def common_rows_test(n: int, p: int, q: int) -> bool:
+    """Whether ``n`` rows both the model and a candidate have can test its ``q`` columns beside the
+    model's ``p`` (the same rule for one record and for a fleet).
+
+    Parameters
+    ----------
+    n, p, q : int
+
+    Returns
+    -------
+    bool
+    """
+    return n > p + q + 2
 
 
 def scored_entry(c: Candidate, res: AddedVariableResult) -> dict:

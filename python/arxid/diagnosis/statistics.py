@@ -31,10 +31,11 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import DataError
+from ..fleet.cluster import square_factor
 from ..models.arx_model import ArxModel
 from .added_variable import ROUNDING, AddedVariableResult, AddedVariableTest, stripped_test
 from .extension import Candidate
-from .scoring import CandidateScoring, Scoring, scored_entry
+from .scoring import TOO_FEW_COMMON_ROWS, CandidateScoring, Scoring, common_rows_test, scored_entry
 
 __all__ = ["FactorTest", "RegressorStatistics", "combine_statistics", "share_statistics"]
 
@@ -62,25 +63,21 @@ def share_statistics(share: tuple, model: ArxModel, cands: list[Candidate], ones
         the rows both have, and their counts, per log.
     """
     est = share[0]
-    sc = Scoring(model, est, cands)  # the model's rows and regressors, as in process
-    notes = dict(sc.notes)
+    sc = Scoring(model, est, cands)  # the model's rows, regressors and candidates' columns, as in process
     blocks, columns, at = [sc.phi0], {}, sc.phi0.shape[1]
     bounds = np.cumsum([0] + [s.n_est for s in share[2]])
     own: dict[str, tuple] = {}
-    for c in sc.prepared:
-        z, rows = sc._columns(c)
-        if z.shape[1] == 0:
-            notes[c.label] = "adds no regressor"
-            continue
-        if not (len(rows) == len(sc.rows0) and np.array_equal(rows, sc.rows0)):
+    for c, z, rows in sc.blocks():
+        if not sc.are_model_rows(rows):
             # Missing samples in its signal: tested on the rows both have, as in process, from a
             # factor of its own per log; zeros keep the layout of every share's R alike.
-            common, i0, i1 = np.intersect1d(sc.rows0, rows, return_indices=True)
-            own[c.label] = _per_log(np.column_stack([sc.phi0[i0], z[i1], sc.y0[i0]]), common, bounds)
+            phi, zc, y, common = sc.on_common_rows(z, rows)
+            own[c.label] = _per_log(np.column_stack([phi, zc, y]), common, bounds)
             z = np.zeros((len(sc.rows0), z.shape[1]))
         columns[c.label] = (at, z.shape[1])
         blocks.append(z)
         at += z.shape[1]
+    notes = dict(sc.notes)
     for c in cands:
         if c.kind == "scan":
             notes[c.label] = SCAN_NOTE
@@ -95,13 +92,7 @@ def _per_log(a: np.ndarray, rows: np.ndarray, bounds: np.ndarray) -> tuple[list,
     """The factor of ``a`` (one row per sample index in ``rows``) over each log's rows, and their counts."""
     cut = np.searchsorted(rows, bounds)
     k = len(bounds) - 1
-    return [_square_r(a[cut[i] : cut[i + 1]]) for i in range(k)], [int(cut[i + 1] - cut[i]) for i in range(k)]
-
-
-def _square_r(a: np.ndarray) -> np.ndarray:
-    q = a.shape[1]
-    r = np.asarray(np.linalg.qr(a, mode="r")) if a.shape[0] else np.zeros((0, q))
-    return np.vstack([r, np.zeros((q - r.shape[0], q))]) if r.shape[0] < q else r
+    return [square_factor(a[cut[i] : cut[i + 1]]) for i in range(k)], [int(cut[i + 1] - cut[i]) for i in range(k)]
 
 
 class FactorTest(AddedVariableTest):
@@ -194,7 +185,7 @@ class RegressorStatistics(CandidateScoring):
         n = int(sum(self.rows))
         if n <= self.p + 2:
             raise DataError(f"too few regression rows ({n}) to diagnose a model with {self.p} parameters")
-        self.test = FactorTest(_square_r(np.vstack(self.factors)), n, self.p)
+        self.test = FactorTest(square_factor(np.vstack(self.factors)), n, self.p)
         self.base_regressors = list(self.model.regressor_names_)
 
     def index(self, label: str) -> np.ndarray:
@@ -239,9 +230,9 @@ class RegressorStatistics(CandidateScoring):
         """A candidate with missing samples tested on the rows both have (as :meth:`Scoring._score`)."""
         factors, rows = self.own[label]
         n, k = int(sum(rows)), self.columns[label][1]
-        if n <= self.p + k + 2:
-            return None, "too few rows where its signal exists"
-        return FactorTest(_square_r(np.vstack(factors)), n, self.p).test(np.arange(self.p, self.p + k))
+        if not common_rows_test(n, self.p, k):
+            return None, TOO_FEW_COMMON_ROWS
+        return FactorTest(square_factor(np.vstack(factors)), n, self.p).test(np.arange(self.p, self.p + k))
 
     def per_log_own(self, label: str) -> list[AddedVariableResult | None]:
         """The test of a candidate with missing samples on each log's own common rows.
@@ -254,10 +245,8 @@ class RegressorStatistics(CandidateScoring):
         -------
         list of AddedVariableResult or None
         """
-        k = self.columns[label][1]
-        idx = np.arange(self.p, self.p + k)
         factors, rows = self.own[label]
-        return [FactorTest(r, n, self.p).test(idx)[0] if n > self.p + k + 1 else None for r, n in zip(factors, rows)]
+        return _each_log(factors, rows, self.p, np.arange(self.p, self.p + self.columns[label][1]))
 
     def per_log(self, idx: np.ndarray) -> list[AddedVariableResult | None]:
         """The added-variable test of the columns ``idx`` of R on each log's own rows.
@@ -271,10 +260,12 @@ class RegressorStatistics(CandidateScoring):
         list of AddedVariableResult or None
             One per log (None where the log's rows cannot test them).
         """
-        return [
-            FactorTest(r, n, self.p).test(idx)[0] if n > self.p + len(idx) + 1 else None
-            for r, n in zip(self.factors, self.rows)
-        ]
+        return _each_log(self.factors, self.rows, self.p, idx)
+
+
+def _each_log(factors: list, rows: list, p: int, idx: np.ndarray) -> list[AddedVariableResult | None]:
+    """The test of the columns ``idx`` from each log's own factor (None where its rows are too few)."""
+    return [FactorTest(r, n, p).test(idx)[0] if n > p + len(idx) + 1 else None for r, n in zip(factors, rows)]
 
 
 def combine_statistics(
@@ -311,7 +302,9 @@ def combine_statistics(
         cols = np.r_[np.arange(p), np.arange(at, at + k), q - 1]
         # A share whose logs have every sample of the candidate: its rows are the model's, and the
         # factor of those columns is that of the sub-block of each log's R.
-        parts = [o[5][label] if label in o[5] else ([_square_r(f[:, cols]) for f in o[0]], list(o[1])) for o in outs]
+        parts = [
+            o[5][label] if label in o[5] else ([square_factor(f[:, cols]) for f in o[0]], list(o[1])) for o in outs
+        ]
         per = [None] * len(order)
         counts = [0] * len(order)
         for j, (f, n) in zip(order, [(f, n) for fs, ns in parts for f, n in zip(fs, ns)]):

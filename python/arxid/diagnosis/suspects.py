@@ -45,6 +45,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
+from importlib import import_module
 from typing import Any, Protocol, overload, runtime_checkable
 
 import numpy as np
@@ -118,6 +119,7 @@ def diagnose(
     simple_explanations: Sequence[str] = ...,
     initial: str = ...,
     loop_signals: Sequence[str] = ...,
+    client: Any = ...,
 ) -> Diagnosis: ...
 
 
@@ -137,6 +139,7 @@ def diagnose(
     simple_explanations: Sequence[str] = SIMPLE_EXPLANATIONS,
     initial: str = "zero",
     loop_signals: Sequence[str] = (),
+    client: Any = None,
 ) -> Diagnosis | PerOutput[Diagnosis]:
     """Rank the physical effects (and structure changes) the model is missing.
 
@@ -186,6 +189,10 @@ def diagnose(
         Logged signals of a feedback loop (its reference or setpoint, the controller's terms) that
         ``"auto"`` never proposes as extra inputs: they explain the output because the loop closes
         through them, not because the plant misses an effect.
+    client : dask.distributed.Client, optional
+        With a list of logs as ``data`` (IOData or file paths): diagnose the fleet where the logs are,
+        the last 30 % of each validating (:func:`arxid.diagnosis.cluster_records.diagnose_logs`, which
+        returns a :class:`~arxid.diagnosis.cluster_records.FleetDiagnosis`).
 
     Returns
     -------
@@ -207,6 +214,12 @@ def diagnose(
     >>> d.top.effect
     'through(u1^2.005)'
     """
+    if client is not None and not isinstance(model, StateSpaceModel):  # by name: cluster_records imports this module
+        options: dict[str, Any] = dict(candidates=candidates, horizon=horizon, alpha=alpha)
+        options.update(min_improvement=min_improvement, validation=validation)
+        options.update(n_refit=n_refit, n_pairs=n_pairs, simple_explanations=simple_explanations, initial=initial)
+        options.update(residual_max_lag=residual_max_lag, loop_signals=loop_signals)
+        return import_module("arxid.diagnosis.cluster_records").diagnose_logs(model, data, client, **options)
     if isinstance(model, StateSpaceModel):  # each output on its own (arxid.diagnosis.state_space)
         return diagnose_state_space(
             model,

@@ -126,6 +126,23 @@ def reduce_tree(client: Any, futures: list, combine: Callable) -> Any:
     return futures[0].result()
 
 
+def square_factor(a: np.ndarray) -> np.ndarray:
+    """R of ``a`` as a square q × q factor (zero rows below when ``a`` has fewer rows than columns):
+    what a share sends of its rows, whatever their number.
+
+    Parameters
+    ----------
+    a : ndarray of shape (n, q)
+
+    Returns
+    -------
+    ndarray of shape (q, q)
+    """
+    q = a.shape[1]
+    r = np.asarray(np.linalg.qr(a, mode="r")) if a.shape[0] else np.zeros((0, q))
+    return np.vstack([r, np.zeros((q - r.shape[0], q))]) if r.shape[0] < q else r
+
+
 def stack_factors(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
     """The triangular factor of two stacked factors (the R of ``[a; b]``; None stands for no rows).
 
