@@ -50,7 +50,7 @@ from .result import Diagnosis
 from .scoring import scored_entry
 from .state_space_output import OutputRegressors, StateSpaceOutput
 
-__all__ = ["diagnose_state_space", "StateSpaceJudge", "NOT_A_STATE_SPACE_CANDIDATE"]
+__all__ = ["diagnose_state_space", "StateSpaceRefits", "NOT_A_STATE_SPACE_CANDIDATE"]
 
 #: Why a structure change or a threshold scan is not a candidate for a state-space model.
 NOT_A_STATE_SPACE_CANDIDATE = (
@@ -60,30 +60,35 @@ NOT_A_STATE_SPACE_CANDIDATE = (
 _SCAN = re.compile(r"(dz|sat)\([A-Za-z_]\w*\)")
 
 
-class StateSpaceJudge(Judge):
-    """The judge of one output of a state-space model: every refit is the diagnosed model with the
+class StateSpaceRefits:
+    """Where the judge of one output of a state-space model refits (a
+    :class:`~arxid.diagnosis.judge.CandidateRefits`): every refit is the diagnosed model with the
     candidate's effects as inputs (:meth:`StateSpaceOutput.extended`), validated on that output.
 
     ``fits`` holds the refitted models by their effects, shared by the judges of all outputs: a
     refit is one model of every output, so an effect that does not read the output is refitted once.
     """
 
-    shares_factor = False
+    def __init__(
+        self, data: IOData, validation: IOData, horizon: int | None, fits: dict[tuple, StateSpaceOutput]
+    ) -> None:
+        self.data, self.validation, self.horizon, self.fits = data, validation, horizon, fits
 
-    def __init__(self, *args: Any, fits: dict[tuple, StateSpaceOutput] | None = None, **kwargs: Any):
-        super().__init__(*args, **kwargs)
-        self.fits = {} if fits is None else fits
+    def prepare(self, cands: Sequence[Candidate], simple: Sequence[Candidate], initial: str) -> None:
+        """Nothing to make ahead: each refit is one least-squares fit of B, D and x0."""
 
-    def refit(self, model: Any, c: Candidate, initial: str) -> tuple[Any, float]:
+    def hold(self, cands: Sequence[Candidate]) -> None:
+        """Nothing to hold (see :meth:`prepare`)."""
+
+    def validated(self, model: Any, c: Candidate, initial: str) -> tuple[Any, float]:
         """``model`` (a :class:`StateSpaceOutput`) refitted with ``c``'s effects, and the output's
-        validation error at the judge's horizon from the diagnosis's initial state.
+        validation error at the judge's horizon from ``initial`` (the baseline's initial state).
 
         Parameters
         ----------
         model : StateSpaceOutput
         c : Candidate
         initial : {"zero", "estimate"}
-            Ignored: every error of a diagnosis starts from the same initial state (the baseline's).
 
         Returns
         -------
@@ -95,7 +100,7 @@ class StateSpaceJudge(Judge):
         if key not in self.fits:
             self.fits[key] = model.extended(self.data, c.effects)
         fitted = replace(self.fits[key], output=model.output)
-        return fitted, fitted.validation_rms(self.validation, self.horizon, self.initial)
+        return fitted, fitted.validation_rms(self.validation, self.horizon, initial)
 
 
 def diagnose_state_space(
@@ -198,7 +203,8 @@ def _one_output(
         base_rms = metrics.prediction_rms(y_val, pred)
     cands, auto = _candidates(candidates, view, one, loop_signals)
     scored, notes = _score(OutputRegressors(view, data, [e for c in cands for e in c.effects]), cands)
-    judge = StateSpaceJudge(view, data, validation, horizon, base_rms, min_improvement, initial, fits=fits)
+    refits = StateSpaceRefits(data, validation, horizon, fits)
+    judge = Judge(view, data, validation, horizon, base_rms, min_improvement, initial, refits=refits)  # type: ignore[arg-type]
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
     suspects = judge.simplest_first(demote_pairs(suspects, min_improvement), simple)
     suspects = judge.conditional_on_top(suspects)
