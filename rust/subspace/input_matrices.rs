@@ -5,19 +5,22 @@
 //! regression row; its x0 and B columns are the rows of `C_o Aᵗ` and `Σ_k C_o A^{t−1−k} u_j(k)`,
 //! run as the transposed filters `ξ(t+1) = Aᵀ ξ(t) + C_oᵀ u_j(t)` (n states per output and input:
 //! n²·ny·nu operations a sample, where the state sensitivities ∂x/∂B would take n³·nu and a
-//! product with C on top). Rows are reduced by Householder QR block by block, so N never
-//! sets the memory. A segment's x0 columns touch only its own rows: each segment is reduced on
+//! product with C on top). Rows are reduced block by block, so N never sets the memory: to their
+//! Gram (one matrix product a block), whose Cholesky factor is the segment's R when it is well
+//! conditioned (noisy data), else by Householder QR (exact zeros for noise-free data). A segment's x0 columns touch only its own rows: each segment is reduced on
 //! its own, its x0 rows kept for the back substitution, the rest stacked into the shared problem.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use faer::{Mat, MatRef};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 
 use super::hankel::Signals;
 use super::pseudo_inverse;
 use crate::error::{ArxError, Result};
 use crate::linalg::dense::rows_product;
+use crate::linalg::lagged_gram::cholesky_if_well_conditioned;
 use crate::linalg::qr::{reduce_appended, stack_and_reduce, BLOCK_ROWS};
 
 /// What [`input_matrices`] estimates.
@@ -75,7 +78,7 @@ impl Sensitivity {
         let nu = u.len();
         scratch.resize(self.s.len(), 0.0);
         rows_product(at, &self.s, n, self.live, scratch);
-        for (i, out) in scratch.chunks_exact_mut(w).enumerate() {
+        for (i, out) in scratch.chunks_exact_mut(w).enumerate().filter(|_| nu > 0) {
             for (o, forced) in out[free..].chunks_exact_mut(nu).enumerate() {
                 let weight = c[o * n + i];
                 for (f, &uj) in forced.iter_mut().zip(u) {
@@ -97,9 +100,18 @@ impl Sensitivity {
 /// result does not depend on the number of threads.
 const CHUNK_SAMPLES: usize = 8192;
 
-/// R over the columns `[x0 | B | D | y]` of the rows of samples `t0..t1`, from `state` at `t0`.
+/// How a chunk's rows are reduced: to their Gram MᵀM (one matrix product per block of rows), or to
+/// R by Householder QR (which keeps the zeros of noise-free data and rank-deficient inputs exact).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reduction {
+    Gram,
+    Householder,
+}
+
+/// The regression rows `[x0 | B | D | y]` of samples `t0..t1`, from `state` at `t0`, handed to
+/// `take` a block (row-major, at most [`BLOCK_ROWS`] rows) at a time.
 #[allow(clippy::too_many_arguments)]
-fn chunk_factor(
+fn chunk_rows(
     a: MatRef<'_, f64>,
     c: MatRef<'_, f64>,
     s: &Signals<'_>,
@@ -107,7 +119,8 @@ fn chunk_factor(
     mut state: Sensitivity,
     unknowns: Unknowns,
     cancel: &AtomicBool,
-) -> Result<Mat<f64>> {
+    mut take: impl FnMut(&[f64]),
+) -> Result<()> {
     let (n, nu, ny) = (a.nrows(), s.n_inputs, s.n_outputs);
     let nx0 = if unknowns.initial_state { n } else { 0 };
     let nd = if unknowns.feedthrough { ny * nu } else { 0 };
@@ -115,7 +128,7 @@ fn chunk_factor(
     let free = if unknowns.initial_state { ny } else { 0 };
     let w = free + ny * nu;
     let (at, c) = (row_major(a.transpose()), row_major(c));
-    let mut work = Mat::<f64>::zeros(q + BLOCK_ROWS, q);
+    let mut block = vec![0.0; BLOCK_ROWS * q];
     let (mut filled, mut scratch) = (0, Vec::new());
     for t in t0..t1 {
         let u = &s.u[t * nu..(t + 1) * nu];
@@ -124,33 +137,71 @@ fn chunk_factor(
                 if cancel.load(Ordering::Relaxed) {
                     return Err(ArxError::Interrupted);
                 }
-                reduce_appended(&mut work, filled);
+                take(&block);
                 filled = 0;
             }
-            let row = q + filled;
+            let row = &mut block[filled * q..(filled + 1) * q];
             for (i, xi) in state.s.chunks_exact(w).enumerate() {
                 if nx0 > 0 {
-                    work[(row, i)] = xi[o];
+                    row[i] = xi[o];
                 }
                 for j in 0..nu {
-                    work[(row, nx0 + j * n + i)] = xi[free + o * nu + j];
+                    row[nx0 + j * n + i] = xi[free + o * nu + j];
                 }
             }
-            for j in 0..nd / ny.max(1) {
-                for oo in 0..ny {
-                    work[(row, nx0 + n * nu + j * ny + oo)] = if oo == o { u[j] } else { 0.0 };
+            if nd > 0 {
+                let d = &mut row[nx0 + n * nu..q - 1];
+                d.fill(0.0);
+                for (j, &uj) in u.iter().enumerate() {
+                    d[j * ny + o] = uj;
                 }
             }
-            work[(row, q - 1)] = s.y[t * ny + o];
+            row[q - 1] = s.y[t * ny + o];
             filled += 1;
         }
         state.step(&at, &c, free, u, &mut scratch);
     }
-    reduce_appended(&mut work, filled);
+    take(&block[..filled * q]);
+    Ok(())
+}
+
+/// The rows of samples `t0..t1` (from `state` at `t0`) reduced as `reduction` says: their Gram, or
+/// their R, over the columns `[x0 | B | D | y]`.
+#[allow(clippy::too_many_arguments)]
+fn chunk_factor(
+    a: MatRef<'_, f64>,
+    c: MatRef<'_, f64>,
+    s: &Signals<'_>,
+    range: (usize, usize),
+    state: Sensitivity,
+    unknowns: Unknowns,
+    reduction: Reduction,
+    cancel: &AtomicBool,
+) -> Result<Mat<f64>> {
+    let q = columns(a.nrows(), s, unknowns);
+    let mut work = Mat::<f64>::zeros(if reduction == Reduction::Gram { q } else { q + BLOCK_ROWS }, q);
+    chunk_rows(a, c, s, range, state, unknowns, cancel, |rows| {
+        let m = MatRef::from_row_major_slice(rows, rows.len() / q, q);
+        if reduction == Reduction::Gram {
+            matmul(work.as_mut(), Accum::Add, m.transpose(), m, 1.0, Par::Seq);
+        } else {
+            work.as_mut().submatrix_mut(q, 0, m.nrows(), q).copy_from(m);
+            reduce_appended(&mut work, m.nrows());
+        }
+    })?;
     Ok(work.as_ref().subrows(0, q).to_owned())
 }
 
-/// The segment's R over the columns `[x0 | B | D | y]`.
+/// Columns of the regression `[x0 | B | D | y]`.
+fn columns(n: usize, s: &Signals<'_>, unknowns: Unknowns) -> usize {
+    let nx0 = if unknowns.initial_state { n } else { 0 };
+    let nd = if unknowns.feedthrough { s.n_outputs * s.n_inputs } else { 0 };
+    nx0 + n * s.n_inputs + nd + 1
+}
+
+/// The segment's R over the columns `[x0 | B | D | y]`: the Cholesky factor of the rows' Gram when
+/// it is well conditioned ([`cholesky_if_well_conditioned`]: noisy data), else their Householder
+/// QR (noise-free data, rank-deficient inputs, a short segment that does not see every mode).
 fn segment_factor(
     a: MatRef<'_, f64>,
     c: MatRef<'_, f64>,
@@ -160,7 +211,6 @@ fn segment_factor(
     cancel: &AtomicBool,
 ) -> Result<Mat<f64>> {
     let (n, nu, ny) = (a.nrows(), s.n_inputs, s.n_outputs);
-    let nx0 = if unknowns.initial_state { n } else { 0 };
     let free = if unknowns.initial_state { ny } else { 0 };
     let (at, c_rows) = (row_major(a.transpose()), row_major(c));
     let mut state = Sensitivity::start(n, nu, ny, unknowns.initial_state, &c_rows);
@@ -172,12 +222,21 @@ fn segment_factor(
             state.step(&at, &c_rows, free, &s.u[t * nu..(t + 1) * nu], &mut scratch);
         }
     }
-    let factors = chunks
-        .into_par_iter()
-        .map(|(range, at)| chunk_factor(a, c, s, range, at, unknowns, cancel))
-        .collect::<Result<Vec<_>>>()?;
-    let nd = if unknowns.feedthrough { ny * nu } else { 0 };
-    Ok(stack_and_reduce(&factors, nx0 + n * nu + nd + 1))
+    let reduce = |reduction: Reduction| {
+        chunks
+            .par_iter()
+            .map(|(range, at)| chunk_factor(a, c, s, *range, at.clone(), unknowns, reduction, cancel))
+            .collect::<Result<Vec<_>>>()
+    };
+    let q = columns(n, s, unknowns);
+    let mut gram = Mat::<f64>::zeros(q, q);
+    for part in reduce(Reduction::Gram)? {
+        gram += part;
+    }
+    if let Some(l) = cholesky_if_well_conditioned(&gram) {
+        return Ok(l.transpose().to_owned());
+    }
+    Ok(stack_and_reduce(&reduce(Reduction::Householder)?, q))
 }
 
 /// B (and D, and each segment's x0, as `unknowns` asks) minimising the simulation error of the
