@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use super::hankel::Signals;
 use super::pseudo_inverse;
 use crate::error::{ArxError, Result};
-use crate::linalg::dense::rows_product;
+use crate::linalg::dense::{self, rows_product};
 use crate::linalg::lagged_gram::cholesky_if_well_conditioned;
 use crate::linalg::qr::{reduce_appended, stack_and_reduce, BLOCK_ROWS};
 
@@ -87,7 +87,12 @@ impl Sensitivity {
             }
         }
         std::mem::swap(&mut self.s, scratch);
-        // Once Aᵗ has died out, stop before it turns subnormal (100x slower arithmetic).
+        self.settle(n, free);
+    }
+
+    /// Once Aᵗ has died out, stops the x0 filters before they turn subnormal (100x slower arithmetic).
+    fn settle(&mut self, n: usize, free: usize) {
+        let w = self.s.len() / n;
         if self.live < free && self.s.chunks_exact(w).all(|row| row[..free].iter().all(|v| v.abs() < 1e-150)) {
             self.s.chunks_exact_mut(w).for_each(|row| row[..free].fill(0.0));
             self.live = free;
@@ -95,9 +100,61 @@ impl Sensitivity {
     }
 }
 
-/// Samples per chunk of a segment: chunks are reduced in parallel, each from the sensitivities
-/// at its first sample (found by a cheap sequential pass), and their R's stacked in order, so the
-/// result does not depend on the number of threads.
+/// The filters at each chunk's first sample, from `first` at the segment's. They are linear: a
+/// chunk's last state is `(Aᵀ)^len` times its first plus its response from zero, and those
+/// responses are found for every chunk at once (in parallel); the first states then follow in
+/// order, one n × n by n × w product each, where stepping through every sample in order would
+/// leave the other cores idle.
+fn chunk_starts(
+    at: &[f64],
+    c: &[f64],
+    s: &Signals<'_>,
+    bounds: &[(usize, usize)],
+    first: Sensitivity,
+    free: usize,
+) -> Vec<Sensitivity> {
+    let (n, nu) = (at.len().isqrt(), s.n_inputs);
+    let forced: Vec<Vec<f64>> = bounds[..bounds.len().saturating_sub(1)]
+        .par_iter()
+        .map(|&(t0, t1)| {
+            let (mut zero, mut scratch) = (Sensitivity { s: vec![0.0; first.s.len()], live: free }, Vec::new());
+            for t in t0..t1 {
+                zero.step(at, c, free, &s.u[t * nu..(t + 1) * nu], &mut scratch);
+            }
+            zero.s
+        })
+        .collect();
+    let power = bounds.first().map_or_else(Vec::new, |&(t0, t1)| matrix_power(at, n, t1 - t0));
+    let mut starts = vec![first];
+    for response in forced {
+        let previous = &starts[starts.len() - 1];
+        let mut next = Sensitivity { s: response, live: previous.live };
+        let mut homogeneous = vec![0.0; next.s.len()];
+        rows_product(&power, &previous.s, n, previous.live, &mut homogeneous);
+        next.s.iter_mut().zip(&homogeneous).for_each(|(x, h)| *x += h);
+        next.settle(n, free);
+        starts.push(next);
+    }
+    starts
+}
+
+/// `m^k` of a row-major n × n matrix, by squaring.
+fn matrix_power(m: &[f64], n: usize, mut k: usize) -> Vec<f64> {
+    let (mut result, mut base): (Vec<f64>, _) =
+        ((0..n * n).map(|i| if i / n == i % n { 1.0 } else { 0.0 }).collect(), m.to_vec());
+    while k > 0 {
+        if k & 1 == 1 {
+            result = dense::matmul(&result, &base, n);
+        }
+        base = dense::matmul(&base, &base, n);
+        k >>= 1;
+    }
+    result
+}
+
+/// Samples per chunk of a segment: chunks are reduced in parallel, each from the filters at its
+/// first sample ([`chunk_starts`]), and their Grams added (or R's stacked) in order, so the result
+/// does not depend on the number of threads.
 const CHUNK_SAMPLES: usize = 8192;
 
 /// How a chunk's rows are reduced: to their Gram MᵀM (one matrix product per block of rows), or to
@@ -213,15 +270,10 @@ fn segment_factor(
     let (n, nu, ny) = (a.nrows(), s.n_inputs, s.n_outputs);
     let free = if unknowns.initial_state { ny } else { 0 };
     let (at, c_rows) = (row_major(a.transpose()), row_major(c));
-    let mut state = Sensitivity::start(n, nu, ny, unknowns.initial_state, &c_rows);
-    let (mut scratch, mut chunks) = (Vec::new(), Vec::new());
-    for t0 in (start..end).step_by(CHUNK_SAMPLES) {
-        let t1 = (t0 + CHUNK_SAMPLES).min(end);
-        chunks.push(((t0, t1), state.clone()));
-        for t in t0..t1 {
-            state.step(&at, &c_rows, free, &s.u[t * nu..(t + 1) * nu], &mut scratch);
-        }
-    }
+    let bounds: Vec<(usize, usize)> =
+        (start..end).step_by(CHUNK_SAMPLES).map(|t0| (t0, (t0 + CHUNK_SAMPLES).min(end))).collect();
+    let first = Sensitivity::start(n, nu, ny, unknowns.initial_state, &c_rows);
+    let chunks: Vec<_> = bounds.iter().copied().zip(chunk_starts(&at, &c_rows, s, &bounds, first, free)).collect();
     let reduce = |reduction: Reduction| {
         chunks
             .par_iter()

@@ -9,7 +9,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use faer::{Mat, MatRef};
+use faer::Mat;
 
 use super::hankel::Signals;
 use super::input_matrices::{input_matrices, Unknowns};
@@ -17,6 +17,7 @@ use super::pseudo_inverse;
 use super::response::{respond, StateSpaceRef};
 use crate::error::{ArxError, Result};
 use crate::linalg::lagged_gram::lagged_gram;
+use crate::linalg::lagged_products::dot_product;
 use crate::linalg::lagged_qr::{LaggedColumn, Source};
 
 /// K (n × ny) of the model `m`, started from `x0[i]` on segment i of `s`, with an autoregression
@@ -78,24 +79,22 @@ fn innovations(v: &[f64], s: &Signals<'_>, lags: usize, parallel: bool, cancel: 
     let ranges: Vec<(usize, usize)> = s.segments.iter().map(|&(lo, hi)| (lo + lags, hi)).collect();
     let gram = lagged_gram(&source, &columns, &ranges, parallel, cancel)?;
     let p = lags * ny;
-    let coefficients: Mat<f64> =
-        pseudo_inverse(gram.as_ref().submatrix(ny, ny, p, p)) * gram.as_ref().submatrix(ny, 0, p, ny);
+    let theta = pseudo_inverse(gram.as_ref().submatrix(ny, ny, p, p)) * gram.as_ref().submatrix(ny, 0, p, ny);
+    // Row o of the predictor, over v(t−lags) … v(t−1) oldest first (the regressors run newest first).
+    let weights: Vec<f64> = (0..ny)
+        .flat_map(|o| (0..p).map(move |i| (o, lags - 1 - i / ny, i % ny)))
+        .map(|(o, j, k)| theta[(j * ny + k, o)])
+        .collect();
     let mut e = v.to_vec();
     for &(lo, hi) in &ranges {
         for t in lo..hi {
             let past = &v[(t - lags) * ny..t * ny];
-            for o in 0..ny {
-                e[t * ny + o] -= predicted(past, coefficients.as_ref(), o, ny);
+            for (o, row) in weights.chunks_exact(p).enumerate() {
+                e[t * ny + o] -= dot_product(row, past);
             }
         }
     }
     Ok(e)
-}
-
-/// `Σ_j Σ_k v_k(t−j−1) θ[j·ny + k, o]` with `past` = v(t−lags) … v(t−1), oldest first.
-fn predicted(past: &[f64], theta: MatRef<'_, f64>, o: usize, ny: usize) -> f64 {
-    let lags = past.len() / ny;
-    (0..lags).map(|j| (0..ny).map(|k| past[(lags - 1 - j) * ny + k] * theta[(j * ny + k, o)]).sum::<f64>()).sum()
 }
 
 #[cfg(test)]
