@@ -8,12 +8,12 @@ its initial state estimated by least squares (arxid's ``fit_percent``), fit in p
 Times are the median of ``--repeats`` runs for arxid, one run for each peer: wall clock, and the
 CPU time of all the process's threads (other processes on a shared machine inflate the wall clock,
 not the CPU time). SIPPY runs twice: with its BLAS on every core (its default), and held to one
-BLAS thread (on a loaded machine the one thread can be the faster). nfoursid forms an N × N matrix and cannot run 100,000 samples (75 GiB), so all
-three are compared again at 5,000 samples.
+BLAS thread (on a loaded machine the one thread can be the faster). nfoursid forms an N × N matrix
+and cannot run 100,000 samples (75 GiB), so all three are compared again at 5,000 samples.
 
 Target (issue 44): arxid at least 10x faster than either peer, with an equal or better fit (aimed
-at 15x against SIPPY's default, 10x against SIPPY on one BLAS thread). The
-prediction-error refinement (``refine=True``) is timed once beside them, with its fit and how much
+at 15x against SIPPY's default, 10x against SIPPY on one BLAS thread). The prediction-error
+refinement (``refine=True``) is timed once beside them, with its fit and how much
 it lowered the one-step prediction error on the estimation data (white output noise: little to gain;
 it pays with coloured noise).
 

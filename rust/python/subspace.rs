@@ -22,11 +22,15 @@ fn view<'a>(a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<faer::MatRef<'a, f64>>
 }
 
 fn matrix<'py>(py: Python<'py>, m: &faer::Mat<f64>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let rows: Vec<Vec<f64>> = (0..m.nrows()).map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect()).collect();
     if m.nrows() == 0 {
         return Ok(PyArray2::zeros(py, [0, m.ncols()], false));
     }
-    Ok(PyArray2::from_vec2(py, &rows)?)
+    Ok(PyArray2::from_vec2(py, &rows(m.as_ref()))?)
+}
+
+/// The rows of `m` (for the initial states: one per segment).
+fn rows(m: faer::MatRef<'_, f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows()).map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect()).collect()
 }
 
 fn signals<'a>(
@@ -134,8 +138,7 @@ pub fn subspace_kalman_gain<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let s = signals(&u, &y, &segments)?;
     let m = StateSpaceRef { a: view(&a)?, b: view(&b)?, c: view(&c)?, d: view(&d)? };
-    let x0 = view(&x0)?;
-    let x0: Vec<Vec<f64>> = (0..x0.nrows()).map(|i| (0..x0.ncols()).map(|j| x0[(i, j)]).collect()).collect();
+    let x0 = rows(view(&x0)?);
     let gain = run(py, n_threads, |cancel| {
         s.check()?;
         kalman_gain(m, &x0, &s, lags, n_threads != 1, cancel)
@@ -200,7 +203,7 @@ pub fn subspace_refine<'py>(
         c: view(&c)?.to_owned(),
         d: view(&d)?.to_owned(),
         k: view(&k)?.to_owned(),
-        x0: (0..x0.nrows()).map(|i| (0..x0.ncols()).map(|j| x0[(i, j)]).collect()).collect(),
+        x0: rows(x0),
     };
     let options = RefineOptions { max_iterations, tolerance, estimate_initial, stable, parallel: n_threads != 1 };
     let fit = run(py, n_threads, |cancel| refine(&start, &s, options, cancel))?;

@@ -181,4 +181,50 @@ mod tests {
             }
         }
     }
+
+    /// On noisy data the factor comes from the Gram (every pivot above the floor) and agrees with
+    /// the Householder factor in its products, L Lᵀ, to rounding.
+    #[test]
+    fn the_gram_factor_agrees_with_the_householder_factor_on_noisy_data() {
+        let n = 3000;
+        let mut seed = 7u64;
+        let mut noise = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let u: Vec<f64> = (0..2 * n).map(|_| noise()).collect();
+        let mut y = vec![0.0; n];
+        for t in 1..n {
+            y[t] = 0.8 * y[t - 1] + u[2 * (t - 1)] - 0.5 * u[2 * (t - 1) + 1] + 0.1 * noise();
+        }
+        let segments = [(0, 1700), (1700, n)];
+        let s = Signals { u: &u, y: &y, n_inputs: 2, n_outputs: 1, segments: &segments };
+        let h = Horizons { past: 3, future: 4 };
+        let never = AtomicBool::new(false);
+        let f = hankel_factor(&s, h, true, &never).unwrap();
+        let sources = [
+            Source { values: &u, rows: n, columns: 2, row_stride: 2, col_stride: 1 },
+            Source { values: &y, rows: n, columns: 1, row_stride: 1, col_stride: 1 },
+        ];
+        let block = |source, width, lags: Vec<isize>| {
+            lags.into_iter().flat_map(move |lag| (0..width).map(move |column| LaggedColumn { source, column, lag }))
+        };
+        let columns: Vec<LaggedColumn> = block(0, 2, vec![0, -1, -2, -3])
+            .chain(block(0, 2, vec![3, 2, 1]))
+            .chain(block(1, 1, vec![3, 2, 1]))
+            .chain(block(1, 1, vec![0, -1, -2, -3]))
+            .collect();
+        let ranges = [(3, 1697), (1703, n - 3)];
+        let gram = lagged_gram(&sources, &columns, &ranges, true, &never).unwrap();
+        assert!(cholesky_if_well_conditioned(&gram).is_some());
+        let qr = householder_factor(&sources, &columns, &ranges, true, &never).unwrap();
+        let q = columns.len();
+        for i in 0..q {
+            for j in 0..q {
+                let (from_gram, from_qr): (f64, f64) =
+                    (0..q).fold((0.0, 0.0), |(g, r), k| (g + f.l[(i, k)] * f.l[(j, k)], r + qr[(i, k)] * qr[(j, k)]));
+                assert!((from_gram - from_qr).abs() < 1e-12 * from_qr.abs().max(1.0), "{i} {j}");
+            }
+        }
+    }
 }
