@@ -225,3 +225,15 @@ def test_noisy_random_mimo_system_fits_like_the_true_one():
     val = as_data(y[3000:], u[3000:])
     true_fit = [arxid._base.metrics.fit_percent(y[3000:, i], true.simulate(u)[3000:, i]) for i in range(3)]
     assert np.all(model.fit_percent(val) > np.array(true_fit) - 1.0)
+
+
+def test_a_time_series_without_inputs_gives_its_innovation_model():
+    # ARMA(1,1): y(t) = 0.9 y(t-1) + e(t) + 0.5 e(t-1), so A = 0.9 and C K = 0.9 + 0.5 in any coordinates.
+    rng = np.random.default_rng(5)
+    e = rng.normal(size=20_000)
+    y = np.zeros(20_000)
+    for t in range(1, 20_000):
+        y[t] = 0.9 * y[t - 1] + e[t] + 0.5 * e[t - 1]
+    model = arxid.ssest(arxid.IOData(y, np.zeros((20_000, 0)), ts=1.0), order=1)
+    assert model.b.shape == (1, 0) and abs(model.a[0, 0] - 0.9) < 0.02
+    assert abs((model.c @ model.k)[0, 0] - 1.4) < 0.05

@@ -125,7 +125,7 @@ fn keep_finite_rows(a: &mut Mat<f64>) -> usize {
 }
 
 /// Every read `t − lag` of every row lies inside its source, and every source and column exists.
-fn check_reads(sources: &[Source<'_>], columns: &[LaggedColumn], rows: &[usize]) -> Result<()> {
+pub(crate) fn check_reads(sources: &[Source<'_>], columns: &[LaggedColumn], rows: &[usize]) -> Result<()> {
     let (Some(&lo), Some(&hi)) = (rows.iter().min(), rows.iter().max()) else {
         return Ok(());
     };

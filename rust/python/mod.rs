@@ -48,7 +48,9 @@ mod core_module {
     #[pymodule_export]
     use super::srivc::srivc_filter;
     #[pymodule_export]
-    use super::subspace::{state_space_response, subspace_identify, subspace_input_matrices, subspace_refine};
+    use super::subspace::{
+        state_space_response, subspace_identify, subspace_input_matrices, subspace_kalman_gain, subspace_refine,
+    };
     #[pymodule_export]
     use super::sums::{
         finite_peak, finite_squares, finite_squares_of_difference, fit_pass, fit_squares, group_sums, peak_magnitude,

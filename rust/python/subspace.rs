@@ -8,6 +8,7 @@ use pyo3::types::PyDict;
 use super::run::run;
 use crate::subspace::innovation::Innovation;
 use crate::subspace::input_matrices::{input_matrices, Unknowns};
+use crate::subspace::kalman_gain::kalman_gain;
 use crate::subspace::refine::{refine, RefineOptions};
 use crate::subspace::response::{respond, StateSpaceRef};
 use crate::subspace::{identify, Horizons, Signals, SubspaceOptions, Weighting};
@@ -21,11 +22,15 @@ fn view<'a>(a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<faer::MatRef<'a, f64>>
 }
 
 fn matrix<'py>(py: Python<'py>, m: &faer::Mat<f64>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let rows: Vec<Vec<f64>> = (0..m.nrows()).map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect()).collect();
     if m.nrows() == 0 {
         return Ok(PyArray2::zeros(py, [0, m.ncols()], false));
     }
-    Ok(PyArray2::from_vec2(py, &rows)?)
+    Ok(PyArray2::from_vec2(py, &rows(m.as_ref()))?)
+}
+
+/// The rows of `m` (for the initial states: one per segment).
+fn rows(m: faer::MatRef<'_, f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows()).map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect()).collect()
 }
 
 fn signals<'a>(
@@ -112,6 +117,35 @@ pub fn subspace_input_matrices<'py>(
     Ok((matrix(py, &fit.b)?, matrix(py, &fit.d)?, matrix(py, &x0)?))
 }
 
+/// K (n × ny) of the innovation form of the model (a, b, c, d) started from the rows of `x0` (one
+/// per segment), by two regressions on its output error with an autoregression of `lags` samples
+/// (see `rust/subspace/kalman_gain.rs`); not yet halved for stability.
+#[pyfunction]
+#[pyo3(signature = (a, b, c, d, x0, u, y, segments, lags, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+pub fn subspace_kalman_gain<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    b: PyReadonlyArray2<'py, f64>,
+    c: PyReadonlyArray2<'py, f64>,
+    d: PyReadonlyArray2<'py, f64>,
+    x0: PyReadonlyArray2<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    y: PyReadonlyArray2<'py, f64>,
+    segments: Vec<(usize, usize)>,
+    lags: usize,
+    n_threads: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let s = signals(&u, &y, &segments)?;
+    let m = StateSpaceRef { a: view(&a)?, b: view(&b)?, c: view(&c)?, d: view(&d)? };
+    let x0 = rows(view(&x0)?);
+    let gain = run(py, n_threads, |cancel| {
+        s.check()?;
+        kalman_gain(m, &x0, &s, lags, n_threads != 1, cancel)
+    })?;
+    matrix(py, &gain)
+}
+
 /// `(y, x)`: the outputs (N × ny) and states (N × n) of the model (a, b, c, d) from state `x0`
 /// driven by `u` (N × nu); NaN from where a state passed 1e150 on.
 #[pyfunction]
@@ -169,7 +203,7 @@ pub fn subspace_refine<'py>(
         c: view(&c)?.to_owned(),
         d: view(&d)?.to_owned(),
         k: view(&k)?.to_owned(),
-        x0: (0..x0.nrows()).map(|i| (0..x0.ncols()).map(|j| x0[(i, j)]).collect()).collect(),
+        x0: rows(x0),
     };
     let options = RefineOptions { max_iterations, tolerance, estimate_initial, stable, parallel: n_threads != 1 };
     let fit = run(py, n_threads, |cancel| refine(&start, &s, options, cancel))?;

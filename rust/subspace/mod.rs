@@ -4,12 +4,14 @@
 //! The steps, each in its own file: the Hankel factor L built block by block ([`hankel`]); the
 //! weighted projection, its SVD and the order criterion ([`projection`]); A and C from the
 //! observability matrix ([`realization`]); B, D and the initial states by least squares on the data
-//! ([`input_matrices`]); and the model's response ([`response`]). The prediction-error refinement
+//! ([`input_matrices`]); the Kalman gain from the output error ([`kalman_gain`]); and the model's
+//! response ([`response`]). The prediction-error refinement
 //! ([`refine`]) starts from the result, on the innovation form's predictor ([`innovation`]).
 
 pub mod hankel;
 pub mod innovation;
 pub mod input_matrices;
+pub mod kalman_gain;
 pub mod projection;
 pub mod realization;
 pub mod refine;

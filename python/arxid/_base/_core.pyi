@@ -59,6 +59,7 @@ __all__ = [
     "state_space_response",
     "subspace_identify",
     "subspace_input_matrices",
+    "subspace_kalman_gain",
     "subspace_refine",
     "ar_filter_rows",
     "lfilter",
@@ -385,6 +386,18 @@ def subspace_input_matrices(
     feedthrough: bool = True,
     initial_state: bool = True,
 ) -> tuple[_F, _F, _F]: ...
+def subspace_kalman_gain(
+    a: _F,
+    b: _F,
+    c: _F,
+    d: _F,
+    x0: _F,
+    u: _F,
+    y: _F,
+    segments: Sequence[tuple[int, int]],
+    lags: int,
+    n_threads: int = 0,
+) -> _F: ...
 def subspace_refine(
     a: _F,
     b: _F,

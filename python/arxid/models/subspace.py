@@ -14,7 +14,7 @@ import numpy as np
 
 from .._base import _core
 from ..exceptions import DataError, IdentifiabilityError, OrderError
-from .mimo_data import Signals, gather
+from .mimo_data import gather
 from .state_space import Refinement, StateSpaceModel
 
 __all__ = ["ssest", "METHODS", "DEFAULT_HORIZON"]
@@ -48,45 +48,23 @@ def _stabilise(a: np.ndarray) -> np.ndarray:
     return np.real(vectors @ np.diag(values) @ np.linalg.inv(vectors))
 
 
-def _kalman_gain(model: StateSpaceModel, signals: Signals, segments: list[tuple[int, int]], lags: int) -> np.ndarray:
+def _kalman_gain(
+    model: StateSpaceModel, u: np.ndarray, y: np.ndarray, segments: list[tuple[int, int]], lags: int, n_threads: int
+) -> np.ndarray:
     """K of the innovation form, by two linear regressions on the output error v = y − ŷ_sim.
 
     First the innovations e are estimated by a long vector autoregression of v (Hannan–Rissanen);
-    then v − e = C (zI − A)⁻¹ K e is linear in K, the same least squares as B with e as input.
-    K is halved until A − KC is stable (zero if it never is).
+    then v − e = C (zI − A)⁻¹ K e is linear in K, the same least squares as B with e as input
+    (both in the Rust core, ``rust/subspace/kalman_gain.rs``). K is halved until A − KC is stable
+    (zero if it never is).
     """
-    ny, n = model.n_outputs, model.order
-    v = np.zeros_like(signals.y)
-    innovations = np.zeros_like(signals.y)
-    rows, targets = [], []
-    for (lo, hi), x0 in zip(segments, model.initial_states, strict=True):
-        v[lo:hi] = signals.y[lo:hi] - model.simulate(signals.u[lo:hi], x0)
-        part = v[lo:hi]
-        rows.append(np.hstack([part[lags - j - 1 : len(part) - j - 1] for j in range(lags)]))
-        targets.append(part[lags:])
-    phi, target = np.vstack(rows), np.vstack(targets)
-    # Normal equations: a few times faster than an SVD of the tall phi, accurate enough for e.
-    coefficients = np.linalg.lstsq(phi.T @ phi, phi.T @ target, rcond=None)[0]
-    at = 0
-    for lo, hi in segments:
-        size = hi - lo - lags
-        innovations[lo:hi] = v[lo:hi]
-        innovations[lo + lags : hi] = target[at : at + size] - phi[at : at + size] @ coefficients
-        at += size
-    gain = _core.subspace_input_matrices(
-        np.ascontiguousarray(model.a),
-        np.ascontiguousarray(model.c),
-        innovations,
-        np.ascontiguousarray(v - innovations),
-        segments,
-        feedthrough=False,
-        initial_state=True,
-    )[0]
+    a, b, c, d, x0 = (np.ascontiguousarray(m) for m in (model.a, model.b, model.c, model.d, model.initial_states))
+    gain = _core.subspace_kalman_gain(a, b, c, d, x0, u, y, segments, lags, n_threads)
     for _ in range(12):
         if np.all(np.abs(np.linalg.eigvals(model.a - gain @ model.c)) < 1.0):
             return gain
         gain = gain / 2
-    return np.zeros((n, ny))
+    return np.zeros((model.order, model.n_outputs))
 
 
 def _input_matrices(a, c, u, y, segments, estimate_x0: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -249,7 +227,7 @@ def ssest(
     )
     lags = past
     if all(hi - lo > 2 * lags for lo, hi in segments):
-        model = replace(model, k=_kalman_gain(model, signals, segments, lags))
+        model = replace(model, k=_kalman_gain(model, u, y, segments, lags, n_threads))
     if refine:
         model = _refine(
             model, u, y, segments, estimate_initial=initial == "estimate", stable=stable, n_threads=n_threads
