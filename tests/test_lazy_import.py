@@ -72,3 +72,4 @@ def test_a_short_analysis_imports_neither_scipy_signal_nor_scipy_stats():
     loaded = modules_after(code)
     assert "arxid.diagnosis.ladder" in loaded  # the analysis ran
     assert "scipy.signal" not in loaded and "scipy.stats" not in loaded
+    assert "arxid.fleet" not in loaded  # the many logs' modules load for many logs
