@@ -10,6 +10,10 @@ the median, min and max wall times and the median CPU time are printed, with a b
 scale.
 
     python benches/cli_start.py [--runs 7]
+    python benches/cli_start.py --stages     # where one diagnose's time goes, stage by stage
+
+``--stages`` runs the command's chain in a fresh process, stage by stage (imports, reading,
+sweep, diagnosis and ladder, checks, printing), with the wall and CPU seconds of each.
 """
 
 from __future__ import annotations
@@ -60,15 +64,54 @@ def run_times(argv: list[str], runs: int, env: dict) -> tuple[list[float], list[
     return walls, cpus
 
 
+#: The chain of ``arxid diagnose``, stage by stage, in a fresh process (argv[1]: the file).
+STAGES = """
+import sys, time
+marks = [("start", time.perf_counter(), time.process_time())]
+def mark(name):
+    marks.append((name, time.perf_counter(), time.process_time()))
+import numpy
+mark("import numpy")
+from arxid.analysis import cli
+from arxid.analysis.cli_data import load
+from arxid.analysis.pipeline import analyse
+mark("import arxid (the pipeline)")
+argv = ["diagnose", sys.argv[1], "--output", "thrust", "--inputs", "pwm", "--extra", "vbat", "--ts", "0.01"]
+est, val = load(cli.build_parser("diagnose").parse_args(argv))
+mark("parse the arguments, read the file")
+a = analyse(est, val)
+mark("analyse")
+text = "\\n".join(a.summary_lines(n_suspects=12))
+mark("the printed text")
+for (_, w0, c0), (name, w1, c1) in zip(marks, marks[1:]):
+    print(f"{name:<40}{w1 - w0:>8.3f}s{c1 - c0:>8.3f}s")
+    if name == "analyse":
+        for stage, seconds in a.timings.items():
+            print(f"  {stage:<38}{seconds:>8.3f}s")
+wall, cpu = marks[-1][1] - marks[0][1], marks[-1][2] - marks[0][2]
+print(f"{'total (after the interpreter started)':<40}{wall:>8.3f}s{cpu:>8.3f}s")
+"""
+
+
+def stages(flight: Path, env: dict) -> None:
+    print(f"{'stage of arxid diagnose (2,000 samples)':<40}{'wall':>9}{'cpu':>9}")
+    subprocess.run([sys.executable, "-c", STAGES, str(flight)], check=True, env=env)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=7)
-    runs = parser.parse_args().runs
+    parser.add_argument("--stages", action="store_true", help="where one diagnose's time goes, stage by stage")
+    options = parser.parse_args()
+    runs = options.runs
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     arxid_cmd = command()
     with tempfile.TemporaryDirectory() as tmp:
         flight = Path(tmp) / "thrust_stand.csv"
         write_flight(flight)
+        if options.stages:
+            stages(flight, env)
+            return
         diagnose = [*arxid_cmd, "diagnose", str(flight), "--output", "thrust", "--inputs", "pwm", "--extra", "vbat"]
         cases = {
             "python alone": [sys.executable, "-c", "pass"],

@@ -42,6 +42,17 @@ def test_import_arxid_and_help_import_neither_numpy_nor_the_pipeline():
     cli = "import sys\nfrom arxid.analysis.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass"
     helped = modules_after(cli)
     assert not {"numpy", "scipy", "arxid._base._core", "arxid.analysis.pipeline"} & helped
+    assert "importlib.metadata" not in light | helped  # the version is read when asked
+
+
+def test_the_version_is_read_when_asked():
+    from importlib.metadata import version
+
+    out = subprocess.run(
+        [sys.executable, "-m", "arxid.analysis.cli", "--version"], capture_output=True, text=True, check=True
+    )
+    assert out.stdout == f"arxid {version('arxid')}\n" and out.stderr == ""
+    assert arxid.__version__ == version("arxid")
 
 
 def test_a_name_loads_its_module_and_the_fleet_fits_load_on_demand():
@@ -61,3 +72,4 @@ def test_a_short_analysis_imports_neither_scipy_signal_nor_scipy_stats():
     loaded = modules_after(code)
     assert "arxid.diagnosis.ladder" in loaded  # the analysis ran
     assert "scipy.signal" not in loaded and "scipy.stats" not in loaded
+    assert "arxid.fleet" not in loaded  # the many logs' modules load for many logs

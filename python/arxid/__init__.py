@@ -108,7 +108,9 @@ __all__ = [
 ]
 
 from ._base import moved as _moved  # noqa: E402
-from ._base.version import __version__ as __version__  # noqa: E402
+
+if TYPE_CHECKING:
+    from ._base.version import __version__ as __version__
 
 _moved.install()
 
@@ -132,7 +134,9 @@ _LAZY_MODULES.update((path.rpartition(".")[2], module) for path, module in _move
 
 
 def __getattr__(name: str) -> Any:
-    if name in _PUBLIC:
+    if name == "__version__":  # read from the installed metadata (importlib.metadata: 0.1 s) when asked
+        value = importlib.import_module("arxid._base.version").__version__
+    elif name in _PUBLIC:
         value = getattr(importlib.import_module(_PUBLIC[name]), name)
     elif name in _LAZY_MODULES or name in _SUBPACKAGES:
         value = importlib.import_module(_LAZY_MODULES.get(name, f"arxid.{name}"))

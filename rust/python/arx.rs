@@ -2,10 +2,12 @@
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
+use std::sync::atomic::AtomicBool;
 
 use super::arguments::{factor_from, saturating_usize, slices, structure};
 use super::errors::{to_pyerr, DataError, OrderError};
-use super::run::run;
+use super::run::{run, run_short, SHORT_CALL};
+use crate::arx::fit::fit_rows_like;
 use crate::arx::structure::Data;
 use crate::sweep::least_squares::effective_threads;
 
@@ -51,7 +53,10 @@ pub(super) fn fit<'py>(
     let s = structure(py, na, nb, nk, output_terms)?;
     let (ys, us, m) = slices(&y, &u)?;
     let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
-    let f = run(py, n_threads, |cancel| crate::arx::fit::fit_rows_like(&d, &s, first_lag, true, env.as_ref(), cancel))?;
+    // A short record is one block of rows or a few: the same factor as in parallel, on this thread.
+    let short = ys.len() * (s.n_params() + 1) <= SHORT_CALL;
+    let fit = |cancel: &AtomicBool| fit_rows_like(&d, &s, first_lag, !short, env.as_ref(), cancel);
+    let f = if short { run_short(py, fit)? } else { run(py, n_threads, fit)? };
     let p = f.theta.len();
     Ok(FitOutput {
         theta: f.theta.into_pyarray(py).unbind(),
@@ -85,7 +90,7 @@ pub(super) fn fit_from_factor<'py>(
     }
     let cols = crate::arx::columns::columns_in(&env, &s);
     let q = env.n_params() + 1;
-    let f = run(py, 1, |_| crate::arx::fit::fit_from_factor(&r, q, &cols, n_rows))?;
+    let f = run_short(py, |_| crate::arx::fit::fit_from_factor(&r, q, &cols, n_rows))?; // no data: a few columns
     let p = f.theta.len();
     Ok(FitOutput {
         theta: f.theta.into_pyarray(py).unbind(),

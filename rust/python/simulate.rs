@@ -3,10 +3,11 @@
 
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
+use std::sync::atomic::AtomicBool;
 
 use super::arguments::{slices, structure};
 use super::errors::{to_pyerr, OrderError};
-use super::run::run;
+use super::run::{run, run_short, SHORT_CALL};
 use crate::arx::structure::Data;
 
 /// The first-order band's variance of a free run (see [`crate::simulate::band::free_run_variance`]): `thetas`
@@ -77,7 +78,13 @@ pub(super) fn predict<'py>(
     {
         let mut rw = out.readwrite();
         let buf = rw.as_slice_mut()?;
-        run(py, 1, |cancel| crate::simulate::predict::predict_into(&d, &s, th, horizon, first_lag, cancel, buf))?;
+        let predict =
+            |cancel: &AtomicBool| crate::simulate::predict::predict_into(&d, &s, th, horizon, first_lag, cancel, buf);
+        if ys.len() * th.len().max(1) <= SHORT_CALL {
+            run_short(py, predict)?;
+        } else {
+            run(py, 1, predict)?;
+        }
     }
     Ok(out)
 }

@@ -14,7 +14,6 @@ from __future__ import annotations
 import os
 import signal
 import sys
-from pathlib import Path
 from types import FrameType
 
 __all__ = ["EXIT_INTERRUPTED", "end_startup", "guard_startup"]
@@ -29,7 +28,7 @@ def _launching() -> bool:
     if argv0 == "-m":  # runpy sets the module's path once its packages are imported
         orig = list(getattr(sys, "orig_argv", []))
         return "-m" in orig[:-1] and orig[orig.index("-m") + 1].split(".")[0] == "arxid"
-    return Path(argv0).name in ("arxid", "arxid.exe")
+    return os.path.basename(argv0) in ("arxid", "arxid.exe")  # not pathlib: its import is longer than --help
 
 
 def _exit_interrupted(signum: int, frame: FrameType | None) -> None:

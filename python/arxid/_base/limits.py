@@ -18,6 +18,7 @@ from ..exceptions import DataError, OrderError
 __all__ = [
     "MAX_ORDER",
     "MAX_WORK",
+    "UNCHECKED_MEMORY",
     "available_memory",
     "check_memory",
     "check_order",
@@ -141,9 +142,13 @@ def available_memory() -> int:
     return min(limits) if limits else _FALLBACK_MEMORY
 
 
+#: Bytes a computation may need without asking the kernel what is left (a short record's fit).
+UNCHECKED_MEMORY = 32 * 2**20
+
+
 def check_memory(need: int, what: str, fix: str, max_memory: int | None = None) -> None:
     """Refuse, before allocating, a computation needing more than ``max_memory`` bytes (default:
-    half of :func:`available_memory`).
+    half of :func:`available_memory`, for a need above :data:`UNCHECKED_MEMORY`).
 
     Parameters
     ----------
@@ -160,6 +165,8 @@ def check_memory(need: int, what: str, fix: str, max_memory: int | None = None) 
     -------
     None
     """
+    if max_memory is None and need <= UNCHECKED_MEMORY:
+        return  # asking the kernel (four files) would take longer than such a computation
     limit = int(max_memory) if max_memory is not None else available_memory() // 2
     if need > limit:
         raise DataError(

@@ -8,11 +8,19 @@ and returns the module that now holds the code. The public modules of the ``arxi
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.machinery
 import sys
 import warnings
 from types import CodeType, ModuleType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from importlib.abc import Loader, MetaPathFinder
+
+    class _Finder(MetaPathFinder, Loader): ...
+
+else:  # the import system needs only the methods: importlib.abc imports importlib.resources (20 ms)
+    _Finder = object
 
 __all__ = ["MOVED", "PUBLIC", "install"]
 
@@ -46,7 +54,7 @@ PUBLIC = {
 }
 
 
-class _Moved(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+class _Moved(_Finder):
     """Finds the paths of :data:`MOVED` and :data:`PUBLIC` and loads them as the modules that hold the code."""
 
     def find_spec(

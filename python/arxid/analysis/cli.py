@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any
 
 from .._base.launch import EXIT_INTERRUPTED, end_startup
 from .._base.limits import MAX_ORDER
-from .._base.version import __version__
 from ..exceptions import ArxidError, DataError
 from .cli_data import UsageError, data_args, load, load_data, names, parse_units, reference_name
 
@@ -31,6 +30,20 @@ if TYPE_CHECKING:
 __all__ = ["main", "load_data", "parse_range"]
 
 EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
+
+
+class _Version(argparse.Action):
+    """``--version``: the version is read from the installed metadata when asked (its import costs
+    more than the rest of ``arxid --help``)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kwargs: Any):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help="show the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: Any, values: Any, option_string: Any = None):
+        from .._base.version import __version__
+
+        print(f"arxid {__version__}")  # on stdout, as argparse's own version action
+        parser.exit()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -423,7 +436,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         "  arxid diagnose data.csv --output y --inputs u --extra vbat --ts 0.01 --json\n"
         "run 'arxid COMMAND --help' for each command's options.",
     )
-    root.add_argument("--version", action="version", version=f"arxid {__version__}")
+    root.add_argument("--version", action=_Version)
     sub = root.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     add = {"fit": _add_fit, "sweep": _add_sweep, "diagnose": _add_diagnose, "report": _add_report}
     add.update(ssest=_add_ssest, demo=_add_demo, bench=_add_bench, fleet=_add_fleet)

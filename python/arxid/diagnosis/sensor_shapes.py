@@ -52,15 +52,17 @@ def _sensor_grid(y: np.ndarray) -> list[SensorShape]:
     return out
 
 
-def _fitted(model: ArxModel, data: IOData, sensor: SensorShape) -> tuple[WienerModel | None, float]:
+def _fitted(model: ArxModel, data: IOData, sensor: SensorShape, floor: float) -> tuple[WienerModel | None, float]:
+    """The Wiener model with ``sensor`` and its free-run error (``floor``: the output's noise floor,
+    found once for the scan)."""
     try:
-        w = fit_wiener(model, data, sensor)
+        w = fit_wiener(model, data, sensor, floor)
     except ArxidError:
         return None, math.inf
     return w, free_run_rms(w, data)
 
 
-def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float) -> tuple[float, WienerModel]:
+def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float, floor: float) -> tuple[float, WienerModel]:
     """A local search from the grid's best parameters (Nelder–Mead; each point a fit and a free run)."""
     kind, start = w.sensor.kind, np.array(w.sensor.params)
     scale = np.maximum(np.abs(start), 1e-3) * 0.05
@@ -71,12 +73,12 @@ def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float) -> tupl
             sensor = SensorShape(kind, tuple(sorted(float(v) for v in params)))
         except ArxidError:  # the search stepped out of the shape's range
             return math.inf
-        return _fitted(model, data, sensor)[1]
+        return _fitted(model, data, sensor, floor)[1]
 
     found, fun = simplex_minimum(cost, np.array(simplex), maxfev=40)
     if not fun < rms:
         return rms, w
-    better, after = _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in found))))
+    better, after = _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in found))), floor)
     return (after, better) if better is not None else (rms, w)
 
 
@@ -105,12 +107,13 @@ def sensor_suspects(
         return []
     data = data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES]
     grid = _sensor_grid(np.asarray(data.y, dtype=float))
+    floor = noise_floor(data.y)
     best: dict[str, tuple[float, WienerModel]] = {}
     for sensor in grid:
-        w, rms = _fitted(model, data, sensor)
+        w, rms = _fitted(model, data, sensor, floor)
         if w is not None and rms < best.get(sensor.kind, (math.inf, None))[0]:
             best[sensor.kind] = (rms, w)
-    best = {kind: _polished(model, data, w, rms) for kind, (rms, w) in best.items()}
+    best = {kind: _polished(model, data, w, rms, floor) for kind, (rms, w) in best.items()}
     base_err = validation.y - prediction(model, validation, horizon, initial)[0]
     out = []
     for w in (w for _, w in best.values()):

@@ -96,6 +96,8 @@ class _Projection:
         data = cost.data
         self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
         self.signal = data.signal(cost.signal)
+        # A local search's late steps read the same digits (the effect's four): each text once.
+        self._known: dict[str, float] = {}
 
     @classmethod
     def build(cls, cost: ShapeCost, shape: InputShape) -> _Projection | None:
@@ -115,6 +117,15 @@ class _Projection:
         return cls(cost, index, basis, y_perp)
 
     def rss(self, shape: InputShape) -> float:
+        text = shape.text
+        if text not in self._known:
+            z = self._lags(shape)
+            # inf: a shaped lag the other columns span
+            self._known[text] = z if isinstance(z, float) else projected_rss(self.q, self.y_perp, z)
+        return self._known[text]
+
+    def _lags(self, shape: InputShape) -> np.ndarray | float:
+        """The shaped lag columns, or the loss itself when they cannot be projected."""
         try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
             read = parse_shape(shape.text, self.names, shape.effect)
         except ArxidError:
@@ -126,7 +137,7 @@ class _Projection:
         z = series[self.index]
         if not np.isfinite(z).all():
             return self.cost.refit(shape)
-        return projected_rss(self.q, self.y_perp, z)  # inf: a shaped lag the other columns span
+        return z
 
 
 def input_lags(

@@ -180,7 +180,7 @@ def noise_floor(y: np.ndarray) -> float:
     return float(3 * 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2))
 
 
-def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape) -> WienerModel:
+def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape, floor: float | None = None) -> WienerModel:
     """The Wiener model with ``model``'s orders and effects and the output read through ``sensor``.
 
     Parameters
@@ -190,6 +190,8 @@ def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape) -> WienerMode
     data : IOData
         Estimation data.
     sensor : SensorShape
+    floor : float, optional
+        ``noise_floor(data.y)``, when a scan of many sensors has it already.
 
     Returns
     -------
@@ -200,7 +202,7 @@ def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape) -> WienerMode
     DataError
         When too few samples lie where g can be inverted.
     """
-    z = sensor.inverse(data.y, noise_floor(data.y))
+    z = sensor.inverse(data.y, noise_floor(data.y) if floor is None else floor)
     if np.isfinite(z).sum() < 0.2 * data.n_samples:
         raise DataError(f"fewer than 20 % of the samples lie where {sensor.text} can be inverted")
     zdata = replace(data, y=z)

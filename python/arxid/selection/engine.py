@@ -8,7 +8,7 @@ import numbers
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,12 +16,14 @@ from .._base import _core
 from .._base.optional import optional
 from ..data.iodata import IOData
 from ..exceptions import DataError
-from ..fleet import cluster
-from ..fleet import logs as fleet
-from ..fleet import sweep as fleet_sweep
 from ..models.arguments import check_same_signals
 from ..models.effects import compile_effects
 from .grid import Grid
+
+if TYPE_CHECKING:
+    from ..fleet.sweep import DaskEngine
+
+# arxid.fleet is imported by the functions of a fleet: a sweep of one record does not load it.
 
 __all__ = ["CoreInputs", "Runner", "check_validation_length", "core_inputs", "fleet_engine", "fleet_parts"]
 
@@ -203,13 +205,16 @@ def fleet_parts(client: Any, logs: Sequence, read: Any, fraction: float | None) 
     tuple
         The logs on the workers (None in process), and the (estimation, validation) parts.
     """
+    from ..fleet import cluster
+    from ..fleet import logs as fleet
+
     if client is None:
         return None, fleet.merged_parts(logs, read, fraction)
     on_workers = cluster.WorkerLogs(client, logs, read, fraction)
     return on_workers, on_workers.on_demand()
 
 
-def fleet_engine(workers: Any, est: IOData, g: Grid, effects: tuple[str, ...]) -> fleet_sweep.DaskEngine:
+def fleet_engine(workers: Any, est: IOData, g: Grid, effects: tuple[str, ...]) -> DaskEngine:
     """The engine that sweeps a fleet where its logs are, with the effect columns and output terms
     the in-process sweep would use (the terms follow from the first samples alone).
 
@@ -228,6 +233,8 @@ def fleet_engine(workers: Any, est: IOData, g: Grid, effects: tuple[str, ...]) -
     -------
     arxid.fleet.sweep.DaskEngine
     """
+    from ..fleet import sweep as fleet_sweep
+
     columns = fleet_sweep.EffectColumns(effects, tuple(g.user_nb[0]), tuple(g.user_nk[0]))
     head = est[: min(est.n_samples, 8)]
     terms = list(compile_effects(effects, head, columns.nb, columns.nk).output_terms) if effects else []

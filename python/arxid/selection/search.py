@@ -24,7 +24,6 @@ from .._base import _core, metrics
 from .._base.limits import check_order
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, ArxidWarning, DataError, OrderError
-from ..fleet import logs as fleet
 from ..models.arx_model import ArxModel
 from ..models.excitation import check_excitation
 from . import choice, stages
@@ -567,6 +566,8 @@ def sweep(
     workers: Any = None  # a fleet's logs on a Dask cluster
     sweeper: Callable[..., SweepResult] | None = None  # how to sweep a fleet's logs again
     if isinstance(data, (list, tuple)):
+        from ..fleet import logs as fleet  # here: a sweep of one record does not load arxid.fleet
+
         options = dict(na=na, nb=nb, nk=nk, sort_by=sort_by, n_threads=n_threads, progress=progress, effects=effects)
         options.update(expect=expect, horizon=horizon, max_memory=max_memory, limits=limits, top=top)
         options.update(simulate_estimation=simulate_estimation, max_seconds=max_seconds, auto_extend=growing)
@@ -612,21 +613,10 @@ def sweep(
     k_default = int(horizon) if horizon is not None else max(10, 2 * first_lag)
     k_step = k_default if integrating else (int(horizon) if horizon is not None else None)
     grid = {"na": nas, "nb": nbs, "nk": nks}
-    settings = dict(
-        validation=val,
-        sort_by=sort_by,
-        n_threads=n_threads,
-        progress=progress,
-        effects=effects,
-        expect=expect,
-        horizon=horizon,
-        max_memory=max_memory,
-        limits=limits,
-        simulate_estimation=simulate_estimation,
-        top=top,
-        max_seconds=max_seconds,
-        **iv_settings(method, instruments),
-    )
+    settings: dict[str, Any] = dict(validation=val, sort_by=sort_by, n_threads=n_threads, progress=progress)
+    settings.update(effects=effects, expect=expect, horizon=horizon, max_memory=max_memory, limits=limits)
+    settings.update(simulate_estimation=simulate_estimation, top=top, max_seconds=max_seconds)
+    settings.update(iv_settings(method, instruments))
     build = _ResultBuilder(g, terms, est, val, sort_by, effects, expect, limits or SanityLimits(), m, grid, settings)
     result = build(run(k_step), k_step, integrating, reason)
     if expect is None and k_step is None:

@@ -245,13 +245,15 @@ class SweepTable:
         expect = self.expectation
         name = self.structure_name(i)
         if self.errors[i] is not None:
-            return StepSanity(name, ("not-fitted",), (self.errors[i],), math.nan, output_range(data), (), 0, expect)
+            return StepSanity(name, ("not-fitted",), (self.errors[i],), math.nan, self._output_range(), (), 0, expect)
         if self.effects:
             return step_sanity(self.model(i), data, expect=expect, limits=self.limits)
         # Linear structure: the step response is a filter of a constant (exactly antisymmetric).
         theta, na = self.parameters[i], int(self.na[i])
         a = np.concatenate([[1.0], theta[:na]])
-        amps = typical_amplitudes(data)
+        if "amplitudes" not in self._cache:  # the data's, the same for every structure
+            self._cache["amplitudes"] = typical_amplitudes(data)
+        amps = self._cache["amplitudes"]
         horizon = data.n_samples
         pos, neg = [], []
         c = na
@@ -271,13 +273,20 @@ class SweepTable:
             pos,
             neg,
             poles,
-            out_range=output_range(data),
+            out_range=self._output_range(),
             amplitudes=amps,
             expect=expect,
             limits=self.limits,
             pole_excess=self._pole_excess(i, poles),
             record=self.n_est,
         )
+
+    def _output_range(self) -> float:
+        """:func:`output_range` of the data the step sanity reads (two percentiles, found once)."""
+        if "output_range" not in self._cache:
+            data = self.validation if self.validation is not None else self.estimation
+            self._cache["output_range"] = output_range(data)
+        return self._cache["output_range"]
 
     @property
     def expectation(self) -> str:
