@@ -214,27 +214,14 @@ def diagnose(
     >>> d.top.effect
     'through(u1^2.005)'
     """
-    if client is not None and not isinstance(model, StateSpaceModel):  # by name: cluster_records imports this module
-        options: dict[str, Any] = dict(candidates=candidates, horizon=horizon, alpha=alpha)
-        options.update(min_improvement=min_improvement, validation=validation)
-        options.update(n_refit=n_refit, n_pairs=n_pairs, simple_explanations=simple_explanations, initial=initial)
-        options.update(residual_max_lag=residual_max_lag, loop_signals=loop_signals)
-        return import_module("arxid.diagnosis.cluster_records").diagnose_logs(model, data, client, **options)
-    if isinstance(model, StateSpaceModel):  # each output on its own (arxid.diagnosis.state_space)
-        return diagnose_state_space(
-            model,
-            data,  # type: ignore[arg-type]  # a fleet's records are refused as not an IOData
-            validation,
-            candidates=candidates,
-            horizon=horizon,
-            alpha=alpha,
-            min_improvement=min_improvement,
-            n_refit=n_refit,
-            residual_max_lag=residual_max_lag,
-            simple_explanations=simple_explanations,
-            initial=initial,
-            loop_signals=loop_signals,
-        )
+    options: dict[str, Any] = dict(candidates=candidates, horizon=horizon, alpha=alpha, initial=initial)
+    options.update(min_improvement=min_improvement, n_refit=n_refit, residual_max_lag=residual_max_lag)
+    options.update(simple_explanations=simple_explanations, loop_signals=loop_signals)
+    if isinstance(model, StateSpaceModel):  # each output on its own (a fleet's logs are refused there)
+        return diagnose_state_space(model, data, validation, **options)  # type: ignore[arg-type]
+    if client is not None:  # by name: cluster_records imports this module
+        diagnose_logs = import_module("arxid.diagnosis.cluster_records").diagnose_logs
+        return diagnose_logs(model, data, client, validation=validation, n_pairs=n_pairs, **options)
     model = check_model(model)
     if isinstance(data, Records):  # the records of a fleet, or one record already checked
         if validation is not None:
