@@ -11,6 +11,49 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
+#: The test files with the longest summed test time, longest first (measured with --durations on
+#: 2026-11-29). pytest-xdist's ``--dist loadfile`` hands a worker one file at a time in this order,
+#: so the long files start early and the short ones fill the gaps: a long file handed out last
+#: kept one worker busy alone at the end of the run.
+LONGEST_FIRST = (
+    "test_robust_integrator.py",
+    "test_cli.py",
+    "test_report.py",
+    "test_polynomial_diagnosis.py",
+    "test_robust_grid.py",
+    "test_robust_ladder.py",
+    "test_missing.py",
+    "test_browser.py",
+    "test_one_truth.py",
+    "test_closed_loop_chain.py",
+    "test_report_scale.py",
+    "test_robust_decoys.py",
+    "test_fuzz.py",
+    "test_tfest_pipeline.py",
+    "test_shapes.py",
+    "test_flight_log_chain.py",
+    "test_state_space_analysis.py",
+    "test_fleet_analysis.py",
+    "test_procest_core.py",
+    "test_readable.py",
+    "test_memory_bounds.py",
+    "test_state_space_browser.py",
+    "test_robust_demo_cli.py",
+)
+
+
+def pytest_configure(config):
+    """xdist otherwise reorders the files by their number of tests, which puts the few long
+    report and browser tests last; the order of :data:`LONGEST_FIRST` is kept instead."""
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files of :data:`LONGEST_FIRST` first, in its order; the others after, as collected."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
 
 def shared_data_dir() -> Path | None:
     """``$ARXID_SHARED_DATA``, else ``../shared/data`` beside the repository, else ``/work/shared/data``."""

@@ -33,9 +33,10 @@ def sagging_plant(seed: int, n: int = 8000, pole: float = 0.998) -> arxid.IOData
     return arxid.IOData(y, u, 0.01, output_name="speed", input_names=["command"])
 
 
-def position_servo(seed: int, n: int = 4000, ts: float = 0.01, delay: int = 8) -> arxid.IOData:
+def position_servo(seed: int, n: int = 2000, ts: float = 0.01, delay: int = 8) -> arxid.IOData:
     """A DC motor with viscous and Coulomb friction driving an inertia, position measured, the
-    command 8 samples late: an integrating plant."""
+    command 8 samples late: an integrating plant. 2,000 samples (20 s) prove what 4,000 did: the
+    verdict and the sane choice held on seeds 0-59 at that length, at 45 % of the time."""
     rng = np.random.default_rng(seed)
     u = np.repeat(rng.standard_normal(n // 20 + 1), 20)[:n]
     speed = angle = 0.0
