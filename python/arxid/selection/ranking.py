@@ -21,6 +21,7 @@ __all__ = [
     "Columns",
     "criteria",
     "effective_key",
+    "first_in_order",
     "max_poles",
     "ranked_columns",
     "ranking_column",
@@ -290,3 +291,27 @@ def ranked_columns(
         stage=res.stage[order],
         estimation_factor=getattr(res, "r_est", None),
     )
+
+
+def first_in_order(values: np.ndarray, k: int) -> np.ndarray:
+    """The first indices of ``np.argsort(values, kind="stable")``, at least ``k`` of them (every
+    value tied with the k-th smallest included), without sorting all of ``values``: the few best
+    structures of a grid of hundreds of thousands.
+
+    Parameters
+    ----------
+    values : ndarray of shape (S,)
+        The measure, smallest first (NaN sorts last, as in ``np.argsort``).
+    k : int
+        How many are needed.
+
+    Returns
+    -------
+    ndarray of int
+        A prefix of the stable sort's order, of length ``min(k, S)`` or more.
+    """
+    if k >= values.size:
+        return np.argsort(values, kind="stable")
+    kth = np.partition(values, k - 1)[k - 1]
+    idx = np.flatnonzero(values <= kth) if not np.isnan(kth) else np.arange(values.size)
+    return idx[np.argsort(values[idx], kind="stable")]

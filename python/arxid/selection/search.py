@@ -40,7 +40,7 @@ from .integrator import (
     unit_root_t,
 )
 from .iv_engine import IvRunner, iv_settings
-from .ranking import SORT_KEYS, ranked_columns
+from .ranking import SORT_KEYS, first_in_order, ranked_columns
 from .refine import RefinedSweep
 from .refine import refine as refine_sweep
 from .sanity import EXPECTATIONS, SanityLimits
@@ -297,7 +297,12 @@ def _integrator_verdict(result: SweepResult) -> IntegratorTest:
     names: list[str] = []
     t_values: list[float] = []
     taus: list[float] = []
-    for i in np.argsort(fpe, kind="stable"):
+    # The voters are among the first few by FPE unless many of those have no poles or failed.
+    candidates = first_in_order(fpe, 16 * VOTERS)
+    usable = sum(result.errors[i] is None and result.na[i] > 0 for i in candidates)
+    if usable < VOTERS and candidates.size < fpe.size:
+        candidates = np.argsort(fpe, kind="stable")
+    for i in candidates:
         if len(names) == VOTERS or not np.isfinite(fpe[i]):
             break
         if result.errors[i] is not None or result.na[i] == 0:
@@ -315,7 +320,7 @@ def _settling_evidence(result: SweepResult) -> SettlingEvidence | None:
     if result.horizon is not None:
         return None
     score = np.where(np.isfinite(result.rms_val) & np.isfinite(result.fit_val), result.rms_val, np.inf)
-    best = [int(i) for i in np.argsort(score, kind="stable")[:VOTERS] if np.isfinite(score[i])]
+    best = [int(i) for i in first_in_order(score, VOTERS)[:VOTERS] if np.isfinite(score[i])]
     if not best:
         return None
     taus = [
