@@ -113,8 +113,8 @@ class BesideFit:
             which, index, plain = input_lags(data, m.na_, layout, i, phi, rows)
             ok = which.size and plain.sum() == m.nb_[i]
             self._lags[i] = index[:, plain] if ok else None
-        basis = orthonormal_basis(phi)
-        del phi  # the largest array here: gone before the projections
+        basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
+        del phi
         if basis is None:
             return
         y_perp = y - basis @ (basis.T @ y)
