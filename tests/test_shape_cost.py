@@ -85,7 +85,7 @@ def test_the_blocked_r_factor_is_householders(rows):
 def test_a_tall_basis_is_numpys_projection_written_over_the_columns():
     """From 2^17 rows Q is the columns times R⁻¹, twice, in place: the same projections as numpy's Q
     (on nearly dependent columns too), and a column the others span is refused alike."""
-    from arxid.diagnosis.shape_cost import _LEAN_ROWS, orthonormal_basis
+    from arxid._base.orthonormal import _LEAN_ROWS, orthonormal_basis
 
     rng = np.random.default_rng(7)
     a = rng.standard_normal((_LEAN_ROWS + 999, 5))
