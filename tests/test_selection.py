@@ -336,6 +336,22 @@ def test_diebold_mariano_on_white_errors_is_the_paired_z_statistic():
     assert not diebold_mariano(e1, e1).worse
 
 
+def test_diebold_mariano_on_a_long_record_sums_the_lags_in_one_pass_to_rounding():
+    """From 2^17 samples the long-run variance's lagged sums come from the core in one pass; the
+    variance is the per-lag sums' to rounding."""
+    from arxid.selection import parsimony
+
+    rng = np.random.default_rng(3)
+    n = parsimony._ONE_PASS_SAMPLES + 1001
+    e1 = rng.standard_normal(n)
+    e2 = 1.01 * e1 + 0.3 * np.convolve(rng.standard_normal(n), np.ones(20) / 20, mode="same")  # correlated
+    dc = e2**2 - e1**2
+    dc -= dc.mean()
+    lag = int(n ** (1 / 3))
+    per_lag = sum((1.0 if k == 0 else 2 * (1 - k / (lag + 1))) * float(dc[k:] @ dc[: n - k]) for k in range(lag + 1))
+    assert parsimony._long_run_variance(dc, lag) == pytest.approx(per_lag / n, rel=1e-12)
+
+
 # ------------------------------------------------------------------------------------ 5. grid edges
 def _delayed_plant(nk=7, n=3000, seed=5):
     rng = np.random.default_rng(seed)

@@ -80,3 +80,22 @@ def test_the_blocked_r_factor_is_householders(rows):
     got, want = tall_r(a), np.linalg.qr(a, mode="r")
     signs = np.sign(np.diag(got)) * np.sign(np.diag(want))
     np.testing.assert_allclose(signs[:, None] * got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+
+
+def test_a_tall_basis_is_numpys_projection_written_over_the_columns():
+    """From 2^17 rows Q is the columns times R⁻¹, twice, in place: the same projections as numpy's Q
+    (on nearly dependent columns too), and a column the others span is refused alike."""
+    from arxid._base.orthonormal import _LEAN_ROWS, orthonormal_basis
+
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((_LEAN_ROWS + 999, 5))
+    a[:, 3] = a[:, 2] + 1e-5 * a[:, 3]
+    y = rng.standard_normal(a.shape[0])
+    want, _ = np.linalg.qr(a)
+    columns = a.copy()
+    got = orthonormal_basis(columns, overwrite=True)
+    assert got is columns
+    np.testing.assert_allclose(got.T @ got, np.eye(5), atol=1e-13)
+    np.testing.assert_allclose(got @ (got.T @ y), want @ (want.T @ y), atol=1e-11)
+    a[:, 4] = a[:, 0] - 2 * a[:, 1]
+    assert orthonormal_basis(a) is None

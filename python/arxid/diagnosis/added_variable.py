@@ -22,6 +22,7 @@ import numpy as np
 
 from .._base import _core
 from .._base.nested import blocked_r, column_norms
+from .._base.orthonormal import orthonormal_basis
 from .._base.probabilities import f_sf
 from .._base.triangular import cholesky_solve, solve_upper, solve_upper_transposed
 
@@ -137,8 +138,9 @@ class AddedVariableTest:
     @property
     def q(self) -> np.ndarray:
         """Orthonormal basis of the regressors' span (n × p; formed only when a test needs it)."""
-        if self._q is None:
-            self._q = np.linalg.qr(self._phi / self._scale)[0]
+        if self._q is None:  # on a tall Φ written over its scaled copy: no second n × p beside it
+            q = orthonormal_basis(self._phi / self._scale, overwrite=True)
+            self._q = np.linalg.qr(self._phi / self._scale)[0] if q is None else q
         return self._q
 
     def share(self, z: np.ndarray) -> float:

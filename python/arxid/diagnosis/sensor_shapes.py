@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._base import metrics
 from .._base.local_search import simplex_minimum
 from ..checks import prediction
 from ..data.iodata import IOData
@@ -25,14 +26,13 @@ from ..models.arx_model import ArxModel
 from ..models.iv import IvModel
 from ..models.wiener import SensorShape, WienerModel, fit_wiener, free_run_rms, noise_floor
 from .result import Suspect
+from .scan_sample import ScanSample, scan_sample
 from .shapes import validation_p
 
 __all__ = ["sensor_suspects", "rank_sensors", "SENSOR_STEPS"]
 
 #: Values of a sensor shape's parameter tried on the estimation data.
 SENSOR_STEPS = 12
-#: The scan reads at most this many estimation samples (a free run per value tried).
-SCAN_SAMPLES = 200_000
 
 
 def _sensor_grid(y: np.ndarray) -> list[SensorShape]:
@@ -52,17 +52,27 @@ def _sensor_grid(y: np.ndarray) -> list[SensorShape]:
     return out
 
 
-def _fitted(model: ArxModel, data: IOData, sensor: SensorShape, floor: float) -> tuple[WienerModel | None, float]:
-    """The Wiener model with ``sensor`` and its free-run error (``floor``: the output's noise floor,
-    found once for the scan)."""
+def _fitted(model: ArxModel, sample: ScanSample, sensor: SensorShape, floor: float) -> tuple[WienerModel | None, float]:
+    """The Wiener model with ``sensor`` fitted on the sample and its free-run error there, each
+    block's warm-up left out (``floor``: the output's noise floor, found once for the scan)."""
+    data = sample.data
     try:
         w = fit_wiener(model, data, sensor, floor)
     except ArxidError:
         return None, math.inf
-    return w, free_run_rms(w, data)
+    counts = sample.settled(w.linear.a)
+    if counts is None:
+        return w, free_run_rms(w, data)
+    try:
+        pred = w.predict(data, None)
+    except ArxidError:
+        return w, math.inf
+    return w, metrics.prediction_rms(data.y, np.where(counts, pred, np.nan))
 
 
-def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float, floor: float) -> tuple[float, WienerModel]:
+def _polished(
+    model: ArxModel, sample: ScanSample, w: WienerModel, rms: float, floor: float
+) -> tuple[float, WienerModel]:
     """A local search from the grid's best parameters (Nelder–Mead; each point a fit and a free run)."""
     kind, start = w.sensor.kind, np.array(w.sensor.params)
     scale = np.maximum(np.abs(start), 1e-3) * 0.05
@@ -73,12 +83,12 @@ def _polished(model: ArxModel, data: IOData, w: WienerModel, rms: float, floor: 
             sensor = SensorShape(kind, tuple(sorted(float(v) for v in params)))
         except ArxidError:  # the search stepped out of the shape's range
             return math.inf
-        return _fitted(model, data, sensor, floor)[1]
+        return _fitted(model, sample, sensor, floor)[1]
 
     found, fun = simplex_minimum(cost, np.array(simplex), maxfev=40)
     if not fun < rms:
         return rms, w
-    better, after = _fitted(model, data, SensorShape(kind, tuple(sorted(float(v) for v in found))), floor)
+    better, after = _fitted(model, sample, SensorShape(kind, tuple(sorted(float(v) for v in found))), floor)
     return (after, better) if better is not None else (rms, w)
 
 
@@ -105,18 +115,18 @@ def sensor_suspects(
     """
     if isinstance(model, IvModel) or model.effects or not (math.isfinite(base_rms) and base_rms > 0):
         return []
-    data = data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES]
-    grid = _sensor_grid(np.asarray(data.y, dtype=float))
+    grid = _sensor_grid(np.asarray(data.y, dtype=float))  # the levels of the whole record
     floor = noise_floor(data.y)
+    sample = scan_sample(data)
     best: dict[str, tuple[float, WienerModel]] = {}
     for sensor in grid:
-        w, rms = _fitted(model, data, sensor, floor)
+        w, rms = _fitted(model, sample, sensor, floor)
         if w is not None and rms < best.get(sensor.kind, (math.inf, None))[0]:
             best[sensor.kind] = (rms, w)
-    best = {kind: _polished(model, data, w, rms, floor) for kind, (rms, w) in best.items()}
+    best = {kind: _polished(model, sample, w, rms, floor) for kind, (rms, w) in best.items()}
     base_err = validation.y - prediction(model, validation, horizon, initial)[0]
     out = []
-    for w in (w for _, w in best.values()):
+    for w in _on_every_sample([w for _, w in best.values()], model, data, sample.data, floor):
         pred = w.predict(validation, horizon)
         after = float(np.sqrt(np.nanmean((validation.y - pred) ** 2))) if np.isfinite(pred).any() else math.inf
         p = validation_p(base_err, validation.y - pred)
@@ -127,6 +137,22 @@ def sensor_suspects(
             math.nan, math.nan, p, p_adj, len(w.sensor.params), after, gain, False, "", w, w.sensor.physics(),
         )  # fmt: skip
         out.append(s)
+    return out
+
+
+def _on_every_sample(
+    found: list[WienerModel], model: ArxModel, data: IOData, sample: IOData, floor: float
+) -> list[WienerModel]:
+    """The sensors the scan found, their linear parts refitted on every estimation sample (the
+    scan read ``sample`` of them); one that no longer fits is dropped."""
+    if sample is data:
+        return found
+    out = []
+    for w in found:
+        try:
+            out.append(fit_wiener(model, data, w.sensor, floor))
+        except ArxidError:
+            continue
     return out
 
 

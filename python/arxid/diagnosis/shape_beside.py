@@ -3,7 +3,7 @@
 
 Each such refit is the model's regressor with a few more columns. So the model's columns are reduced
 once to an orthonormal basis Q, with the output's residual y⊥ (the model's own), and a shape costs
-the projection of its few columns, Z − Q(QᵀZ), and a small QR beside y⊥ (:func:`projected_rss`):
+the projection of its few columns, Z − Q(QᵀZ), and a small QR beside y⊥ (:func:`projected_r`):
 the refit's residual sum of squares to rounding, without a pass of the core over all the rows
 (twenty of those were a third of a diagnosis at 4M samples).
 
@@ -15,7 +15,6 @@ row the refit keeps), the shape is refitted.
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -27,7 +26,7 @@ from ..models.effects import compile_effects
 from ..models.input_shapes import InputShape
 from ..models.regressors import regressor_matrix
 from .candidates import candidate_input_names
-from .shape_cost import input_lags, orthonormal_basis, projected_rss
+from .shape_cost import input_lags, orthonormal_basis, projected_r
 
 __all__ = ["BesideFit", "Beside"]
 
@@ -60,6 +59,7 @@ class BesideFit:
         self.names = candidate_input_names(data)
         self._basis: tuple[np.ndarray, np.ndarray] | None = None
         self._lags: dict[int, np.ndarray | None] = {}
+        self._factors: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
         self._built = False
 
     def __call__(self, shape: InputShape, const: bool) -> Beside:
@@ -67,18 +67,32 @@ class BesideFit:
         index = self._index(i)
         if index is None or self._basis is None:
             return self.refit(shape, const)
+        if shape.effect not in self._factors:
+            self._factors[shape.effect] = self._factor(shape, i, index)
+        factor = self._factors[shape.effect]
+        if factor is None:  # a row the refit leaves out, or a data error: the refit says
+            return self.refit(shape, const)
+        r, dependent = factor
+        k, offset = index.shape[1], "const" not in self.model.effects
+        if dependent[:k].any() or (const and (not offset or dependent[k])):
+            raise ArxidError(f"the columns of {shape.effect} beside the model's are rank deficient")
+        if offset and not const:  # the offset's column left out: R of the others (exact, by rotations)
+            r = np.asarray(np.linalg.qr(np.delete(r, k, axis=1), mode="r"))
+        n_rows, n_params = self._basis[0].shape
+        return Beside(float(r[-1, -1] ** 2), n_rows, n_params + k + int(const))
+
+    def _factor(self, shape: InputShape, i: int, index: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """R of the shape's lags (and, for a model without an offset, a column of ones) projected
+        beside y⊥: one pass over the rows serves the shape with and without its offset."""
         other = self.data.signal(shape.other) if shape.other else None
         with np.errstate(over="ignore", invalid="ignore"):
             z = shape.evaluate(self.data.u[:, i], other)[index]
-        if not np.isfinite(z).all():  # a row the refit leaves out, or a data error: the refit says
-            return self.refit(shape, const)
-        if const:
+        if not np.isfinite(z).all():
+            return None
+        if "const" not in self.model.effects:
             z = np.column_stack([z, np.ones(z.shape[0])])
-        basis, y_perp = self._basis
-        rss = projected_rss(basis, y_perp, z)
-        if math.isinf(rss):
-            raise ArxidError(f"the columns of {shape.effect} beside the model's are rank deficient")
-        return Beside(rss, basis.shape[0], basis.shape[1] + z.shape[1])
+        assert self._basis is not None
+        return projected_r(*self._basis, z)
 
     def _index(self, i: int) -> np.ndarray | None:
         """Per row the samples input ``i``'s lag columns read (None: refit every shape)."""
@@ -99,8 +113,8 @@ class BesideFit:
             which, index, plain = input_lags(data, m.na_, layout, i, phi, rows)
             ok = which.size and plain.sum() == m.nb_[i]
             self._lags[i] = index[:, plain] if ok else None
-        basis = orthonormal_basis(phi)
-        del phi  # the largest array here: gone before the projections
+        basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
+        del phi
         if basis is None:
             return
         y_perp = y - basis @ (basis.T @ y)

@@ -22,6 +22,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._base.orthonormal import RANK_FACTOR as _RANK_FACTOR
+from .._base.orthonormal import orthonormal_basis, tall_r
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -30,13 +32,10 @@ from ..models.input_shapes import InputShape, parse_shape
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
-__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_rss", "tall_r"]
+__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_r", "projected_rss", "tall_r"]
 
 #: The shortcut's loss must match the refit's to this relative difference at the first value.
 _AGREEMENT = 1e-9
-#: The core's rank rule: a column is dependent when the sine of its angle to the columns before it
-#: is at most (rows · machine epsilon · 10).
-_RANK_FACTOR = 10.0 * np.finfo(float).eps
 
 
 class ShapeCost:
@@ -163,41 +162,21 @@ def input_lags(
     return which, index, plain
 
 
-def orthonormal_basis(columns: np.ndarray) -> np.ndarray | None:
-    """Q of the columns' QR, or None when one depends on those before it by the core's rank rule."""
-    q, r = np.linalg.qr(columns)
-    tol = _RANK_FACTOR * max(columns.shape)
-    norms = np.sqrt(np.einsum("ij,ij->j", columns, columns))
-    if columns.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
-        return None
-    return q
-
-
 def projected_rss(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> float:
     """The residual sum of squares of ``y`` on the basis's columns and ``z`` (``y_perp`` is y less
-    its projection on the basis): R of [Z − Q(QᵀZ) | y⊥] (no Q formed), its last diagonal entry the
-    residual's norm; +inf when a column of ``z`` depends on the basis or on those before it."""
+    its projection on the basis); +inf when a column of ``z`` depends on the basis or on those
+    before it."""
+    r, dependent = projected_r(basis, y_perp, z)
+    return math.inf if dependent.any() else float(r[-1, -1] ** 2)
+
+
+def projected_r(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R of [Z − Q(QᵀZ) | y⊥] (no Q formed), whose last diagonal entry is the residual's norm, and
+    per column of ``z`` whether it depends on the basis or on those before it (the core's rule)."""
     k = z.shape[1]
     stacked = np.empty((z.shape[0], k + 1))
     stacked[:, :k] = z - basis @ (basis.T @ z)
     stacked[:, k] = y_perp
     r = tall_r(stacked)
     norms = np.sqrt(np.einsum("ij,ij->j", z, z))
-    if not (np.abs(np.diag(r)[:k]) > _RANK_FACTOR * z.shape[0] * norms).all():
-        return math.inf
-    return float(r[k, k] ** 2)
-
-
-#: Rows of each block whose R factors :func:`tall_r` stacks.
-_BLOCK_ROWS = 4096
-
-
-def tall_r(a: np.ndarray) -> np.ndarray:
-    """R of a tall matrix of a few columns, up to the signs of its rows: the R factors of blocks of
-    rows (one batched QR), stacked and reduced again. Householder's accuracy in about half the time
-    of one QR of the whole matrix (whose reflections each pass over every row)."""
-    whole = a.shape[0] // _BLOCK_ROWS * _BLOCK_ROWS
-    if whole <= _BLOCK_ROWS:
-        return np.asarray(np.linalg.qr(a, mode="r"))
-    blocks = np.asarray(np.linalg.qr(a[:whole].reshape(-1, _BLOCK_ROWS, a.shape[1]), mode="r")).reshape(-1, a.shape[1])
-    return np.asarray(np.linalg.qr(np.vstack([blocks, a[whole:]]), mode="r"))
+    return r, ~(np.abs(np.diag(r)[:k]) > _RANK_FACTOR * z.shape[0] * norms)

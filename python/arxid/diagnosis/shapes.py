@@ -55,6 +55,7 @@ from ..selection.parsimony import diebold_mariano
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
+from .scan_sample import scan_sample
 from .shape_beside import BesideFit
 from .shape_cost import ShapeCost
 
@@ -76,8 +77,6 @@ MIN_SCAN_LEVELS = 20
 PHYSICAL_POWERS = (2.0, 0.5, 3.0)
 #: The exponents of the scan on a rich input (refined around the best).
 POWER_GRID = np.geomspace(0.25, 4.0, 25)
-#: A scan reads at most this many estimation samples (each value it tries is a refit).
-SCAN_SAMPLES = 200_000
 #: Values of a level tried across the input's range (a dead zone's half-width, a saturation's level).
 THRESHOLD_STEPS = 16
 
@@ -145,14 +144,15 @@ def _threshold_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tupl
     ]
 
 
-def _scan(model: ArxModel, data: IOData, shape: InputShape, const: bool) -> InputShape:
-    """The shape's parameters with the lowest one-step error on ``data``: a grid (a saturation's
-    two levels in turn), then a local search from its best point (each value tried is a refit)."""
+def _scan(model: ArxModel, data: IOData, sample: IOData, shape: InputShape, const: bool) -> InputShape:
+    """The shape's parameters with the lowest one-step error on ``sample`` (:func:`scan_sample` of
+    ``data``): a grid across the whole record's input (a saturation's two levels in turn), then a
+    local search from its best point (each value tried is a refit)."""
     x = np.asarray(data.u[:, candidate_input_names(data).index(shape.signal)], dtype=float)
     x = x[np.isfinite(x)]
     kind, name = shape.kind, shape.signal
 
-    loss = ShapeCost(model, data, kind, name, const)
+    loss = ShapeCost(model, sample, kind, name, const)
 
     def cost(params) -> float:
         return loss(tuple(float(v) for v in np.atleast_1d(params)))
@@ -214,9 +214,9 @@ def score_shapes(
         return []
     offsets = (False, True) if "const" not in model.effects else (False,)
     n_shapes = len(shapes) * len(offsets)
-    scan_data = data if data.n_samples <= SCAN_SAMPLES else data[:SCAN_SAMPLES]
+    sample = scan_sample(data).data
     # the offset a shape may need is in the scan: the parameter is found with it
-    shapes = [(_scan(model, scan_data, shape, offsets[-1]) if n > 1 else shape, n) for shape, n in shapes]
+    shapes = [(_scan(model, data, sample, shape, offsets[-1]) if n > 1 else shape, n) for shape, n in shapes]
     fits = ShapeFits(model, data, [(shape, const) for shape, _ in shapes for const in offsets])
     beside = BesideFit(model, data)
     out = []
