@@ -120,3 +120,17 @@ def test_diagnose_on_a_short_file_imports_only_the_models_it_fits():
         "arxid.frequency_domain._tf_fit",
     }
     assert not unused & loaded
+
+
+def test_the_program_leaves_its_objects_to_the_exit_and_a_library_keeps_them_collectable():
+    probe = (
+        "import gc, sys\n"
+        "sys.argv[0] = {argv0!r}\n"
+        "from arxid._base.launch import leave_to_exit\n"
+        "before = gc.get_freeze_count()\n"
+        "leave_to_exit()\n"
+        "print(before == 0, gc.get_freeze_count() > 0)"
+    )
+    for argv0, frozen in (("/usr/bin/arxid", "True"), ("my_script.py", "False")):
+        out = subprocess.run([sys.executable, "-c", probe.format(argv0=argv0)], capture_output=True, text=True)
+        assert out.stdout.split() == ["True", frozen], out.stderr
