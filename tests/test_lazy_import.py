@@ -5,10 +5,13 @@ scipy.signal or scipy.stats. The lazy names are the ones type checkers see."""
 from __future__ import annotations
 
 import ast
+import importlib
 import json
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 import arxid
 
@@ -22,18 +25,35 @@ def modules_after(code: str) -> set[str]:
     return set(json.loads(out.stdout.strip().splitlines()[-1]))
 
 
-def test_the_lazy_names_are_the_names_type_checkers_see():
-    tree = ast.parse(INIT.read_text())
+def type_checked_names(init: Path) -> dict[str, str]:
+    """Each name the ``if TYPE_CHECKING:`` block of a package's ``__init__.py`` imports, and its module."""
+    tree = ast.parse(init.read_text())
     guarded = next(n for n in tree.body if isinstance(n, ast.If) and getattr(n.test, "id", "") == "TYPE_CHECKING")
-    seen = {
-        alias.name: "arxid." + node.module
+    return {
+        alias.name: node.module
         for node in guarded.body
         if isinstance(node, ast.ImportFrom) and node.module
         for alias in node.names
     }
-    assert seen == arxid._PUBLIC
+
+
+def test_the_lazy_names_are_the_names_type_checkers_see():
+    assert {name: "arxid." + module for name, module in type_checked_names(INIT).items()} == arxid._PUBLIC
     for name in arxid.__all__:
         assert getattr(arxid, name) is not None
+
+
+@pytest.mark.parametrize("package", ["models", "data", "selection", "frequency_domain"])
+def test_a_subpackage_loads_its_names_on_first_use(package):
+    module = importlib.import_module(f"arxid.{package}")
+    assert type_checked_names(Path(module.__file__)) == module._PUBLIC
+    assert sorted(module._PUBLIC) == sorted(module.__all__)
+    for name in module.__all__:
+        value = getattr(module, name)
+        assert value is getattr(importlib.import_module(f"arxid.{package}.{module._PUBLIC[name]}"), name)
+    assert set(module.__all__) <= set(dir(module))
+    with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
+        module.nothing  # noqa: B018
 
 
 def test_import_arxid_and_help_import_neither_numpy_nor_the_pipeline():
@@ -73,3 +93,44 @@ def test_a_short_analysis_imports_neither_scipy_signal_nor_scipy_stats():
     assert "arxid.diagnosis.ladder" in loaded  # the analysis ran
     assert "scipy.signal" not in loaded and "scipy.stats" not in loaded
     assert "arxid.fleet" not in loaded  # the many logs' modules load for many logs
+
+
+def test_a_name_spelt_as_its_module_stays_the_name():
+    # the submodules imported first, as another path imports them: the package still names the functions
+    code = (
+        "import arxid.selection.refine, arxid.models.iv, arxid.models.tfest\n"
+        "import arxid.selection as s, arxid.models as m\n"
+        "print(callable(s.refine) and callable(m.iv) and callable(m.tfest), s.refine.__module__, m.iv.__module__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["True", "arxid.selection.refine", "arxid.models.iv"]
+
+
+def test_diagnose_on_a_short_file_imports_only_the_models_it_fits():
+    code = "from arxid.analysis import cli\nfrom arxid.analysis.pipeline import analyse\ncli.build_parser('diagnose')"
+    loaded = modules_after(code)
+    assert "arxid.models.arx_model" in loaded
+    unused = {
+        "arxid.models.process_models",  # --model proc: imported when fitted
+        "arxid.models.tfest",
+        "arxid.models.continuous",  # to_control(continuous=True)
+        "arxid.data.logs",  # lists of logs
+        "arxid.selection.refine",  # sweep(refine="oe")
+        "arxid.frequency_domain._step",
+        "arxid.frequency_domain._tf_fit",
+    }
+    assert not unused & loaded
+
+
+def test_the_program_leaves_its_objects_to_the_exit_and_a_library_keeps_them_collectable():
+    probe = (
+        "import gc, sys\n"
+        "sys.argv[0] = {argv0!r}\n"
+        "from arxid._base.launch import leave_to_exit\n"
+        "before = gc.get_freeze_count()\n"
+        "leave_to_exit()\n"
+        "print(before == 0, gc.get_freeze_count() > 0)"
+    )
+    for argv0, frozen in (("/usr/bin/arxid", "True"), ("my_script.py", "False")):
+        out = subprocess.run([sys.executable, "-c", probe.format(argv0=argv0)], capture_output=True, text=True)
+        assert out.stdout.split() == ["True", frozen], out.stderr

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .._base.launch import EXIT_INTERRUPTED, end_startup
+from .._base.launch import EXIT_INTERRUPTED, end_startup, leave_to_exit
 from .._base.limits import MAX_ORDER
 from ..exceptions import ArxidError, DataError
 from .cli_data import UsageError, data_args, load, load_data, names, parse_units, reference_name
@@ -598,7 +598,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         budget = getattr(args, "max_seconds", None)
         if budget is not None and not (math.isfinite(budget) and budget >= 0):
             raise UsageError(f"--max-seconds must be a number of seconds >= 0, got {budget:g}")
-        return int(args.func(args) or EXIT_OK)
+        code = int(args.func(args) or EXIT_OK)
+        leave_to_exit()
+        return code
     except UsageError as exc:
         print(str(exc).splitlines()[0], file=sys.stderr)
         return EXIT_USAGE

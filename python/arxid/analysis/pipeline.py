@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property, partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label
@@ -41,7 +41,6 @@ from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.static_map import shape_map_dict, shape_maps
 from ..exceptions import ArxidError, OrderError
-from ..frequency_domain import FrequencyResponse, frf
 from ..models.arguments import check_data, check_horizon
 from ..models.arx_model import ArxModel, arx
 from ..models.polynomial import PolynomialModel, check_initial
@@ -64,6 +63,9 @@ from .closed_loop import (
 from .conclusion import Conclusion, concluded
 from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
 from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
+
+if TYPE_CHECKING:
+    from ..frequency_domain import FrequencyResponse
 
 __all__ = ["Analysis", "Choice", "OrderGrid", "analyse", "choose", "grid_of", "DEFAULT_SPLIT"]
 
@@ -141,6 +143,8 @@ class Analysis(Conclusion):
         Computed when first asked for (the report asks); None when it cannot be estimated (data
         too short, or several inputs without a reference each).
         """
+        from ..frequency_domain import frf  # the report's view: the command line never asks
+
         refs = list(self.closed_loop.references) if self.closed_loop is not None else []
         try:
             return frf(self.validation, reference=refs or None)

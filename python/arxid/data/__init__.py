@@ -7,7 +7,18 @@ module ``dataflash``), the one resampler they and ``from_csv(resample=True)`` sh
 ``resample``), the signals of one multirotor axis in each kind of log (module ``presets``), and the
 checks of sample arrays and sampling times (module ``samples``)."""
 
-from .iodata import IOData
-from .logs import load_experiment, merge_logs
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .._base.lazy import lazy_package
+
+if TYPE_CHECKING:  # the names of _PUBLIC, imported on first use (PEP 562)
+    from .iodata import IOData
+    from .logs import load_experiment, merge_logs
+
+_PUBLIC = {"IOData": "iodata", "load_experiment": "logs", "merge_logs": "logs"}
 
 __all__ = ["IOData", "load_experiment", "merge_logs"]
+
+lazy_package(__name__)

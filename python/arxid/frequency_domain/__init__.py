@@ -8,11 +8,24 @@ Not named ``arxid.frequency``: that path still imports the frequency check
 
 from __future__ import annotations
 
-from ._frf import frf
-from ._model_response import model_response
-from ._response import FrequencyResponse
-from ._step import DeconvolvedStep, step_by_deconvolution
-from ._tf_fit import tf_from_frequency
+from typing import TYPE_CHECKING
+
+from .._base.lazy import lazy_package
+
+if TYPE_CHECKING:  # the names of _PUBLIC, imported on first use (PEP 562)
+    from ._frf import frf
+    from ._model_response import model_response
+    from ._response import FrequencyResponse
+    from ._step import DeconvolvedStep, step_by_deconvolution
+    from ._tf_fit import tf_from_frequency
+
+_PUBLIC = {
+    "frf": "_frf",
+    "model_response": "_model_response",
+    "FrequencyResponse": "_response",
+    **dict.fromkeys(["step_by_deconvolution", "DeconvolvedStep"], "_step"),
+    "tf_from_frequency": "_tf_fit",
+}
 
 __all__ = [
     "frf",
@@ -22,3 +35,5 @@ __all__ = [
     "DeconvolvedStep",
     "tf_from_frequency",
 ]
+
+lazy_package(__name__)

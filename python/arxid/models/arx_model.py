@@ -6,6 +6,7 @@ import functools
 import math
 import types
 from collections.abc import Mapping, Sequence
+from importlib import import_module
 from typing import Any, Literal, overload
 
 import numpy as np
@@ -13,7 +14,6 @@ import numpy as np
 from .._base import _core, metrics
 from .._base.limits import check_memory, check_order, check_work
 from ..data.iodata import IOData
-from ..data.logs import merge_logs
 from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
 from . import arx_text, convert
 from . import files as modelfile
@@ -119,7 +119,7 @@ class ArxModel(FittedModel):
             if client is not None:
                 logs = logs_fitting("client=").cluster_logs(client, data, read)
                 return self._fit_cluster(logs, first_lag, rows_like)
-            data = merge_logs(data, read)
+            data = import_module("arxid.data.logs").merge_logs(data, read)  # imported for a list of logs only
         elif client is not None:
             raise DataError("client= fits a list of logs: pass a list of IOData objects or file paths")
         if not isinstance(data, IOData):

@@ -14,7 +14,6 @@ import numpy as np
 
 from .._base.optional import require
 from ..exceptions import ArxidError, DataError
-from .continuous import d2c
 
 __all__ = ["ConvertibleModel", "to_control", "to_scipy", "tf_coefficients"]
 
@@ -193,6 +192,8 @@ def to_scipy(model: ConvertibleModel) -> Any:
 
 def _d2c(model: ConvertibleModel, columns: Sequence[int], labels: Sequence[str], method: str) -> Any:
     """Continuous transfer functions (one per layout column) whose sampling is the discrete model."""
+    from .continuous import d2c  # continuous time when asked for: a model's import stays light
+
     control = _control()
     nums, den = _fractions(model)
     results = []

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 from ..data.iodata import IOData
 from ..exceptions import OrderError
 from .arx_model import ArxModel, arx
-from .pem import armax, bj, oe
 from .polynomial import PolynomialModel
-from .process_models import parse_process, procest
-from .tfest import tfest
+
+# The estimators of the other structures (pem, tfest, process models) are imported by the branch
+# that fits or reads them: the command line reads MODEL_FORMS for its help, a sweep fits ARX only.
 
 __all__ = ["ModelSpec", "parse_model_spec", "MODEL_FORMS"]
 
@@ -103,6 +103,10 @@ class ModelSpec:
         -------
         ArxModel or PolynomialModel
         """
+        from .pem import armax, bj, oe
+        from .process_models import procest
+        from .tfest import tfest
+
         o = self.orders
         if self.kind == "arx":
             return arx(data, o[0], o[1], o[2])
@@ -144,6 +148,8 @@ def parse_model_spec(text: str) -> ModelSpec:
         raise OrderError(f"cannot read the model {text!r}: write one of {_forms()}, e.g. oe:2,2,3")
     form, names = MODEL_FORMS[kind]
     if kind == "proc":
+        from .process_models import parse_process
+
         try:
             return ModelSpec(kind, (), parse_process(numbers).name)
         except OrderError as exc:

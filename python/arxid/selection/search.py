@@ -16,7 +16,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, cast, overload
+from typing import TYPE_CHECKING, Any, Literal, cast, overload
 
 import numpy as np
 
@@ -41,10 +41,11 @@ from .integrator import (
 )
 from .iv_engine import IvRunner, iv_settings
 from .ranking import SORT_KEYS, first_in_order, ranked_columns
-from .refine import RefinedSweep
-from .refine import refine as refine_sweep
 from .sanity import EXPECTATIONS, SanityLimits
 from .table import SweepTable
+
+if TYPE_CHECKING:  # the output-error refinement is imported when asked for (refine="oe")
+    from .refine import RefinedSweep
 
 __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
@@ -635,7 +636,11 @@ def sweep(
     result = dataclasses.replace(result, seconds=time.perf_counter() - started)
     if growing:
         result = result.extend(max_seconds=growth_seconds, sweeper=sweeper)
-    return result if refine is None else refine_sweep(result, refine, top=refine_top)
+    if refine is None:
+        return result
+    from .refine import refine as refine_sweep
+
+    return refine_sweep(result, refine, top=refine_top)
 
 
 def _checked_settings(sort_by: str, expect: Any, refine: Any, horizon: Any, n_threads: Any) -> tuple[int | None, int]:
