@@ -37,9 +37,8 @@ $(VENV)/.installed: pyproject.toml
 setup: $(VENV)/.installed
 
 # Release build of the Rust core into python/arxid, only when a Rust source, the manifests or the
-# venv changed (the .so is the stamp, so an unchanged tree builds nothing). cargo test (below) and
-# maturin share target/release without invalidating each other: same profile and dependency
-# features, and cargo test builds only the lib's test harness, never the cdylib maturin owns.
+# venv changed (the .so is the stamp, so an unchanged tree builds nothing). cargo test (below)
+# builds in its own profile (target/unit) and never touches the cdylib maturin owns in target/release.
 CORE := python/arxid/_base/_core.abi3.so
 # Every .rs file at any depth of the crate's concept folders (rust/<concept>/...).
 RUST_SOURCES := Cargo.toml Cargo.lock $(shell find rust -name '*.rs')
@@ -57,9 +56,11 @@ demo: develop
 
 # --lib: the unit tests only (there are no doctests or tests/*.rs); building the lib target as a
 # dependency would rebuild the cdylib with other features than maturin's, and each would undo the other.
+# --profile unit (Cargo.toml): release without LTO, more codegen units. The harness is compiled on
+# every change and never shipped; its dependencies compile once for this profile (target/unit).
 test-rust:
-	@echo "building and running the Rust unit tests (cargo test, release: a few minutes from scratch on 2 cores, seconds after)"
-	@cargo test --release --lib --quiet
+	@echo "building and running the Rust unit tests (cargo test, profile unit: a few minutes from scratch on 2 cores, seconds after)"
+	@cargo test --profile unit --lib --quiet
 
 # One BLAS thread: the tests' tall-skinny products run up to 10x slower when OpenBLAS threads
 # compete for 2 shared cores (benchmarks keep the default, so numpy baselines are not handicapped).
@@ -74,7 +75,12 @@ test-python: develop
 		$(PY) -m pytest -q -p no:xdist -m timed || status=$$?; \
 		exit $$status
 
-test: setup test-rust test-python
+# The venv (pip: mostly the network and one core), the Rust unit tests and the Rust core side by
+# side (cargo's lock on target/ runs the two compiles one after the other), each target's output
+# shown when it ends; then the Python tests, alone on the cores.
+test:
+	@$(MAKE) --no-print-directory -j2 --output-sync=target setup test-rust develop
+	@$(MAKE) --no-print-directory test-python
 
 # The property-based suite at length (make test runs it derandomized with a few examples each).
 fuzz: develop
@@ -100,10 +106,16 @@ bench: develop $(VENV)/.extra-bench
 wheel:
 	@bash tests/smoke/wheel.sh
 
-# The wheel installed in fresh venvs without cargo on PATH: base (numpy, scipy, threadpoolctl) and full (arxid[all]).
-smoke: wheel
-	@bash tests/smoke/run.sh dist/*.whl base
-	@bash tests/smoke/run.sh dist/*.whl full
+# The wheel installed in fresh venvs without cargo on PATH: base (numpy, scipy, threadpoolctl) and
+# full (arxid[all]), side by side, each output shown when it ends. The wheel's own install check
+# (make wheel) is left to the base run, which checks the same and more.
+smoke:
+	@ARXID_WHEEL_CHECK=0 bash tests/smoke/wheel.sh
+	@$(MAKE) --no-print-directory -j2 --output-sync=target smoke-base smoke-full
+
+.PHONY: smoke-base smoke-full
+smoke-base smoke-full:
+	@bash tests/smoke/run.sh dist/*.whl $(@:smoke-%=%)
 
 # The documentation site in site/: the gallery scripts run first (their figures and pages go to
 # docs/gallery/, git-ignored), then mkdocs builds with --strict (a warning fails the build).
@@ -121,7 +133,7 @@ bench-pem: develop
 # Python: lint, format, the stub of the compiled core against the built module (hence `develop`),
 # and the layers (import-linter's contracts in pyproject.toml, docs/architecture.md). Rust: the
 # crate's layers and file sizes (tools/check_crate_layers.py, the same map), format and clippy
-# (--release: it shares target/release with `make test`'s builds, but only their build scripts; its
+# (--release: it shares target/release with maturin's builds, but only their build scripts; its
 # metadata-only check artifacts are its own, about a minute from clean, seconds when warm). Every
 # step runs, in this order; lint fails at the end if any step failed, naming them.
 LINT_STEPS = \

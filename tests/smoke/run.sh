@@ -14,7 +14,9 @@ case "$kind" in
     *) echo "usage: $0 WHEEL base|full" >&2; exit 2 ;;
 esac
 echo "smoke test of $(basename "$wheel") ($kind install) in a fresh venv"
-"$venv/bin/python" -m pip install -q --disable-pip-version-check "$spec" "pytest>=7"
+# --no-compile: pip's byte-compiling of every installed module (numpy, scipy, matplotlib, pandas...) was
+# most of the install's CPU time; the suite imports a few of them once.
+"$venv/bin/python" -m pip install -q --no-compile --disable-pip-version-check "$spec" "pytest>=7"
 # Only the venv and the system's binaries: no cargo, rustc or maturin (they live in ~/.cargo/bin and the dev venv).
 cd "$venv"
 env -i HOME="$HOME" PATH="$venv/bin:/usr/local/bin:/usr/bin:/bin" LANG=C.UTF-8 \

@@ -34,9 +34,12 @@ case "$(basename "$wheel")" in
     *) echo "wrong tag: $(basename "$wheel") is not an abi3 manylinux2014 (manylinux_2_17) wheel" >&2; exit 1 ;;
 esac
 
+# `make smoke` skips this check (ARXID_WHEEL_CHECK=0): its base run (tests/smoke/run.sh) installs the
+# wheel the same way and checks the same and more.
+if [ "${ARXID_WHEEL_CHECK:-1}" = 0 ]; then ls -1 dist; exit 0; fi
 echo "installing it in a fresh venv without cargo on PATH, then importing it and fitting a model"
 "$py" -m venv "$tmp/smoke"
-"$tmp/smoke/bin/python" -m pip install -q --disable-pip-version-check "$wheel"
+"$tmp/smoke/bin/python" -m pip install -q --no-compile --disable-pip-version-check "$wheel"
 cd "$tmp"
 env -i HOME="$HOME" PATH="$tmp/smoke/bin:/usr/bin:/bin" LANG=C.UTF-8 "$tmp/smoke/bin/python" -c '
 import shutil, numpy as np, arxid
