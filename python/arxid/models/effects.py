@@ -126,6 +126,35 @@ def effect_names(effects: Any) -> tuple[str, ...]:
     return names
 
 
+#: What a parsed effect or a layout's lags and labels depend on in the data: the signals' names
+#: (never their samples). A diagnosis parses and compiles the same effects hundreds of times, on
+#: the record and on the slices and samples cut from it, which share these names.
+_SignalsKey = tuple[Any, tuple[str, ...], tuple[str, ...], tuple[str, ...], int]
+
+#: Entries kept in each cache below (the oldest go first): more than a diagnosis of many signals uses.
+_CACHE_SIZE = 4096
+
+
+def _signals_key(data: IOData) -> _SignalsKey:
+    return (data.output_name, data.output_names, data.input_names, tuple(data.extra), data.n_inputs)
+
+
+def _remember(cache: dict, key: Any, value: Any) -> Any:
+    """``value`` kept under ``key`` (immutable values only: callers share them)."""
+    with _CACHE_LOCK:
+        cache[key] = value
+        while len(cache) > _CACHE_SIZE:
+            cache.pop(next(iter(cache)))
+    return value
+
+
+#: Parsed effects by (text, the data's signal names).
+_PARSED: dict[tuple[str, _SignalsKey], Effect] = {}
+
+#: Stages of an analysis may parse and compile on two threads (:mod:`arxid._base.background`).
+_CACHE_LOCK = threading.Lock()
+
+
 def _split_product(text: str) -> list[str]:
     return [f for f in text.split("*") if f]
 
@@ -152,6 +181,14 @@ def parse_effect(text: str, data: IOData) -> Effect:
     """
     if not isinstance(text, str) or not text.strip():
         raise OrderError(f"an effect must be a non-empty string such as 'u1^2' or 'y^3', got {text!r}")
+    key = (text, _signals_key(data))
+    parsed = _PARSED.get(key)
+    if parsed is None:  # an error is raised again each time, never kept
+        parsed = _remember(_PARSED, key, _parse(text, data))
+    return parsed
+
+
+def _parse(text: str, data: IOData) -> Effect:
     clean = re.sub(r"\s+", "", text)
     if clean in ("const", "time"):
         return Effect(clean, ())
@@ -358,31 +395,31 @@ def compile_effects(
     with _COMPILED_LOCK:
         kept = _COMPILED.get(data)
         u = kept.get(texts) if kept is not None else None
-    plan = _Plan(data, nb, nk, build=u is None and samples)
-    seen = set()
-    for text in texts:
-        e = parse_effect(text, data)
-        if e.text in seen:
-            raise OrderError(f"effect {e.text!r} is listed twice")
-        seen.add(e.text)
-        plan.effect(e, text)
-    if u is None and samples:
-        u = _stacked(plan.cols, data.n_samples)
-        if len(plan.cols) > 1 or plan.replaced:  # the inputs themselves need no keeping
-            u = _keep(data, texts, u)
+    build = u is None and samples
+    key = (texts, _signals_key(data), tuple(nb), tuple(nk))
+    lags = _LAYOUTS.get(key)
+    if lags is None or build:  # the columns are built (and checked) whenever they are not kept
+        plan = _Plan(data, nb, nk, build=build)
+        seen = set()
+        for text in texts:
+            e = parse_effect(text, data)
+            if e.text in seen:
+                raise OrderError(f"effect {e.text!r} is listed twice")
+            seen.add(e.text)
+            plan.effect(e, text)
+        lags = _remember(_LAYOUTS, key, plan.lags())
+        if build:
+            u = _stacked(plan.cols, data.n_samples)
+            if len(plan.cols) > 1 or plan.replaced:  # the inputs themselves need no keeping
+                u = _keep(data, texts, u)
     if u is None:
-        u = np.empty((0, len(plan.nb)))
-    return EffectLayout(
-        u,
-        tuple(plan.nb),
-        tuple(plan.nk),
-        tuple(plan.tie),
-        tuple(plan.terms),
-        tuple(plan.labels),
-        tuple(plan.eff_col),
-        tuple(plan.eff_term),
-    )
+        u = np.empty((0, len(lags[0])))
+    return EffectLayout(u, *lags)
 
+
+#: A layout's lags, ties, labels and output terms (:class:`EffectLayout` but its ``u``), by effects,
+#: signal names and orders: they do not depend on the samples.
+_LAYOUTS: dict[tuple, tuple] = {}
 
 #: The input matrices of the last effect sets compiled on each data set (by effect tuple).
 _COMPILED: weakref.WeakKeyDictionary[IOData, dict[tuple[str, ...], np.ndarray]] = weakref.WeakKeyDictionary()
@@ -423,6 +460,18 @@ class _Plan:
         used_nk = [k for b, k in zip(nb, nk, strict=False) if b > 0]
         self.min_nk = min(used_nk) if used_nk else 0
         self.replaced = False
+
+    def lags(self) -> tuple:
+        """The fields of :class:`EffectLayout` after ``u``."""
+        return (
+            tuple(self.nb),
+            tuple(self.nk),
+            tuple(self.tie),
+            tuple(self.terms),
+            tuple(self.labels),
+            tuple(self.eff_col),
+            tuple(self.eff_term),
+        )
 
     def add(self, col: np.ndarray | None, b: int, k: int, source: int | None, label: str, effect: str | None) -> None:
         if col is not None:
