@@ -12,10 +12,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..data.blackbox import signal_name
 from ..data.iodata import IOData
-from ..data.presets import log_kind, log_preset
 from ..exceptions import DataError
+
+# The readers and presets (data.blackbox, data.presets) load in the functions that use them: the
+# command line asks is_flight_log of every file, and a CSV file needs neither.
 
 __all__ = ["flight_log_data", "is_flight_log", "axis_signals"]
 
@@ -36,6 +37,8 @@ def is_flight_log(path: Path) -> bool:
     """
     if path.suffix.lower() not in _FLIGHT_LOG_SUFFIXES:
         return False
+    from ..data.presets import log_kind
+
     try:
         log_kind(path)
     except DataError:  # a .txt export such as a CSV file
@@ -67,6 +70,9 @@ def axis_signals(path: Path, axis: str, log: int = 1) -> tuple[str, list[str], l
     DataError
         When the log holds no signal for the axis (the message says what is missing).
     """
+    from ..data.blackbox import signal_name
+    from ..data.presets import log_preset
+
     preset = log_preset(path, axis, log=log)
     args = preset.read_arguments()
     return args["output"], args["inputs"], args["extra"], signal_name(preset.reference)
@@ -100,6 +106,8 @@ def flight_log_data(
     -------
     IOData
     """
+    from ..data.presets import log_kind
+
     kw: dict[str, Any] = {"output": output, "inputs": list(inputs), "extra": list(extra), "ts": ts}
     kind = log_kind(path)
     if kind == "blackbox":
