@@ -41,3 +41,27 @@ def test_masked_pairs_after_the_release_equal_those_of_a_scoring_that_kept_its_r
     assert [(s["c"].label, s["p"], s["p_adj"], s["score"]) for s in pairs] == [
         (s["c"].label, s["p"], s["p_adj"], s["score"]) for s in pairs_kept
     ]
+
+
+def test_candidate_columns_on_rows_with_gaps_equal_those_of_the_whole_regressor_matrix():
+    """A candidate whose columns miss samples on the model's rows is tested on its own rows: its new
+    columns there, built a block of rows at a time, are those of its whole regressor matrix."""
+    from arxid.diagnosis.extension import layout_for
+    from arxid.models.regressors import finite_regressor_columns, regressor_matrix
+
+    data = _record(n=80_000)
+    y, vbat = data.y.copy(), data.extra["vbat"].copy()
+    rng = np.random.default_rng(5)
+    for start in rng.integers(0, len(y) - 40, 30):
+        y[start : start + 7] = np.nan
+        vbat[start + 20 : start + 23] = np.nan
+    gappy = arxid.IOData(y, data.u, ts=0.01, extra={"vbat": vbat})
+    model = arxid.arx(gappy, 2, 1, 1)
+    for c in candidate_list(["u1*vbat", "y^2", "na+1"], model, gappy)[0]:
+        lay = layout_for(c, model, gappy)[1]
+        phi, _, rows = regressor_matrix(gappy, c.na, lay, 3)
+        which = list(range(1, phi.shape[1], 2))
+        z, at = finite_regressor_columns(gappy, c.na, lay, 3, which)
+        assert len(at) < len(y) - 3  # rows were left out
+        np.testing.assert_array_equal(at, rows)
+        np.testing.assert_array_equal(z, phi[:, which])

@@ -30,7 +30,15 @@ from ..models.effects import (
     parse_effect,
     thresholded_products,
 )
-from ..models.regressors import first_of_run, lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
+from ..models.regressors import (
+    finite_regressor_columns,
+    first_of_run,
+    lagger,
+    max_lag,
+    regressor_columns,
+    regressor_matrix,
+    regressor_names,
+)
 from .added_variable import AddedVariableResult, AddedVariableTest, all_finite, held_columns, holm, lagged_view
 from .candidates import scan_threshold, signal_thresholds
 from .extension import Candidate, layout_for
@@ -256,8 +264,7 @@ class Scoring(CandidateScoring):
             z = regressor_columns(self.data, c.na, lay, self.rows0, new)
             if all_finite(z):
                 return z, self.rows0
-        phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
-        return phi[:, new], rows
+        return finite_regressor_columns(self.data, c.na, lay, self.lag, new)
 
     def _effect_columns(self, c: Candidate) -> np.ndarray | None:
         """The columns of a candidate that adds one effect, built without the input matrix of the
