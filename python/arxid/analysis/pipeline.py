@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label
+from .._base.heap import map_large_arrays
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
 from ..checks.feedback import FeedbackTest
@@ -563,6 +564,7 @@ def analyse(
             importlib.import_module("arxid.analysis.fleet_analysis")
         return FLEET_ANALYSIS["analyse"](data, client, split=split, read=read, **kw, **diagnose_kwargs)
     est, val = _split(data, validation, split)
+    map_large_arrays()  # the record's long columns come and go: their pages go back when freed
     requested = check_horizon(horizon)
     initial = check_initial(initial)
     refs = reference_names(est, reference, val)

@@ -30,7 +30,15 @@ from ..models.effects import (
     parse_effect,
     thresholded_products,
 )
-from ..models.regressors import first_of_run, lagger, max_lag, regressor_columns, regressor_matrix, regressor_names
+from ..models.regressors import (
+    finite_regressor_columns,
+    first_of_run,
+    lagger,
+    max_lag,
+    regressor_columns,
+    regressor_matrix,
+    regressor_names,
+)
 from .added_variable import AddedVariableResult, AddedVariableTest, all_finite, held_columns, holm, lagged_view
 from .candidates import scan_threshold, signal_thresholds
 from .extension import Candidate, layout_for
@@ -173,12 +181,12 @@ class Scoring(CandidateScoring):
             lag = max(lag, max_lag(c.na, lay))
             self.prepared.append(c)  # its columns are built when it is scored, one candidate at a time
         self.lag = lag
-        self.phi0, self.y0, self.rows0 = regressor_matrix(data, model.na_, self.base_layout, lag)
-        if len(self.rows0) <= self.phi0.shape[1] + 2:
+        self._tall: tuple[np.ndarray, np.ndarray, AddedVariableTest] | None = None
+        phi0, _, self.rows0 = self._regressors()
+        if len(self.rows0) <= phi0.shape[1] + 2:
             raise DataError(
-                f"too few regression rows ({len(self.rows0)}) to diagnose a model with {self.phi0.shape[1]} parameters"
+                f"too few regression rows ({len(self.rows0)}) to diagnose a model with {phi0.shape[1]} parameters"
             )
-        self.proj0 = AddedVariableTest(self.phi0, self.y0)
         self.lagged = lagger(self.rows0)  # x[rows0 - lag], a slice when the rows are consecutive
         self._first_row = first_of_run(self.rows0)
         self._samples: dict[tuple[str, int, int], np.ndarray] = {}  # one signal's, during its scan
@@ -188,6 +196,44 @@ class Scoring(CandidateScoring):
         # the record per candidate.
         self.single_z = _Rebuilt(self)
         self._threshold_lags: dict[tuple[str, str], tuple[int, int]] = {}
+
+    def run(self, alpha: float, n_pairs: int) -> tuple[list[dict], dict[str, str]]:
+        """As :meth:`CandidateScoring.run`; the model's regressors are then let go (the stages after
+        the scoring hold their own tall arrays) and rebuilt if :meth:`masked_pairs` needs them."""
+        try:
+            return super().run(alpha, n_pairs)
+        finally:
+            self.release()
+
+    def release(self) -> None:
+        """Let go of the model's regressors, their fit and the scan's samples (rows × columns each);
+        they are rebuilt, the same, when next read."""
+        self._tall = None
+        self._samples = {}
+
+    def _regressors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The model's regressors, output and rows (:func:`regressor_matrix`), and their test."""
+        phi0, y0, rows0 = regressor_matrix(self.data, self.model.na_, self.base_layout, self.lag)
+        self._tall = (phi0, y0, AddedVariableTest(phi0, y0))
+        return phi0, y0, rows0
+
+    @property
+    def phi0(self) -> np.ndarray:
+        """The model's regressors on its rows (rebuilt after :meth:`release`)."""
+        return self._tall[0] if self._tall is not None else self._regressors()[0]
+
+    @property
+    def y0(self) -> np.ndarray:
+        """The output on the model's rows."""
+        return self._tall[1] if self._tall is not None else self._regressors()[1]
+
+    @property
+    def proj0(self) -> AddedVariableTest:
+        """The added-variable test against the model's regressors."""
+        if self._tall is None:
+            self._regressors()
+        assert self._tall is not None
+        return self._tall[2]
 
     def _singles(self) -> list[dict]:
         scored = self._score_all()
@@ -218,8 +264,7 @@ class Scoring(CandidateScoring):
             z = regressor_columns(self.data, c.na, lay, self.rows0, new)
             if all_finite(z):
                 return z, self.rows0
-        phi, _, rows = regressor_matrix(self.data, c.na, lay, self.lag)
-        return phi[:, new], rows
+        return finite_regressor_columns(self.data, c.na, lay, self.lag, new)
 
     def _effect_columns(self, c: Candidate) -> np.ndarray | None:
         """The columns of a candidate that adds one effect, built without the input matrix of the

@@ -17,6 +17,7 @@ from ..data.iodata import IOData
 from .effects import EffectLayout, integer_power
 
 __all__ = [
+    "finite_regressor_columns",
     "regression_rows",
     "write_regressors",
     "output_term_values",
@@ -207,6 +208,39 @@ def regressor_columns(
         for i, w in enumerate(which):
             block[:, i] = cols[index.index(w)]
     return out
+
+
+def finite_regressor_columns(
+    data: IOData, na: int, layout: EffectLayout, first_lag: int, which: Sequence[int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The columns ``which`` of :func:`regressor_matrix` and its rows (those where no regressor and
+    not the output is missing), the whole matrix held a block of rows at a time only.
+
+    Parameters
+    ----------
+    data, na, layout, first_lag
+        As in :func:`regressor_matrix`.
+    which : sequence of int
+        Column indices, in the order of :func:`regressor_names`.
+
+    Returns
+    -------
+    z : ndarray of shape (n_rows, len(which))
+    rows : ndarray of int, shape (n_rows,)
+    """
+    rows = regression_rows(data, max(first_lag, max_lag(na, layout)))
+    out = np.empty((len(rows), len(which)))
+    ok = np.empty(len(rows), dtype=bool)
+    for lo in range(0, len(rows), _BLOCK_ROWS):
+        at = rows[lo : lo + _BLOCK_ROWS]
+        cols = list(_columns(data, na, layout, at, None, True))
+        ok[lo : lo + len(at)] = np.isfinite(data.y[at])
+        for col in cols:
+            ok[lo : lo + len(at)] &= np.isfinite(col)
+        block = out[lo : lo + len(at)]
+        for i, w in enumerate(which):
+            block[:, i] = cols[w]
+    return (out, rows) if ok.all() else (out[ok], rows[ok])
 
 
 #: Rows of the regressors written at a time: the input and output rows a block reads stay in cache
