@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import functools
 import os
+import pickle
+import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -42,11 +46,19 @@ LONGEST_FIRST = (
 )
 
 
+#: A folder shared by the xdist workers of this run (None without xdist): see :func:`made_once`.
+SHARED_RUN_DIR: Path | None = None
+
+
 def pytest_configure(config):
     """xdist otherwise reorders the files by their number of tests, which puts the few long
-    report and browser tests last; the order of :data:`LONGEST_FIRST` is kept instead."""
+    report and browser tests last; the order of :data:`LONGEST_FIRST` is kept instead. A worker's
+    temporary folder (``--basetemp``, given by xdist) lies in the run's, which they share."""
+    global SHARED_RUN_DIR
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
+    if hasattr(config, "workerinput") and config.option.basetemp:
+        SHARED_RUN_DIR = Path(config.option.basetemp).parent
 
 
 def pytest_collection_modifyitems(config, items):
@@ -160,13 +172,46 @@ def client_read_recorder(record: str):
     return functools.partial(_read_and_record, record=record)
 
 
+def made_once(name: str, make: Callable[[], Any]) -> Any:
+    """``make()``, made by one xdist worker of the run and read (pickled) by the others.
+
+    Several test files use the demo flights and their analyses, and xdist spreads the files over
+    the workers: each worker simulated and analysed the same flights again. Now the first worker to
+    ask claims ``name`` (a file created exclusively) and writes the result when done; a worker that
+    finds it claimed waits for that file, or makes it itself if making it failed there. Without
+    xdist, or when the result never comes (its worker died), ``make()`` runs here.
+    """
+    if SHARED_RUN_DIR is None:
+        return make()
+    path = SHARED_RUN_DIR / f"made-once-{name}.pickle"
+    claim = path.with_suffix(".claim")
+    try:
+        os.close(os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except FileExistsError:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline and claim.exists():
+            if path.exists():
+                return pickle.loads(path.read_bytes())
+            time.sleep(0.05)
+        return pickle.loads(path.read_bytes()) if path.exists() else make()
+    try:
+        value = make()
+    except BaseException:
+        claim.unlink()  # the others make it themselves (and fail as loudly)
+        raise
+    part = path.with_suffix(f".{os.getpid()}.part")
+    part.write_bytes(pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+    part.replace(path)  # whole or absent for the readers
+    return value
+
+
 @functools.cache
 def demo_data_once(seed: int):
     """``arxid.analysis.demo.demo_data(seed)`` (the flight and the facts of its simulation), simulated
-    once per session (about 1.4 s of CPU each): read it, do not change it."""
+    once per run (about 1.4 s of CPU each, see :func:`made_once`): read it, do not change it."""
     from arxid.analysis.demo import demo_data
 
-    return demo_data(seed=seed)
+    return made_once(f"demo-data-{seed}", lambda: demo_data(seed=seed))
 
 
 def _demo_flight(seed: int):
@@ -187,7 +232,10 @@ def _demo_analysis(seed: int):
     """``arxid.analyse`` of demo flight ``seed`` validated on flight ``seed + 1000``, ``expect="stable"``."""
     import arxid
 
-    return arxid.analyse(_demo_flight(seed), _demo_flight(seed + 1000), expect="stable")
+    return made_once(
+        f"demo-analysis-{seed}",
+        lambda: arxid.analyse(_demo_flight(seed), _demo_flight(seed + 1000), expect="stable"),
+    )
 
 
 @pytest.fixture(scope="session")

@@ -14,6 +14,7 @@ from scipy.signal import lfilter
 
 import arxid
 from arxid.quadrotor.datasets import quadrotor_axis, quadrotor_flight
+from plants import position_servo
 
 SILVERBOX_TS = 1 / 610.35
 
@@ -42,25 +43,6 @@ def thrust_stand(shared_data):
     thrust = np.array([float(r["weight[g]"]) for r in rows])
     rpm = np.array([float(r["rpm1"]) for r in rows])
     return arxid.IOData(thrust, rpm, 1.0, output_name="thrust", input_names=["rpm"])
-
-
-def position_servo(n=6000, seed=0, ts=0.01, delay=8):
-    """A DC motor with viscous and Coulomb friction driving an inertia, position measured, the
-    command reaching the motor 8 samples late (bus and driver latency): an integrating plant."""
-    rng = np.random.default_rng(seed)
-    u = np.repeat(rng.standard_normal(n // 20 + 1), 20)[:n]
-    inertia, viscous, gain, coulomb = 0.01, 0.05, 1.0, 0.1
-    angle = speed = 0.0
-    y = np.zeros(n)
-    sub = 10
-    h = ts / sub
-    for t in range(n):
-        torque = gain * (u[t - delay] if t >= delay else 0.0)
-        for _ in range(sub):
-            speed += h * (torque - viscous * speed - coulomb * math.tanh(speed / 0.01)) / inertia
-            angle += h * speed
-        y[t] = angle + 1e-4 * rng.standard_normal()
-    return arxid.IOData(y, u, ts, output_name="angle", input_names=["voltage"])
 
 
 def stable_slow_plant(n=20000, seed=0):
@@ -131,7 +113,7 @@ def test_stable_plant_with_a_pole_at_0997_is_not_integrating():
 @pytest.mark.parametrize("plant", ["servo", "roll"])
 def test_position_servo_and_roll_axis_are_integrating_with_the_delay(plant):
     data, grid = {
-        "servo": (position_servo(), {"nk": range(0, 11)}),
+        "servo": (position_servo(n=6000), {"nk": range(0, 11)}),
         "roll": (roll_axis(), {"na": range(2, 5), "nb": range(1, 3), "nk": range(0, 11)}),
     }[plant]
     res = arxid.sweep(data, validation=0.3, progress=False, **grid)
@@ -143,7 +125,7 @@ def test_position_servo_and_roll_axis_are_integrating_with_the_delay(plant):
 
 
 def test_expect_overrides_the_detection():
-    data = position_servo()
+    data = position_servo(n=6000)
     res = arxid.sweep(data, validation=0.3, expect="stable", progress=False, nk=range(0, 11))
     assert not res.integrating and res.integrator is None and "expect='stable'" in res.integrating_reason
     res = arxid.sweep(stable_slow_plant(), validation=0.3, expect="integrating", progress=False)

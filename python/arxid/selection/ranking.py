@@ -163,6 +163,10 @@ def _scored_norm(d: IOData, lag: int) -> float:
     return math.sqrt(m2) if n else math.nan
 
 
+#: Companion matrices per eigenvalue call in :func:`max_poles`.
+_POLES_PER_CALL = 1000
+
+
 def max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Largest pole magnitude of every structure (companion matrices, batched per na).
 
@@ -180,17 +184,20 @@ def max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """
     out = np.zeros(len(na))
     for k in np.unique(na):
-        idx = np.flatnonzero(na == k)
         if k == 0:
             continue
-        a = theta[idx, :k]
-        ok = np.isfinite(a).all(axis=1)
-        comp = np.zeros((len(idx), k, k))
-        comp[:, 0, :] = -np.where(ok[:, None], a, 0.0)
-        if k > 1:
-            comp[:, np.arange(1, k), np.arange(k - 1)] = 1.0
-        mags = np.abs(np.linalg.eigvals(comp)).max(axis=1)
-        out[idx] = np.where(ok, mags, np.nan)
+        every = np.flatnonzero(na == k)
+        # A thousand matrices per call: one numpy call is not interruptible, and 6,000 structures
+        # of one na took most of a second on a loaded machine (a Ctrl-C waited for it).
+        for idx in np.array_split(every, -(-len(every) // _POLES_PER_CALL)):
+            a = theta[idx, :k]
+            ok = np.isfinite(a).all(axis=1)
+            comp = np.zeros((len(idx), k, k))
+            comp[:, 0, :] = -np.where(ok[:, None], a, 0.0)
+            if k > 1:
+                comp[:, np.arange(1, k), np.arange(k - 1)] = 1.0
+            mags = np.abs(np.linalg.eigvals(comp)).max(axis=1)
+            out[idx] = np.where(ok, mags, np.nan)
     return out
 
 
