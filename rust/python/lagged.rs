@@ -39,6 +39,9 @@ pub(super) fn lagged_r<'py>(
     Ok((r.transpose()?.cast_into::<PyArray2<f64>>()?, out.n_rows))
 }
 
+/// R and the columns' sums of squares, as numpy arrays.
+type Projected<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// `(R, squares)`: R ((k + 1) × (k + 1) upper triangular) of [Z − Q(QᵀZ) | y] for a basis Q
 /// (n × p, orthonormal columns), columns Z (n × k) and a residual y (n), and Σ z² per column of Z
 /// (see [`crate::linalg::projected_qr`]). Short calls run on the calling thread, long ones on every
@@ -49,7 +52,7 @@ pub(super) fn projected_r<'py>(
     q: PyReadonlyArray2<'py, f64>,
     y: PyReadonlyArray1<'py, f64>,
     z: PyReadonlyArray2<'py, f64>,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<Projected<'py>> {
     let (qs, zs) = (source(&q)?, source(&z)?);
     let y = y.as_array();
     let owned;
