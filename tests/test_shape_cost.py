@@ -70,16 +70,26 @@ def test_missing_samples_keep_the_refits_rows():
         assert cost((c,)) == pytest.approx(cost.refit(shape), rel=1e-10)
 
 
-@pytest.mark.parametrize("rows", [50, 4096 * 3, 4096 * 5 + 17])
-def test_the_blocked_r_factor_is_householders(rows):
-    from arxid.diagnosis.shape_cost import tall_r
+@pytest.mark.parametrize("rows", [50, 4096 * 3, 4096 * 5 + 17, 300_017])
+def test_the_projected_factor_is_numpys_qr_of_the_projected_columns(rows):
+    """The core's R of [Z − Q(QᵀZ) | y⊥] (two passes, blocks of rows, every core from 2^18 samples)
+    against numpy's QR of the projection written out, on nearly dependent columns too."""
+    from arxid._base.orthonormal import projected_r
 
-    a = np.random.default_rng(rows).standard_normal((rows, 4)) @ np.array(
-        [[1.0, 0.9, 0.0, 1.0], [0.0, 0.1, 0.0, 2.0], [0.0, 0.0, 1e-3, 0.5], [0.0, 0.0, 0.0, 1e-2]]
-    )
-    got, want = tall_r(a), np.linalg.qr(a, mode="r")
+    rng = np.random.default_rng(rows)
+    q = np.linalg.qr(rng.standard_normal((rows, 3)))[0]
+    y = rng.standard_normal(rows)
+    y -= q @ (q.T @ y)
+    mix = np.array([[1.0, 0.9, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 1e-3]])
+    z = rng.standard_normal((rows, 3)) @ mix + q @ rng.standard_normal((3, 3))
+    got, dependent = projected_r(q, y, z)
+    want = np.linalg.qr(np.column_stack([z - q @ (q.T @ z), y]), mode="r")
     signs = np.sign(np.diag(got)) * np.sign(np.diag(want))
-    np.testing.assert_allclose(signs[:, None] * got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+    np.testing.assert_allclose(signs[:, None] * got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    assert not dependent.any()
+    z[:, 1] = q @ [1.0, -2.0, 0.5]  # in the basis's span
+    z[:, 2] = 3.0 * z[:, 0]  # a multiple of a column before it
+    assert projected_r(q, y, np.asfortranarray(z))[1].tolist() == [False, True, True]
 
 
 def test_a_tall_basis_is_numpys_projection_written_over_the_columns():

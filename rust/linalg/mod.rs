@@ -8,5 +8,6 @@ pub mod lagged_gram;
 pub mod lagged_products;
 pub mod lagged_qr;
 pub mod levenberg;
+pub mod projected_qr;
 pub mod qr;
 pub mod simd;

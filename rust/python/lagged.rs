@@ -7,7 +7,7 @@ use numpy::{
 use pyo3::prelude::*;
 
 use super::errors::{to_pyerr, DataError};
-use super::run::run;
+use super::run::{run, run_short, SHORT_CALL};
 use crate::linalg::lagged_qr::{lagged_r as factor, LaggedColumn, Source};
 
 /// `(R, n_rows)`: R (q × q upper triangular, R'R = M'M) of the matrix M whose column j is
@@ -37,6 +37,41 @@ pub(super) fn lagged_r<'py>(
     let q = cols.len();
     let r = PyArray1::from_vec(py, out.r).reshape([q, q])?; // column-major q × q read row-major: Rᵀ
     Ok((r.transpose()?.cast_into::<PyArray2<f64>>()?, out.n_rows))
+}
+
+/// R and the columns' sums of squares, as numpy arrays.
+type Projected<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// `(R, squares)`: R ((k + 1) × (k + 1) upper triangular) of [Z − Q(QᵀZ) | y] for a basis Q
+/// (n × p, orthonormal columns), columns Z (n × k) and a residual y (n), and Σ z² per column of Z
+/// (see [`crate::linalg::projected_qr`]). Short calls run on the calling thread, long ones on every
+/// core (the same R for any number); the GIL is released.
+#[pyfunction]
+pub(super) fn projected_r<'py>(
+    py: Python<'py>,
+    q: PyReadonlyArray2<'py, f64>,
+    y: PyReadonlyArray1<'py, f64>,
+    z: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Projected<'py>> {
+    let (qs, zs) = (source(&q)?, source(&z)?);
+    let y = y.as_array();
+    let owned;
+    let y = match y.as_slice() {
+        Some(y) => y,
+        None => {
+            owned = y.to_vec();
+            &owned
+        }
+    };
+    let work = y.len() * (qs.columns + zs.columns + 1);
+    let out = if work <= SHORT_CALL {
+        run_short(py, |cancel| crate::linalg::projected_qr::projected_r(&qs, y, &zs, false, cancel))?
+    } else {
+        run(py, 0, |cancel| crate::linalg::projected_qr::projected_r(&qs, y, &zs, true, cancel))?
+    };
+    let m = zs.columns + 1;
+    let r = PyArray1::from_vec(py, out.r).reshape([m, m])?; // column-major read row-major: Rᵀ
+    Ok((r.transpose()?.cast_into::<PyArray2<f64>>()?, PyArray1::from_vec(py, out.squares)))
 }
 
 /// The strided view of a numpy array as a [`Source`] (its strides in elements, not bytes).

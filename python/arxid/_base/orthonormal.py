@@ -1,12 +1,15 @@
-"""An orthonormal basis of a tall matrix's few columns, and its R factor, by blocks of rows: the
-projections of the diagnosis's encompassing and added-variable tests at millions of rows, without
-the copies of the rows numpy's QR makes beside its Q."""
+"""An orthonormal basis of a tall matrix's few columns, and the factor of new columns projected off
+it: the projections of the diagnosis's encompassing and added-variable tests and of its shape scans,
+at millions of rows, without the copies of the rows numpy's QR makes beside its Q."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RANK_FACTOR", "orthonormal_basis", "tall_r"]
+from . import _core
+from .nested import blocked_r, core_readable
+
+__all__ = ["RANK_FACTOR", "orthonormal_basis", "projected_r"]
 
 #: The core's rank rule: a column is dependent when the sine of its angle to the columns before it
 #: is at most (rows · machine epsilon · 10).
@@ -17,10 +20,11 @@ def orthonormal_basis(columns: np.ndarray, overwrite: bool = False) -> np.ndarra
     """Q of the columns' QR, or None when one depends on those before it by the core's rank rule.
 
     A tall matrix (from :data:`_LEAN_ROWS` rows) gets Q as ``columns`` R⁻¹, twice (the second pass
-    restores orthogonality to rounding), block of rows by block: no copy of the rows beside Q,
-    and with ``overwrite`` Q is written over ``columns`` (a shorter one: numpy's QR)."""
+    restores orthogonality to rounding), block of rows by block, R from the core's blocked QR
+    (:func:`~arxid._base.nested.blocked_r`): no copy of the rows beside Q, and with ``overwrite``
+    Q is written over ``columns`` (a shorter one: numpy's QR)."""
     lean = columns.shape[0] >= _LEAN_ROWS and columns.shape[1] > 0
-    q, r = (None, tall_r(columns)) if lean else np.linalg.qr(columns)
+    q, r = (None, blocked_r(columns)) if lean else np.linalg.qr(columns)
     tol = RANK_FACTOR * max(columns.shape)
     norms = np.sqrt(np.einsum("ij,ij->j", columns, columns))
     if columns.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
@@ -28,7 +32,7 @@ def orthonormal_basis(columns: np.ndarray, overwrite: bool = False) -> np.ndarra
     if q is None:
         q = columns if overwrite else columns.copy()
         _divide_rows(q, r)
-        _divide_rows(q, tall_r(q))
+        _divide_rows(q, blocked_r(q))
     return q
 
 
@@ -39,22 +43,42 @@ def _divide_rows(q: np.ndarray, r: np.ndarray) -> None:
         q[a : a + _LEAN_ROWS] = q[a : a + _LEAN_ROWS] @ inverse
 
 
-#: Rows of each block whose R factors :func:`tall_r` stacks.
-_BLOCK_ROWS = 4096
-#: Rows from which :func:`orthonormal_basis` divides by R in place, and rows per batched QR of
-#: :func:`tall_r` (numpy's QR copies what it factors).
-_LEAN_ROWS = 32 * _BLOCK_ROWS
+#: Rows from which :func:`orthonormal_basis` divides by R in place (numpy's QR copies what it
+#: factors), and rows per block of that division.
+_LEAN_ROWS = 131_072
 
 
-def tall_r(a: np.ndarray) -> np.ndarray:
-    """R of a tall matrix of a few columns, up to the signs of its rows: the R factors of blocks of
-    rows (batched QRs of at most :data:`_LEAN_ROWS` rows), stacked and reduced again. Householder's
-    accuracy in about half the time of one QR of the whole matrix (whose reflections each pass over
-    every row)."""
-    whole = a.shape[0] // _BLOCK_ROWS * _BLOCK_ROWS
-    if whole <= _BLOCK_ROWS:
-        return np.asarray(np.linalg.qr(a, mode="r"))
-    k = a.shape[1]
-    stacks = (a[lo : min(lo + _LEAN_ROWS, whole)].reshape(-1, _BLOCK_ROWS, k) for lo in range(0, whole, _LEAN_ROWS))
-    blocks = [np.asarray(np.linalg.qr(stack, mode="r")).reshape(-1, k) for stack in stacks]
-    return np.asarray(np.linalg.qr(np.vstack([*blocks, a[whole:]]), mode="r"))
+def projected_r(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R of [Z − Q(QᵀZ) | y⊥] (no Q formed), whose last diagonal entry is the residual's norm, and
+    per column of ``z`` whether it depends on the basis or on those before it (the core's rule).
+
+    One call of the core (two passes over the rows, no tall temporary): a shape scan asks for it
+    once per value it tries, on a few thousand rows or on millions.
+
+    Parameters
+    ----------
+    basis : ndarray of shape (n, p)
+        Orthonormal columns Q.
+    y_perp : ndarray of shape (n,)
+        A residual orthogonal to them.
+    z : ndarray of shape (n, k)
+
+    Returns
+    -------
+    r : ndarray of shape (k + 1, k + 1)
+        Upper triangular, up to the signs of its rows.
+    dependent : ndarray of bool, shape (k,)
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> q = np.linalg.qr(rng.standard_normal((500, 2)))[0]
+    >>> y = rng.standard_normal(500); y -= q @ (q.T @ y)
+    >>> z = np.column_stack([rng.standard_normal(500), q[:, 0]])
+    >>> r, dependent = projected_r(q, y, z)
+    >>> dependent.tolist()
+    [False, True]
+    """
+    k = z.shape[1]
+    r, squares = _core.projected_r(core_readable(basis), core_readable(y_perp), core_readable(z))
+    return r, ~(np.abs(np.diag(r)[:k]) > RANK_FACTOR * z.shape[0] * np.sqrt(squares))

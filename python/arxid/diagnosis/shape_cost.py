@@ -22,8 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .._base.orthonormal import RANK_FACTOR as _RANK_FACTOR
-from .._base.orthonormal import orthonormal_basis, tall_r
+from .._base.orthonormal import orthonormal_basis, projected_r
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -32,7 +31,7 @@ from ..models.input_shapes import InputShape, parse_shape
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
-__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_r", "projected_rss", "tall_r"]
+__all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_r", "projected_rss"]
 
 #: The shortcut's loss must match the refit's to this relative difference at the first value.
 _AGREEMENT = 1e-9
@@ -168,15 +167,3 @@ def projected_rss(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> float
     before it."""
     r, dependent = projected_r(basis, y_perp, z)
     return math.inf if dependent.any() else float(r[-1, -1] ** 2)
-
-
-def projected_r(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R of [Z − Q(QᵀZ) | y⊥] (no Q formed), whose last diagonal entry is the residual's norm, and
-    per column of ``z`` whether it depends on the basis or on those before it (the core's rule)."""
-    k = z.shape[1]
-    stacked = np.empty((z.shape[0], k + 1))
-    stacked[:, :k] = z - basis @ (basis.T @ z)
-    stacked[:, k] = y_perp
-    r = tall_r(stacked)
-    norms = np.sqrt(np.einsum("ij,ij->j", z, z))
-    return r, ~(np.abs(np.diag(r)[:k]) > _RANK_FACTOR * z.shape[0] * norms)
