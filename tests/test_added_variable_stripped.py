@@ -28,9 +28,10 @@ def _basis_test(phi: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[float, f
     rn = np.linalg.norm(zr, axis=0)
     if not (rn > 1e-7).any():
         return None
-    zr, kept = zr[:, rn > 1e-7] / rn[rn > 1e-7], []
+    zr = zr[:, rn > 1e-7] / rn[rn > 1e-7]
+    kept: list[int] = []
     for j in range(zr.shape[1]):  # a column counts when it is 1e-7 away from those counted before it
-        if abs(np.linalg.qr(zr[:, [*kept, j]], mode="r")[-1, -1]) > 1e-7:
+        if abs(np.linalg.qr(zr[:, [*kept, j]])[1][-1, -1]) > 1e-7:
             kept.append(j)
     qz = np.linalg.qr(zr[:, kept])[0]
     k, dof = qz.shape[1], phi.shape[0] - phi.shape[1] - qz.shape[1]

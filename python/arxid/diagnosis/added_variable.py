@@ -457,7 +457,7 @@ def _independent_columns(r: np.ndarray) -> list[int]:
     left it, and the columns after would be measured against that direction too.)"""
     kept: list[int] = []
     for j in range(r.shape[1]):
-        if abs(np.linalg.qr(r[:, [*kept, j]], mode="r")[-1, -1]) > 1e-7:
+        if abs(np.asarray(np.linalg.qr(r[:, [*kept, j]], mode="r"))[-1, -1]) > 1e-7:
             kept.append(j)
     return kept
 
