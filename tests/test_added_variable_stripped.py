@@ -136,3 +136,19 @@ def test_the_dependence_test_names_the_same_signals(seed, monkeypatch):
     assert [(d.signal, d.lags) for d in found] == [("u2", (2, 3))]  # the square of the input
     assert (p_values[0][:2] > 0.01).all()  # the output's lags: nothing found, p-values not at 0 or 1
     np.testing.assert_allclose(p_values[0], p_values[1], rtol=1e-10, atol=1e-300)
+
+
+def test_the_share_of_a_block_nearly_explained_is_the_basis_paths():
+    phi, y, rng = _regression(4)
+    test = AddedVariableTest(phi, y)
+    n = len(y)
+    w, inside = phi[:, 0] ** 2 + 0.2 * rng.standard_normal(n), phi @ rng.standard_normal(phi.shape[1])
+    z = np.column_stack([inside + 1e-6 * np.linalg.norm(inside) / math.sqrt(n) * w])
+    got = test.share(z)  # too close to the regressors for its cross-products: stripped
+    q = np.linalg.qr(phi)[0]
+    zn = z / np.linalg.norm(z)
+    zr = zn - q @ (q.T @ zn)
+    v = zn.T @ test.e
+    want = float(v @ np.linalg.solve(zr.T @ zr, v)) / test.rss0
+    assert 1e-4 < got == pytest.approx(want, rel=1e-9)
+    assert test._q is None
