@@ -139,7 +139,8 @@ class AddedVariableTest:
 
     @property
     def q(self) -> np.ndarray:
-        """Orthonormal basis of the regressors' span (n × p; formed only when a test needs it)."""
+        """Orthonormal basis of the regressors' span (n × p; formed only when they are ill-conditioned and a
+        test needs it)."""
         if self._q is None:  # on a tall Φ written over its scaled copy: no second n × p beside it
             q = orthonormal_basis(self._phi / self._scale, overwrite=True)
             self._q = np.linalg.qr(self._phi / self._scale)[0] if q is None else q
