@@ -131,13 +131,16 @@ class AddedVariableTest:
         self.exact = self.rss0 <= _ROUNDING**2 * energy
 
     def _solve(self, v: np.ndarray) -> np.ndarray:
-        """θ with R'R (θ scale) = v / scale: least-squares coefficients from Φ'v."""
+        """θ with R'R (θ scale) = v / scale: least-squares coefficients from Φ'v (a column of
+        coefficients for each column of a 2-D ``v``)."""
         assert self._r is not None
-        return cholesky_solve(self._r, v / self._scale) / self._scale
+        scale = self._scale if v.ndim == 1 else self._scale[:, None]
+        return cholesky_solve(self._r, v / scale) / scale
 
     @property
     def q(self) -> np.ndarray:
-        """Orthonormal basis of the regressors' span (n × p; formed only when a test needs it)."""
+        """Orthonormal basis of the regressors' span (n × p; formed only when they are ill-conditioned and a
+        test needs it)."""
         if self._q is None:  # on a tall Φ written over its scaled copy: no second n × p beside it
             q = orthonormal_basis(self._phi / self._scale, overwrite=True)
             self._q = np.linalg.qr(self._phi / self._scale)[0] if q is None else q
@@ -220,8 +223,8 @@ class AddedVariableTest:
 
     def _exact_share(self, zn: np.ndarray, v: np.ndarray) -> float:
         """The share of a block (nearly) explained by the model, from its exactly stripped columns
-        (``zn``: the nonzero columns normalised, ``v``: their products with the residual)."""
-        zr = zn - self.q @ (self.q.T @ zn)
+        (``zn``: the nonzero columns normalised, a new array, ``v``: their products with the residual)."""
+        zr = self._strip(zn)
         if np.linalg.norm(zr) < 1e-7:
             return math.nan
         return self._solved_share(zr.T @ zr, v)
@@ -359,8 +362,25 @@ class AddedVariableTest:
 
     def _stripped(self, z: np.ndarray, keep: np.ndarray, norms: np.ndarray) -> tuple[AddedVariableResult | None, str]:
         """Ill-conditioned beside Φ: the QR of the stripped, normalised block decides which columns count."""
-        z = z[:, keep] / norms[keep]
-        return stripped_test(z - self.q @ (self.q.T @ z), self.e, self.n - self.p, self.rss0)
+        zn = np.empty((z.shape[0], int(keep.sum())))
+        for j, col in enumerate(np.flatnonzero(keep)):  # column by column: a lagged view's columns are slices
+            np.divide(z[:, col], norms[col], out=zn[:, j])
+        return stripped_test(self._strip(zn), self.e, self.n - self.p, self.rss0)
+
+    def _strip(self, zn: np.ndarray) -> np.ndarray:
+        """``zn`` minus its projection on the regressors (``zn`` a new array: overwritten).
+
+        Well-conditioned regressors: Φ⁺z from the Cholesky factor, subtracted in place a block of
+        rows at a time, twice (the second pass removes what the first solve's rounding left in Φ's
+        span, as accurate as an orthonormal basis of Φ, which would be an n × p copy beside Φ).
+        Otherwise that basis."""
+        if self.gram is None:
+            return zn - self.q @ (self.q.T @ zn)
+        for _ in range(2):
+            fitted = self._solve(self._phi.T @ zn)
+            for lo in range(0, self.n, _STRIP_ROWS):
+                zn[lo : lo + _STRIP_ROWS] -= self._phi[lo : lo + _STRIP_ROWS] @ fitted
+        return zn
 
     def _from_cross(
         self, b: np.ndarray, zz: np.ndarray, ze: np.ndarray, keep: np.ndarray, norms: np.ndarray
@@ -408,21 +428,39 @@ def stripped_test(zr: np.ndarray, e: np.ndarray, dof0: int, rss0: float) -> tupl
     (AddedVariableResult or None, str)
         The result, or None with the reason the block cannot be tested.
     """
-    rn = np.linalg.norm(zr, axis=0)
+    rn = column_norms(zr)
     ok = rn > 1e-7
     if not ok.any():
         return None, "already explained by the model's regressors (collinear)"
-    qz, rz = np.linalg.qr(zr[:, ok] / rn[ok])
-    d = np.abs(np.diag(rz))
-    qz = qz[:, d > 1e-7 * d.max()]
-    q = qz.shape[1]
+    # R of [z̃ (normalised) | e] by blocks of rows, read in place: its last column above the diagonal
+    # is Q'e, so the Q of z̃ (an n × q copy, with numpy's copy of z̃ beside it) is never formed.
+    k = int(ok.sum())
+    r = np.zeros((k + 1, k + 1))
+    got = blocked_r(zr if ok.all() else zr[:, ok], e, rn[ok])
+    r[: got.shape[0]] = got
+    kept = _independent_columns(r[:, :k])
+    if len(kept) < k:  # the R of the independent columns and e, from this small R (the same products)
+        r = np.asarray(np.linalg.qr(r[:, [*kept, k]], mode="r"))
+    q = len(kept)
     dof = dof0 - q
     if dof < 1 or rss0 <= 0:
         return None, "too few rows to test it"
-    drss = min(float(np.sum((qz.T @ e) ** 2)), rss0)
+    drss = min(float(np.sum(r[:q, q] ** 2)), rss0)
     rss1 = max(rss0 - drss, 1e-300 * rss0)
     f = (drss / q) / (rss1 / dof)
     return AddedVariableResult(math.sqrt(drss / rss0), float(f), float(f_sf(f, q, dof)), q), ""
+
+
+def _independent_columns(r: np.ndarray) -> list[int]:
+    """The columns of unit norm whose R is ``r`` that count, in order: each whose distance to the
+    span of those kept before it is above 1e-7. (The diagonal of ``r`` itself measures a column's
+    distance to all columns before it: after a dependent one, its Q column points wherever rounding
+    left it, and the columns after would be measured against that direction too.)"""
+    kept: list[int] = []
+    for j in range(r.shape[1]):
+        if abs(np.asarray(np.linalg.qr(r[:, [*kept, j]], mode="r"))[-1, -1]) > 1e-7:
+            kept.append(j)
+    return kept
 
 
 def all_finite(z: np.ndarray) -> bool:
@@ -510,6 +548,9 @@ def _as_block(z: np.ndarray) -> tuple[np.ndarray, int, bool]:
         return series, w, True
     return np.ascontiguousarray(z, dtype=float).ravel(), w, False
 
+
+#: Rows of the block stripped of the regressors at a time (:meth:`AddedVariableTest._strip`).
+_STRIP_ROWS = 16384
 
 _EXACT = "the model reproduces the output to rounding: nothing is left to explain"
 
