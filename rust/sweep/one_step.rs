@@ -218,9 +218,21 @@ fn one(f: &Factors, w: &mut Scratch) -> OneStep {
     OneStep { theta, rss_est, rss_val, error: None }
 }
 
-/// One task of structures (visited in `chunk`'s order, sharing factor rows) with its own scratch.
+/// Structures between two heartbeats inside a task: a task of wide structures (hundreds of delays)
+/// runs for a second or more, and a Ctrl-C should not wait for its end.
+const BEAT: usize = 64;
+
+/// One task of structures (visited in `chunk`'s order, sharing factor rows) with its own scratch,
+/// calling `heartbeat()` every [`BEAT`] structures.
 #[inline(always)]
-fn task(f: &Factors, env: &Structure, structures: &[Structure], chunk: &[usize], kmax: usize) -> Vec<(usize, OneStep)> {
+fn task(
+    f: &Factors,
+    env: &Structure,
+    structures: &[Structure],
+    chunk: &[usize],
+    kmax: usize,
+    heartbeat: &(dyn Fn() + Sync),
+) -> Vec<(usize, OneStep)> {
     let mut w = Scratch {
         chol: SharedCholesky::new(kmax),
         res: vec![0.0; f.q],
@@ -230,7 +242,11 @@ fn task(f: &Factors, env: &Structure, structures: &[Structure], chunk: &[usize],
     };
     chunk
         .iter()
-        .map(|&i| {
+        .enumerate()
+        .map(|(n, &i)| {
+            if n > 0 && n % BEAT == 0 {
+                heartbeat();
+            }
             columns_into(env, &structures[i], &mut w.cols);
             (i, one(f, &mut w))
         })
@@ -248,8 +264,9 @@ unsafe fn task_avx2(
     structures: &[Structure],
     chunk: &[usize],
     kmax: usize,
+    heartbeat: &(dyn Fn() + Sync),
 ) -> Vec<(usize, OneStep)> {
-    task(f, env, structures, chunk, kmax)
+    task(f, env, structures, chunk, kmax, heartbeat)
 }
 
 /// Whether [`task_avx2`] can run on this CPU.
@@ -303,7 +320,8 @@ fn field(s: &Structure, f: usize) -> usize {
 ///
 /// Results do not depend on the number of threads: each structure's numbers are computed by the
 /// same operations whichever structure computed the shared rows first. `heartbeat()` is called
-/// before each task of structures (a caller stops the ranking by unwinding from it).
+/// before each task of structures and every [`BEAT`] structures within one (a caller stops the
+/// ranking by unwinding from it).
 ///
 /// # Errors
 /// `InvalidStructure` when a structure reads columns outside `env` or `q` does not match it.
@@ -328,9 +346,9 @@ pub fn one_step_all(
         if wide {
             // SAFETY: `wide_vectors` found the CPU features the function is compiled for.
             #[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
-            return unsafe { task_avx2(f, env, structures, chunk, kmax) };
+            return unsafe { task_avx2(f, env, structures, chunk, kmax, heartbeat) };
         }
-        task(f, env, structures, chunk, kmax)
+        task(f, env, structures, chunk, kmax, heartbeat)
     };
     let parts: Vec<Vec<(usize, OneStep)>> =
         if parallel { order.par_chunks(TASK).map(run).collect() } else { order.chunks(TASK).map(run).collect() };
@@ -407,11 +425,17 @@ mod tests {
         // The 256-bit path gives every number of the 128-bit one, to the bit.
         let kmax = grid.iter().map(Structure::n_params).max().unwrap();
         let all: Vec<usize> = (0..grid.len()).collect();
-        for (i, r) in task(&f, &env, &grid, &all, kmax) {
+        let beats = std::sync::atomic::AtomicUsize::new(0);
+        let beat = || {
+            beats.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        };
+        for (i, r) in task(&f, &env, &grid, &all, kmax, &beat) {
             assert_eq!(r.theta, got[i].theta);
             assert_eq!(r.rss_est.to_bits(), got[i].rss_est.to_bits());
             assert_eq!(r.rss_val.to_bits(), got[i].rss_val.to_bits());
         }
+        // A Ctrl-C is looked for every BEAT structures inside a task, not only between tasks.
+        assert_eq!(beats.into_inner(), (grid.len() - 1) / BEAT);
         // u2 copied into u1: ARX(1,[1,1],[1,1]) reads the same column twice.
         let mut u2 = u.clone();
         for t in 0..n {
