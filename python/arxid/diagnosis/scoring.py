@@ -217,23 +217,27 @@ class Scoring(CandidateScoring):
         self._tall = (phi0, y0, AddedVariableTest(phi0, y0))
         return phi0, y0, rows0
 
+    def _held(self) -> tuple[np.ndarray, np.ndarray, AddedVariableTest]:
+        """The model's regressors, output and test, rebuilt if :meth:`release` let them go."""
+        if self._tall is None:
+            self._regressors()
+        assert self._tall is not None
+        return self._tall
+
     @property
     def phi0(self) -> np.ndarray:
         """The model's regressors on its rows (rebuilt after :meth:`release`)."""
-        return self._tall[0] if self._tall is not None else self._regressors()[0]
+        return self._held()[0]
 
     @property
     def y0(self) -> np.ndarray:
         """The output on the model's rows."""
-        return self._tall[1] if self._tall is not None else self._regressors()[1]
+        return self._held()[1]
 
     @property
     def proj0(self) -> AddedVariableTest:
         """The added-variable test against the model's regressors."""
-        if self._tall is None:
-            self._regressors()
-        assert self._tall is not None
-        return self._tall[2]
+        return self._held()[2]
 
     def _singles(self) -> list[dict]:
         scored = self._score_all()
