@@ -4,12 +4,14 @@ at millions of rows, without the copies of the rows numpy's QR makes beside its 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import _core
 from .nested import blocked_r, core_readable
 
-__all__ = ["RANK_FACTOR", "orthonormal_basis", "projected_r"]
+__all__ = ["RANK_FACTOR", "Projector", "orthonormal_basis", "projected_r"]
 
 #: The core's rank rule: a column is dependent when the sine of its angle to the columns before it
 #: is at most (rows · machine epsilon · 10).
@@ -53,7 +55,8 @@ def projected_r(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> tuple[n
     per column of ``z`` whether it depends on the basis or on those before it (the core's rule).
 
     One call of the core (two passes over the rows, no tall temporary): a shape scan asks for it
-    once per value it tries, on a few thousand rows or on millions.
+    once per value it tries, on a few thousand rows or on millions (through a :class:`Projector`,
+    which readies the basis once).
 
     Parameters
     ----------
@@ -79,6 +82,52 @@ def projected_r(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> tuple[n
     >>> dependent.tolist()
     [False, True]
     """
-    k = z.shape[1]
-    r, squares = _core.projected_r(core_readable(basis), core_readable(y_perp), core_readable(z))
-    return r, ~(np.abs(np.diag(r)[:k]) > RANK_FACTOR * z.shape[0] * np.sqrt(squares))
+    r, dependent = Projector(basis, y_perp).r(z)
+    return r, np.array(dependent, dtype=bool)
+
+
+class Projector:
+    """:func:`projected_r` against one basis and residual for many ``z``: the two are readied for
+    the core once, and the rank rule is read from the few diagonal entries as Python numbers (a
+    scan's value costs the core's call and little beside it).
+
+    Parameters
+    ----------
+    basis : ndarray of shape (n, p)
+        Orthonormal columns Q.
+    y_perp : ndarray of shape (n,)
+        A residual orthogonal to them.
+    """
+
+    def __init__(self, basis: np.ndarray, y_perp: np.ndarray):
+        self.basis, self.y_perp = core_readable(basis), core_readable(y_perp)
+
+    def r(self, z: np.ndarray) -> tuple[np.ndarray, list[bool]]:
+        """R of [Z − Q(QᵀZ) | y⊥] and whether each column of ``z`` is dependent (as :func:`projected_r`).
+
+        Parameters
+        ----------
+        z : ndarray of shape (n, k)
+
+        Returns
+        -------
+        (ndarray of shape (k + 1, k + 1), list of bool)
+        """
+        r, squares = _core.projected_r(self.basis, self.y_perp, core_readable(z))
+        scale = RANK_FACTOR * z.shape[0]  # the core's rule, in the order numpy would evaluate it
+        return r, [not abs(r[c, c]) > scale * math.sqrt(s) for c, s in enumerate(squares.tolist())]
+
+    def rss(self, z: np.ndarray) -> float:
+        """The residual sum of squares of y on the basis and ``z``; +inf when a column of ``z``
+        depends on the basis or on those before it.
+
+        Parameters
+        ----------
+        z : ndarray of shape (n, k)
+
+        Returns
+        -------
+        float
+        """
+        r, dependent = self.r(z)
+        return math.inf if any(dependent) else float(r[-1, -1] ** 2)

@@ -12,7 +12,6 @@ from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel
-from ..models.spec import parse_model_spec
 from ..selection.search import DEFAULT_GRID, SweepResult
 
 __all__ = ["Choice", "OrderGrid", "choose", "grid_of", "grid_lists", "given_model"]
@@ -140,6 +139,8 @@ def given_model(
     if orders is not None or grid is not None:
         raise OrderError("give either model=... or orders/grid, not both: the model fixes the structure")
     if isinstance(model, str):
+        from ..models.spec import parse_model_spec
+
         spec = parse_model_spec(model)
         fitted = spec.fit(est)
         how = spec.method

@@ -40,7 +40,6 @@ from ..checks.feedback import FeedbackTest
 from ..checks.frequency import FrequencyCheck, frequency_check
 from ..data.iodata import IOData
 from ..diagnosis.ladder import Ladder
-from ..diagnosis.static_map import shape_map_dict, shape_maps
 from ..exceptions import ArxidError, OrderError
 from ..models.arguments import check_data, check_horizon
 from ..models.arx_model import ArxModel, arx
@@ -62,11 +61,11 @@ from .closed_loop import (
     still_references,
 )
 from .conclusion import Conclusion, concluded
-from .loop_structure import LoopStructure, closed_loop_structure, loop_closing_sentences
 from .verdicts import delay_notes, ladder_headline, negative_fit_note, residual_sentences
 
 if TYPE_CHECKING:
     from ..frequency_domain import FrequencyResponse
+    from .loop_structure import LoopStructure
 
 __all__ = ["Analysis", "Choice", "OrderGrid", "analyse", "choose", "grid_of", "DEFAULT_SPLIT"]
 
@@ -166,6 +165,8 @@ class Analysis(Conclusion):
     def input_shapes(self) -> tuple:
         """Each shape the final model feeds an input through, with the input's static map
         (:func:`arxid.diagnosis.static_map.shape_maps`) for the report's plot."""
+        from ..diagnosis.static_map import shape_maps
+
         return shape_maps(self.final_model, self.estimation)
 
     @property
@@ -211,6 +212,8 @@ class Analysis(Conclusion):
         -------
         dict
         """
+        from ..diagnosis import static_map
+
         out = super().to_dict()
         out.update(
             {
@@ -221,7 +224,7 @@ class Analysis(Conclusion):
                 "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
                 "feedback": None if self.feedback is None else json.loads(self.feedback.to_json()),
                 "closed_loop": None if self.closed_loop is None else self.closed_loop.to_dict(),
-                "input_shapes": [shape_map_dict(*pair) for pair in self.input_shapes],
+                "input_shapes": [static_map.shape_map_dict(*pair) for pair in self.input_shapes],
             }
         )
         return out
@@ -600,6 +603,8 @@ def analyse(
     cmp, failures, freq, bands, freq_notes = _checks(chosen, ladder.final_model, val, ladder.horizon, initial)
     timings["checks and frequency"] = time.perf_counter() - t0
     if method is not None and method.closed:
+        from .loop_structure import loop_closing_sentences
+
         closing = loop_closing_sentences(chosen, est, val, method, ladder.horizon, initial)
         method = replace(method, loop_closing=closing)
     notes = measure_notes(res, ladder.horizon, requested) + freq_notes + feedback_notes(fb, est, method)
@@ -650,4 +655,6 @@ def _loop_structure(
         return None
     if not refs and (orders is not None or not beyond_the_sample(est, fb)):
         return None  # given ARX orders without a reference stay ARX (the notes say what feedback means)
+    from .loop_structure import closed_loop_structure
+
     return closed_loop_structure(est, val, refs, orders, grid, horizon, expect, progress, still)

@@ -33,7 +33,6 @@ from ..models.arx_model import ArxModel
 from ..models.effects import Factor, parse_effect
 from ..models.polynomial import PolynomialModel
 from ..selection.integrator import structure_integrates
-from .polynomial import structure_changes
 
 __all__ = [
     "CATALOGUE",
@@ -292,6 +291,8 @@ def candidate_input_names(data: IOData) -> list[str]:
 
 def _dynamics_candidates(model: ArxModel, ins: list[str]) -> list[str]:
     if isinstance(model, PolynomialModel):
+        from .polynomial import structure_changes
+
         return structure_changes(model, ins)
     dyn = ["na+1"]
     for i, a in enumerate(ins):

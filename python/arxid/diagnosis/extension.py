@@ -20,7 +20,6 @@ from ..models.arx_solver import per_input
 from ..models.effects import compile_effects, parse_effect
 from ..models.envelope import EnvelopeFactor
 from ..models.iv import IvModel
-from ..models.iv_effects import iv_with_effects
 from ..models.lanes import lane_rms
 from ..models.polynomial import PolynomialModel
 from .candidates import auto_candidates, candidate_input_names
@@ -142,6 +141,8 @@ def refit(model: ArxModel, data: IOData, c) -> ArxModel:
             return cast(ArxModel, refit_structure(model, data, label, candidate_input_names(data)))
         return cast(ArxModel, refit_with_effects(model, data, c.effects))
     if _closed_loop_iv(model):  # instruments from the reference: consistent in closed loop
+        from ..models.iv_effects import iv_with_effects
+
         nb, nk = per_input("nb", c.nb, data.n_inputs), per_input("nk", c.nk, data.n_inputs)
         return iv_with_effects(data, c.na, nb, nk, _with(model, c), _references(model), model.first_lag_)
     return ArxModel(na=c.na, nb=c.nb, nk=c.nk, effects=_with(model, c)).fit(data, first_lag=model.first_lag_)

@@ -22,11 +22,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from .._base.orthonormal import orthonormal_basis, projected_r
+from .._base.orthonormal import Projector, orthonormal_basis, projected_r
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
-from ..models.effects import EffectLayout, compile_effects
+from ..models.effects import EffectLayout, compile_effects, format_threshold
 from ..models.input_shapes import InputShape, parse_shape
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
@@ -61,16 +61,19 @@ class ShapeCost:
         self._checked = False
 
     def __call__(self, params: tuple[float, ...]) -> float:
-        shape = InputShape(self.kind, self.signal, tuple(float(v) for v in params))
+        values = tuple(float(v) for v in params)
+        if self._fast is not None:  # a scan's every value but the first: no shape built unless new
+            return self._fast.rss(values)
+        shape = InputShape(self.kind, self.signal, values)
         if not self._checked:  # the first value: refitted, and the shortcut set up against it
             self._checked = True
             exact = self.refit(shape)
             if math.isfinite(exact):
                 fast = _Projection.build(self, shape)
-                if fast is not None and abs(fast.rss(shape) - exact) <= _AGREEMENT * exact:
+                if fast is not None and abs(fast.rss(values) - exact) <= _AGREEMENT * exact:
                     self._fast = fast
             return exact
-        return self._fast.rss(shape) if self._fast is not None else self.refit(shape)
+        return self.refit(shape)
 
     def effects(self, shape: InputShape) -> list[str]:
         return [*self.model.effects, shape.effect] + (["const"] if self.const else [])
@@ -90,12 +93,11 @@ class _Projection:
     shaped lags are read from the shaped series at fixed sample indices."""
 
     def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray):
-        self.cost, self.index, self.q, self.y_perp = cost, index, q, y_perp
+        self.cost, self.index, self.projector = cost, index, Projector(q, y_perp)
         data = cost.data
         self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
         self.signal = data.signal(cost.signal)
-        # A local search's late steps read the same digits (the effect's four): each text once.
-        self._known: dict[str, float] = {}
+        self._known: dict[tuple[str, ...], float] = {}
 
     @classmethod
     def build(cls, cost: ShapeCost, shape: InputShape) -> _Projection | None:
@@ -114,18 +116,21 @@ class _Projection:
         y_perp = y - basis @ (basis.T @ y)
         return cls(cost, index, basis, y_perp)
 
-    def rss(self, shape: InputShape) -> float:
-        text = shape.text
-        if text not in self._known:
-            z = self._lags(shape)
+    def rss(self, values: tuple[float, ...]) -> float:
+        # The refit reads the effect's text, four digits a value: values with the same digits are
+        # the same shape (a local search's late steps), and a new text is made and read once.
+        digits = tuple(format_threshold(v) for v in values)
+        if digits not in self._known:
+            z = self._lags(InputShape(self.cost.kind, self.cost.signal, values))
             # inf: a shaped lag the other columns span
-            self._known[text] = z if isinstance(z, float) else projected_rss(self.q, self.y_perp, z)
-        return self._known[text]
+            self._known[digits] = z if isinstance(z, float) else self.projector.rss(z)
+        return self._known[digits]
 
     def _lags(self, shape: InputShape) -> np.ndarray | float:
         """The shaped lag columns, or the loss itself when they cannot be projected."""
+        text = shape.text
         try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
-            read = parse_shape(shape.text, self.names, shape.effect)
+            read = parse_shape(text, self.names, f"through({text})")
         except ArxidError:
             return math.inf
         with np.errstate(over="ignore", invalid="ignore"):
@@ -165,5 +170,4 @@ def projected_rss(basis: np.ndarray, y_perp: np.ndarray, z: np.ndarray) -> float
     """The residual sum of squares of ``y`` on the basis's columns and ``z`` (``y_perp`` is y less
     its projection on the basis); +inf when a column of ``z`` depends on the basis or on those
     before it."""
-    r, dependent = projected_r(basis, y_perp, z)
-    return math.inf if dependent.any() else float(r[-1, -1] ** 2)
+    return Projector(basis, y_perp).rss(z)

@@ -64,13 +64,11 @@ from .disturbance import Disturbance, remaining_disturbance
 from .extension import Candidate, candidate_list
 from .judge import SIMPLE_EXPLANATIONS, Judge, demote_pairs
 from .nonlinearity import NonlinearDependence, nonlinear_dependence
-from .polynomial_scoring import score_polynomial
 from .ranking import finish_suspects
 from .result import Diagnosis, Suspect
 from .scoring import CandidateScoring, Scoring
 from .sensor_shapes import rank_sensors, sensor_suspects
 from .shapes import ValidationEvidence, prefer_shapes, score_shapes
-from .state_space import diagnose_state_space
 
 __all__ = [
     "diagnose",
@@ -218,6 +216,8 @@ def diagnose(
     options.update(min_improvement=min_improvement, n_refit=n_refit, residual_max_lag=residual_max_lag)
     options.update(simple_explanations=simple_explanations, loop_signals=loop_signals)
     if isinstance(model, StateSpaceModel):  # each output on its own (a fleet's logs are refused there)
+        from .state_space import diagnose_state_space
+
         return diagnose_state_space(model, data, validation, **options)  # type: ignore[arg-type]
     if client is not None:  # by name: cluster_records imports this module
         diagnose_logs = import_module("arxid.diagnosis.cluster_records").diagnose_logs
@@ -241,7 +241,12 @@ def diagnose(
     try:
         cands, auto = records.candidates(candidates, model, loop_signals)
         scoring = None if polynomial else records.scoring(model, cands)
-        scored, notes = score_polynomial(model, data, cands) if scoring is None else scoring.run(alpha, n_pairs)
+        if scoring is None:
+            from .polynomial_scoring import score_polynomial
+
+            scored, notes = score_polynomial(model, data, cands)
+        else:
+            scored, notes = scoring.run(alpha, n_pairs)
     except Exception:
         pending.result()  # the baseline's error first, as when it ran before the scoring
         raise

@@ -7,7 +7,7 @@ import math
 import types
 from collections.abc import Mapping, Sequence
 from importlib import import_module
-from typing import Any, Literal, overload
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
@@ -17,14 +17,15 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
 from . import arx_text, convert
 from . import files as modelfile
-from .arx_solver import check_rows, check_size, per_input, solve, solve_factor
+from .arx_solver import check_inputs_vary, check_rows, check_size, fit_memory, per_input, solve, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
 from .envelope import EnvelopeFactor
-from .excitation import check_excitation
 from .fitted import FittedModel
 from .fitted_layout import FittedLayout
-from .many_logs import FactorSource, logs_fitting
 from .regressors import max_lag, regressor_names
+
+if TYPE_CHECKING:  # the logs of a fleet: imported when a list of logs is fitted
+    from .many_logs import FactorSource
 
 __all__ = ["ArxModel", "FittedLayout", "arx"]
 
@@ -72,9 +73,7 @@ class ArxModel(FittedModel):
     selection_: Any
 
     def __init__(self, *, na: int, nb, nk, effects: Sequence[str] = ()):
-        self.na = na
-        self.nb = nb
-        self.nk = nk
+        self.na, self.nb, self.nk = na, nb, nk
         self.effects = effect_names(effects)
 
     # ------------------------------------------------------------------ fitting
@@ -117,7 +116,7 @@ class ArxModel(FittedModel):
         """
         if isinstance(data, (list, tuple)):
             if client is not None:
-                logs = logs_fitting("client=").cluster_logs(client, data, read)
+                logs = import_module("arxid.models.many_logs").logs_fitting("client=").cluster_logs(client, data, read)
                 return self._fit_cluster(logs, first_lag, rows_like)
             data = import_module("arxid.data.logs").merge_logs(data, read)  # imported for a list of logs only
         elif client is not None:
@@ -133,11 +132,11 @@ class ArxModel(FittedModel):
         layout = compile_effects(self.effects, data, nb, nk)
         p, usable = check_size(na, layout, data, first_lag)
         check_memory(
-            _core.fit_memory(usable, p, n_threads) + layout.u.nbytes,
+            fit_memory(usable, p, n_threads) + layout.u.nbytes,
             f"the fit of {self.structure_name()} ({p} parameters) on {usable:,} regression rows",
             "lower the orders or use fewer samples",
         )
-        check_excitation(data, nb)
+        check_inputs_vary(data, nb)
         names = regressor_names(data.output_name, na, layout)
         res = solve(data, na, layout, names, first_lag, n_threads, rows_like)
         self._store(data, (na, nb, nk), layout, names, first_lag, res)
@@ -696,5 +695,6 @@ def arx(
         if not isinstance(data, (list, tuple)):
             raise DataError("per_experiment=True fits each log of a list: pass a list of IOData objects or file paths")
         fit = functools.partial(arx, na=na, nb=nb, nk=nk, effects=effects, n_threads=1 if client else n_threads)
-        return logs_fitting("per_experiment=True").fit_each(data, client, read, fit)
+        logs = import_module("arxid.models.many_logs").logs_fitting("per_experiment=True")
+        return logs.fit_each(data, client, read, fit)
     return ArxModel(na=na, nb=nb, nk=nk, effects=effects).fit(data, n_threads=n_threads, client=client, read=read)

@@ -4,7 +4,10 @@ the regressors or of their triangular factor, and the error that names a colline
 
 from __future__ import annotations
 
+import functools
+import threading
 import types
+import weakref
 from collections.abc import Sequence
 from typing import Any
 
@@ -15,9 +18,19 @@ from .._base.limits import check_order
 from ..data.iodata import IOData
 from ..exceptions import DataError, IdentifiabilityError, OrderError
 from .effects import EffectLayout
+from .excitation import check_excitation
 from .regressors import dependent_partners, max_lag, regressor_matrix, row_bound
 
-__all__ = ["check_rows", "check_size", "collinear", "per_input", "solve", "solve_factor"]
+__all__ = [
+    "check_inputs_vary",
+    "check_rows",
+    "check_size",
+    "collinear",
+    "fit_memory",
+    "per_input",
+    "solve",
+    "solve_factor",
+]
 
 
 def per_input(name: str, value: Any, m: int) -> tuple[int, ...]:
@@ -55,6 +68,33 @@ def check_rows(na: int, layout: EffectLayout, usable: int, n_samples: int, lag: 
             f"lower na/nb/nk or use more data"
         )
     return p
+
+
+@functools.lru_cache(maxsize=256)
+def fit_memory(usable: int, p: int, n_threads: int) -> int:
+    """The core's estimate of a fit's bytes (the same few sizes, asked for by every refit of a diagnosis)."""
+    return int(_core.fit_memory(usable, p, n_threads))
+
+
+def check_inputs_vary(data: IOData, nb: Sequence[int]) -> None:
+    """:func:`~arxid.models.excitation.check_excitation`, once per input matrix: a diagnosis refits
+    dozens of models on records that share one (a sensor shape's fit reads the output through g⁻¹
+    and the inputs as they are). Only a pass is kept: a refused input is refused each time."""
+    need = frozenset(i for i, b in enumerate(nb) if b)
+    with _VARY_LOCK:
+        seen = _VARY.get(id(data.u))
+    if seen is not None and seen[0]() is data.u and need <= seen[1]:
+        return
+    check_excitation(data, nb)
+    key = id(data.u)  # the entry goes with the samples (a later array may reuse the id)
+    with _VARY_LOCK:
+        _VARY[key] = (weakref.ref(data.u, lambda _, key=key: _VARY.pop(key, None)), need)
+
+
+#: The inputs found to vary, by input matrix (its id, with a reference that says it is still that one).
+_VARY: dict[int, tuple[weakref.ref, frozenset[int]]] = {}
+#: Stages of an analysis may fit on two threads (:mod:`arxid._base.background`).
+_VARY_LOCK = threading.Lock()
 
 
 def solve(

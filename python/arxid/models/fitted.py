@@ -13,7 +13,6 @@ from .._base import metrics
 from .._base.limits import check_order
 from ..data.iodata import IOData
 from ..exceptions import DataError
-from .files import write_atomically
 
 __all__ = ["FittedModel"]
 
@@ -241,5 +240,7 @@ class FittedModel:
         """
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
+            from .files import write_atomically
+
             write_atomically(path, text)
         return text
