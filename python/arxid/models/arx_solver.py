@@ -5,7 +5,6 @@ the regressors or of their triangular factor, and the error that names a colline
 from __future__ import annotations
 
 import functools
-import threading
 import types
 import weakref
 from collections.abc import Sequence
@@ -81,20 +80,24 @@ def check_inputs_vary(data: IOData, nb: Sequence[int]) -> None:
     dozens of models on records that share one (a sensor shape's fit reads the output through g⁻¹
     and the inputs as they are). Only a pass is kept: a refused input is refused each time."""
     need = frozenset(i for i, b in enumerate(nb) if b)
-    with _VARY_LOCK:
-        seen = _VARY.get(id(data.u))
-    if seen is not None and seen[0]() is data.u and need <= seen[1]:
+    u, key = data.u, id(data.u)
+    seen = _VARY.get(key)
+    done = seen[1] if seen is not None and seen[0]() is u else frozenset()
+    if need <= done:
         return
     check_excitation(data, nb)
-    key = id(data.u)  # the entry goes with the samples (a later array may reuse the id)
-    with _VARY_LOCK:
-        _VARY[key] = (weakref.ref(data.u, lambda _, key=key: _VARY.pop(key, None)), need)
+    # the entry goes with the samples (a later array may reuse the id)
+    _VARY[key] = (weakref.ref(u, functools.partial(_forget, key)), done | need)
 
 
-#: The inputs found to vary, by input matrix (its id, with a reference that says it is still that one).
+def _forget(key: int, _: weakref.ref) -> None:
+    _VARY.pop(key, None)
+
+
+#: The inputs found to vary, by input matrix (its id, with a reference that says it is still that
+#: one). Each access is one dict operation (atomic under the GIL: no lock, which a weak reference's
+#: callback run inside a locked block would deadlock on).
 _VARY: dict[int, tuple[weakref.ref, frozenset[int]]] = {}
-#: Stages of an analysis may fit on two threads (:mod:`arxid._base.background`).
-_VARY_LOCK = threading.Lock()
 
 
 def solve(

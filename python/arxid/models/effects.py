@@ -136,7 +136,16 @@ _CACHE_SIZE = 4096
 
 
 def _signals_key(data: IOData) -> _SignalsKey:
-    return (data.output_name, data.output_names, data.input_names, tuple(data.extra), data.n_inputs)
+    key = _KEYS.get(data)  # read once per data set: a diagnosis asks for it a thousand times
+    if key is None:
+        key = (data.output_name, data.output_names, data.input_names, tuple(data.extra), data.n_inputs)
+        with _CACHE_LOCK:
+            _KEYS[data] = key
+    return key
+
+
+#: The signal names of each data set (they never change).
+_KEYS: weakref.WeakKeyDictionary[IOData, _SignalsKey] = weakref.WeakKeyDictionary()
 
 
 def _remember(cache: dict, key: Any, value: Any) -> Any:
