@@ -38,7 +38,6 @@ from ..checks.feedback import FeedbackTest, feedback
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.iv import instrument_names, iv
-from ..models.pem import bj
 
 __all__ = [
     "ClosedLoopMethod",
@@ -312,6 +311,8 @@ def direct_refit(model: Any, data: IOData) -> Any:
     -------
     PolynomialModel
     """
+    from ..models.pem import bj
+
     nc, nd = NOISE_ORDERS
     nf = [model.na] * data.n_inputs
     return bj(data, list(model.nb_), nc, nd, nf, list(model.nk_))

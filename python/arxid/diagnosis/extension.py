@@ -23,7 +23,6 @@ from ..models.iv import IvModel
 from ..models.lanes import lane_rms
 from ..models.polynomial import PolynomialModel
 from .candidates import auto_candidates, candidate_input_names
-from .polynomial import refit_structure, refit_with_effects
 
 __all__ = ["Candidate", "Refits", "candidate_list", "layout_for", "refit", "refit_and_validate"]
 
@@ -136,6 +135,8 @@ def refit(model: ArxModel, data: IOData, c) -> ArxModel:
     if extended is not None:  # one output of a state-space model refits itself (its effects as inputs)
         return extended(data, c.effects)
     if isinstance(model, PolynomialModel):  # a structure change, or effects as extra inputs
+        from .polynomial import refit_structure, refit_with_effects
+
         if c.kind == "dynamics":
             label = c.label if isinstance(c, Candidate) else c.effect
             return cast(ArxModel, refit_structure(model, data, label, candidate_input_names(data)))

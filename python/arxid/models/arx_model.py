@@ -15,8 +15,6 @@ from .._base import _core, metrics
 from .._base.limits import check_memory, check_order, check_work
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
-from . import arx_text, convert
-from . import files as modelfile
 from .arx_solver import check_inputs_vary, check_rows, check_size, fit_memory, per_input, solve, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
 from .envelope import EnvelopeFactor
@@ -507,7 +505,7 @@ class ArxModel(FittedModel):
         -------
         control.TransferFunction or list of them
         """
-        return convert.to_control(self, continuous=continuous, input=input, method=method)
+        return import_module("arxid.models.convert").to_control(self, continuous=continuous, input=input, method=method)
 
     def to_scipy(self) -> Any:
         """``scipy.signal.dlti``; see :func:`arxid.convert.to_scipy`.
@@ -516,7 +514,7 @@ class ArxModel(FittedModel):
         -------
         scipy.signal.dlti
         """
-        return convert.to_scipy(self)
+        return import_module("arxid.models.convert").to_scipy(self)
 
     def to_dict(self) -> dict:
         """Everything needed to rebuild the fitted model (the JSON content).
@@ -525,7 +523,7 @@ class ArxModel(FittedModel):
         -------
         dict
         """
-        return modelfile.model_content(self)
+        return import_module("arxid.models.files").model_content(self)
 
     @classmethod
     def from_json(cls, path_or_text: Any) -> ArxModel:
@@ -567,7 +565,7 @@ class ArxModel(FittedModel):
         -------
         ArxModel
         """
-        return cls.from_json_text(modelfile.read_text(path))
+        return cls.from_json_text(import_module("arxid.models.files").read_text(path))
 
     @classmethod
     def from_json_text(cls, text: str) -> ArxModel:
@@ -582,6 +580,7 @@ class ArxModel(FittedModel):
         -------
         ArxModel
         """
+        modelfile = import_module("arxid.models.files")  # the model files, read when a model is loaded
         return modelfile.model_of(cls, modelfile.parse(text))
 
     # ------------------------------------------------------------------ printing
@@ -604,7 +603,7 @@ class ArxModel(FittedModel):
     def __str__(self) -> str:
         if "parameters_" not in self.__dict__:
             return f"ArxModel(na={self.na}, nb={self.nb}, nk={self.nk}, effects={list(self.effects)}) (not fitted)"
-        return arx_text.describe(self)
+        return import_module("arxid.models.arx_text").describe(self)
 
     def __repr__(self) -> str:
         if "parameters_" not in self.__dict__:

@@ -21,8 +21,6 @@ from .._base.formatting import format_polynomial
 from .._base.limits import check_order
 from ..data.iodata import IOData
 from ..exceptions import ArxidWarning, DataError, IdentifiabilityError, NotFittedError, OrderError
-from . import convert
-from . import polynomial_files as polyfile
 from .derived_inputs import DerivedInput, complete_inputs
 from .excitation import check_excitation
 from .filter_runs import check_initial, check_size, finite_segments, per_input
@@ -484,6 +482,8 @@ class PolynomialModel(FittedModel):
         -------
         control.TransferFunction or list of them
         """
+        from . import convert
+
         return convert.to_control(self, continuous=continuous, input=input)
 
     def to_scipy(self) -> Any:
@@ -493,6 +493,8 @@ class PolynomialModel(FittedModel):
         -------
         scipy.signal.dlti
         """
+        from . import convert
+
         return convert.to_scipy(self)
 
     def to_dict(self) -> dict:
@@ -502,6 +504,8 @@ class PolynomialModel(FittedModel):
         -------
         dict
         """
+        from . import polynomial_files as polyfile
+
         return polyfile.model_content(self)
 
     @classmethod
@@ -518,6 +522,8 @@ class PolynomialModel(FittedModel):
         PolynomialModel
             Same parameters, covariance, loss and names; ``iterations_`` 0.
         """
+        from . import polynomial_files as polyfile
+
         return polyfile.model_of(cls, polyfile.arx_content(model))
 
     @classmethod
@@ -533,6 +539,8 @@ class PolynomialModel(FittedModel):
         -------
         PolynomialModel
         """
+        from . import polynomial_files as polyfile
+
         return polyfile.model_from_json(cls, text_or_path)
 
     # ------------------------------------------------------------------ printing
