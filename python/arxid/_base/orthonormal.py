@@ -93,10 +93,8 @@ class Projector:
 
     Parameters
     ----------
-    basis : ndarray of shape (n, p)
-        Orthonormal columns Q.
-    y_perp : ndarray of shape (n,)
-        A residual orthogonal to them.
+    basis, y_perp : ndarray
+        The orthonormal columns Q, shape (n, p), and a residual orthogonal to them, shape (n,).
     """
 
     def __init__(self, basis: np.ndarray, y_perp: np.ndarray):
