@@ -212,7 +212,7 @@ class Analysis(Conclusion):
         -------
         dict
         """
-        from ..diagnosis import static_map
+        from ..diagnosis.static_map import shape_map_dict
 
         out = super().to_dict()
         out.update(
@@ -224,7 +224,7 @@ class Analysis(Conclusion):
                 "frequency_check": [{"model": f.model_name, **f.to_dict()} for f in self.frequency],
                 "feedback": None if self.feedback is None else json.loads(self.feedback.to_json()),
                 "closed_loop": None if self.closed_loop is None else self.closed_loop.to_dict(),
-                "input_shapes": [static_map.shape_map_dict(*pair) for pair in self.input_shapes],
+                "input_shapes": [shape_map_dict(*pair) for pair in self.input_shapes],
             }
         )
         return out
