@@ -44,6 +44,7 @@ from ..exceptions import ArxidError, OrderError
 from ..models.arguments import check_data, check_horizon
 from ..models.arx_model import ArxModel, arx
 from ..models.polynomial import PolynomialModel, check_initial
+from ..models.wiener import added_effects, linear_part
 from ..selection.growth import DEFAULT_GROWTH_SECONDS, GridGrowth, grid_text
 from ..selection.search import SweepResult, sweep
 from .choice import Choice, OrderGrid, choose, given_model, grid_lists, grid_of
@@ -159,7 +160,7 @@ class Analysis(Conclusion):
         from ..plots.bode import miss_bands
 
         fr = self.bode
-        return () if fr is None else miss_bands(fr, model_response(self.final_model, fr.frequency))
+        return () if fr is None else miss_bands(fr, model_response(linear_part(self.final_model), fr.frequency))
 
     @cached_property
     def input_shapes(self) -> tuple:
@@ -167,7 +168,7 @@ class Analysis(Conclusion):
         (:func:`arxid.diagnosis.static_map.shape_maps`) for the report's plot."""
         from ..diagnosis.static_map import shape_maps
 
-        return shape_maps(self.final_model, self.estimation)
+        return shape_maps(linear_part(self.final_model), self.estimation)
 
     @property
     def grid_text(self) -> str:
@@ -356,12 +357,15 @@ def _checks(
     free-run bands: independent passes over the validation data, two at a time."""
     models = {model.structure_name(): model}
     if final is not model:
-        models["+ " + ", ".join(final.effects)] = final
+        models["+ " + ", ".join(added_effects(final))] = final
     # The longest first, the comparison (a free run per model) last: the two threads end together.
     tasks: list[Callable[[], Any]] = [
         partial(where_it_fails, m, val, horizon, initial=initial) for m in models.values()
     ]
-    tasks += [partial(_frequency, m, val, horizon) for m in models.values()]
+    # A linear model's response against the data's: not made for a model read through a sensor shape,
+    # whose clipped or bent output has no frequency response of its own.
+    linear = [m for m in models.values() if linear_part(m) is m]
+    tasks += [partial(_frequency, m, val, horizon) for m in linear]
     tasks.append(lambda: compare(models, val, horizon, initial))
     *done, cmp = in_two(lambda task: task(), tasks)
     failures, frequency = tuple(done[: len(models)]), done[len(models) :]

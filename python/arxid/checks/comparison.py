@@ -25,6 +25,7 @@ from ..models.arguments import check_data, check_horizon, check_model, check_sam
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
 from ..models.state_space import StateSpaceModel
+from ..models.wiener import WienerModel
 from .initial_state import estimated_free_run
 from .state_space import PerOutput, in_model_order, state_space_label, state_space_prediction
 
@@ -83,7 +84,10 @@ def prediction(
     diverged : bool
     """
     with np.errstate(all="ignore"):
-        if check_initial(initial) == "estimate" and isinstance(model, PolynomialModel):
+        if isinstance(model, WienerModel):  # its linear part's free run starts at rest either way
+            check_initial(initial)
+            pred = np.asarray(model.predict(data, horizon), dtype=float)
+        elif check_initial(initial) == "estimate" and isinstance(model, PolynomialModel):
             pred = np.asarray(model.predict(data, horizon, initial="estimate"), dtype=float)
         elif initial == "estimate":
             pred = estimated_free_run(model, data, horizon)
@@ -235,7 +239,7 @@ def _model_list(models) -> tuple[list[str], list[Any]]:
             ) from None
         names = []
         for m in ms:
-            base = state_space_label(m) if isinstance(m, StateSpaceModel) else check_model(m).structure_name()
+            base = state_space_label(m) if isinstance(m, StateSpaceModel) else _checked(m).structure_name()
             name, i = base, 2
             while name in names:
                 name, i = f"{base} #{i}", i + 1
@@ -244,8 +248,17 @@ def _model_list(models) -> tuple[list[str], list[Any]]:
         raise ArxidError("compare needs at least one model")
     for m in ms:
         if not isinstance(m, StateSpaceModel):
-            check_model(m)
+            _checked(m)
     return names, ms
+
+
+def _checked(model: Any) -> Any:
+    """A model :func:`compare` can predict with: an ARX or polynomial model (checked), or a Wiener
+    model (the ladder's last step when the output is read through a sensor shape)."""
+    if isinstance(model, WienerModel):
+        model.check_fitted()
+        return model
+    return check_model(model)
 
 
 def compare(models, data: IOData, horizon: int | None = None, initial: str = "zero") -> Any:

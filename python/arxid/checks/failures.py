@@ -23,6 +23,7 @@ from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.state_space import StateSpaceModel
+from ..models.wiener import WienerModel
 from .binning import SignalBins, SquaredRanks, bin_signal
 from .comparison import prediction_error
 from .state_space import PerOutput, in_model_order, state_space_label, state_space_prediction
@@ -311,7 +312,7 @@ def where_it_fails(
         one-step residual is then the innovation form's, from an initial state fitted to ``data``,
         and the inputs are binned without a delay.
     """
-    if not isinstance(model, StateSpaceModel):
+    if not isinstance(model, (StateSpaceModel, WienerModel)):
         model = check_model(model)
     data = check_data(data)
     horizon = check_horizon(horizon)

@@ -24,7 +24,7 @@ from ..exceptions import ArxidError
 from ..models.arguments import check_horizon, check_model
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
-from ..models.wiener import WienerModel
+from ..models.wiener import WienerModel, added_effects
 from .candidates import physics
 from .restructure import linear_name, order_change, rechoose_structure
 from .result import Diagnosis, Suspect
@@ -234,7 +234,7 @@ class Ladder:
         return LadderStep(
             added,
             model,
-            tuple(model.effects),
+            added_effects(model),  # a sensor step's effects differ from the step before: its kind is "effect"
             model.structure_name(),
             rms,
             fit,

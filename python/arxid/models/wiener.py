@@ -29,7 +29,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from .arx_model import ArxModel
 
-__all__ = ["SensorShape", "WienerModel", "fit_wiener", "SENSOR_KINDS"]
+__all__ = ["SensorShape", "WienerModel", "fit_wiener", "added_effects", "linear_part", "SENSOR_KINDS"]
 
 #: The output nonlinearities :func:`fit_wiener` knows.
 SENSOR_KINDS = ("power", "saturation", "dead zone")
@@ -132,9 +132,48 @@ class WienerModel:
     sensor: SensorShape
     data_: IOData | None = None
 
+    # What the analysis reads off any model: the names, step and orders are the linear part's (the
+    # sensor adds none); the prediction and its errors are the Wiener model's own, never delegated.
     @property
     def effects(self) -> tuple[str, ...]:
         return tuple(self.linear.effects)
+
+    @property
+    def sensor_effect(self) -> str:
+        """The sensor as the diagnosis names it, e.g. ``"sensor: y = clip(x,-1,1.2)"``."""
+        return f"sensor: {self.sensor.text}"
+
+    @property
+    def ts(self) -> float:
+        return self.linear.ts
+
+    @property
+    def output_name(self) -> str:
+        return self.linear.output_name
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        return self.linear.input_names
+
+    @property
+    def measured_input_names(self) -> tuple[str, ...]:
+        return self.linear.measured_input_names
+
+    @property
+    def na_(self) -> int:
+        return self.linear.na_
+
+    @property
+    def nb_(self) -> tuple[int, ...]:
+        return tuple(self.linear.nb_)
+
+    @property
+    def nk_(self) -> tuple[int, ...]:
+        return tuple(self.linear.nk_)
+
+    def check_fitted(self) -> None:
+        """Raise unless the linear part is fitted."""
+        self.linear.check_fitted()
 
     @property
     def n_params(self) -> int:
@@ -170,6 +209,9 @@ class WienerModel:
 
     def __repr__(self) -> str:
         return f"<WienerModel {self.structure_name()}>"
+
+    def __str__(self) -> str:
+        return f"{self.linear}\nthen the sensor reads {self.sensor.text}, x being the output of the dynamics above"
 
 
 def noise_floor(y: np.ndarray) -> float:
@@ -217,3 +259,15 @@ def free_run_rms(model: Any, data: IOData) -> float:
     except ArxidError:
         return math.inf
     return metrics.prediction_rms(data.y, pred)
+
+
+def added_effects(model: Any) -> tuple[str, ...]:
+    """What a model adds to linear dynamics: its effects, and a Wiener model's sensor after them."""
+    sensor = (model.sensor_effect,) if isinstance(model, WienerModel) else ()
+    return (*model.effects, *sensor)
+
+
+def linear_part(model: Any) -> Any:
+    """The model whose frequency response, parameters and effects describe ``model``'s dynamics: a
+    Wiener model's linear part (its sensor is static), any other model itself."""
+    return model.linear if isinstance(model, WienerModel) else model

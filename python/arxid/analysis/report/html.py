@@ -12,6 +12,7 @@ from ..._base.formatting import horizon_text
 from ...data.iodata import IOData
 from ...exceptions import ArxidError
 from ...models.polynomial import PolynomialModel
+from ...models.wiener import linear_part
 from ..pipeline import Analysis
 from ..verdicts import ladder_headline, negative_fit_note, percent, residual_sentences
 from .blocks import Raw, el, page, script_json
@@ -416,7 +417,7 @@ def _bode_section(a: Analysis) -> Raw:
         "coherence below 0.5 (the data say little there). Red shading: where the model leaves the band.",
         cls="small",
     )
-    figure = plot_bode(fr, model_response(model, fr.frequency), model_name=model.structure_name())
+    figure = plot_bode(fr, model_response(linear_part(model), fr.frequency), model_name=model.structure_name())
     return _join([_p(verdict), _img(figure, "Bode view"), how])
 
 
