@@ -1,8 +1,9 @@
 """How fast ``IOData.from_csv`` reads a large log, and how much memory it needs.
 
 A CSV of 200,000 rows × 5 columns (time, output, two inputs, battery voltage; ``%.9g``, about
-11 MB) is read by ``IOData.from_csv`` with a time column (the Rust reader: the ``csv`` crate and
-``fast-float2``), once as it is and once with CRLF line endings and one quoted row. The reference
+11 MB) is read by ``IOData.from_csv`` with a time column (the Rust reader: lines split and parsed
+on every core, the ``csv`` crate for quoted records), once as it is and once with CRLF line endings
+and one quoted row. The reference
 is ``pandas.read_csv`` alone on the same file, measured in the same run. Each reader runs in a
 fresh process: the time is the best of five reads after one warm-up; the peak memory is the growth
 of the process' peak resident set during one read, compared with the size of the five float64

@@ -198,3 +198,15 @@ def test_a_single_row_file_is_read(tmp_path):
     p = _write(tmp_path, "y,u\r\n1.5,-2\r\n")
     cols = CsvFile.open(p).read(["y", "u"])
     assert cols["y"].tolist() == [1.5] and cols["u"].tolist() == [-2.0]
+
+
+@pytest.mark.parametrize("n_rows", [400, 401])
+def test_sampling_time_of_a_time_column_is_the_median_step(tmp_path, n_rows):
+    """ts is numpy's median of the steps to the bit, for an odd and an even number of steps, with
+    jitter at a tenth of the tolerance and steps that repeat."""
+    rng = np.random.default_rng(n_rows)
+    t = np.round(np.arange(n_rows) * 0.004 + rng.uniform(-4e-7, 4e-7, n_rows), 9)
+    lines = ["t,y,u"] + [f"{repr(float(v))},{i % 7},{i % 3}" for i, v in enumerate(t)]
+    d = arxid.IOData.from_csv(_write(tmp_path, "\n".join(lines) + "\n"), output="y", inputs=["u"], time="t")
+    assert d.ts == float(np.median(np.diff(t)))
+    assert d.y.tolist() == [i % 7 for i in range(n_rows)]

@@ -14,6 +14,9 @@ use crate::linalg::qr::{fill_from_samples, qr_r_in_place, reduce_memory, stack_a
 /// groups of a level run side by side.
 const STACK_GROUP: usize = 4;
 
+/// Blocks of rows per parallel task of the reduction (each task allocates one block buffer).
+const BLOCKS_PER_TASK: usize = 4;
+
 /// R factor ((p+1) × (p+1), last column the output) of the regressor `[Φ | y]` of `s` over `rows`.
 /// Blocks of rows are factored in parallel when `parallel`; the block R's are stacked and factored
 /// again in block order, [`STACK_GROUP`] at a time ([`reduce_factors`]).
@@ -61,7 +64,12 @@ pub fn reduce_checked(
         Some(take_r(a, q))
     };
     let blocks: Option<Vec<Mat<f64>>> = if parallel {
-        rows.par_chunks(BLOCK_ROWS).map_init(|| Mat::<f64>::zeros(0, q), block_r).collect()
+        // At most BLOCKS_PER_TASK blocks per task, each with its buffer: a few milliseconds, so
+        // that idle workers take over the blocks of one the system deschedules.
+        rows.par_chunks(BLOCK_ROWS)
+            .with_max_len(BLOCKS_PER_TASK)
+            .map_init(|| Mat::<f64>::zeros(0, q), block_r)
+            .collect()
     } else {
         let mut a = Mat::<f64>::zeros(0, q);
         rows.chunks(BLOCK_ROWS).map(|block| block_r(&mut a, block)).collect()
@@ -80,7 +88,7 @@ fn reduce_factors(
     let group = |g: &[Mat<f64>]| keep_going().then(|| stack_and_reduce(g, q));
     while rs.len() > STACK_GROUP {
         rs = if parallel {
-            rs.par_chunks(STACK_GROUP).map(group).collect::<Option<Vec<_>>>()?
+            rs.par_chunks(STACK_GROUP).with_max_len(1).map(group).collect::<Option<Vec<_>>>()?
         } else {
             rs.chunks(STACK_GROUP).map(group).collect::<Option<Vec<_>>>()?
         };

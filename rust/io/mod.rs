@@ -9,6 +9,7 @@
 //! it never reaches Python.
 
 pub mod blackbox;
+mod csv_plain;
 pub mod csv_read;
 pub mod dataflash;
 

@@ -1,5 +1,5 @@
-//! Python binding of the CSV reader (`crate::io::csv_read`): the file is read and parsed without the GIL,
-//! polling for Ctrl-C; problems come back as plain values that `arxid.data.csvio` words.
+//! Python binding of the CSV reader (`crate::io::csv_read`): the file is read and parsed without the GIL
+//! on every core, polling for Ctrl-C; problems come back as plain values that `arxid.data.csvio` words.
 
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
@@ -34,7 +34,7 @@ pub fn csv_read<'py>(
     if let Some(&j) = wanted.iter().find(|&&j| j >= n_fields) {
         return Err(DataError::new_err(format!("column {j} is not among the {n_fields} of the header")));
     }
-    let out = run(py, 1, |cancel| match read_file(&path, delimiter, n_fields, &wanted, cancel) {
+    let out = run(py, 0, |cancel| match read_file(&path, delimiter, n_fields, &wanted, cancel) {
         Err(Err(CsvError::Interrupted)) => Err(ArxError::Interrupted),
         other => Ok(other),
     })?;

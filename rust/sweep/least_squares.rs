@@ -39,6 +39,10 @@ pub struct SweepOptions {
     pub top: Option<usize>,
 }
 
+/// Structures per parallel task of exact fits (a few microseconds each): fine enough that idle
+/// workers take over the fits of a descheduled one, coarse enough that scheduling costs nothing.
+const FIT_TASK: usize = 16;
+
 /// At most this many threads per core are started for an explicit `n_threads`: results do not
 /// depend on the thread count, so more would only cost memory (every thread has its own buffers).
 pub const MAX_THREADS_PER_CORE: usize = 4;
@@ -217,8 +221,11 @@ fn two_stage_fits(
         heartbeat();
         fit_exact(f, &structures[i])
     };
-    let exact: Vec<StructureResult> =
-        if parallel { ranked.par_iter().map(fit_one).collect() } else { ranked.iter().map(fit_one).collect() };
+    let exact: Vec<StructureResult> = if parallel {
+        ranked.par_iter().with_max_len(FIT_TASK).map(fit_one).collect()
+    } else {
+        ranked.iter().map(fit_one).collect()
+    };
     for (&i, r) in ranked.iter().zip(exact) {
         out[i] = r;
     }
@@ -283,7 +290,7 @@ pub fn sweep(
                 fit_exact(&f, s)
             };
             let all: Vec<StructureResult> = if opts.parallel {
-                structures.par_iter().map(fit_one).collect()
+                structures.par_iter().with_max_len(FIT_TASK).map(fit_one).collect()
             } else {
                 structures.iter().map(fit_one).collect()
             };
@@ -353,7 +360,7 @@ pub fn fits_from_factors(
         Some(top) if top < structures.len() => two_stage_fits(&f, structures, top, parallel, &|| {}),
         _ => {
             let all: Vec<StructureResult> = if parallel {
-                structures.par_iter().map(|s| fit_exact(&f, s)).collect()
+                structures.par_iter().with_max_len(FIT_TASK).map(|s| fit_exact(&f, s)).collect()
             } else {
                 structures.iter().map(|s| fit_exact(&f, s)).collect()
             };
@@ -499,7 +506,9 @@ pub(crate) fn simulate_all(
         r
     };
     let res: Vec<Vec<(SimScore, SimScore)>> = if opts.parallel {
-        groups.par_iter().map(run_and_report).collect()
+        // One task per group: rayon would otherwise cut the groups into a few runs of dozens, and a
+        // run whose thread the system deschedules (another process on the cores) cannot be shared.
+        groups.par_iter().with_max_len(1).map(run_and_report).collect()
     } else {
         groups.iter().map(run_and_report).collect()
     };

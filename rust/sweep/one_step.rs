@@ -350,8 +350,11 @@ pub fn one_step_all(
         }
         task(f, env, structures, chunk, kmax, heartbeat)
     };
-    let parts: Vec<Vec<(usize, OneStep)>> =
-        if parallel { order.par_chunks(TASK).map(run).collect() } else { order.chunks(TASK).map(run).collect() };
+    let parts: Vec<Vec<(usize, OneStep)>> = if parallel {
+        order.par_chunks(TASK).with_max_len(1).map(run).collect()
+    } else {
+        order.chunks(TASK).map(run).collect()
+    };
     let mut out: Vec<Option<OneStep>> = vec![None; structures.len()];
     for (i, r) in parts.into_iter().flatten() {
         out[i] = Some(r);

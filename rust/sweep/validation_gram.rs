@@ -112,8 +112,11 @@ impl<'a> ValidationGram<'a> {
             }
             out
         };
-        let filled: Vec<Vec<(usize, usize, f64)>> =
-            if parallel { families.par_iter().map(sums).collect() } else { families.iter().map(sums).collect() };
+        let filled: Vec<Vec<(usize, usize, f64)>> = if parallel {
+            families.par_iter().with_max_len(1).map(sums).collect()
+        } else {
+            families.iter().map(sums).collect()
+        };
         for (i, j, v) in filled.into_iter().flatten() {
             let v = v * self.columns[i].sign * self.columns[j].sign;
             self.g[i * q + j] = v;

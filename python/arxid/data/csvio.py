@@ -1,11 +1,11 @@
 """Reading measured signals from a CSV file: fast, and strict about what it accepts.
 
-The Rust core reads the file (the ``csv`` crate splits records, ``fast-float2`` parses the numbers,
-without the GIL and interruptible with Ctrl-C): quoted fields, CR / LF / CRLF line endings and a
-byte order mark are fine. It refuses what would change the data silently: text that is not UTF-8,
-NUL bytes, and rows with fewer or more fields than the header. Python reads the header (signal
-names, units in brackets, repeated names) and words every problem: the line and column of a cell
-that is not a number, and a decimal comma by name.
+The Rust core reads the file (on every core, in tasks of whole lines, without the GIL and
+interruptible with Ctrl-C; the ``csv`` crate splits the records that hold quotes): quoted fields,
+CR / LF / CRLF line endings and a byte order mark are fine. It refuses what would change the data
+silently: text that is not UTF-8, NUL bytes, and rows with fewer or more fields than the header.
+Python reads the header (signal names, units in brackets, repeated names) and words every problem:
+the line and column of a cell that is not a number, and a decimal comma by name.
 """
 
 from __future__ import annotations

@@ -234,9 +234,10 @@ class IOData(SeveralOutputs, TableReaders, FlightLogReaders):
         then extras."""
         names = list(values)
         outs, ins, ext = names[:n_outputs], names[n_outputs : n_outputs + n_inputs], names[n_outputs + n_inputs :]
+        # column_stack makes new arrays, which IOData may take without a copy.
         return cls(
-            np.column_stack([values[c] for c in outs]),
-            np.column_stack([values[c] for c in ins]),
+            freeze_owned(np.column_stack([values[c] for c in outs])),
+            freeze_owned(np.column_stack([values[c] for c in ins])),
             ts,
             output_name=outs,
             input_names=tuple(ins),
