@@ -96,3 +96,42 @@ def test_the_shape_models_from_one_envelope_equal_their_own_fits(gaps):
         assert got.regressor_names_ == own.regressor_names_ and got.n_rows_ == own.n_rows_
         np.testing.assert_allclose(got.parameters_, own.parameters_, rtol=1e-9, atol=1e-12)
         assert got.rss_ == pytest.approx(own.rss_, rel=1e-10)
+
+
+def _reference_rss(model: arxid.ArxModel, data: arxid.IOData, shape: InputShape, const: bool) -> float:
+    """numpy's least squares of y on the model's regressors, the shape's lags (read through the old
+    numbered regressor, :func:`input_lags`) and the offset."""
+    from arxid.diagnosis.shape_cost import input_lags
+    from arxid.models.effects import compile_effects
+    from arxid.models.regressors import regressor_matrix
+
+    layout = compile_effects(model.effects, data, model.nb_, model.nk_)
+    phi, y, rows = regressor_matrix(data, model.na_, layout, model.first_lag_)
+    i = ["u", "w"].index(shape.signal)
+    which, index, plain = input_lags(data, model.na_, layout, i, phi, rows)
+    assert plain.sum() == model.nb_[i]
+    other = data.signal(shape.other) if shape.other else None
+    z = shape.evaluate(data.u[:, i], other)[index[:, plain]]
+    x = np.column_stack([phi, z] + ([np.ones(rows.size)] if const else []))
+    return float(np.sum((y - x @ np.linalg.lstsq(x, y, rcond=None)[0]) ** 2))
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+@pytest.mark.parametrize(("effects", "gaps"), [((), False), ((), True), (("u*v",), True)])
+def test_the_shape_lags_read_from_the_layout_give_numpys_loss(seed, effects, gaps):
+    """The shape's columns taken at the layout's lags (row t of lag k reads sample t − k) are those
+    the numbered regressor found, on rows with gaps and beside an effect of the same input: the loss
+    is numpy's least squares of the stacked columns to rounding."""
+    data = plant(seed, gaps=gaps)
+    if gaps:  # the shaped inputs themselves missing (the modulating signal's gaps are refitted)
+        u = data.u.copy()
+        u[[400, 401, 1800], 0] = np.nan
+        u[[900], 1] = np.nan
+        data = data.with_signals(u=u, input_names=["u", "w"])
+    model = arxid.ArxModel(na=2, nb=[3, 2], nk=[1, 2], effects=effects).fit(data)
+    fit = BesideFit(model, data)
+    for shape in [s for s in SHAPES if s.kind != "product"]:
+        for const in ("const" not in effects, False):
+            got = fit(shape, const)
+            assert got.rss == pytest.approx(_reference_rss(model, data, shape, const), rel=1e-12)
+    assert fit._basis is not None and fit._lags == {0: (1, 2, 3), 1: (2, 3)}

@@ -24,9 +24,9 @@ from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
 from ..models.input_shapes import InputShape
-from ..models.regressors import regressor_matrix
+from ..models.regressors import lagger, regressor_matrix
 from .candidates import candidate_input_names
-from .shape_cost import input_lags, orthonormal_basis, projected_r
+from .shape_cost import orthonormal_basis, projected_r
 
 __all__ = ["BesideFit", "Beside"]
 
@@ -58,22 +58,22 @@ class BesideFit:
         self.model, self.data = model, data
         self.names = candidate_input_names(data)
         self._basis: tuple[np.ndarray, np.ndarray] | None = None
-        self._lags: dict[int, np.ndarray | None] = {}
+        self._lags: dict[int, tuple[int, ...] | None] = {}
+        self._rows = np.zeros(0, dtype=np.intp)
         self._factors: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
         self._built = False
 
     def __call__(self, shape: InputShape, const: bool) -> Beside:
-        i = self.names.index(shape.signal)
-        index = self._index(i)
-        if index is None or self._basis is None:
+        lags = self._input_lags(self.names.index(shape.signal))
+        if lags is None or self._basis is None:
             return self.refit(shape, const)
         if shape.effect not in self._factors:
-            self._factors[shape.effect] = self._factor(shape, i, index)
+            self._factors[shape.effect] = self._factor(shape, lags)
         factor = self._factors[shape.effect]
         if factor is None:  # a row the refit leaves out, or a data error: the refit says
             return self.refit(shape, const)
         r, dependent = factor
-        k, offset = index.shape[1], "const" not in self.model.effects
+        k, offset = len(lags), "const" not in self.model.effects
         if dependent[:k].any() or (const and (not offset or dependent[k])):
             raise ArxidError(f"the columns of {shape.effect} beside the model's are rank deficient")
         if offset and not const:  # the offset's column left out: R of the others (exact, by rotations)
@@ -81,21 +81,28 @@ class BesideFit:
         n_rows, n_params = self._basis[0].shape
         return Beside(float(r[-1, -1] ** 2), n_rows, n_params + k + int(const))
 
-    def _factor(self, shape: InputShape, i: int, index: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def _factor(self, shape: InputShape, lags: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray] | None:
         """R of the shape's lags (and, for a model without an offset, a column of ones) projected
         beside y⊥: one pass over the rows serves the shape with and without its offset."""
         other = self.data.signal(shape.other) if shape.other else None
+        i = self.names.index(shape.signal)
         with np.errstate(over="ignore", invalid="ignore"):
-            z = shape.evaluate(self.data.u[:, i], other)[index]
-        if not np.isfinite(z).all():
+            series = shape.evaluate(self.data.u[:, i], other)
+        ones = "const" not in self.model.effects
+        z = np.empty((self._rows.size, len(lags) + int(ones)), order="F")  # a column is one copy of a slice
+        lagged = lagger(self._rows)
+        for c, k in enumerate(lags):  # row t of a lag-k column reads sample t − k
+            z[:, c] = lagged(series, k)
+        del series
+        if not np.isfinite(z[:, : len(lags)]).all():
             return None
-        if "const" not in self.model.effects:
-            z = np.column_stack([z, np.ones(z.shape[0])])
+        if ones:
+            z[:, -1] = 1.0
         assert self._basis is not None
         return projected_r(*self._basis, z)
 
-    def _index(self, i: int) -> np.ndarray | None:
-        """Per row the samples input ``i``'s lag columns read (None: refit every shape)."""
+    def _input_lags(self, i: int) -> tuple[int, ...] | None:
+        """The lags of input ``i``'s columns (None: refit every shape of it)."""
         if not self._built:
             self._built = True
             self._build()
@@ -109,10 +116,9 @@ class BesideFit:
         phi, y, rows = regressor_matrix(data, m.na_, layout, m.first_lag_)
         if rows.size != m.n_rows_:
             return
-        for i in range(data.n_inputs):
-            which, index, plain = input_lags(data, m.na_, layout, i, phi, rows)
-            ok = which.size and plain.sum() == m.nb_[i]
-            self._lags[i] = index[:, plain] if ok else None
+        for i in range(data.n_inputs):  # an input the model feeds through a shape has no plain lags
+            plain = m.nb_[i] > 0 and layout.effect_of_column[i] is None
+            self._lags[i] = tuple(range(m.nk_[i], m.nk_[i] + m.nb_[i])) if plain else None
         basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
         del phi
         if basis is None:
@@ -120,7 +126,7 @@ class BesideFit:
         y_perp = y - basis @ (basis.T @ y)
         if not abs(float(y_perp @ y_perp) - m.rss_) <= _AGREEMENT * m.rss_:
             return  # the basis does not stand for the model's fit
-        self._basis = basis, y_perp
+        self._basis, self._rows = (basis, y_perp), rows
 
     def refit(self, shape: InputShape, const: bool) -> Beside:
         """The refit itself: the shaped input as one more input with the input's own lags."""

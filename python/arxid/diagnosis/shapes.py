@@ -51,7 +51,7 @@ from ..models.effects import parse_effect
 from ..models.envelope import EnvelopeFactor
 from ..models.input_shapes import InputShape
 from ..models.iv import IvModel
-from ..selection.parsimony import diebold_mariano
+from ..selection.parsimony import diebold_mariano, loss_difference_test
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
@@ -259,20 +259,32 @@ class ShapeFits:
 
 
 class ValidationEvidence:
-    """The model's validation errors, found once, against which each shape's are tested."""
+    """The model's validation errors, found once, against which each shape's are tested: their
+    squares and where they exist are kept, so a shape's test forms its loss differences in place."""
 
     def __init__(self, model: ArxModel, validation: IOData, horizon: int | None, initial: str):
         self.model, self.validation, self.horizon, self.initial = model, validation, horizon, initial
-        self._base: np.ndarray | None = None
+        self._squares: np.ndarray | None = None
+        self._known: np.ndarray | None = None
 
     def _errors(self, model: ArxModel) -> np.ndarray:
+        """The validation errors (a new array)."""
         return self.validation.y - prediction(model, self.validation, self.horizon, self.initial)[0]
 
     def p_value(self, fitted: ArxModel) -> float:
-        """One-sided p-value that ``fitted``'s validation error is below the model's."""
-        if self._base is None:
-            self._base = self._errors(self.model)
-        return validation_p(self._base, self._errors(fitted))
+        """One-sided p-value that ``fitted``'s validation error is below the model's (as
+        :func:`validation_p`)."""
+        if self._squares is None:
+            base = self._errors(self.model)
+            self._known = np.isfinite(base)
+            self._squares = np.square(base, out=base)
+        assert self._known is not None
+        d = self._errors(fitted)
+        known = np.isfinite(d)
+        known &= self._known
+        np.square(d, out=d)
+        np.subtract(self._squares, d, out=d)  # the model's squared error less the shape's
+        return _normal_tail(loss_difference_test(d if known.all() else d[known]).statistic)
 
 
 def _scored(
@@ -304,7 +316,11 @@ def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:
 
 def validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
     """One-sided p-value that the shape's validation error is below the model's (Diebold–Mariano)."""
-    stat = diebold_mariano(base_err, shape_err).statistic
+    return _normal_tail(diebold_mariano(base_err, shape_err).statistic)
+
+
+def _normal_tail(stat: float) -> float:
+    """The standard normal's tail beyond ``stat`` (0 or 1 beyond the float range)."""
     if not math.isfinite(stat):
         return 0.0 if stat > 0 else 1.0
     return 0.5 * math.erfc(stat / math.sqrt(2.0))  # the normal tail beyond stat
