@@ -135,3 +135,24 @@ def test_the_shape_lags_read_from_the_layout_give_numpys_loss(seed, effects, gap
             got = fit(shape, const)
             assert got.rss == pytest.approx(_reference_rss(model, data, shape, const), rel=1e-12)
     assert fit._basis is not None and fit._lags == {0: (1, 2, 3), 1: (2, 3)}
+
+
+@pytest.mark.parametrize(("seed", "gaps"), [(21, False), (22, True)])
+def test_a_long_records_basis_from_the_models_own_factor_gives_numpys_loss(seed, gaps, monkeypatch):
+    """From 131,072 rows the basis starts from the fit's (ΦᵀΦ)⁻¹ (no fresh QR of Φ, which would
+    fail here): a slow plant (poles at 0.95, lags of y close to collinear), with and without gaps."""
+    from arxid.diagnosis import shape_beside
+
+    def no_fresh_qr(*args, **kwargs):
+        raise AssertionError("the basis was not taken from the model's factor")
+
+    monkeypatch.setattr(shape_beside, "orthonormal_basis", no_fresh_qr)
+    data = plant(seed, n=140_000, gaps=gaps)
+    y = lfilter([0, 0.05, 0.02], [1, -1.9, 0.9025], data.u[:, 0]) + 0.01 * data.y
+    data = arxid.IOData(y, data.u, data.ts, input_names=["u", "w"], extra=data.extra)
+    model = arxid.ArxModel(na=3, nb=[2, 2], nk=[1, 1], effects=("u*v",)).fit(data)
+    fit = BesideFit(model, data)
+    for shape in (InputShape("dead zone", "u", (0.4,)), InputShape("signed power", "w", (0.5,))):
+        for const in (False, True):
+            assert fit(shape, const).rss == pytest.approx(_reference_rss(model, data, shape, const), rel=1e-12)
+    assert fit._basis is not None

@@ -2,10 +2,12 @@
 *beside* its own columns, for every shape of a diagnosis.
 
 Each such refit is the model's regressor with a few more columns. So the model's columns are reduced
-once to an orthonormal basis Q, with the output's residual y⊥ (the model's own), and a shape costs
-the projection of its few columns, Z − Q(QᵀZ), and a small QR beside y⊥ (:func:`projected_r`):
-the refit's residual sum of squares to rounding, without a pass of the core over all the rows
-(twenty of those were a third of a diagnosis at 4M samples).
+once to an orthonormal basis Q (on a long record, from the fit's own factor: no fresh QR), with the
+output's residual y⊥ (the model's own), and a shape costs the projection of its few columns,
+Z − Q(QᵀZ), and a small QR beside y⊥ (:func:`projected_r`): the refit's residual sum of squares to
+rounding, without a pass of the core over all the rows (twenty of those were a third of a diagnosis
+at 4M samples). A shape's columns are its series at the input's lags: row t of lag k reads sample
+t − k.
 
 A shape the refit would refuse is refused alike (a shaped lag the model's columns already span is
 rank deficient by the core's rule). Where the shortcut cannot stand for the refit (the basis does
@@ -19,6 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._base.nested import blocked_r
+from .._base.orthonormal import RANK_FACTOR
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -119,7 +123,9 @@ class BesideFit:
         for i in range(data.n_inputs):  # an input the model feeds through a shape has no plain lags
             plain = m.nb_[i] > 0 and layout.effect_of_column[i] is None
             self._lags[i] = tuple(range(m.nk_[i], m.nk_[i] + m.nb_[i])) if plain else None
-        basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
+        basis = _model_basis(m, phi)
+        if basis is None:  # no factor of the model's own to start from: a fresh QR
+            basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
         del phi
         if basis is None:
             return
@@ -140,3 +146,36 @@ class BesideFit:
         effects = [*model.effects] + (["const"] if const else [])
         fitted = ArxModel(na=model.na_, nb=nb, nk=nk, effects=effects).fit(extended, first_lag=model.first_lag_)
         return Beside(fitted.rss_, fitted.n_rows_, fitted.n_params)
+
+
+def _model_basis(model: ArxModel, phi: np.ndarray) -> np.ndarray | None:
+    """Q over ``phi`` (written over it) from the model's own fit, None where that cannot serve.
+
+    The fit's (ΦᵀΦ)⁻¹ (its covariance over the noise variance) gives R with RᵀR = ΦᵀΦ, so Φ R⁻¹ is
+    orthonormal to the fit's rounding, and the R of that (one more pass) restores it to the last
+    bits: three passes over the rows where a fresh QR of Φ takes four. A column the core's rank rule
+    calls dependent gives None, as :func:`orthonormal_basis` does."""
+    n, p = phi.shape
+    if n < _LEAN_ROWS or not (model.rss_ > 0 and np.isfinite(model.covariance_).all()):
+        return None
+    try:
+        r = np.linalg.cholesky(np.linalg.inv(model.covariance_ * ((n - p) / model.rss_))).T
+    except np.linalg.LinAlgError:
+        return None
+    if not (np.abs(np.diag(r)) > RANK_FACTOR * n * np.sqrt(np.einsum("ij,ij->j", r, r))).all():
+        return None
+    _times_inverse(phi, r)
+    _times_inverse(phi, blocked_r(phi))
+    return phi
+
+
+def _times_inverse(q: np.ndarray, r: np.ndarray) -> None:
+    """q ← q R⁻¹ in place, a block of rows at a time."""
+    inverse = np.linalg.inv(r)
+    for a in range(0, q.shape[0], _LEAN_ROWS):
+        q[a : a + _LEAN_ROWS] = q[a : a + _LEAN_ROWS] @ inverse
+
+
+#: Rows from which the basis starts from the model's factor (a shorter regressor: numpy's QR), and
+#: rows per block of its division.
+_LEAN_ROWS = 131_072
