@@ -10,6 +10,7 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
+from arxid._base.orthonormal import orthonormal_basis
 from arxid.diagnosis.shape_beside import BesideFit
 from arxid.diagnosis.shapes import ShapeFits, _f_test
 from arxid.exceptions import ArxidError
@@ -143,10 +144,11 @@ def test_a_long_records_basis_from_the_models_own_factor_gives_numpys_loss(seed,
     fail here): a slow plant (poles at 0.95, lags of y close to collinear), with and without gaps."""
     from arxid.diagnosis import shape_beside
 
-    def no_fresh_qr(*args, **kwargs):
-        raise AssertionError("the basis was not taken from the model's factor")
+    def from_the_fit(columns, overwrite=False, r=None):
+        assert r is not None, "the basis was not taken from the model's factor"
+        return orthonormal_basis(columns, overwrite, r)
 
-    monkeypatch.setattr(shape_beside, "orthonormal_basis", no_fresh_qr)
+    monkeypatch.setattr(shape_beside, "orthonormal_basis", from_the_fit)
     data = plant(seed, n=140_000, gaps=gaps)
     y = lfilter([0, 0.05, 0.02], [1, -1.9, 0.9025], data.u[:, 0]) + 0.01 * data.y
     data = arxid.IOData(y, data.u, data.ts, input_names=["u", "w"], extra=data.extra)
@@ -156,3 +158,17 @@ def test_a_long_records_basis_from_the_models_own_factor_gives_numpys_loss(seed,
         for const in (False, True):
             assert fit(shape, const).rss == pytest.approx(_reference_rss(model, data, shape, const), rel=1e-12)
     assert fit._basis is not None
+
+
+def test_a_known_r_gives_the_fresh_qrs_basis_and_refuses_dependent_columns():
+    """orthonormal_basis from a given R (a fit's) is the basis of a fresh QR to rounding; a column
+    the rank rule calls dependent is refused from the given R too."""
+    rng = np.random.default_rng(8)
+    x = rng.standard_normal((140_000, 4)) @ np.array([[1, 0.99, 0, 0], [0, 0.1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1e3]])
+    r = np.linalg.cholesky(x.T @ x).T
+    fresh, given = orthonormal_basis(x.copy()), orthonormal_basis(x.copy(), r=r)
+    assert fresh is not None and given is not None
+    np.testing.assert_allclose(given @ (given.T @ x[:, 1]), x[:, 1], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.abs(given.T @ fresh), np.eye(4), rtol=0, atol=1e-12)
+    x[:, 1] = 2 * x[:, 0]
+    assert orthonormal_basis(x.copy(), r=np.linalg.qr(x, mode="r")) is None

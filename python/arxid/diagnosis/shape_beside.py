@@ -21,8 +21,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._base.nested import blocked_r
-from .._base.orthonormal import RANK_FACTOR
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -123,9 +121,8 @@ class BesideFit:
         for i in range(data.n_inputs):  # an input the model feeds through a shape has no plain lags
             plain = m.nb_[i] > 0 and layout.effect_of_column[i] is None
             self._lags[i] = tuple(range(m.nk_[i], m.nk_[i] + m.nb_[i])) if plain else None
-        basis = _model_basis(m, phi)
-        if basis is None:  # no factor of the model's own to start from: a fresh QR
-            basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
+        # Q over phi (the rows held once), from the fit's own R where it has one
+        basis = orthonormal_basis(phi, overwrite=True, r=_model_r(m, phi))
         del phi
         if basis is None:
             return
@@ -148,34 +145,14 @@ class BesideFit:
         return Beside(fitted.rss_, fitted.n_rows_, fitted.n_params)
 
 
-def _model_basis(model: ArxModel, phi: np.ndarray) -> np.ndarray | None:
-    """Q over ``phi`` (written over it) from the model's own fit, None where that cannot serve.
-
-    The fit's (ΦᵀΦ)⁻¹ (its covariance over the noise variance) gives R with RᵀR = ΦᵀΦ, so Φ R⁻¹ is
-    orthonormal to the fit's rounding, and the R of that (one more pass) restores it to the last
-    bits: three passes over the rows where a fresh QR of Φ takes four. A column the core's rank rule
-    calls dependent gives None, as :func:`orthonormal_basis` does."""
+def _model_r(model: ArxModel, phi: np.ndarray) -> np.ndarray | None:
+    """R with RᵀR = ΦᵀΦ from the model's own fit (its covariance over the noise variance is
+    (ΦᵀΦ)⁻¹), None where that cannot serve: :func:`orthonormal_basis` then needs no fresh QR of
+    Φ, and its second pass restores Q to the last bits (three passes over the rows, not four)."""
     n, p = phi.shape
-    if n < _LEAN_ROWS or not (model.rss_ > 0 and np.isfinite(model.covariance_).all()):
+    if not (model.rss_ > 0 and np.isfinite(model.covariance_).all()):
         return None
     try:
-        r = np.linalg.cholesky(np.linalg.inv(model.covariance_ * ((n - p) / model.rss_))).T
+        return np.linalg.cholesky(np.linalg.inv(model.covariance_ * ((n - p) / model.rss_))).T
     except np.linalg.LinAlgError:
         return None
-    if not (np.abs(np.diag(r)) > RANK_FACTOR * n * np.sqrt(np.einsum("ij,ij->j", r, r))).all():
-        return None
-    _times_inverse(phi, r)
-    _times_inverse(phi, blocked_r(phi))
-    return phi
-
-
-def _times_inverse(q: np.ndarray, r: np.ndarray) -> None:
-    """q ← q R⁻¹ in place, a block of rows at a time."""
-    inverse = np.linalg.inv(r)
-    for a in range(0, q.shape[0], _LEAN_ROWS):
-        q[a : a + _LEAN_ROWS] = q[a : a + _LEAN_ROWS] @ inverse
-
-
-#: Rows from which the basis starts from the model's factor (a shorter regressor: numpy's QR), and
-#: rows per block of its division.
-_LEAN_ROWS = 131_072
