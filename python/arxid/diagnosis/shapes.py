@@ -86,6 +86,19 @@ def input_levels(x: np.ndarray) -> np.ndarray:
     return np.unique(x[np.isfinite(x)])
 
 
+def level_count(x: np.ndarray) -> int:
+    """The number of distinct finite values of an input, up to :data:`MIN_SCAN_LEVELS` (a rich
+    input shows that many in its first samples: no sort of a long record)."""
+    head = input_levels(x[:_HEAD_SAMPLES]).size
+    if head >= MIN_SCAN_LEVELS or x.size <= _HEAD_SAMPLES:
+        return min(head, MIN_SCAN_LEVELS)
+    return min(input_levels(x).size, MIN_SCAN_LEVELS)
+
+
+#: The samples :func:`level_count` reads first.
+_HEAD_SAMPLES = 4096
+
+
 def _replaced(model: ArxModel, data: IOData) -> set[str]:
     """Inputs the model already feeds through a shape."""
     shapes = (parse_effect(e, data).shape for e in model.effects if e.startswith("through("))
@@ -117,27 +130,27 @@ def shape_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] 
         if name in done or model.nb_[i] == 0:
             continue
         x = np.asarray(data.u[:, i], dtype=float)
-        levels = input_levels(x)
-        if levels.size < 3:
+        levels = level_count(x)
+        if levels < 3:
             continue
-        out += _power_shapes(name, x, levels) + _threshold_shapes(name, x, levels)
+        lo, hi = float(np.nanmin(x)), float(np.nanmax(x))
+        out += _power_shapes(name, x, levels, lo) + _threshold_shapes(name, lo, hi)
         out += [(InputShape("product", name, (), v), 1) for v in extras]
     return out
 
 
-def _power_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tuple[InputShape, int]]:
-    kind = "signed power" if changes_sign(x) else "power" if levels[0] >= 0 else None
+def _power_shapes(name: str, x: np.ndarray, levels: int, lo: float) -> list[tuple[InputShape, int]]:
+    kind = "signed power" if changes_sign(x) else "power" if lo >= 0 else None
     if kind is None:  # a one-sided input below zero: no power law about its zero
         return []
-    if levels.size < MIN_SCAN_LEVELS:
+    if levels < MIN_SCAN_LEVELS:
         return [(InputShape(kind, name, (p,)), 1) for p in PHYSICAL_POWERS]
     return [(InputShape(kind, name, (1.0,)), POWER_GRID.size)]
 
 
-def _threshold_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tuple[InputShape, int]]:
+def _threshold_shapes(name: str, lo: float, hi: float) -> list[tuple[InputShape, int]]:
     """A saturation and a dead zone, their levels scanned on the data (a level between two steps of
     a staircase still shows: the steps beyond it all give the same f)."""
-    lo, hi = float(levels[0]), float(levels[-1])
     return [
         (InputShape("saturation", name, (lo - 1.0, hi + 1.0)), 4 * THRESHOLD_STEPS),
         (InputShape("dead zone", name, (0.0,)), 2 * THRESHOLD_STEPS),
@@ -380,7 +393,7 @@ def fitted_parameters(s: Suspect, data: IOData) -> int:
     law on a staircase is a named law, with none)."""
     shape = _shape_of(s, data)
     scanned = 0 if shape.kind == "product" else len(shape.params)
-    if shape.kind in ("power", "signed power") and input_levels(data.signal(shape.signal)).size < MIN_SCAN_LEVELS:
+    if shape.kind in ("power", "signed power") and level_count(data.signal(shape.signal)) < MIN_SCAN_LEVELS:
         scanned = 0
     return scanned + int("const" in s.effects)
 
