@@ -10,6 +10,7 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
+from arxid._base.orthonormal import orthonormal_basis
 from arxid.diagnosis.shape_beside import BesideFit
 from arxid.diagnosis.shapes import ShapeFits, _f_test
 from arxid.exceptions import ArxidError
@@ -96,3 +97,78 @@ def test_the_shape_models_from_one_envelope_equal_their_own_fits(gaps):
         assert got.regressor_names_ == own.regressor_names_ and got.n_rows_ == own.n_rows_
         np.testing.assert_allclose(got.parameters_, own.parameters_, rtol=1e-9, atol=1e-12)
         assert got.rss_ == pytest.approx(own.rss_, rel=1e-10)
+
+
+def _reference_rss(model: arxid.ArxModel, data: arxid.IOData, shape: InputShape, const: bool) -> float:
+    """numpy's least squares of y on the model's regressors, the shape's lags (read through the old
+    numbered regressor, :func:`input_lags`) and the offset."""
+    from arxid.diagnosis.shape_cost import input_lags
+    from arxid.models.effects import compile_effects
+    from arxid.models.regressors import regressor_matrix
+
+    layout = compile_effects(model.effects, data, model.nb_, model.nk_)
+    phi, y, rows = regressor_matrix(data, model.na_, layout, model.first_lag_)
+    i = ["u", "w"].index(shape.signal)
+    which, index, plain = input_lags(data, model.na_, layout, i, phi, rows)
+    assert plain.sum() == model.nb_[i]
+    other = data.signal(shape.other) if shape.other else None
+    z = shape.evaluate(data.u[:, i], other)[index[:, plain]]
+    x = np.column_stack([phi, z] + ([np.ones(rows.size)] if const else []))
+    return float(np.sum((y - x @ np.linalg.lstsq(x, y, rcond=None)[0]) ** 2))
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+@pytest.mark.parametrize(("effects", "gaps"), [((), False), ((), True), (("u*v",), True)])
+def test_the_shape_lags_read_from_the_layout_give_numpys_loss(seed, effects, gaps):
+    """The shape's columns taken at the layout's lags (row t of lag k reads sample t − k) are those
+    the numbered regressor found, on rows with gaps and beside an effect of the same input: the loss
+    is numpy's least squares of the stacked columns to rounding."""
+    data = plant(seed, gaps=gaps)
+    if gaps:  # the shaped inputs themselves missing (the modulating signal's gaps are refitted)
+        u = data.u.copy()
+        u[[400, 401, 1800], 0] = np.nan
+        u[[900], 1] = np.nan
+        data = data.with_signals(u=u, input_names=["u", "w"])
+    model = arxid.ArxModel(na=2, nb=[3, 2], nk=[1, 2], effects=effects).fit(data)
+    fit = BesideFit(model, data)
+    for shape in [s for s in SHAPES if s.kind != "product"]:
+        for const in ("const" not in effects, False):
+            got = fit(shape, const)
+            assert got.rss == pytest.approx(_reference_rss(model, data, shape, const), rel=1e-12)
+    assert fit._basis is not None and fit._lags == {0: (1, 2, 3), 1: (2, 3)}
+
+
+@pytest.mark.parametrize(("seed", "gaps"), [(21, False), (22, True)])
+def test_a_long_records_basis_from_the_models_own_factor_gives_numpys_loss(seed, gaps, monkeypatch):
+    """From 131,072 rows the basis starts from the fit's (ΦᵀΦ)⁻¹ (no fresh QR of Φ, which would
+    fail here): a slow plant (poles at 0.95, lags of y close to collinear), with and without gaps."""
+    from arxid.diagnosis import shape_beside
+
+    def from_the_fit(columns, overwrite=False, r=None):
+        assert r is not None, "the basis was not taken from the model's factor"
+        return orthonormal_basis(columns, overwrite, r)
+
+    monkeypatch.setattr(shape_beside, "orthonormal_basis", from_the_fit)
+    data = plant(seed, n=140_000, gaps=gaps)
+    y = lfilter([0, 0.05, 0.02], [1, -1.9, 0.9025], data.u[:, 0]) + 0.01 * data.y
+    data = arxid.IOData(y, data.u, data.ts, input_names=["u", "w"], extra=data.extra)
+    model = arxid.ArxModel(na=3, nb=[2, 2], nk=[1, 1], effects=("u*v",)).fit(data)
+    fit = BesideFit(model, data)
+    for shape in (InputShape("dead zone", "u", (0.4,)), InputShape("signed power", "w", (0.5,))):
+        for const in (False, True):
+            assert fit(shape, const).rss == pytest.approx(_reference_rss(model, data, shape, const), rel=1e-12)
+    assert fit._basis is not None
+
+
+def test_a_known_r_gives_the_fresh_qrs_basis_and_refuses_dependent_columns():
+    """orthonormal_basis from a given R (a fit's) is the basis of a fresh QR to rounding; a column
+    the rank rule calls dependent is refused from the given R too."""
+    rng = np.random.default_rng(8)
+    x = rng.standard_normal((140_000, 4)) @ np.array([[1, 0.99, 0, 0], [0, 0.1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1e3]])
+    r = np.linalg.cholesky(x.T @ x).T
+    fresh, given = orthonormal_basis(x.copy()), orthonormal_basis(x.copy(), r=r)
+    assert fresh is not None and given is not None
+    np.testing.assert_allclose(given @ (given.T @ x[:, 1]), x[:, 1], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.abs(given.T @ fresh), np.eye(4), rtol=0, atol=1e-12)
+    x[:, 1] = 2 * x[:, 0]
+    assert orthonormal_basis(x.copy(), r=np.linalg.qr(x, mode="r")) is None

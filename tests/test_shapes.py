@@ -229,3 +229,19 @@ def test_no_sensor_shape_is_judged_against_a_perfect_baseline():
     f, span, _, _ = WIENER["quadratic sensor"]
     est, val = records(f, span, 0, False, wiener=True)
     assert sensor_suspects(arxid.arx(est, 2, 2, 1), est, val, None, "zero", 0.0) == []
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_an_inputs_level_count_is_the_distinct_values_up_to_the_scans_minimum(seed):
+    """Counted from the first samples when they hold enough, else over the record: a staircase whose
+    later levels come after the first samples, one of 25 levels, a rich input, with missing samples."""
+    from arxid.diagnosis.shapes import MIN_SCAN_LEVELS, input_levels, level_count
+
+    rng = np.random.default_rng(seed)
+    late = np.concatenate([np.full(5000, 0.5), np.repeat(rng.uniform(0, 2, 30), 1000)])
+    for x in (late, np.repeat(rng.uniform(0, 2, 25), 800), rng.standard_normal(9000), np.repeat([0.0, 1.0, 2.0], 3000)):
+        x = x.copy()
+        x[rng.integers(0, x.size, 40)] = np.nan
+        for y in (x, x[:3000]):
+            assert level_count(y) == min(input_levels(y).size, MIN_SCAN_LEVELS)
+    assert level_count(late) == MIN_SCAN_LEVELS and input_levels(late[:4096]).size == 1

@@ -18,17 +18,21 @@ __all__ = ["RANK_FACTOR", "Projector", "orthonormal_basis", "projected_r"]
 RANK_FACTOR = 10.0 * np.finfo(float).eps
 
 
-def orthonormal_basis(columns: np.ndarray, overwrite: bool = False) -> np.ndarray | None:
+def orthonormal_basis(columns: np.ndarray, overwrite: bool = False, r: np.ndarray | None = None) -> np.ndarray | None:
     """Q of the columns' QR, or None when one depends on those before it by the core's rank rule.
 
     A tall matrix (from :data:`_LEAN_ROWS` rows) gets Q as ``columns`` R⁻¹, twice (the second pass
     restores orthogonality to rounding), block of rows by block, R from the core's blocked QR
-    (:func:`~arxid._base.nested.blocked_r`): no copy of the rows beside Q, and with ``overwrite``
-    Q is written over ``columns`` (a shorter one: numpy's QR)."""
+    (:func:`~arxid._base.nested.blocked_r`) or ``r`` when given (an upper triangular R with RᵀR the
+    columns' cross products, a fit's own: one pass less): no copy of the rows beside Q, and with
+    ``overwrite`` Q is written over ``columns`` (a shorter one: numpy's QR)."""
     lean = columns.shape[0] >= _LEAN_ROWS and columns.shape[1] > 0
-    q, r = (None, blocked_r(columns)) if lean else np.linalg.qr(columns)
+    if lean and r is not None:
+        q, norms = None, np.sqrt(np.einsum("ij,ij->j", r, r))  # R's column norms are the columns'
+    else:
+        q, r = (None, blocked_r(columns)) if lean else np.linalg.qr(columns)
+        norms = np.sqrt(np.einsum("ij,ij->j", columns, columns))
     tol = RANK_FACTOR * max(columns.shape)
-    norms = np.sqrt(np.einsum("ij,ij->j", columns, columns))
     if columns.shape[1] and not (np.abs(np.diag(r)) > tol * norms).all():
         return None
     if q is None:

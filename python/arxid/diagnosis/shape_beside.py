@@ -2,10 +2,12 @@
 *beside* its own columns, for every shape of a diagnosis.
 
 Each such refit is the model's regressor with a few more columns. So the model's columns are reduced
-once to an orthonormal basis Q, with the output's residual y⊥ (the model's own), and a shape costs
-the projection of its few columns, Z − Q(QᵀZ), and a small QR beside y⊥ (:func:`projected_r`):
-the refit's residual sum of squares to rounding, without a pass of the core over all the rows
-(twenty of those were a third of a diagnosis at 4M samples).
+once to an orthonormal basis Q (on a long record, from the fit's own factor: no fresh QR), with the
+output's residual y⊥ (the model's own), and a shape costs the projection of its few columns,
+Z − Q(QᵀZ), and a small QR beside y⊥ (:func:`projected_r`): the refit's residual sum of squares to
+rounding, without a pass of the core over all the rows (twenty of those were a third of a diagnosis
+at 4M samples). A shape's columns are its series at the input's lags: row t of lag k reads sample
+t − k.
 
 A shape the refit would refuse is refused alike (a shaped lag the model's columns already span is
 rank deficient by the core's rule). Where the shortcut cannot stand for the refit (the basis does
@@ -24,9 +26,9 @@ from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
 from ..models.input_shapes import InputShape
-from ..models.regressors import regressor_matrix
+from ..models.regressors import lagger, regressor_matrix
 from .candidates import candidate_input_names
-from .shape_cost import input_lags, orthonormal_basis, projected_r
+from .shape_cost import orthonormal_basis, projected_r
 
 __all__ = ["BesideFit", "Beside"]
 
@@ -58,22 +60,22 @@ class BesideFit:
         self.model, self.data = model, data
         self.names = candidate_input_names(data)
         self._basis: tuple[np.ndarray, np.ndarray] | None = None
-        self._lags: dict[int, np.ndarray | None] = {}
+        self._lags: dict[int, tuple[int, ...] | None] = {}
+        self._rows = np.zeros(0, dtype=np.intp)
         self._factors: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
         self._built = False
 
     def __call__(self, shape: InputShape, const: bool) -> Beside:
-        i = self.names.index(shape.signal)
-        index = self._index(i)
-        if index is None or self._basis is None:
+        lags = self._input_lags(self.names.index(shape.signal))
+        if lags is None or self._basis is None:
             return self.refit(shape, const)
         if shape.effect not in self._factors:
-            self._factors[shape.effect] = self._factor(shape, i, index)
+            self._factors[shape.effect] = self._factor(shape, lags)
         factor = self._factors[shape.effect]
         if factor is None:  # a row the refit leaves out, or a data error: the refit says
             return self.refit(shape, const)
         r, dependent = factor
-        k, offset = index.shape[1], "const" not in self.model.effects
+        k, offset = len(lags), "const" not in self.model.effects
         if dependent[:k].any() or (const and (not offset or dependent[k])):
             raise ArxidError(f"the columns of {shape.effect} beside the model's are rank deficient")
         if offset and not const:  # the offset's column left out: R of the others (exact, by rotations)
@@ -81,21 +83,28 @@ class BesideFit:
         n_rows, n_params = self._basis[0].shape
         return Beside(float(r[-1, -1] ** 2), n_rows, n_params + k + int(const))
 
-    def _factor(self, shape: InputShape, i: int, index: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def _factor(self, shape: InputShape, lags: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray] | None:
         """R of the shape's lags (and, for a model without an offset, a column of ones) projected
         beside y⊥: one pass over the rows serves the shape with and without its offset."""
         other = self.data.signal(shape.other) if shape.other else None
+        i = self.names.index(shape.signal)
         with np.errstate(over="ignore", invalid="ignore"):
-            z = shape.evaluate(self.data.u[:, i], other)[index]
-        if not np.isfinite(z).all():
+            series = shape.evaluate(self.data.u[:, i], other)
+        ones = "const" not in self.model.effects
+        z = np.empty((self._rows.size, len(lags) + int(ones)), order="F")  # a column is one copy of a slice
+        lagged = lagger(self._rows)
+        for c, k in enumerate(lags):  # row t of a lag-k column reads sample t − k
+            z[:, c] = lagged(series, k)
+        del series
+        if not np.isfinite(z[:, : len(lags)]).all():
             return None
-        if "const" not in self.model.effects:
-            z = np.column_stack([z, np.ones(z.shape[0])])
+        if ones:
+            z[:, -1] = 1.0
         assert self._basis is not None
         return projected_r(*self._basis, z)
 
-    def _index(self, i: int) -> np.ndarray | None:
-        """Per row the samples input ``i``'s lag columns read (None: refit every shape)."""
+    def _input_lags(self, i: int) -> tuple[int, ...] | None:
+        """The lags of input ``i``'s columns (None: refit every shape of it)."""
         if not self._built:
             self._built = True
             self._build()
@@ -109,18 +118,18 @@ class BesideFit:
         phi, y, rows = regressor_matrix(data, m.na_, layout, m.first_lag_)
         if rows.size != m.n_rows_:
             return
-        for i in range(data.n_inputs):
-            which, index, plain = input_lags(data, m.na_, layout, i, phi, rows)
-            ok = which.size and plain.sum() == m.nb_[i]
-            self._lags[i] = index[:, plain] if ok else None
-        basis = orthonormal_basis(phi, overwrite=True)  # Q over phi: the rows held once
+        for i in range(data.n_inputs):  # an input the model feeds through a shape has no plain lags
+            plain = m.nb_[i] > 0 and layout.effect_of_column[i] is None
+            self._lags[i] = tuple(range(m.nk_[i], m.nk_[i] + m.nb_[i])) if plain else None
+        # Q over phi (the rows held once), from the fit's own R where it has one
+        basis = orthonormal_basis(phi, overwrite=True, r=_model_r(m, phi))
         del phi
         if basis is None:
             return
         y_perp = y - basis @ (basis.T @ y)
         if not abs(float(y_perp @ y_perp) - m.rss_) <= _AGREEMENT * m.rss_:
             return  # the basis does not stand for the model's fit
-        self._basis = basis, y_perp
+        self._basis, self._rows = (basis, y_perp), rows
 
     def refit(self, shape: InputShape, const: bool) -> Beside:
         """The refit itself: the shaped input as one more input with the input's own lags."""
@@ -134,3 +143,16 @@ class BesideFit:
         effects = [*model.effects] + (["const"] if const else [])
         fitted = ArxModel(na=model.na_, nb=nb, nk=nk, effects=effects).fit(extended, first_lag=model.first_lag_)
         return Beside(fitted.rss_, fitted.n_rows_, fitted.n_params)
+
+
+def _model_r(model: ArxModel, phi: np.ndarray) -> np.ndarray | None:
+    """R with RᵀR = ΦᵀΦ from the model's own fit (its covariance over the noise variance is
+    (ΦᵀΦ)⁻¹), None where that cannot serve: :func:`orthonormal_basis` then needs no fresh QR of
+    Φ, and its second pass restores Q to the last bits (three passes over the rows, not four)."""
+    n, p = phi.shape
+    if not (model.rss_ > 0 and np.isfinite(model.covariance_).all()):
+        return None
+    try:
+        return np.linalg.cholesky(np.linalg.inv(model.covariance_ * ((n - p) / model.rss_))).T
+    except np.linalg.LinAlgError:
+        return None

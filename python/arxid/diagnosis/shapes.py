@@ -51,7 +51,7 @@ from ..models.effects import parse_effect
 from ..models.envelope import EnvelopeFactor
 from ..models.input_shapes import InputShape
 from ..models.iv import IvModel
-from ..selection.parsimony import diebold_mariano
+from ..selection.parsimony import diebold_mariano, loss_difference_test
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
@@ -86,6 +86,19 @@ def input_levels(x: np.ndarray) -> np.ndarray:
     return np.unique(x[np.isfinite(x)])
 
 
+def level_count(x: np.ndarray) -> int:
+    """The number of distinct finite values of an input, up to :data:`MIN_SCAN_LEVELS` (a rich
+    input shows that many in its first samples: no sort of a long record)."""
+    head = input_levels(x[:_HEAD_SAMPLES]).size
+    if head >= MIN_SCAN_LEVELS or x.size <= _HEAD_SAMPLES:
+        return min(head, MIN_SCAN_LEVELS)
+    return min(input_levels(x).size, MIN_SCAN_LEVELS)
+
+
+#: The samples :func:`level_count` reads first.
+_HEAD_SAMPLES = 4096
+
+
 def _replaced(model: ArxModel, data: IOData) -> set[str]:
     """Inputs the model already feeds through a shape."""
     shapes = (parse_effect(e, data).shape for e in model.effects if e.startswith("through("))
@@ -117,27 +130,27 @@ def shape_candidates(model: ArxModel, data: IOData, loop_signals: Sequence[str] 
         if name in done or model.nb_[i] == 0:
             continue
         x = np.asarray(data.u[:, i], dtype=float)
-        levels = input_levels(x)
-        if levels.size < 3:
+        levels = level_count(x)
+        if levels < 3:
             continue
-        out += _power_shapes(name, x, levels) + _threshold_shapes(name, x, levels)
+        lo, hi = float(np.nanmin(x)), float(np.nanmax(x))
+        out += _power_shapes(name, x, levels, lo) + _threshold_shapes(name, lo, hi)
         out += [(InputShape("product", name, (), v), 1) for v in extras]
     return out
 
 
-def _power_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tuple[InputShape, int]]:
-    kind = "signed power" if changes_sign(x) else "power" if levels[0] >= 0 else None
+def _power_shapes(name: str, x: np.ndarray, levels: int, lo: float) -> list[tuple[InputShape, int]]:
+    kind = "signed power" if changes_sign(x) else "power" if lo >= 0 else None
     if kind is None:  # a one-sided input below zero: no power law about its zero
         return []
-    if levels.size < MIN_SCAN_LEVELS:
+    if levels < MIN_SCAN_LEVELS:
         return [(InputShape(kind, name, (p,)), 1) for p in PHYSICAL_POWERS]
     return [(InputShape(kind, name, (1.0,)), POWER_GRID.size)]
 
 
-def _threshold_shapes(name: str, x: np.ndarray, levels: np.ndarray) -> list[tuple[InputShape, int]]:
+def _threshold_shapes(name: str, lo: float, hi: float) -> list[tuple[InputShape, int]]:
     """A saturation and a dead zone, their levels scanned on the data (a level between two steps of
     a staircase still shows: the steps beyond it all give the same f)."""
-    lo, hi = float(levels[0]), float(levels[-1])
     return [
         (InputShape("saturation", name, (lo - 1.0, hi + 1.0)), 4 * THRESHOLD_STEPS),
         (InputShape("dead zone", name, (0.0,)), 2 * THRESHOLD_STEPS),
@@ -259,20 +272,32 @@ class ShapeFits:
 
 
 class ValidationEvidence:
-    """The model's validation errors, found once, against which each shape's are tested."""
+    """The model's validation errors, found once, against which each shape's are tested: their
+    squares and where they exist are kept, so a shape's test forms its loss differences in place."""
 
     def __init__(self, model: ArxModel, validation: IOData, horizon: int | None, initial: str):
         self.model, self.validation, self.horizon, self.initial = model, validation, horizon, initial
-        self._base: np.ndarray | None = None
+        self._squares: np.ndarray | None = None
+        self._known: np.ndarray | None = None
 
     def _errors(self, model: ArxModel) -> np.ndarray:
+        """The validation errors (a new array)."""
         return self.validation.y - prediction(model, self.validation, self.horizon, self.initial)[0]
 
     def p_value(self, fitted: ArxModel) -> float:
-        """One-sided p-value that ``fitted``'s validation error is below the model's."""
-        if self._base is None:
-            self._base = self._errors(self.model)
-        return validation_p(self._base, self._errors(fitted))
+        """One-sided p-value that ``fitted``'s validation error is below the model's (as
+        :func:`validation_p`)."""
+        if self._squares is None:
+            base = self._errors(self.model)
+            self._known = np.isfinite(base)
+            self._squares = np.square(base, out=base)
+        assert self._known is not None
+        d = self._errors(fitted)
+        known = np.isfinite(d)
+        known &= self._known
+        np.square(d, out=d)
+        np.subtract(self._squares, d, out=d)  # the model's squared error less the shape's
+        return _normal_tail(loss_difference_test(d if known.all() else d[known]).statistic)
 
 
 def _scored(
@@ -304,7 +329,11 @@ def _f_test(rss0: float, rss1: float, q: int, dof: int) -> tuple[float, float]:
 
 def validation_p(base_err: np.ndarray, shape_err: np.ndarray) -> float:
     """One-sided p-value that the shape's validation error is below the model's (Diebold–Mariano)."""
-    stat = diebold_mariano(base_err, shape_err).statistic
+    return _normal_tail(diebold_mariano(base_err, shape_err).statistic)
+
+
+def _normal_tail(stat: float) -> float:
+    """The standard normal's tail beyond ``stat`` (0 or 1 beyond the float range)."""
     if not math.isfinite(stat):
         return 0.0 if stat > 0 else 1.0
     return 0.5 * math.erfc(stat / math.sqrt(2.0))  # the normal tail beyond stat
@@ -364,7 +393,7 @@ def fitted_parameters(s: Suspect, data: IOData) -> int:
     law on a staircase is a named law, with none)."""
     shape = _shape_of(s, data)
     scanned = 0 if shape.kind == "product" else len(shape.params)
-    if shape.kind in ("power", "signed power") and input_levels(data.signal(shape.signal)).size < MIN_SCAN_LEVELS:
+    if shape.kind in ("power", "signed power") and level_count(data.signal(shape.signal)) < MIN_SCAN_LEVELS:
         scanned = 0
     return scanned + int("const" in s.effects)
 

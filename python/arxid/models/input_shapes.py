@@ -118,12 +118,17 @@ class InputShape:
                     f"not defined; use the signed power through(spow({self.signal},{_num(p[0])})) or shift the input"
                 )
             return np.power(x, p[0])
-        if k == "signed power":
-            return np.sign(x) * np.power(np.abs(x), p[0])
         if k == "saturation":
             return np.clip(x, p[0], p[1])
-        if k == "dead zone":
-            return np.sign(x) * np.maximum(np.abs(x) - p[0], 0.0)
+        if k in ("signed power", "dead zone"):  # in place: one temporary of the record's length, not four
+            out = np.abs(x)
+            if k == "signed power":
+                np.power(out, p[0], out=out)
+            else:
+                np.subtract(out, p[0], out=out)
+                np.maximum(out, 0.0, out=out)
+            out *= np.sign(x)
+            return out
         if other is None:
             raise OrderError(f"{self.effect} needs the samples of {self.other}")
         return x * np.asarray(other, dtype=float)

@@ -22,7 +22,7 @@ import numpy as np
 
 from .._base import _core
 
-__all__ = ["DM_CRITICAL", "Comparison", "diebold_mariano"]
+__all__ = ["DM_CRITICAL", "Comparison", "diebold_mariano", "loss_difference_test"]
 
 #: One-sided 5% critical value of the standard normal: DM above it means "significantly worse".
 DM_CRITICAL = 1.645
@@ -63,17 +63,34 @@ def diebold_mariano(error_small: np.ndarray, error_best: np.ndarray) -> Comparis
     Comparison
     """
     ok = np.isfinite(error_small) & np.isfinite(error_best)
-    d = error_small[ok] ** 2 - error_best[ok] ** 2
+    return loss_difference_test(error_small[ok] ** 2 - error_best[ok] ** 2)
+
+
+def loss_difference_test(d: np.ndarray) -> Comparison:
+    """:func:`diebold_mariano` from the squared-error differences ``d_t = e_small(t)² − e_best(t)²``
+    on the samples where both errors exist: a caller comparing many structures against one forms
+    them without a temporary per comparison.
+
+    Parameters
+    ----------
+    d : ndarray of shape (n,)
+        The differences; overwritten (centred in place).
+
+    Returns
+    -------
+    Comparison
+    """
     n = d.size
     if n < 2:
         return Comparison(math.nan, n, True)
-    dc = d - d.mean()
+    mean = d.mean()
+    d -= mean
     lag = int(n ** (1 / 3))
-    lrv = _long_run_variance(dc, lag)
+    lrv = _long_run_variance(d, lag)
     if not lrv > 0:
-        stat = math.inf if d.mean() > 0 else 0.0
+        stat = math.inf if mean > 0 else 0.0
     else:
-        stat = float(d.mean() / math.sqrt(lrv / n))
+        stat = float(mean / math.sqrt(lrv / n))
     return Comparison(stat, n, stat > DM_CRITICAL)
 
 
