@@ -28,7 +28,7 @@ use pyo3::prelude::*;
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
-    use super::arx::{fit, fit_from_factor, fit_memory, max_lag, FitOutput};
+    use super::arx::{envelope_factor, fit, fit_from_factor, fit_memory, max_lag, FitOutput};
     #[pymodule_export]
     use super::csv::csv_read;
     #[pymodule_export]

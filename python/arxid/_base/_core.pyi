@@ -144,6 +144,14 @@ def fit_from_factor(
     structure: tuple[int, Sequence[int], Sequence[int]],
     output_terms: Sequence[_Term],
 ) -> FitOutput: ...
+def envelope_factor(
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    envelope: tuple[int, Sequence[int], Sequence[int]],
+    first_lag: int,
+    n_threads: int = 0,
+) -> tuple[_F, int]: ...
 def free_run_variance(
     y: _F,
     u: _F,

@@ -84,14 +84,12 @@ class EnvelopeFactor:
         u = envelope_inputs(data, self.labels, terms)
         self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
-        lag = max(max_lag(na, lay) for (na, *_), lay, ok in zip(self.structures, self.layouts, self.inside) if ok)
-        # Rows that start later than the structures need: output lags up to there in the envelope
-        # (its rows start at its largest lag; the structures do not read those columns).
-        na_env = max(na_env, self.first_lag if self.first_lag > lag else 0)
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
-        grid = np.array([[self.envelope[0], *self.envelope[1], *self.envelope[2]]], dtype=np.int64)
+        # The rows start at first_lag (at least the envelope's largest lag): a later start costs no
+        # output lags the structures do not read.
         y = np.require(data.y, requirements=["C", "A"])
-        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, [], n_threads=0)
+        starts = list(data.experiment_starts)
+        self.r, self.n_rows = _core.envelope_factor(y, u, starts, self.envelope, self.first_lag, n_threads=0)
 
     def has(self, i: int) -> bool:
         """Whether structure ``i`` is fitted from the factor (on its own rows).
