@@ -42,7 +42,9 @@ mod core_module {
     #[pymodule_export]
     use super::procest::{procest_refine, procest_simulate};
     #[pymodule_export]
-    use super::scoring::{fit_residual, refine_fit_residual, tested_products, threshold_products};
+    use super::scoring::{
+        dead_zone_and_saturation_products, fit_residual, refine_fit_residual, tested_products, threshold_products,
+    };
     #[pymodule_export]
     use super::simulate::{divergence_limit, fma_limit, free_run_variance, predict};
     #[pymodule_export]

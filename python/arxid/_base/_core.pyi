@@ -337,6 +337,9 @@ def srivc_filter(
 def threshold_products(
     a: _F, e: _F, lagged: _F, thresholds: _F, dead_zone: bool, n_threads: int = 0
 ) -> tuple[_F, _F]: ...
+def dead_zone_and_saturation_products(
+    a: _F, e: _F, lagged: _F, thresholds: _F, n_threads: int = 0
+) -> tuple[_F, _F]: ...
 def tested_products(
     a: _F, e: _F, blocks: Sequence[tuple[_F, int, bool]], n_threads: int = 0
 ) -> list[tuple[_F, _F]]: ...
