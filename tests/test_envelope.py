@@ -71,6 +71,10 @@ def test_envelope_refuses_data_with_gaps_and_a_foreign_structure():
     y[100] = np.nan
     with pytest.raises(ArxidError):
         EnvelopeFactor(arxid.IOData(y, d.u, 0.01, extra=d.extra), SPECS[:2])
+    v = d.extra["vbat"].copy()
+    v[200] = np.nan  # a gap in a column's signal only
+    with pytest.raises(ArxidError, match="without missing samples"):
+        EnvelopeFactor(arxid.IOData(d.y, d.u, 0.01, extra={"vbat": v}), SPECS[:2])
     env = EnvelopeFactor(d, SPECS[:2])
     with pytest.raises(ArxidError, match="not structure 0"):
         ArxModel(na=3, nb=(2, 2), nk=(1, 1)).fit_in(env, 0)

@@ -208,10 +208,13 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
     ndarray of shape (n_samples, len(labels))
     """
     terms = terms or {}
+    # Refused at the first missing sample, before the matrix is written (a record with gaps is
+    # fitted structure by structure: the matrix would be thrown away).
+    if not np.isfinite(data.y).all():
+        raise ArxidError(_MISSING)
     u = np.empty((data.n_samples, len(labels)))
     at = {label: j for j, label in enumerate(labels)}
     pending: dict[int, np.ndarray] = {}
-    ok = bool(np.isfinite(data.y).all())
     for j, label in enumerate(labels):
         if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
             kind, power, by = terms[label]
@@ -219,15 +222,17 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
             col = _term_series(kind, power, carrier, data)
         else:
             col = layout_column(label, data)
-        ok = ok and bool(np.isfinite(col).all())
+        if not np.isfinite(col).all():
+            raise ArxidError(_MISSING)
         pending[j] = col
         if len(pending) == _COLUMNS_AT_ONCE:
             write_columns(u, pending)
             pending.clear()
     write_columns(u, pending)
-    if not ok:
-        raise ArxidError("the envelope's fits need data without missing samples")
     return u
+
+
+_MISSING = "the envelope's fits need data without missing samples"
 
 
 def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
