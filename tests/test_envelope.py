@@ -7,6 +7,7 @@ import pytest
 from scipy.signal import lfilter
 
 import arxid
+from arxid._base import _core
 from arxid.exceptions import ArxidError
 from arxid.models.arx_model import ArxModel
 from arxid.models.envelope import EnvelopeFactor
@@ -70,6 +71,46 @@ def test_envelope_refuses_data_with_gaps_and_a_foreign_structure():
     y[100] = np.nan
     with pytest.raises(ArxidError):
         EnvelopeFactor(arxid.IOData(y, d.u, 0.01, extra=d.extra), SPECS[:2])
+    v = d.extra["vbat"].copy()
+    v[200] = np.nan  # a gap in a column's signal only
+    with pytest.raises(ArxidError, match="without missing samples"):
+        EnvelopeFactor(arxid.IOData(d.y, d.u, 0.01, extra={"vbat": v}), SPECS[:2])
     env = EnvelopeFactor(d, SPECS[:2])
     with pytest.raises(ArxidError, match="not structure 0"):
         ArxModel(na=3, nb=(2, 2), nk=(1, 1)).fit_in(env, 0)
+
+
+def _fit(r, n, env, s):
+    return np.asarray(_core.fit_from_factor(r, n, env, s, []).theta)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("first_lag", [4, 9])
+def test_rows_that_start_late_cost_no_output_lags(seed, first_lag):
+    # The envelope's factor on rows from first_lag against the old path's: the grid factor of the
+    # envelope padded with output lags up to first_lag (so its rows start there). The same rows
+    # and least-squares problems; the padded factor's extra columns change the rounding only.
+    d = _data(seed)
+    y, u, starts = d.y, np.ascontiguousarray(d.u), list(d.experiment_starts)
+    env = (2, [2, 3], [1, 0])
+    r, n = _core.envelope_factor(y, u, starts, env, first_lag)
+    padded = (first_lag, env[1], env[2])
+    r0, n0 = _core.grid_factor(y, u, starts, np.array([[first_lag, 2, 3, 1, 0]], dtype=np.int64), [], n_threads=0)
+    assert r.shape == (2 + 5 + 1,) * 2 and r0.shape == (first_lag + 5 + 1,) * 2
+    assert n == n0 == d.n_samples - first_lag
+    for s in [(2, [2, 3], [1, 0]), (1, [1, 2], [1, 1]), (2, [0, 3], [0, 0]), (0, [1, 1], [2, 0])]:
+        np.testing.assert_allclose(_fit(r, n, env, s), _fit(r0, n0, padded, s), rtol=1e-11, atol=1e-13)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_envelope_factor_is_the_grid_factor_on_data_with_gaps(seed):
+    # Rows from the envelope's own largest lag: the same rows and columns as the grid's factor, so
+    # the same R bit for bit, around the missing samples too.
+    d = _data(seed)
+    y = d.y.copy()
+    y[[100, 2500, 2501, 5000]] = np.nan
+    u = np.ascontiguousarray(d.u)
+    r, n = _core.envelope_factor(y, u, [0], (3, [2, 2], [1, 1]), 0)
+    r0, n0 = _core.grid_factor(y, u, [0], np.array([[3, 2, 2, 1, 1]], dtype=np.int64), [], n_threads=0)
+    assert n == n0 < d.n_samples - 3
+    assert np.array_equal(r, r0)

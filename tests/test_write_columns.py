@@ -23,6 +23,22 @@ def test_blocks_and_halves_write_what_the_column_assignments_write(monkeypatch, 
     np.testing.assert_array_equal(out, expected)  # column 4 and 7 untouched (NaN) in both
 
 
+@pytest.mark.parametrize("block_bytes", [1, 64 * 1024, 2**30])
+def test_blocks_sized_by_bytes_write_what_the_column_assignments_write(monkeypatch, block_bytes):
+    # 1,024 rows a block (the fewest), 1,024 again (64 KiB of 8 columns), or one block of 4,096
+    monkeypatch.setattr(columns, "ROWS_AT_ONCE", 4096)
+    monkeypatch.setattr(columns, "BLOCK_BYTES", block_bytes)
+    assert columns.rows_per_block(8) == (4096 if block_bytes == 2**30 else 1024)
+    rng = np.random.default_rng(block_bytes)
+    n = 5000
+    parts = {0: rng.standard_normal(n), 2: rng.standard_normal((n, 6))}
+    out = np.full((n, 8), np.nan)
+    columns.write_columns(out, parts)
+    np.testing.assert_array_equal(out[:, 0], parts[0])
+    np.testing.assert_array_equal(out[:, 2:], parts[2])
+    assert np.isnan(out[:, 1]).all()
+
+
 def test_regressors_written_in_halves_equal_those_written_in_one_pass(monkeypatch):
     """The regressor matrix (lags, input effects, output terms; with missing samples) is the same
     to the bit whether its rows are written in one pass or in two halves on two threads."""

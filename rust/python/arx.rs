@@ -2,13 +2,16 @@
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::arguments::{factor_from, saturating_usize, slices, structure};
+use super::arguments::{factor_array, factor_from, saturating_usize, slices, structure};
 use super::errors::{to_pyerr, DataError, OrderError};
 use super::run::{run, run_short, SHORT_CALL};
 use crate::arx::fit::fit_rows_like;
+use crate::arx::reduce::reduce_checked;
 use crate::arx::structure::Data;
+use crate::linalg::qr::to_col_major;
+use crate::sweep::grid_factors::rows_of;
 use crate::sweep::least_squares::effective_threads;
 
 /// What `fit` returns.
@@ -99,6 +102,33 @@ pub(super) fn fit_from_factor<'py>(
         n_skipped: 0,
         inv_gram: PyArray1::from_vec(py, f.inv_gram).reshape([p, p])?.unbind(),
     })
+}
+
+/// `(R, n_rows)`: the triangular factor (q × q, output last) of the regressor `[Φ | y]` of the
+/// structure `envelope = (na, nb, nk)` on the rows from `first_lag` into each experiment (at least
+/// its own largest lag), to fit its sub-structures from (`fit_from_factor`). Unlike `grid_factor`,
+/// rows that start later than the envelope needs cost no output lags of their own.
+#[pyfunction]
+#[pyo3(signature = (y, u, starts, envelope, first_lag, n_threads = 0))]
+pub(super) fn envelope_factor<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    starts: Vec<usize>,
+    envelope: (usize, Vec<usize>, Vec<usize>),
+    first_lag: usize,
+    n_threads: usize,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, usize)> {
+    let env = structure(py, envelope.0, envelope.1, envelope.2, Vec::new())?;
+    let (ys, us, m) = slices(&y, &u)?;
+    let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
+    let (r, n) = run(py, n_threads, |cancel| {
+        env.check(m)?;
+        let rows = rows_of(&d, &env, first_lag);
+        let r = reduce_checked(&d, &env, &rows, n_threads != 1, &|| !cancel.load(Ordering::Relaxed))?;
+        Ok((to_col_major(&r), rows.len()))
+    })?;
+    Ok((factor_array(py, r)?, n))
 }
 
 /// Largest lag any regressor of the structure reads: its first usable row is this far into each

@@ -28,7 +28,7 @@ use pyo3::prelude::*;
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
     #[pymodule_export]
-    use super::arx::{fit, fit_from_factor, fit_memory, max_lag, FitOutput};
+    use super::arx::{envelope_factor, fit, fit_from_factor, fit_memory, max_lag, FitOutput};
     #[pymodule_export]
     use super::csv::csv_read;
     #[pymodule_export]
@@ -42,7 +42,9 @@ mod core_module {
     #[pymodule_export]
     use super::procest::{procest_refine, procest_simulate};
     #[pymodule_export]
-    use super::scoring::{fit_residual, refine_fit_residual, tested_products, threshold_products};
+    use super::scoring::{
+        dead_zone_and_saturation_products, fit_residual, refine_fit_residual, tested_products, threshold_products,
+    };
     #[pymodule_export]
     use super::simulate::{divergence_limit, fma_limit, free_run_variance, predict};
     #[pymodule_export]

@@ -31,9 +31,37 @@ pub(super) fn threshold_products<'py>(
     dead_zone: bool,
     n_threads: usize,
 ) -> PyResult<Products<'py>> {
+    let shape = if dead_zone { Shape::DeadZone } else { Shape::Saturation };
+    products(py, a, e, lagged, thresholds, shape, n_threads)
+}
+
+/// `(cross, zz)` as [`threshold_products`] gives them for a dead zone at `thresholds[0]`
+/// (`[..., 0]`) and a saturation at `thresholds[1]` (`[..., 1]`), in one pass over the rows: each
+/// the same bits as alone.
+#[pyfunction]
+#[pyo3(signature = (a, e, lagged, thresholds, n_threads = 0))]
+pub(super) fn dead_zone_and_saturation_products<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    e: PyReadonlyArray1<'py, f64>,
+    lagged: PyReadonlyArray2<'py, f64>,
+    thresholds: PyReadonlyArray1<'py, f64>,
+    n_threads: usize,
+) -> PyResult<Products<'py>> {
+    products(py, a, e, lagged, thresholds, Shape::DeadZoneAndSaturation, n_threads)
+}
+
+fn products<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    e: PyReadonlyArray1<'py, f64>,
+    lagged: PyReadonlyArray2<'py, f64>,
+    thresholds: PyReadonlyArray1<'py, f64>,
+    shape: Shape,
+    n_threads: usize,
+) -> PyResult<Products<'py>> {
     let (k, b, m) = (a.shape()[1], lagged.shape()[1], thresholds.len());
     let rows = ScanRows { a: a.as_slice()?, k, e: e.as_slice()?, lagged: lagged.as_slice()?, b };
-    let shape = if dead_zone { Shape::DeadZone } else { Shape::Saturation };
     let cs = thresholds.as_slice()?;
     let out = run(py, n_threads, |cancel| scan_products(&rows, cs, shape, n_threads != 1, cancel))?;
     let cross = PyArray1::from_vec(py, out.cross).reshape([k + 1, b, m])?;

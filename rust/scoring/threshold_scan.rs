@@ -36,6 +36,9 @@ pub enum Shape {
     DeadZone,
     /// `sign(x)·min(|x|, c)`
     Saturation,
+    /// Two thresholds: a dead zone at the first and a saturation at the second, side by side in one
+    /// pass (each the same bits as alone).
+    DeadZoneAndSaturation,
 }
 
 /// The rows of a scan: `a` (`n × k`, row-major) and `e` (`n`) are the columns the thresholded
@@ -105,6 +108,13 @@ pub fn scan_products(
         };
         let expected = if rows.a.len() != n * rows.k { n * rows.k } else { n * b };
         return Err(ArxError::ShapeMismatch { what: what.into(), expected, got });
+    }
+    if shape == Shape::DeadZoneAndSaturation && m != 2 {
+        return Err(ArxError::ShapeMismatch {
+            what: "thresholds of a dead zone and a saturation".into(),
+            expected: 2,
+            got: m,
+        });
     }
     if m >= BY_INTERVALS {
         return by_intervals(rows, thresholds, shape, parallel, cancel);
@@ -348,6 +358,7 @@ fn cross_at(
                         at(&sums.own, interval) + (sorted[interval - 1] - c) * at(&sums.signed, interval)
                     }
                     Shape::Saturation => c * at(&sums.signed, interval),
+                    Shape::DeadZoneAndSaturation => unreachable!("two thresholds are never summed by intervals"),
                 };
             }
             if shape == Shape::Saturation {
@@ -381,6 +392,7 @@ fn zz_at(cells: &[f64], sorted: &[f64], t: usize, shape: Shape) -> f64 {
                     (true, false) => c * s[2],
                     (true, true) => c * c * s[3],
                 },
+                Shape::DeadZoneAndSaturation => unreachable!("two thresholds are never summed by intervals"),
             };
         }
     }
@@ -524,6 +536,10 @@ fn shaped(x: f64, thresholds: &[f64], shape: Shape, out: &mut [f64]) {
                 *o = magnitude.min(c) * sign;
             }
         }
+        Shape::DeadZoneAndSaturation => {
+            out[0] = (magnitude - thresholds[0]).max(0.0) * sign;
+            out[1] = magnitude.min(thresholds[1]) * sign;
+        }
     }
 }
 
@@ -541,7 +557,7 @@ mod tests {
                 let s = sign(x);
                 match shape {
                     Shape::DeadZone => s * (x.abs() - c).max(0.0),
-                    Shape::Saturation => s * x.abs().min(c),
+                    Shape::Saturation | Shape::DeadZoneAndSaturation => s * x.abs().min(c),
                 }
             };
             for j in 0..b {
@@ -591,6 +607,20 @@ mod tests {
             );
             assert_eq!(one, two, "the sums do not depend on the threads");
         }
+    }
+
+    #[test]
+    fn a_dead_zone_and_a_saturation_side_by_side_are_each_alone_to_the_bit() {
+        let (n, k, b) = (2 * CHUNK + 5, 3, 2);
+        let (a, e, lagged) = data(n, k, b);
+        let rows = ScanRows { a: &a, k, e: &e, lagged: &lagged, b };
+        let cancel = AtomicBool::new(false);
+        let both = scan_products(&rows, &[0.4, 0.7], Shape::DeadZoneAndSaturation, true, &cancel).unwrap();
+        let dz = scan_products(&rows, &[0.4], Shape::DeadZone, true, &cancel).unwrap();
+        let sat = scan_products(&rows, &[0.7], Shape::Saturation, true, &cancel).unwrap();
+        let lane = |v: &[f64], t: usize| v.iter().skip(t).step_by(2).copied().collect::<Vec<f64>>();
+        assert_eq!((lane(&both.cross, 0), lane(&both.zz, 0)), (dz.cross, dz.zz));
+        assert_eq!((lane(&both.cross, 1), lane(&both.zz, 1)), (sat.cross, sat.zz));
     }
 
     #[test]

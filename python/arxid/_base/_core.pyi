@@ -28,6 +28,7 @@ __all__ = [
     "sweep_factors",
     "fit",
     "fit_from_factor",
+    "envelope_factor",
     "fit_memory",
     "free_run_variance",
     "grid_envelope",
@@ -51,6 +52,7 @@ __all__ = [
     "procest_refine",
     "procest_simulate",
     "threshold_products",
+    "dead_zone_and_saturation_products",
     "tested_products",
     "fit_residual",
     "refine_fit_residual",
@@ -144,6 +146,14 @@ def fit_from_factor(
     structure: tuple[int, Sequence[int], Sequence[int]],
     output_terms: Sequence[_Term],
 ) -> FitOutput: ...
+def envelope_factor(
+    y: _F,
+    u: _F,
+    starts: Sequence[int],
+    envelope: tuple[int, Sequence[int], Sequence[int]],
+    first_lag: int,
+    n_threads: int = 0,
+) -> tuple[_F, int]: ...
 def free_run_variance(
     y: _F,
     u: _F,
@@ -328,6 +338,9 @@ def srivc_filter(
 ) -> _F: ...
 def threshold_products(
     a: _F, e: _F, lagged: _F, thresholds: _F, dead_zone: bool, n_threads: int = 0
+) -> tuple[_F, _F]: ...
+def dead_zone_and_saturation_products(
+    a: _F, e: _F, lagged: _F, thresholds: _F, n_threads: int = 0
 ) -> tuple[_F, _F]: ...
 def tested_products(
     a: _F, e: _F, blocks: Sequence[tuple[_F, int, bool]], n_threads: int = 0

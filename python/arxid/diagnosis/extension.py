@@ -174,6 +174,11 @@ def refit_and_validate(
     return fitted, error_rms(fitted, validation, horizon, initial)
 
 
+#: Kinds of candidates refitted from the shared factor: every one that keeps the model's rows (a
+#: shape that replaces an input is one more column, like an effect).
+_IN_FACTOR = ("effect", "pair", "dynamics", "shape")
+
+
 class Refits:
     """The model refitted with each of several candidates and validated.
 
@@ -203,7 +208,7 @@ class Refits:
             return
         specs: list[tuple] = []
         for c in cands:
-            if c.kind in ("effect", "pair", "dynamics") and c.label not in self.index:
+            if c.kind in _IN_FACTOR and c.label not in self.index:
                 self.index[c.label] = len(specs)
                 specs.append((c.na, c.nb, c.nk, _with(model, c)))
         if len(specs) > 1 and not self._from(reuse, specs):

@@ -17,6 +17,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from .._base import _core
 from .._base.nested import cholesky_factor, least_squares
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
@@ -492,20 +493,40 @@ class Scoring(CandidateScoring):
         if idx < 0:
             return "dz"
         keep = [j for j, nm in enumerate(self.base_regressors) if not nm.startswith(f"{self.input_names[idx]}(")]
-        rss = {op: self._shape_rss(op, keep, signal, c) for op in ("dz", "sat")}
+        both = self._both_shapes(signal, c)
+        rss = {op: self._shape_rss(op, keep, signal, c, both.get(op)) for op in ("dz", "sat")}
         return min(rss, key=lambda k: rss[k])
 
-    def _shape_rss(self, op: str, keep: list[int], signal: str, c: float) -> float:
+    def _shape_threshold(self, op: str, signal: str, c: float) -> float:
+        return parse_effect(f"{op}({signal},{format_threshold(c)})", self.data).factors[0].threshold
+
+    def _both_shapes(self, signal: str, c: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The products :meth:`_shape_rss` reads for ``dz`` and ``sat`` at ``c``, both from one pass
+        over the model's regressors (each the same bits as alone); none when their columns differ
+        or a sample is missing."""
+        (b, k), other = self._threshold_lag("dz", signal), self._threshold_lag("sat", signal)
+        lagged = self._threshold_samples(signal, b, k)
+        if (b, k) != other or not b or not all_finite(lagged):
+            return {}
+        ts = np.array([self._shape_threshold(op, signal, c) for op in ("dz", "sat")])
+        a, y = (np.ascontiguousarray(v, dtype=float) for v in (self.phi0, self.y0))
+        cross, zz = _core.dead_zone_and_saturation_products(a, y, lagged, ts)
+        return {op: (cross[:, :, t], zz[None, :, :, t]) for t, op in enumerate(("dz", "sat"))}
+
+    def _shape_rss(
+        self, op: str, keep: list[int], signal: str, c: float, products: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> float:
         """Residual sum of squares of y on the model's ``keep`` regressors and the columns of
         ``op(signal, c)``: from the cross products of ``[Φ | z | y]`` (one pass over the rows, the
-        columns never formed) when they are well conditioned, else from the fit itself."""
+        columns never formed; ``products``: those :meth:`_both_shapes` found) when they are well
+        conditioned, else from the fit itself."""
         p = self.phi0.shape[1]
         b, k = self._threshold_lag(op, signal)
         lagged = self._threshold_samples(signal, b, k)
-        threshold = parse_effect(f"{op}({signal},{format_threshold(c)})", self.data).factors[0].threshold
+        threshold = self._shape_threshold(op, signal, c)
         r = None
-        if all_finite(lagged):
-            cross, zz = thresholded_products(op, self.phi0, self.y0, lagged, np.array([threshold]))
+        if products is not None or all_finite(lagged):
+            cross, zz = products or thresholded_products(op, self.phi0, self.y0, lagged, np.array([threshold]))
             gram = np.empty((p + b + 1, p + b + 1))  # [Φ | z | y]'[Φ | z | y]
             gram[np.ix_(range(p), range(p))] = self._gram[:p, :p]
             gram[:p, -1] = gram[-1, :p] = self._gram[:p, p]

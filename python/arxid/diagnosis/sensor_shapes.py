@@ -35,18 +35,21 @@ __all__ = ["sensor_suspects", "rank_sensors", "SENSOR_STEPS"]
 SENSOR_STEPS = 12
 
 
-def _sensor_grid(y: np.ndarray) -> list[SensorShape]:
+def _sensor_grid(y: np.ndarray, floor: float) -> list[SensorShape]:
+    """The sensors scanned (``floor``: the output's :func:`noise_floor`)."""
     y = y[np.isfinite(y)]
-    floor = noise_floor(y)
+    below = float(np.mean(y < -floor))
     out = []
-    if np.mean(y < -floor) < 0.02:  # an output that does not go below zero: a power-law sensor
+    if below < 0.02:  # an output that does not go below zero: a power-law sensor
         out += [SensorShape("power", (float(p),)) for p in np.geomspace(0.33, 3.0, SENSOR_STEPS)]
     lo, hi = float(np.min(y)), float(np.max(y))
-    for q in np.linspace(0.0, 0.03, 4):  # levels at the plateaus a clipping sensor leaves
-        top, bottom = float(np.quantile(y, 1 - q)), float(np.quantile(y, q))
+    qs = np.linspace(0.0, 0.03, 4)
+    levels = np.quantile(y, np.concatenate([1 - qs, qs]))  # one call: one copy of the record, not eight
+    for top, bottom in zip(levels[: len(qs)].tolist(), levels[len(qs) :].tolist()):
+        # levels at the plateaus a clipping sensor leaves
         out += [SensorShape("saturation", (bottom, top)), SensorShape("saturation", (lo - (hi - lo), top))]
         out += [SensorShape("saturation", (bottom, hi + (hi - lo)))]
-    if np.mean(y < -floor) > 0.02 and np.mean(y > floor) > 0.02:  # a two-sided output: a dead band
+    if below > 0.02 and np.mean(y > floor) > 0.02:  # a two-sided output: a dead band
         top = float(np.max(np.abs(y)))
         out += [SensorShape("dead zone", (float(c),)) for c in np.linspace(0, 0.5 * top, SENSOR_STEPS + 1)[1:]]
     return out
@@ -115,8 +118,8 @@ def sensor_suspects(
     """
     if isinstance(model, IvModel) or model.effects or not (math.isfinite(base_rms) and base_rms > 0):
         return []
-    grid = _sensor_grid(np.asarray(data.y, dtype=float))  # the levels of the whole record
     floor = noise_floor(data.y)
+    grid = _sensor_grid(np.asarray(data.y, dtype=float), floor)  # the levels of the whole record
     sample = scan_sample(data)
     best: dict[str, tuple[float, WienerModel]] = {}
     for sensor in grid:

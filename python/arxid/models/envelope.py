@@ -84,14 +84,12 @@ class EnvelopeFactor:
         u = envelope_inputs(data, self.labels, terms)
         self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
-        lag = max(max_lag(na, lay) for (na, *_), lay, ok in zip(self.structures, self.layouts, self.inside) if ok)
-        # Rows that start later than the structures need: output lags up to there in the envelope
-        # (its rows start at its largest lag; the structures do not read those columns).
-        na_env = max(na_env, self.first_lag if self.first_lag > lag else 0)
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
-        grid = np.array([[self.envelope[0], *self.envelope[1], *self.envelope[2]]], dtype=np.int64)
+        # The rows start at first_lag (at least the envelope's largest lag): a later start costs no
+        # output lags the structures do not read.
         y = np.require(data.y, requirements=["C", "A"])
-        self.r, self.n_rows = _core.grid_factor(y, u, list(data.experiment_starts), grid, [], n_threads=0)
+        starts = list(data.experiment_starts)
+        self.r, self.n_rows = _core.envelope_factor(y, u, starts, self.envelope, self.first_lag, n_threads=0)
 
     def has(self, i: int) -> bool:
         """Whether structure ``i`` is fitted from the factor (on its own rows).
@@ -210,10 +208,13 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
     ndarray of shape (n_samples, len(labels))
     """
     terms = terms or {}
+    # Refused at the first missing sample, before the matrix is written (a record with gaps is
+    # fitted structure by structure: the matrix would be thrown away).
+    if not np.isfinite(data.y).all():
+        raise ArxidError(_MISSING)
     u = np.empty((data.n_samples, len(labels)))
     at = {label: j for j, label in enumerate(labels)}
     pending: dict[int, np.ndarray] = {}
-    ok = bool(np.isfinite(data.y).all())
     for j, label in enumerate(labels):
         if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
             kind, power, by = terms[label]
@@ -221,15 +222,17 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
             col = _term_series(kind, power, carrier, data)
         else:
             col = layout_column(label, data)
-        ok = ok and bool(np.isfinite(col).all())
+        if not np.isfinite(col).all():
+            raise ArxidError(_MISSING)
         pending[j] = col
         if len(pending) == _COLUMNS_AT_ONCE:
             write_columns(u, pending)
             pending.clear()
     write_columns(u, pending)
-    if not ok:
-        raise ArxidError("the envelope's fits need data without missing samples")
     return u
+
+
+_MISSING = "the envelope's fits need data without missing samples"
 
 
 def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
