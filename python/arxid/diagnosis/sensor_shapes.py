@@ -136,7 +136,7 @@ def sensor_suspects(
         p_adj = min(1.0, p * len(grid))
         gain = 1.0 - after / base_rms if math.isfinite(after) else -math.inf
         s = Suspect(
-            f"sensor: {w.sensor.text}", "sensor", (), model.na_, tuple(model.nb_), tuple(model.nk_),
+            w.sensor_effect, "sensor", (), model.na_, tuple(model.nb_), tuple(model.nk_),
             math.nan, math.nan, p, p_adj, len(w.sensor.params), after, gain, False, "", w, w.sensor.physics(),
         )  # fmt: skip
         out.append(s)
