@@ -21,7 +21,7 @@ from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
-from ..models.arguments import check_data, check_horizon, check_model, check_same_signals
+from ..models.arguments import check_data, check_horizon, check_predictor, check_same_signals
 from ..models.arx_model import ArxModel
 from ..models.polynomial import PolynomialModel, check_initial
 from ..models.state_space import StateSpaceModel
@@ -239,7 +239,7 @@ def _model_list(models) -> tuple[list[str], list[Any]]:
             ) from None
         names = []
         for m in ms:
-            base = state_space_label(m) if isinstance(m, StateSpaceModel) else _checked(m).structure_name()
+            base = state_space_label(m) if isinstance(m, StateSpaceModel) else check_predictor(m).structure_name()
             name, i = base, 2
             while name in names:
                 name, i = f"{base} #{i}", i + 1
@@ -248,17 +248,8 @@ def _model_list(models) -> tuple[list[str], list[Any]]:
         raise ArxidError("compare needs at least one model")
     for m in ms:
         if not isinstance(m, StateSpaceModel):
-            _checked(m)
+            check_predictor(m)
     return names, ms
-
-
-def _checked(model: Any) -> Any:
-    """A model :func:`compare` can predict with: an ARX or polynomial model (checked), or a Wiener
-    model (the ladder's last step when the output is read through a sensor shape)."""
-    if isinstance(model, WienerModel):
-        model.check_fitted()
-        return model
-    return check_model(model)
 
 
 def compare(models, data: IOData, horizon: int | None = None, initial: str = "zero") -> Any:

@@ -20,10 +20,9 @@ from .._base.formatting import finite_or_none, horizon_label, require_pandas, te
 from .._base.probabilities import f_sf
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
-from ..models.arguments import check_data, check_horizon, check_model
+from ..models.arguments import check_data, check_horizon, check_predictor
 from ..models.arx_model import ArxModel
 from ..models.state_space import StateSpaceModel
-from ..models.wiener import WienerModel
 from .binning import SignalBins, SquaredRanks, bin_signal
 from .comparison import prediction_error
 from .state_space import PerOutput, in_model_order, state_space_label, state_space_prediction
@@ -312,8 +311,8 @@ def where_it_fails(
         one-step residual is then the innovation form's, from an initial state fitted to ``data``,
         and the inputs are binned without a delay.
     """
-    if not isinstance(model, (StateSpaceModel, WienerModel)):
-        model = check_model(model)
+    if not isinstance(model, StateSpaceModel):
+        model = check_predictor(model)
     data = check_data(data)
     horizon = check_horizon(horizon)
     n = data.n_samples

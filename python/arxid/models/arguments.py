@@ -11,8 +11,9 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from .arx_model import ArxModel
 from .polynomial import PolynomialModel
+from .wiener import WienerModel
 
-__all__ = ["check_model", "check_data", "check_horizon", "check_same_signals"]
+__all__ = ["check_model", "check_predictor", "check_data", "check_horizon", "check_same_signals"]
 
 
 def check_model(model: Any) -> ArxModel:
@@ -25,6 +26,16 @@ def check_model(model: Any) -> ArxModel:
     model.check_fitted()
     # A PolynomialModel has the ArxModel surface the checked functions use (duck typing).
     return cast(ArxModel, model)
+
+
+def check_predictor(model: Any) -> Any:
+    """``model`` as :func:`check_model` checks it, or a fitted Wiener model (the error ladder's last
+    step when the output is read through a sensor shape): the models a comparison or a search for
+    where the error lies predicts with."""
+    if isinstance(model, WienerModel):
+        model.check_fitted()
+        return model
+    return check_model(model)
 
 
 def check_data(data: Any, what: str = "data") -> IOData:
