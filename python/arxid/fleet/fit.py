@@ -138,16 +138,7 @@ class ClusterLogs(cluster.WorkerLogs):
         return cluster.reduce_tree(self.client, futures, combine_share_factors)
 
     def fit_percent(self, model: Any) -> float:
-        """The model's one-step fit percent over every log, computed where the logs are.
-
-        Parameters
-        ----------
-        model : ArxModel
-
-        Returns
-        -------
-        float
-        """
+        """:meth:`arxid.models.many_logs.FactorSource.fit_percent`, each log's part computed where the log is."""
         parts = self.client.gather(self.each(share_fit_part, model))
         return metrics.fit_percent_of_parts(parts)
 

@@ -33,19 +33,8 @@ class FactorSource(Protocol):
 
     def factor(self, na: int, nb: tuple, nk: tuple, effects: Sequence[str]) -> tuple[np.ndarray, int, int, Any, int]:
         """R of ``[Φ | y]`` over every log, its regression rows, the rows at most available, the
-        effect layout (without samples) and the samples.
-
-        Parameters
-        ----------
-        na : int
-        nb, nk : tuple of int
-            One per input.
-        effects : sequence of str
-
-        Returns
-        -------
-        tuple
-        """
+        effect layout (without samples) and the samples, for the orders ``na``, ``nb``, ``nk`` (one
+        per input) and ``effects`` of an :class:`arxid.ArxModel`."""
 
     def fit_percent(self, model: Any) -> float:
         """The fitted model's one-step fit percent over every log.
