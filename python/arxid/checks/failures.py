@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import weakref
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from .._base.probabilities import f_sf
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon, check_predictor
@@ -30,7 +30,7 @@ from .state_space import PerOutput, in_model_order, state_space_label, state_spa
 __all__ = ["where_it_fails", "FailureAnalysis", "WorstSegment", "SignalBins"]
 
 
-@dataclass(frozen=True)
+@record
 class WorstSegment:
     """A stretch of time where the error is largest.
 
@@ -54,7 +54,7 @@ class WorstSegment:
     significant: bool = False
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class FailureAnalysis:
     """Where in time and at which operating points a model's error is large.
 

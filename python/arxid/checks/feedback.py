@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 
 from .._base.formatting import json_safe
 from .._base.nested import nested_from_factor
 from .._base.probabilities import f_sf
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
@@ -39,7 +40,7 @@ _CONSEQUENCES = (
 )
 
 
-@dataclass(frozen=True)
+@record
 class FeedbackTest:
     """Result of :func:`feedback`.
 

@@ -10,10 +10,11 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any, Protocol
 
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from .._base.records import record
 from ..checks import ResidualAnalysis
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -41,7 +42,7 @@ class LadderReport(Protocol):
         ...
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class Suspect:
     """One candidate explanation of the model's error.
 
@@ -125,7 +126,7 @@ class Suspect:
         }
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class Diagnosis:
     """Ranked suspects for a model's error, with the baseline they are judged against.
 

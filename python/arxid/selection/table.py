@@ -8,13 +8,14 @@ import json
 import math
 import numbers
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 import numpy as np
 
 from .._base.digital_filter import lfilter
 from .._base.formatting import json_safe
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arx_model import ArxModel
@@ -28,7 +29,7 @@ from .sanity import SanityLimits, StepSanity, check_responses, output_range, ste
 __all__ = ["SweepTable"]
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class SweepTable:
     """The columns of a sweep's ranking and how to read them: each structure's name, fitted model,
     step sanity and grid edges, and the whole as text, JSON or a pandas DataFrame.
