@@ -81,6 +81,8 @@ def record(cls: Any = None, /, *, eq: bool = True, repr: bool = True, kw_only: b
 def _make(cls: Any, eq: bool, repr_: bool, kw_only: bool) -> Any:
     body = dict(vars(cls))
     explicit_hash = "__hash__" in body and not (body["__hash__"] is None and "__eq__" in body)
+    if not body.get("__doc__"):  # dataclasses would read the signature of object's __init__ (tokenize: 10 ms)
+        cls.__doc__ = cls.__name__
     cls = dataclasses.dataclass(cls, init=False, repr=False, eq=False, kw_only=kw_only)  # fields only
     fields = dataclasses.fields(cls)
     _add(cls, "__init__", _init(cls, fields))
