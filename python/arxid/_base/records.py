@@ -170,19 +170,20 @@ def _frozen_delattr(cls: type, names: tuple[str, ...]) -> Callable:
 
 
 def _init(cls: type, fields: Sequence[dataclasses.Field]) -> Callable:
-    """The ``__init__`` dataclasses writes for a frozen class, compiled once."""
+    """The ``__init__`` dataclasses writes for a frozen class. Its defaults and annotations are set on
+    the compiled function rather than written in its source, which halves the compile time."""
     missing = dataclasses.MISSING
-    given = [f for f in fields if f.init]
+    given = sorted((f for f in fields if f.init), key=lambda f: bool(f.kw_only))  # keyword-only last
     seen_default = False
     for f in given:
         if f.kw_only:
-            continue
+            break
         if f.default is not missing or f.default_factory is not missing:
             seen_default = True
         elif seen_default:
             raise TypeError(f"non-default argument {f.name!r} follows default argument")
     self_name = "__dataclass_self__" if "self" in {f.name for f in fields} else "self"
-    names: dict[str, Any] = {"__dataclass_builtins_object__": object, "__dataclass_factory__": _FACTORY}
+    names: dict[str, Any] = {"__dataclass_set__": object.__setattr__, "__dataclass_factory__": _FACTORY}
     lines = []
     for f in fields:
         value = f.name
@@ -193,31 +194,24 @@ def _init(cls: type, fields: Sequence[dataclasses.Field]) -> Callable:
                 value += f" if {f.name} is __dataclass_factory__ else {f.name}"
         elif not f.init:
             continue  # read from the class attribute, as dataclasses
-        lines.append(f"  __dataclass_builtins_object__.__setattr__({self_name}, {f.name!r}, {value})")
+        lines.append(f"  __dataclass_set__({self_name}, {f.name!r}, {value})")
     if hasattr(cls, "__post_init__"):
         lines.append(f"  {self_name}.__post_init__()")
-    params = []
-    for f in sorted(given, key=lambda f: bool(f.kw_only)):  # the keyword-only last, as dataclasses
-        if f.kw_only and "*" not in params:
-            params.append("*")
-        names[f"__dataclass_type_{f.name}__"] = f.type
-        default = ""
-        if f.default_factory is not missing:
-            default = "=__dataclass_factory__"
-        elif f.default is not missing:
-            names[f"__dataclass_dflt_{f.name}__"] = f.default
-            default = f"=__dataclass_dflt_{f.name}__"
-        params.append(f"{f.name}:__dataclass_type_{f.name}__{default}")
-    names["__dataclass_return_type__"] = None
-    signature = ", ".join([self_name, *params])
+    positional = [f.name for f in given if not f.kw_only]
+    keywords = [f.name for f in given if f.kw_only]
     source = (
         f"def __create_fn__({', '.join(names)}):\n"
-        f" def __init__({signature}) -> __dataclass_return_type__:\n"
+        f" def __init__({', '.join([self_name, *positional, *(['*'] if keywords else []), *keywords])}):\n"
         + ("\n".join(lines) or "  pass")
         + "\n return __init__"
     )
     module = sys.modules.get(cls.__module__)
     made: dict[str, Any] = {}
-    # dont_inherit: the annotations are the field types, not strings of this module's names
     exec(compile(source, "<string>", "exec", dont_inherit=True), vars(module) if module is not None else {}, made)
-    return made["__create_fn__"](**names)
+    init = made["__create_fn__"](**names)
+    defaults = {f.name: _FACTORY if f.default_factory is not missing else f.default for f in given}
+    defaults = {name: value for name, value in defaults.items() if value is not missing}
+    init.__defaults__ = tuple(defaults[name] for name in positional if name in defaults) or None
+    init.__kwdefaults__ = {name: defaults[name] for name in keywords if name in defaults} or None
+    init.__annotations__ = {**{f.name: f.type for f in given}, "return": None}
+    return init
