@@ -8,7 +8,6 @@ arguments or data, 1 on an unexpected internal error.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -172,6 +171,8 @@ def _progress(args) -> bool:
 
 
 def _print_json(obj) -> None:
+    import json
+
     from .._base.formatting import json_safe
 
     sys.stdout.write(json.dumps(json_safe(obj), allow_nan=False, indent=2) + "\n")

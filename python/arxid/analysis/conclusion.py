@@ -5,8 +5,6 @@ table, the missing effect, the ladder's lines), written once."""
 
 from __future__ import annotations
 
-import json
-
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
 from .._base.records import record
 from ..diagnosis.ladder import Ladder
@@ -91,6 +89,8 @@ class Conclusion:
         -------
         str
         """
+        import json
+
         return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
 
     def summary_lines(self, n_suspects: int = 12) -> list[str]:

@@ -23,7 +23,6 @@ Examples
 from __future__ import annotations
 
 import importlib
-import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -214,6 +213,8 @@ class Analysis(Conclusion):
         -------
         dict
         """
+        import json
+
         from ..diagnosis.static_map import shape_map_dict
 
         out = super().to_dict()

@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from typing import Any
 
@@ -192,6 +191,8 @@ class Comparison:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def to_pandas(self):

@@ -7,7 +7,6 @@ point (RMS of the one-step residual binned by each signal, with a significance t
 
 from __future__ import annotations
 
-import json
 import math
 import weakref
 from typing import Any
@@ -227,6 +226,8 @@ class FailureAnalysis:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def plot(self, ax: Any = None) -> Any:

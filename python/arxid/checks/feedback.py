@@ -15,7 +15,6 @@ sample acts at lag 0.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import field
 
@@ -94,6 +93,8 @@ class FeedbackTest:
         -------
         str
         """
+        import json
+
         fields = {k: getattr(self, k) for k in self.__dataclass_fields__}
         return json.dumps(json_safe(fields), allow_nan=False)  # NaN (no conclusion) becomes null
 

@@ -36,7 +36,6 @@ are not resolved by 512-sample segments)'
 
 from __future__ import annotations
 
-import json
 import math
 from typing import Any
 
@@ -217,6 +216,8 @@ class FrequencyCheck:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def plot(self, input: int = 0) -> Any:

@@ -11,7 +11,6 @@ correlated with a signal tells *that* the model misses something; :func:`arxid.d
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import field
 from typing import Any
@@ -316,6 +315,8 @@ class ResidualAnalysis:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def to_pandas(self):

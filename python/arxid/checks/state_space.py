@@ -10,7 +10,6 @@ model's would be.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator, Mapping
 from typing import Any, Generic, Protocol, TypeVar
@@ -143,4 +142,6 @@ class PerOutput(Mapping[str, _R], Generic[_R]):
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)

@@ -10,7 +10,6 @@ how the structure changed.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import field, replace
 from typing import Any
@@ -437,6 +436,8 @@ class Ladder:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def to_pandas(self):

@@ -7,7 +7,6 @@ module only reads what a ladder lists (:class:`LadderReport`), so it never impor
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import field
@@ -453,6 +452,8 @@ class Diagnosis:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(ladder), indent=indent)
 
     def to_pandas(self):

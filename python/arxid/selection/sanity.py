@@ -39,7 +39,6 @@ flag                   meaning
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
 from dataclasses import asdict
@@ -165,6 +164,8 @@ class StepSanity:
         str
             :meth:`to_dict` serialised.
         """
+        import json
+
         return json.dumps(self.to_dict())
 
 

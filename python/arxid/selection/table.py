@@ -4,7 +4,6 @@ text, JSON or a pandas DataFrame."""
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
 from collections.abc import Sequence
@@ -455,6 +454,8 @@ class SweepTable:
         str
             The JSON text.
         """
+        import json
+
         text = json.dumps(json_safe(self.to_dict(sanity)), indent=indent, allow_nan=False)
         if path is not None:
             with open(path, "w") as fh:
