@@ -60,6 +60,7 @@ def test_a_subpackage_loads_its_names_on_first_use(package):
 def test_import_arxid_and_help_import_neither_numpy_nor_the_pipeline():
     light = modules_after("import arxid")
     assert "numpy" not in light and "arxid.selection.search" not in light
+    assert "signal" not in light  # a library leaves Ctrl-C alone (arxid._base.launch)
     cli = "import sys\nfrom arxid.analysis.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass"
     helped = modules_after(cli)
     assert not {"numpy", "scipy", "arxid._base._core", "arxid.analysis.pipeline"} & helped

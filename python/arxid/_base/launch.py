@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import gc
 import os
-import signal
 import sys
 from types import FrameType
 
@@ -39,8 +38,12 @@ def _exit_interrupted(signum: int, frame: FrameType | None) -> None:
 
 def guard_startup() -> None:
     """While a program that is ``arxid`` starts, a Ctrl-C exits with 130 (nothing else changes)."""
+    if not _launching():
+        return
+    import signal  # here: its enums take longer to make than the rest of this module (a library never needs it)
+
     # Only over Python's own handler: an ignored SIGINT (a background job) or a program's own stays.
-    if _launching() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _exit_interrupted)
 
 
@@ -49,6 +52,8 @@ guard_startup()  # on import: arxid/__init__.py imports this module before anyth
 
 def end_startup() -> None:
     """Ctrl-C raises KeyboardInterrupt again (``main`` handles it from here)."""
+    import signal
+
     if signal.getsignal(signal.SIGINT) is _exit_interrupted:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
