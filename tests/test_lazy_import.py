@@ -164,3 +164,17 @@ def test_a_diagnose_in_text_imports_what_it_runs(tmp_path):
     assert "arxid.diagnosis.ladder" in json.loads(loaded)  # the diagnosis ran
     assert not {"json", "numpy.typing"} & set(json.loads(loaded))
     assert compiled == "[]"
+
+
+def test_the_program_imports_without_collecting_and_collects_after_its_start():
+    probe = (
+        "import gc, sys\n"
+        "sys.argv[0] = {argv0!r}\n"
+        "from arxid._base import launch\n"
+        "paused = not gc.isenabled()\n"
+        "launch.end_startup()\n"
+        "print(paused, gc.isenabled(), gc.get_freeze_count() > 0)"
+    )
+    for argv0, paused in (("/usr/bin/arxid", ["True", "True", "True"]), ("my_script.py", ["False", "True", "False"])):
+        out = subprocess.run([sys.executable, "-c", probe.format(argv0=argv0)], capture_output=True, text=True)
+        assert out.stdout.split() == paused, out.stderr
