@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import arxid
@@ -20,7 +21,7 @@ INIT = Path(arxid.__file__)
 
 def modules_after(code: str) -> set[str]:
     """The modules a fresh interpreter holds after running ``code``."""
-    probe = code + "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    probe = code + "\nimport sys\nloaded = sorted(sys.modules)\nimport json\nprint(json.dumps(loaded))"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     return set(json.loads(out.stdout.strip().splitlines()[-1]))
 
@@ -59,6 +60,7 @@ def test_a_subpackage_loads_its_names_on_first_use(package):
 def test_import_arxid_and_help_import_neither_numpy_nor_the_pipeline():
     light = modules_after("import arxid")
     assert "numpy" not in light and "arxid.selection.search" not in light
+    assert "signal" not in light  # a library leaves Ctrl-C alone (arxid._base.launch)
     cli = "import sys\nfrom arxid.analysis.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass"
     helped = modules_after(cli)
     assert not {"numpy", "scipy", "arxid._base._core", "arxid.analysis.pipeline"} & helped
@@ -134,3 +136,45 @@ def test_the_program_leaves_its_objects_to_the_exit_and_a_library_keeps_them_col
     for argv0, frozen in (("/usr/bin/arxid", "True"), ("my_script.py", "False")):
         out = subprocess.run([sys.executable, "-c", probe.format(argv0=argv0)], capture_output=True, text=True)
         assert out.stdout.split() == ["True", frozen], out.stderr
+
+
+def test_a_diagnose_in_text_imports_what_it_runs(tmp_path):
+    """The modules deferred for ``arxid diagnose`` on a small file (issue 42, part 5) stay deferred:
+    json (for --json and to_json), numpy.typing (annotations only), and no frozen dataclass on the
+    way compiles its methods (``arxid._base.records``: half the import time when they did)."""
+    d = arxid.datasets.thrust_stand(seed=0, duration=5.0, ts=0.01)
+    path = tmp_path / "thrust_stand.csv"
+    columns = np.column_stack([d.y, d.u[:, 0], d.extra["vbat"]])
+    np.savetxt(path, columns, fmt="%.9g", delimiter=",", header="thrust,pwm,vbat", comments="")
+    code = (
+        "import contextlib, dataclasses, io, sys\n"
+        "from arxid.analysis.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        f"    code = main(['diagnose', {str(path)!r}, '--output', 'thrust', '--inputs', 'pwm', '--extra', 'vbat',"
+        " '--ts', '0.01', '--no-progress'])\n"
+        "assert code == 0 and 'thrust' in out.getvalue(), out.getvalue()\n"
+        "compiled = sorted(f'{c.__module__}.{c.__qualname__}' for name, m in list(sys.modules.items())"
+        " if name.startswith('arxid') for c in vars(m).values() if isinstance(c, type) and c.__module__ == name"
+        " and dataclasses.is_dataclass(c) and c.__dataclass_params__.frozen)\n"
+        "print(compiled)"
+    )
+    probe = code + "\nloaded = sorted(sys.modules)\nimport json\nprint(json.dumps(loaded))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    *_, compiled, loaded = out.stdout.strip().splitlines()
+    assert "arxid.diagnosis.ladder" in json.loads(loaded)  # the diagnosis ran
+    assert not {"json", "numpy.typing"} & set(json.loads(loaded))
+    assert compiled == "[]"
+
+
+def test_the_program_imports_without_collecting_and_collects_after_its_start():
+    probe = (
+        "import gc, sys\n"
+        "sys.argv[0] = {argv0!r}\n"
+        "from arxid._base import launch\n"
+        "paused = not gc.isenabled()\n"
+        "launch.end_startup()\n"
+        "print(paused, gc.isenabled(), gc.get_freeze_count() > 0)"
+    )
+    for argv0, paused in (("/usr/bin/arxid", ["True", "True", "True"]), ("my_script.py", ["False", "True", "False"])):
+        out = subprocess.run([sys.executable, "-c", probe.format(argv0=argv0)], capture_output=True, text=True)
+        assert out.stdout.split() == paused, out.stderr

@@ -4,10 +4,14 @@ of an analysis of a short record)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from numpy.typing import ArrayLike
 
 from . import _core
+
+if TYPE_CHECKING:  # numpy.typing parses its docstrings on import
+    from numpy.typing import ArrayLike
 
 __all__ = ["lfilter"]
 

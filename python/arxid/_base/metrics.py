@@ -25,9 +25,9 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
 from ..exceptions import ArxidError
 from . import _core
@@ -61,7 +61,8 @@ DIVERGENCE_FACTOR: float = float(_core.DIVERGENCE_FACTOR)
 #: Samples of the measured output that bound the divergence limit from below (see :func:`diverged`).
 _HEAD = 4096
 
-_ArrayLike = npt.ArrayLike
+if TYPE_CHECKING:  # numpy.typing parses its docstrings on import
+    from numpy.typing import ArrayLike as _ArrayLike
 _Float = float | np.ndarray
 
 

@@ -4,9 +4,9 @@ it, and the order grid of an analysis (:func:`grid_of`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any, TypedDict, cast
 
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_model
@@ -17,7 +17,7 @@ from ..selection.search import DEFAULT_GRID, SweepResult
 __all__ = ["Choice", "OrderGrid", "choose", "grid_of", "grid_lists", "given_model"]
 
 
-@dataclass(frozen=True)
+@record
 class Choice:
     """Which structure was chosen and why.
 

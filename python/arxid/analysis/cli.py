@@ -8,7 +8,6 @@ arguments or data, 1 on an unexpected internal error.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -172,6 +171,8 @@ def _progress(args) -> bool:
 
 
 def _print_json(obj) -> None:
+    import json
+
     from .._base.formatting import json_safe
 
     sys.stdout.write(json.dumps(json_safe(obj), allow_nan=False, indent=2) + "\n")
@@ -427,7 +428,8 @@ _COMMANDS = {
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The ``arxid`` parser with every command's options, or with those of ``command`` alone (the
-    others listed by name and help line): the options of a command import what they describe."""
+    others listed by name and help line when ``command`` names none): the options of a command import
+    what they describe."""
     root = _Parser(
         prog="arxid",
         description="ARX system identification that finds the missing physical effect.",
@@ -444,7 +446,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         kw: dict[str, Any] = {"formatter_class": argparse.RawDescriptionHelpFormatter, "help": help_line}
         if command is None or name == command:
             add[name](sub, kw)
-        else:
+        elif command not in _COMMANDS:  # a command named: the others' parsers are never read
             sub.add_parser(name, **kw)
     return root
 

@@ -29,11 +29,12 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from typing import Any
 
 import numpy as np
 
+from .._base.records import record
 from ..checks.feedback import FeedbackTest, feedback
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -318,7 +319,7 @@ def direct_refit(model: Any, data: IOData) -> Any:
     return bj(data, list(model.nb_), nc, nd, nf, list(model.nk_))
 
 
-@dataclass(frozen=True)
+@record
 class ClosedLoopMethod:
     """How the plant was identified, given the feedback verdict, and why.
 

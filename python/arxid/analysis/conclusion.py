@@ -5,10 +5,8 @@ table, the missing effect, the ladder's lines), written once."""
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
-
 from .._base.formatting import format_value, horizon_label, json_safe, text_table
+from .._base.records import record
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.result import Diagnosis
 from ..models.arx_model import ArxModel
@@ -19,7 +17,7 @@ from .verdicts import ladder_headline
 __all__ = ["Conclusion", "concluded"]
 
 
-@dataclass(frozen=True, eq=False, kw_only=True)  # every field by name: the subclasses add theirs
+@record(eq=False, kw_only=True)  # every field by name: the subclasses add theirs
 class Conclusion:
     """The shared face of an analysis' result: what one record and a fleet both conclude.
 
@@ -91,6 +89,8 @@ class Conclusion:
         -------
         str
         """
+        import json
+
         return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
 
     def summary_lines(self, n_suspects: int = 12) -> list[str]:

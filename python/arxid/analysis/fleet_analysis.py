@@ -21,11 +21,11 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from functools import partial
 from typing import Any, cast
 
 from .._base.formatting import text_table
+from .._base.records import record
 from ..diagnosis.cluster_records import ClusterRecords, FleetDiagnosis
 from ..diagnosis.ladder import Ladder
 from ..diagnosis.pooled_refits import PooledRefits
@@ -46,7 +46,7 @@ FLEET_ANALYSIS_NOTE = (
 )
 
 
-@dataclass(frozen=True, eq=False, kw_only=True)
+@record(eq=False, kw_only=True)
 class FleetAnalysis(Conclusion):
     """What arxid concludes about a fleet of logs analysed where they are.
 

@@ -23,17 +23,17 @@ Examples
 from __future__ import annotations
 
 import importlib
-import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import cached_property, partial
 from typing import TYPE_CHECKING, Any
 
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label
 from .._base.heap import map_large_arrays
+from .._base.records import record
 from ..checks import Comparison, FailureAnalysis, ResidualAnalysis, compare, where_it_fails
 from ..checks.bands import ResponseBand, free_run_band
 from ..checks.feedback import FeedbackTest
@@ -74,7 +74,7 @@ __all__ = ["Analysis", "Choice", "OrderGrid", "analyse", "choose", "grid_of", "D
 DEFAULT_SPLIT = 0.7
 
 
-@dataclass(frozen=True, eq=False, kw_only=True)
+@record(eq=False, kw_only=True)
 class Analysis(Conclusion):
     """Everything arxid concludes about one data set, as result objects.
 
@@ -213,6 +213,8 @@ class Analysis(Conclusion):
         -------
         dict
         """
+        import json
+
         from ..diagnosis.static_map import shape_map_dict
 
         out = super().to_dict()

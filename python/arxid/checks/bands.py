@@ -44,12 +44,12 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._base import _core
 from .._base.metrics import normal_quantile
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_model
@@ -73,7 +73,7 @@ _METHODS = ("first-order", "monte-carlo")
 _STEP = 0.01  # central-difference step, as a fraction of one principal standard deviation
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class ResponseBand:
     """A curve of the model with its confidence band.
 

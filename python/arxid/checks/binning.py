@@ -12,17 +12,17 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._base import _core, metrics
 from .._base.probabilities import chi2_sf, f_sf
+from .._base.records import record
 
 __all__ = ["SignalBins", "SquaredRanks", "bin_signal"]
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class SignalBins:
     """RMS of the one-step residual binned by the value of one signal.
 

@@ -10,15 +10,14 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arguments import check_data, check_horizon, check_predictor, check_same_signals
@@ -117,7 +116,7 @@ def error_rms(model: ArxModel, data: IOData, horizon: int | None = None, initial
     return metrics.prediction_rms(data.y, prediction(model, data, horizon, initial)[0])  # inf when it diverged
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class Comparison:
     """Measured output against several models' predictions.
 
@@ -192,6 +191,8 @@ class Comparison:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def to_pandas(self):

@@ -7,10 +7,8 @@ point (RMS of the one-step residual binned by each signal, with a significance t
 
 from __future__ import annotations
 
-import json
 import math
 import weakref
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -18,6 +16,7 @@ import numpy as np
 from .._base import metrics
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
 from .._base.probabilities import f_sf
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arguments import check_data, check_horizon, check_predictor
@@ -30,7 +29,7 @@ from .state_space import PerOutput, in_model_order, state_space_label, state_spa
 __all__ = ["where_it_fails", "FailureAnalysis", "WorstSegment", "SignalBins"]
 
 
-@dataclass(frozen=True)
+@record
 class WorstSegment:
     """A stretch of time where the error is largest.
 
@@ -54,7 +53,7 @@ class WorstSegment:
     significant: bool = False
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class FailureAnalysis:
     """Where in time and at which operating points a model's error is large.
 
@@ -227,6 +226,8 @@ class FailureAnalysis:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def plot(self, ax: Any = None) -> Any:

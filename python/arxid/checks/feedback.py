@@ -15,15 +15,15 @@ sample acts at lag 0.
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 
 from .._base.formatting import json_safe
 from .._base.nested import nested_from_factor
 from .._base.probabilities import f_sf
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_data
@@ -39,7 +39,7 @@ _CONSEQUENCES = (
 )
 
 
-@dataclass(frozen=True)
+@record
 class FeedbackTest:
     """Result of :func:`feedback`.
 
@@ -93,6 +93,8 @@ class FeedbackTest:
         -------
         str
         """
+        import json
+
         fields = {k: getattr(self, k) for k in self.__dataclass_fields__}
         return json.dumps(json_safe(fields), allow_nan=False)  # NaN (no conclusion) becomes null
 

@@ -36,14 +36,13 @@ are not resolved by 512-sample segments)'
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._base.formatting import finite_or_none
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..frequency_domain._spectra import default_segment_length, effective_averages, finite_runs, spectra
@@ -60,7 +59,7 @@ _MERGE_GAP = 4
 _SUMMARY_BANDS = 3
 
 
-@dataclass(frozen=True)
+@record
 class FrequencyBand:
     """A range of frequencies where the model and the data disagree beyond the uncertainty.
 
@@ -105,7 +104,7 @@ class FrequencyBand:
         }
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class FrequencyCheck:
     """The data's frequency response against the model's, and where they disagree.
 
@@ -217,6 +216,8 @@ class FrequencyCheck:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def plot(self, input: int = 0) -> Any:

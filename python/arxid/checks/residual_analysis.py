@@ -11,15 +11,15 @@ correlated with a signal tells *that* the model misses something; :func:`arxid.d
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 import numpy as np
 
 from .._base.formatting import finite_or_none, require_pandas, text_table
 from .._base.probabilities import chi2_sf, t_sf
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from ..models.arguments import check_data, check_model
@@ -126,7 +126,7 @@ def _low_frequency_of_blocks(eb: np.ndarray, sb: np.ndarray) -> float:
     return float(2.0 * t_sf(abs(t), 1.5 * m / (bandwidth + 1)))
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class ResidualAnalysis:
     """Whiteness and independence tests of a model's one-step residual (MATLAB ``resid``).
 
@@ -315,6 +315,8 @@ class ResidualAnalysis:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def to_pandas(self):

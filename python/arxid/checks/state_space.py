@@ -10,14 +10,13 @@ model's would be.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.state_space import StateSpaceModel
@@ -94,7 +93,7 @@ def state_space_prediction(model: StateSpaceModel, data: IOData, horizon: int | 
         return model.predict(data, k=np.inf if horizon is None else horizon, initial=initial)
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class PerOutput(Mapping[str, _R], Generic[_R]):
     """One result per output of a model of several outputs, by output name (a mapping).
 
@@ -143,4 +142,6 @@ class PerOutput(Mapping[str, _R], Generic[_R]):
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)

@@ -14,12 +14,12 @@ import csv
 import re
 import stat
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._base import _core
+from .._base.records import record
 from ..exceptions import DataError
 
 __all__ = ["CsvFile", "MISSING_MARKERS"]
@@ -31,7 +31,7 @@ _BOM = b"\xef\xbb\xbf"
 _DELIMITERS = (",", ";", "\t", " ")
 
 
-@dataclass(frozen=True)
+@record
 class CsvFile:
     """A checked CSV file with a header row: its delimiter, signal names and units.
 

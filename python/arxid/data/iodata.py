@@ -5,11 +5,12 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._base.records import record
 from ..exceptions import DataError
 from .flight_logs import FlightLogReaders, selector_lists
 from .outputs import OutputField, SeveralOutputs, checked_outputs, output_list
@@ -25,7 +26,7 @@ def _sample_at(time: float, ts: float, n: int) -> int:
     return 0 if k <= 0 else n if k >= n else int(math.ceil(k))
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class IOData(SeveralOutputs, TableReaders, FlightLogReaders):
     """Sampled output(s) and inputs of one or more experiments.
 

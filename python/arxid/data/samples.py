@@ -4,6 +4,7 @@ plausible range of seconds."""
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
@@ -11,6 +12,13 @@ import numpy as np
 from ..exceptions import DataError
 
 __all__ = ["MAX_TS", "MIN_TS", "as_float_samples", "check_sampling_time", "freeze_owned"]
+
+
+def _is_masked(values) -> bool:
+    """Whether ``values`` is a numpy masked array, without importing numpy.ma (a fifth of the command
+    line's start on a small file): none exists before numpy.ma is imported."""
+    ma = sys.modules.get("numpy.ma")
+    return ma is not None and isinstance(values, ma.MaskedArray)
 
 
 def as_float_samples(name: str, values, ndim: int) -> np.ndarray:
@@ -33,7 +41,7 @@ def as_float_samples(name: str, values, ndim: int) -> np.ndarray:
     """
     if values is None:
         raise DataError(f"{name} is None; pass a list or numpy array of numbers")
-    if isinstance(values, np.ma.MaskedArray):
+    if _is_masked(values):
         # A masked sample is a missing one: NaN, as everywhere in arxid (the mask would be lost).
         if values.dtype.kind not in "biuf":
             raise DataError(f"{name} is a masked array of {values.dtype}; it must hold numbers")

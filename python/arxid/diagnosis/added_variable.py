@@ -16,7 +16,6 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,6 +23,7 @@ from .._base import _core
 from .._base.nested import blocked_r, column_norms
 from .._base.orthonormal import orthonormal_basis
 from .._base.probabilities import f_sf
+from .._base.records import record
 from .._base.triangular import cholesky_solve, solve_upper, solve_upper_transposed
 
 __all__ = [
@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@record
 class AddedVariableResult:
     """Outcome of one added-variable test.
 

@@ -24,10 +24,10 @@ from __future__ import annotations
 import re
 import weakref
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.records import record
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import Factor, parse_effect
@@ -56,7 +56,7 @@ MIN_THRESHOLD_LEVELS = 20
 INTEGRATING_HORIZON = 10
 
 
-@dataclass(frozen=True)
+@record
 class CatalogueEntry:
     """One kind of candidate: how it is written, what it stands for, which signal it suits.
 

@@ -33,12 +33,12 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._base import metrics
 from .._base.formatting import finite_or_none
+from .._base.records import record
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 
@@ -56,7 +56,7 @@ LOW_FREQUENCY_MAJORITY = 0.5
 SLOWEST_MODE = "the model's slowest mode"
 
 
-@dataclass(frozen=True)
+@record
 class Disturbance:
     """The validation error a model leaves, split at its slowest mode.
 

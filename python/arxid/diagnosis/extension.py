@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import cast
 
+from .._base.records import record
 from ..checks import error_rms
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, OrderError
@@ -32,7 +32,7 @@ _POLY_CHANGE = re.compile(r"(na|nb|nf|nk)(\([^)]+\))?[+-]1")
 _SCAN = re.compile(r"(?P<op>dz|sat)\((?P<signal>[A-Za-z_]\w*)\)")
 
 
-@dataclass(frozen=True)
+@record
 class Candidate:
     """One candidate: its label, the effects it adds and the orders of the model with it."""
 

@@ -10,14 +10,14 @@ how the structure changed.
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from typing import Any
 
 import numpy as np
 
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from .._base.records import record
 from ..checks import error_rms
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -33,7 +33,7 @@ from .suspects import OneRecord, Records, diagnose
 __all__ = ["Ladder", "LadderStep", "next_rung"]
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class LadderStep:
     """One rung: the model after adding ``added`` and its validation error.
 
@@ -436,6 +436,8 @@ class Ladder:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(), indent=indent)
 
     def to_pandas(self):

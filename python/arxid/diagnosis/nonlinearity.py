@@ -24,13 +24,13 @@ missing are left out). A white remainder gives order 0 and the plain test.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._base import _core
 from .._base.background import in_row_halves
 from .._base.nested import nested_from_factor
+from .._base.records import record
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
@@ -49,7 +49,7 @@ LINEAR_CONTEXT = 3
 MAX_NOISE_ORDER = 10
 
 
-@dataclass(frozen=True)
+@record
 class NonlinearDependence:
     """The residuals depend nonlinearly on ``signal`` at ``lags``.
 

@@ -35,6 +35,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.background import in_two
+from .._base.records import record
 from ..checks import prediction, prediction_error
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -49,7 +50,7 @@ __all__ = ["Rechoice", "rechoose_structure", "order_change", "linear_name"]
 Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class Rechoice:
     """The outcome of :func:`rechoose_structure`.
 

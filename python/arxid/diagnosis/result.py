@@ -7,13 +7,13 @@ module only reads what a ladder lists (:class:`LadderReport`), so it never impor
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any, Protocol
 
 from .._base.formatting import finite_or_none, horizon_label, require_pandas, text_table
+from .._base.records import record
 from ..checks import ResidualAnalysis
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -41,7 +41,7 @@ class LadderReport(Protocol):
         ...
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class Suspect:
     """One candidate explanation of the model's error.
 
@@ -125,7 +125,7 @@ class Suspect:
         }
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class Diagnosis:
     """Ranked suspects for a model's error, with the baseline they are judged against.
 
@@ -452,6 +452,8 @@ class Diagnosis:
         -------
         str
         """
+        import json
+
         return json.dumps(self.to_dict(ladder), indent=indent)
 
     def to_pandas(self):

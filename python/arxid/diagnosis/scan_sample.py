@@ -15,10 +15,10 @@ its error counts only after the block's warm-up (:meth:`ScanSample.settled`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.records import record
 from ..data.iodata import IOData
 
 __all__ = ["SCAN_SAMPLES", "SCAN_BLOCKS", "ScanSample", "scan_sample"]
@@ -34,7 +34,7 @@ SCAN_BLOCKS = 20
 _SETTLED = 1e-6
 
 
-@dataclass(frozen=True)
+@record
 class ScanSample:
     """The samples a scan reads.
 

@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from functools import partial
 from importlib import import_module
 from typing import Any, Protocol, overload, runtime_checkable
@@ -52,6 +51,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.background import Background, one_blas_thread
+from .._base.records import record
 from ..checks import PerOutput, ResidualAnalysis, prediction, residuals
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -320,7 +320,7 @@ def _data_pair(model: ArxModel, data: IOData | None, validation: IOData | None) 
     return data, validation, same
 
 
-@dataclass(frozen=True)
+@record
 class Baseline:
     """The model's validation errors, before any candidate: at ``horizon`` (None: free run), one
     step ahead, the fit percent at ``horizon``, and the residual tests and slow disturbance (None

@@ -16,11 +16,12 @@ Hammerstein–Wiener view of the plant.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from .effects import effect_series, parse_effect
@@ -28,7 +29,7 @@ from .effects import effect_series, parse_effect
 __all__ = ["DerivedInput", "uses_output", "derived_series", "complete_inputs"]
 
 
-@dataclass(frozen=True)
+@record
 class DerivedInput:
     """How one input of a polynomial model is computed from the data.
 

@@ -37,12 +37,12 @@ import re
 import threading
 import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._base.columns import write_columns
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from .input_shapes import InputShape, parse_shape
@@ -73,7 +73,7 @@ _FACTOR = re.compile(
 )
 
 
-@dataclass(frozen=True)
+@record
 class Factor:
     """One factor of an effect: ``op`` in {"pow", "abs", "sign", "signdiff", "diff", "dz", "sat", "pos",
     "neg"} applied to a signal (``threshold`` is the c of ``dz`` and ``sat``)."""
@@ -84,7 +84,7 @@ class Factor:
     threshold: float = 0.0
 
 
-@dataclass(frozen=True)
+@record
 class Effect:
     """A parsed effect string: a product of factors, or ``const`` / ``time``."""
 
@@ -332,7 +332,7 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     return np.sign(d) if f.op == "signdiff" else d
 
 
-@dataclass(frozen=True)
+@record
 class EffectLayout:
     """What the Rust core sees for a model with effects.
 

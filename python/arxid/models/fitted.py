@@ -3,7 +3,6 @@ names and units, loss and information criteria, prediction quality and JSON, def
 
 from __future__ import annotations
 
-import json
 import numbers
 from typing import Any
 
@@ -238,6 +237,8 @@ class FittedModel:
         -------
         str
         """
+        import json
+
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
             from .files import write_atomically

@@ -4,15 +4,15 @@ layout without the data (what the converters, the printing and the model file re
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
+from .._base.records import record
 from .effects import EffectLayout
 
 __all__ = ["FittedLayout"]
 
 
-@dataclass(frozen=True)
+@record
 class FittedLayout:
     """What every parameter of a fitted model multiplies: the columns of its effect layout.
 

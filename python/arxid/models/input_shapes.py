@@ -23,10 +23,10 @@ not defined there (use the signed power).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
+from .._base.records import record
 from ..exceptions import DataError, OrderError
 
 __all__ = ["InputShape", "parse_shape", "SHAPE_KINDS"]
@@ -50,7 +50,7 @@ def _num(x: float) -> str:
     return f"{x:.4g}".replace("e+", "e")
 
 
-@dataclass(frozen=True)
+@record
 class InputShape:
     """A static function f through which one input acts.
 

@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._base import _core, metrics
 from .._base.limits import check_order
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError, IdentifiabilityError, OrderError
 from .arx_model import ArxModel
@@ -178,7 +178,7 @@ def projected(data: IOData, signal: int | None, references: Sequence[str], order
     return memo[key]
 
 
-@dataclass(frozen=True)
+@record
 class _IvFit:
     theta: np.ndarray
     rss: float

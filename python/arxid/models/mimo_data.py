@@ -5,18 +5,18 @@ one per output)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 
 __all__ = ["Signals", "gather"]
 
 
-@dataclass(frozen=True)
+@record
 class Signals:
     """Inputs and outputs as arrays, with the stretches free of missing samples."""
 

@@ -26,8 +26,7 @@ Examples
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import OrderError
 from .arx_model import ArxModel, arx
@@ -53,7 +52,7 @@ def _forms() -> str:
     return ", ".join(form for form, _ in MODEL_FORMS.values())
 
 
-@dataclass(frozen=True)
+@record
 class ModelSpec:
     """A structure to fit: the model class and its orders in MATLAB's argument order.
 

@@ -8,7 +8,7 @@ scores it and converts it.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 import numpy as np
@@ -16,6 +16,7 @@ import numpy as np
 from .._base import _core
 from .._base.metrics import fit_percent
 from .._base.optional import require
+from .._base.records import record
 from ..exceptions import DataError
 from .mimo_data import Signals, gather
 
@@ -28,7 +29,7 @@ def _response(a, b, c, d, x0, u) -> tuple[np.ndarray, np.ndarray]:
     return _core.state_space_response(as_c(a), as_c(b), as_c(c), as_c(d), as_c(x0, dtype=float), as_c(u, dtype=float))
 
 
-@dataclass(frozen=True)
+@record
 class Refinement:
     """How the prediction-error refinement of a subspace estimate went.
 
@@ -59,7 +60,7 @@ class Refinement:
         )
 
 
-@dataclass(frozen=True)
+@record
 class StateSpaceModel:
     """A discrete-time state-space model of several inputs and outputs, in innovation form.
 

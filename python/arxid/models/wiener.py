@@ -19,12 +19,13 @@ free-run error on the estimation data.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from .._base import metrics
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from .arx_model import ArxModel
@@ -35,7 +36,7 @@ __all__ = ["SensorShape", "WienerModel", "fit_wiener", "added_effects", "linear_
 SENSOR_KINDS = ("power", "saturation", "dead zone")
 
 
-@dataclass(frozen=True)
+@record
 class SensorShape:
     """The static function g the output is read through.
 
@@ -115,7 +116,7 @@ class SensorShape:
             return np.where(np.abs(y) > floor, y + c * np.sign(y), np.nan)
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class WienerModel:
     """Linear dynamics followed by a static output nonlinearity: y = g(x), x from an ARX model.
 

@@ -6,11 +6,11 @@ better-ranked structures were skipped and why (see docs/selection.md)."""
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._base.digital_filter import lfilter
+from .._base.records import record
 from ..exceptions import ArxidError
 from .parsimony import DM_CRITICAL, diebold_mariano
 from .ranking import FREE_RUN_KEYS, SORT_TEXT
@@ -22,7 +22,7 @@ __all__ = ["SELECTION_RULES", "Selection", "choice_rank", "select"]
 SELECTION_RULES = ("lowest", "smallest-within-noise")
 
 
-@dataclass(frozen=True)
+@record
 class Selection:
     """Which structure :meth:`SweepResult.best` chose, and which better-ranked ones it skipped and why."""
 

@@ -7,13 +7,13 @@ from __future__ import annotations
 import numbers
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .._base import _core
 from .._base.optional import optional
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError
 from ..models.arguments import check_same_signals
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 __all__ = ["CoreInputs", "Runner", "check_validation_length", "core_inputs", "fleet_engine", "fleet_parts"]
 
 
-@dataclass(frozen=True)
+@record
 class CoreInputs:
     """What the core reads besides the outputs: the inputs with the effect columns, and the output terms."""
 

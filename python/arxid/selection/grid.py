@@ -8,13 +8,13 @@ import itertools
 import math
 import numbers
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._base import _core
 from .._base.limits import available_memory, check_order
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from ..models.effects import compile_effects
@@ -192,7 +192,7 @@ def check_top(top: Any) -> int | None:
     return int(top)
 
 
-@dataclass(frozen=True)
+@record
 class Grid:
     """Every structure as the user wrote it (per input) and as the core sees it (per layout column)."""
 

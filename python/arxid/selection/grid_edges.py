@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+
+from .._base.records import record
 
 __all__ = ["Edge", "grid_edges", "grown_grid", "edge_text"]
 
 
-@dataclass(frozen=True)
+@record
 class Edge:
     """One order of a structure on the border of its range.
 

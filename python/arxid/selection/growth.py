@@ -46,11 +46,11 @@ import math
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from .._base.records import record
 from ..exceptions import ArxidError, DataError
 from . import choice, stages
 from .grid import check_grid_size
@@ -131,7 +131,7 @@ def grid_text(grid: dict) -> str:
     return ", ".join(parts)
 
 
-@dataclass(frozen=True)
+@record
 class GridRound:
     """One grid swept while growing.
 
@@ -194,7 +194,7 @@ class GridRound:
         }
 
 
-@dataclass(frozen=True)
+@record
 class GridGrowth:
     """Every grid a sweep tried while growing past the edges its choice sat on, and why it stopped.
 
@@ -499,7 +499,7 @@ def _with_seconds(rec: GridRound, seconds: float) -> GridRound:
     return dataclasses.replace(rec, seconds=seconds)
 
 
-@dataclass(frozen=True)
+@record
 class _Stop:
     stop: str
     reason: str

@@ -40,9 +40,11 @@ significantly outside.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
+
+from .._base.records import record
 
 __all__ = [
     "UNIT_ROOT_CRITICAL",
@@ -69,7 +71,7 @@ RECORD_SHARE = 0.2
 LOW_FREQUENCY = 0.1
 
 
-@dataclass(frozen=True)
+@record
 class IntegratorTest:
     """The verdict of the unit-root test on the best structures of a sweep.
 
@@ -145,7 +147,7 @@ class IntegratorTest:
         return replace(self, integrating=integrating, reason=reason, decided_by="step sanity of the sweep")
 
 
-@dataclass(frozen=True)
+@record
 class SettlingEvidence:
     """What the best structures by free-run validation error say about settling.
 

@@ -16,11 +16,11 @@ Statistics 13(3), 253–263.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._base import _core
+from .._base.records import record
 
 __all__ = ["DM_CRITICAL", "Comparison", "diebold_mariano", "loss_difference_test"]
 
@@ -31,7 +31,7 @@ DM_CRITICAL = 1.645
 _ONE_PASS_SAMPLES = 1 << 17
 
 
-@dataclass(frozen=True)
+@record
 class Comparison:
     """Diebold–Mariano comparison of a smaller structure against the best one.
 

@@ -4,12 +4,12 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._base import _core, metrics
+from .._base.records import record
 from ..data.iodata import IOData
 from . import stages
 from .grid import Grid
@@ -49,7 +49,7 @@ SORT_TEXT = {
 }
 
 
-@dataclass(frozen=True)
+@record
 class Columns:
     """The ranking columns of the core's output, in grid order (before the ranking)."""
 

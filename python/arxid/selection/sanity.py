@@ -39,13 +39,13 @@ flag                   meaning
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 
 import numpy as np
 
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arx_model import ArxModel
@@ -64,7 +64,7 @@ __all__ = [
 EXPECTATIONS = (None, "stable", "integrating", "double-integrating")
 
 
-@dataclass(frozen=True)
+@record
 class SanityLimits:
     """Thresholds of the step sanity checks (the defaults are the documented ones).
 
@@ -98,7 +98,7 @@ class SanityLimits:
     sign: int | None = None
 
 
-@dataclass(frozen=True)
+@record
 class StepSanity:
     """Verdict of the step sanity checks of one model.
 
@@ -164,6 +164,8 @@ class StepSanity:
         str
             :meth:`to_dict` serialised.
         """
+        import json
+
         return json.dumps(self.to_dict())
 
 

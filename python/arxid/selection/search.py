@@ -15,13 +15,14 @@ import numbers
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import TYPE_CHECKING, Any, Literal, cast, overload
 
 import numpy as np
 
 from .._base import _core, metrics
 from .._base.limits import check_order
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, ArxidWarning, DataError, OrderError
 from ..models.arx_model import ArxModel
@@ -50,7 +51,7 @@ if TYPE_CHECKING:  # the output-error refinement is imported when asked for (ref
 __all__ = ["sweep", "SweepResult", "Selection", "DEFAULT_GRID", "SORT_KEYS"]
 
 
-@dataclass(frozen=True, eq=False, repr=False)  # repr: the table's one line, not every column
+@record(eq=False, repr=False)  # repr: the table's one line, not every column
 class SweepResult(SweepTable):
     """Every structure of a sweep, ranked (row 0 is the best).
 
@@ -658,7 +659,7 @@ def _checked_settings(sort_by: str, expect: Any, refine: Any, horizon: Any, n_th
     return (None if horizon is None else check_order("horizon", horizon)), check_order("n_threads", n_threads)
 
 
-@dataclass(frozen=True)
+@record
 class _ResultBuilder:
     """Everything but the core's output a :class:`SweepResult` needs."""
 

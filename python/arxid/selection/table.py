@@ -4,17 +4,17 @@ text, JSON or a pandas DataFrame."""
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 import numpy as np
 
 from .._base.digital_filter import lfilter
 from .._base.formatting import json_safe
+from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
 from ..models.arx_model import ArxModel
@@ -28,7 +28,7 @@ from .sanity import SanityLimits, StepSanity, check_responses, output_range, ste
 __all__ = ["SweepTable"]
 
 
-@dataclass(frozen=True, eq=False)
+@record(eq=False)
 class SweepTable:
     """The columns of a sweep's ranking and how to read them: each structure's name, fitted model,
     step sanity and grid edges, and the whole as text, JSON or a pandas DataFrame.
@@ -454,6 +454,8 @@ class SweepTable:
         str
             The JSON text.
         """
+        import json
+
         text = json.dumps(json_safe(self.to_dict(sanity)), indent=indent, allow_nan=False)
         if path is not None:
             with open(path, "w") as fh:
