@@ -9,6 +9,7 @@ from scipy.signal import lfilter
 import arxid
 from arxid._base import _core
 from arxid.exceptions import ArxidError
+from arxid.models import envelope
 from arxid.models.arx_model import ArxModel
 from arxid.models.envelope import EnvelopeFactor
 
@@ -114,3 +115,41 @@ def test_envelope_factor_is_the_grid_factor_on_data_with_gaps(seed):
     r0, n0 = _core.grid_factor(y, u, [0], np.array([[3, 2, 2, 1, 1]], dtype=np.int64), [], n_threads=0)
     assert n == n0 < d.n_samples - 3
     assert np.array_equal(r, r0)
+
+
+SHAPED = [
+    (2, (2, 2), (1, 1), ("u1*vbat",)),
+    (3, (2, 2), (1, 1), ("u1*vbat", "const")),
+    (2, (2, 2), (1, 1), ("through(u1*vbat)",)),  # the same series as u1*vbat, in the input's place
+    (2, (2, 2), (1, 1), ("through(u1*vbat)", "const")),
+    (2, (2, 2), (1, 1), ("through(u1*vbat)", "u2^2", "y^2")),
+    (2, (2, 2), (1, 1), ("time",)),
+]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_shape_and_the_effect_of_the_same_series_are_one_column(seed, monkeypatch):
+    """``through(u1*vbat)`` and ``u1*vbat`` hold the same series: the envelope holds it once, and
+    every structure's fit from it equals its own fit, and the fit from the envelope that held it
+    twice, to 1e-12 (the two factors differ by rounding: the QR sees other columns); a structure
+    with both is left to its own fit."""
+    d = _data(seed)
+    env = EnvelopeFactor(d, SHAPED, first_lag=3)
+    assert env.alias == {"through(u1*vbat)": "u1*vbat"}
+    assert "through(u1*vbat)" not in env.labels
+    for i, (na, nb, nk, eff) in enumerate(SHAPED):
+        own = ArxModel(na=na, nb=nb, nk=nk, effects=eff).fit(d, first_lag=3)
+        f = ArxModel(na=na, nb=nb, nk=nk, effects=eff).fit_in(env, i)
+        assert f.regressor_names_ == own.regressor_names_
+        np.testing.assert_allclose(f.parameters_, own.parameters_, rtol=1e-9, atol=1e-12)
+        assert f.rss_ == pytest.approx(own.rss_, rel=1e-10)
+    monkeypatch.setattr(envelope, "_same_columns", lambda *_: {})
+    twice = EnvelopeFactor(d, SHAPED, first_lag=3)
+    assert "through(u1*vbat)" in twice.labels and len(twice.labels) == len(env.labels) + 1
+    for i in range(len(SHAPED)):
+        a, b = env.solve(i)[2], twice.solve(i)[2]
+        np.testing.assert_allclose(a.theta, b.theta, rtol=1e-12, atol=1e-14)
+        assert a.rss == pytest.approx(b.rss, rel=1e-12)
+    both = (2, (2, 2), (1, 1), ("u1*vbat", "through(u1*vbat)"))
+    assert env.add(both) is None
+    assert EnvelopeFactor(d, [*SHAPED, both], first_lag=3).alias == {}

@@ -75,14 +75,18 @@ class EnvelopeFactor:
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
         self.inside = [r == self.first_lag for r in rows]
-        self.labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
+        labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
+        # A column two labels name (a shape that replaces the input by an effect's own series) is
+        # one column of the envelope: a duplicate would cost its share of the QR and fit nothing.
+        self.alias = _same_columns(data, labels, [lay for lay, ok in zip(self.layouts, self.inside) if ok])
+        self.labels = [label for label in labels if label not in self.alias]
         terms = {
-            _TERM + text: (kind, power, lay.column_labels[carrier] if carrier >= 0 else None)
+            _TERM + text: (kind, power, self._at(lay.column_labels[carrier]) if carrier >= 0 else None)
             for lay in self.layouts
             for text, (kind, power, carrier) in zip(lay.effect_of_term, lay.output_terms)
         }
         u = envelope_inputs(data, self.labels, terms)
-        self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
+        self.columns = [_column_orders(lay, self.labels, self.alias) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
         # The rows start at first_lag (at least the envelope's largest lag): a later start costs no
@@ -127,9 +131,10 @@ class EnvelopeFactor:
         have = set(self.labels)
         if max(self.given_first_lag, max_lag(spec[0], lay)) != self.first_lag or spec[0] > self.envelope[0]:
             return None
-        if any(label not in have for label in _labels(lay)):
+        own = [self._at(label) for label in _labels(lay)]
+        if any(label not in have for label in own) or len(set(own)) < len(own):  # two names of one column
             return None
-        cols = _column_orders(lay, self.labels)
+        cols = _column_orders(lay, self.labels, self.alias)
         for b, k, b_env, k_env in zip(*cols, self.envelope[1], self.envelope[2], strict=True):
             if b > 0 and (k < k_env or b + k > b_env + k_env):
                 return None
@@ -138,6 +143,10 @@ class EnvelopeFactor:
         self.inside.append(True)
         self.columns.append(cols)
         return len(self.structures) - 1
+
+    def _at(self, label: str) -> str:
+        """The envelope's name of a structure's column."""
+        return self.alias.get(label, label)
 
     def solve(self, i: int) -> tuple[EffectLayout, list[str], types.SimpleNamespace]:
         """The fit of structure ``i`` from the factor.
@@ -167,7 +176,7 @@ class EnvelopeFactor:
         layout, na = self.layouts[i], self.structures[i][0]
         nb, nk = self.columns[i]
         out = _core.fit_from_factor(self.r, self.n_rows, self.envelope, (na, nb, nk), [])
-        own = _own_order(na, layout, self.labels)
+        own = _own_order(na, layout, self.labels, self.alias)
         theta = np.empty(len(own))
         theta[own] = np.asarray(out.theta)
         inv = np.empty((len(own), len(own)))
@@ -252,22 +261,44 @@ def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData
         return g * carrier if carrier is not None else g
 
 
-def _column_orders(layout: EffectLayout, labels: list[str]) -> tuple[list[int], list[int]]:
+def _same_columns(data: IOData, labels: list[str], layouts: list[EffectLayout]) -> dict[str, str]:
+    """``through(e) → e`` for a shape whose series is the effect ``e``'s, to the bit, where both are
+    among ``labels`` and no structure has both (their own fit has the column twice)."""
+    have = set(labels)
+    alias = {}
+    for label in labels:
+        inner = label[len("through(") : -1] if label.startswith("through(") and label.endswith(")") else None
+        if inner not in have or any({label, inner} <= set(lay.column_labels) for lay in layouts):
+            continue
+        try:
+            same = np.array_equal(layout_column(label, data), layout_column(inner, data))
+        except ArxidError:  # a column that cannot be formed: envelope_inputs says why
+            continue
+        if same:
+            alias[label] = inner
+    return alias
+
+
+def _column_orders(
+    layout: EffectLayout, labels: list[str], alias: dict[str, str] | None = None
+) -> tuple[list[int], list[int]]:
     """(nb, nk) of a structure per envelope column: its own, or no lag where it has no such column
-    (an output term's column: one lag, delay 1)."""
-    own = dict(zip(layout.column_labels, zip(layout.nb, layout.nk)))
+    (an output term's column: one lag, delay 1); ``alias`` names the envelope's column of a label
+    that shares one (:func:`_same_columns`)."""
+    alias = alias or {}
+    own = {alias.get(label, label): orders for label, orders in zip(layout.column_labels, zip(layout.nb, layout.nk))}
     own.update({_TERM + text: (1, 1) for text in layout.effect_of_term})
     nb = [int(own[label][0]) if label in own else 0 for label in labels]
     nk = [int(own[label][1]) if label in own else 0 for label in labels]
     return nb, nk
 
 
-def _own_order(na: int, layout: EffectLayout, labels: list[str]) -> np.ndarray:
+def _own_order(na: int, layout: EffectLayout, labels: list[str], alias: dict[str, str]) -> np.ndarray:
     """For each parameter of a structure as the envelope orders them (output lags, then the
     envelope's columns in its order, output terms among them), its position in the structure's own
     order (output lags, input columns, output terms)."""
     starts = na + np.concatenate([[0], np.cumsum(layout.nb)]).astype(int)
-    at = {label: j for j, label in enumerate(layout.column_labels)}
+    at = {alias.get(label, label): j for j, label in enumerate(layout.column_labels)}
     term_at = {_TERM + text: int(starts[-1]) + i for i, text in enumerate(layout.effect_of_term)}
     order = list(range(na))
     for label in labels:
