@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import types
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from ..exceptions import ArxidError
 from .effects import EffectLayout, compile_effects, effect_names, layout_column
 from .regressors import max_lag, output_term_values, regressor_names
 
-__all__ = ["EnvelopeFactor", "envelope_inputs"]
+__all__ = ["EnvelopeFactor", "envelope_columns", "envelope_inputs"]
 
 #: (na, nb, nk, effects) of one structure, nb and nk one per input.
 Spec = tuple[int, Sequence[int], Sequence[int], Sequence[str]]
@@ -85,7 +85,7 @@ class EnvelopeFactor:
             for lay in self.layouts
             for text, (kind, power, carrier) in zip(lay.effect_of_term, lay.output_terms)
         }
-        u = envelope_inputs(data, self.labels, terms)
+        columns = list(envelope_columns(data, self.labels, terms))
         self.columns = [_column_orders(lay, self.labels, self.alias) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
@@ -93,7 +93,7 @@ class EnvelopeFactor:
         # output lags the structures do not read.
         y = np.require(data.y, requirements=["C", "A"])
         starts = list(data.experiment_starts)
-        self.r, self.n_rows = _core.envelope_factor(y, u, starts, self.envelope, self.first_lag, n_threads=0)
+        self.r, self.n_rows = _core.envelope_factor(y, columns, starts, self.envelope, self.first_lag, n_threads=0)
 
     def has(self, i: int) -> bool:
         """Whether structure ``i`` is fitted from the factor (on its own rows).
@@ -216,29 +216,51 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
     -------
     ndarray of shape (n_samples, len(labels))
     """
-    terms = terms or {}
-    # Refused at the first missing sample, before the matrix is written (a record with gaps is
-    # fitted structure by structure: the matrix would be thrown away).
-    if not np.isfinite(data.y).all():
-        raise ArxidError(_MISSING)
     u = np.empty((data.n_samples, len(labels)))
-    at = {label: j for j, label in enumerate(labels)}
     pending: dict[int, np.ndarray] = {}
-    for j, label in enumerate(labels):
-        if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
-            kind, power, by = terms[label]
-            carrier = None if by is None else pending.get(at[by], u[:, at[by]])
-            col = _term_series(kind, power, carrier, data)
-        else:
-            col = layout_column(label, data)
-        if not np.isfinite(col).all():
-            raise ArxidError(_MISSING)
+    for j, col in enumerate(envelope_columns(data, labels, terms)):
         pending[j] = col
         if len(pending) == _COLUMNS_AT_ONCE:
             write_columns(u, pending)
             pending.clear()
     write_columns(u, pending)
     return u
+
+
+def envelope_columns(data: IOData, labels: list[str], terms: dict[str, tuple] | None = None) -> Iterator[np.ndarray]:
+    """The columns of :func:`envelope_inputs`, one at a time (C-contiguous; an input or a logged
+    signal is the data's own samples), as the core's envelope factor reads them. Raises ArxidError
+    at the first missing sample.
+
+    Parameters
+    ----------
+    data : IOData
+    labels : list of str
+    terms : dict, optional
+
+    Yields
+    ------
+    ndarray of shape (n_samples,)
+    """
+    terms = terms or {}
+    # Refused at the first missing sample, before the other columns are formed (a record with gaps
+    # is fitted structure by structure: they would be thrown away).
+    if not np.isfinite(data.y).all():
+        raise ArxidError(_MISSING)
+    carriers = {by for _, _, by in terms.values() if by is not None}
+    kept: dict[str, np.ndarray] = {}  # the carriers, until their terms come (after them)
+    for label in labels:
+        if label in terms:
+            kind, power, by = terms[label]
+            col = _term_series(kind, power, None if by is None else kept[by], data)
+        else:
+            col = layout_column(label, data)
+        if not np.isfinite(col).all():
+            raise ArxidError(_MISSING)
+        col = np.ascontiguousarray(col, dtype=float)
+        if label in carriers:
+            kept[label] = col
+        yield col
 
 
 _MISSING = "the envelope's fits need data without missing samples"
