@@ -76,6 +76,7 @@ class EnvelopeFactor:
         self.first_lag = Counter(rows).most_common(1)[0][0]
         self.inside = [r == self.first_lag for r in rows]
         labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
+        _refuse_missing_output(data)  # before any column is formed
         # A column two labels name (a shape that replaces the input by an effect's own series) is
         # one column of the envelope: a duplicate would cost its share of the QR and fit nothing.
         self.alias = _same_columns(data, labels, [lay for lay, ok in zip(self.layouts, self.inside) if ok])
@@ -245,8 +246,7 @@ def envelope_columns(data: IOData, labels: list[str], terms: dict[str, tuple] | 
     terms = terms or {}
     # Refused at the first missing sample, before the other columns are formed (a record with gaps
     # is fitted structure by structure: they would be thrown away).
-    if not np.isfinite(data.y).all():
-        raise ArxidError(_MISSING)
+    _refuse_missing_output(data)
     carriers = {by for _, _, by in terms.values() if by is not None}
     kept: dict[str, np.ndarray] = {}  # the carriers, until their terms come (after them)
     for label in labels:
@@ -264,6 +264,11 @@ def envelope_columns(data: IOData, labels: list[str], terms: dict[str, tuple] | 
 
 
 _MISSING = "the envelope's fits need data without missing samples"
+
+
+def _refuse_missing_output(data: IOData) -> None:
+    if not np.isfinite(data.y).all():
+        raise ArxidError(_MISSING)
 
 
 def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
