@@ -9,6 +9,7 @@ from scipy.signal import lfilter
 import arxid
 from arxid._base import _core
 from arxid.exceptions import ArxidError
+from arxid.models import envelope
 from arxid.models.arx_model import ArxModel
 from arxid.models.envelope import EnvelopeFactor
 
@@ -93,7 +94,7 @@ def test_rows_that_start_late_cost_no_output_lags(seed, first_lag):
     d = _data(seed)
     y, u, starts = d.y, np.ascontiguousarray(d.u), list(d.experiment_starts)
     env = (2, [2, 3], [1, 0])
-    r, n = _core.envelope_factor(y, u, starts, env, first_lag)
+    r, n = _core.envelope_factor(y, list(u.T.copy()), starts, env, first_lag)
     padded = (first_lag, env[1], env[2])
     r0, n0 = _core.grid_factor(y, u, starts, np.array([[first_lag, 2, 3, 1, 0]], dtype=np.int64), [], n_threads=0)
     assert r.shape == (2 + 5 + 1,) * 2 and r0.shape == (first_lag + 5 + 1,) * 2
@@ -102,15 +103,67 @@ def test_rows_that_start_late_cost_no_output_lags(seed, first_lag):
         np.testing.assert_allclose(_fit(r, n, env, s), _fit(r0, n0, padded, s), rtol=1e-11, atol=1e-13)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_envelope_factor_is_the_grid_factor_on_data_with_gaps(seed):
-    # Rows from the envelope's own largest lag: the same rows and columns as the grid's factor, so
-    # the same R bit for bit, around the missing samples too.
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("starts", [[0], [0, 2500]])
+def test_envelope_factor_of_separate_columns_is_the_grid_factor_to_the_bit(seed, starts):
+    # Rows from the envelope's own largest lag: the same rows and columns as the grid's factor,
+    # which reads the inputs side by side in one row-major matrix, so the same R bit for bit; a
+    # missing sample (in the output or a column) is refused.
     d = _data(seed)
-    y = d.y.copy()
-    y[[100, 2500, 2501, 5000]] = np.nan
     u = np.ascontiguousarray(d.u)
-    r, n = _core.envelope_factor(y, u, [0], (3, [2, 2], [1, 1]), 0)
-    r0, n0 = _core.grid_factor(y, u, [0], np.array([[3, 2, 2, 1, 1]], dtype=np.int64), [], n_threads=0)
-    assert n == n0 < d.n_samples - 3
-    assert np.array_equal(r, r0)
+    for env in [(3, [2, 2], [1, 1]), (1, [3, 0], [0, 2])]:
+        r, n = _core.envelope_factor(d.y, [u[:, 0].copy(), u[:, 1].copy()], starts, env, 0)
+        grid = np.array([[env[0], *env[1], *env[2]]], dtype=np.int64)
+        r0, n0 = _core.grid_factor(d.y, u, starts, grid, [], n_threads=0)
+        assert n == n0 == d.n_samples - len(starts) * max(env[0], *(b + k - 1 for b, k in zip(env[1], env[2]) if b))
+        assert np.array_equal(r, r0)
+    y = d.y.copy()
+    y[100] = np.nan
+    with pytest.raises(arxid.DataError, match="without missing samples"):
+        _core.envelope_factor(y, [u[:, 0].copy(), u[:, 1].copy()], [0], (3, [2, 2], [1, 1]), 0)
+    with pytest.raises(arxid.DataError, match="without missing samples"):
+        _core.envelope_factor(
+            d.y, [u[:, 0].copy(), np.where(u[:, 1] > 2, np.inf, u[:, 1])], [0], (3, [2, 2], [1, 1]), 0
+        )
+    with pytest.raises(arxid.DataError, match="a column has"):
+        _core.envelope_factor(d.y, [u[:-1, 0].copy(), u[:, 1].copy()], [0], (3, [2, 2], [1, 1]), 0)
+    with pytest.raises(arxid.DataError, match="one order per input"):
+        _core.envelope_factor(d.y, [u[:, 0].copy()], [0], (3, [2, 2], [1, 1]), 0)
+
+
+SHAPED = [
+    (2, (2, 2), (1, 1), ("u1*vbat",)),
+    (3, (2, 2), (1, 1), ("u1*vbat", "const")),
+    (2, (2, 2), (1, 1), ("through(u1*vbat)",)),  # the same series as u1*vbat, in the input's place
+    (2, (2, 2), (1, 1), ("through(u1*vbat)", "const")),
+    (2, (2, 2), (1, 1), ("through(u1*vbat)", "u2^2", "y^2")),
+    (2, (2, 2), (1, 1), ("time",)),
+]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_shape_and_the_effect_of_the_same_series_are_one_column(seed, monkeypatch):
+    """``through(u1*vbat)`` and ``u1*vbat`` hold the same series: the envelope holds it once, and
+    every structure's fit from it equals its own fit, and the fit from the envelope that held it
+    twice, to 1e-12 (the two factors differ by rounding: the QR sees other columns); a structure
+    with both is left to its own fit."""
+    d = _data(seed)
+    env = EnvelopeFactor(d, SHAPED, first_lag=3)
+    assert env.alias == {"through(u1*vbat)": "u1*vbat"}
+    assert "through(u1*vbat)" not in env.labels
+    for i, (na, nb, nk, eff) in enumerate(SHAPED):
+        own = ArxModel(na=na, nb=nb, nk=nk, effects=eff).fit(d, first_lag=3)
+        f = ArxModel(na=na, nb=nb, nk=nk, effects=eff).fit_in(env, i)
+        assert f.regressor_names_ == own.regressor_names_
+        np.testing.assert_allclose(f.parameters_, own.parameters_, rtol=1e-9, atol=1e-12)
+        assert f.rss_ == pytest.approx(own.rss_, rel=1e-10)
+    monkeypatch.setattr(envelope, "_same_columns", lambda *_: {})
+    twice = EnvelopeFactor(d, SHAPED, first_lag=3)
+    assert "through(u1*vbat)" in twice.labels and len(twice.labels) == len(env.labels) + 1
+    for i in range(len(SHAPED)):
+        a, b = env.solve(i)[2], twice.solve(i)[2]
+        np.testing.assert_allclose(a.theta, b.theta, rtol=1e-12, atol=1e-14)
+        assert a.rss == pytest.approx(b.rss, rel=1e-12)
+    both = (2, (2, 2), (1, 1), ("u1*vbat", "through(u1*vbat)"))
+    assert env.add(both) is None
+    assert EnvelopeFactor(d, [*SHAPED, both], first_lag=3).alias == {}

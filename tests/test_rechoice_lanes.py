@@ -75,3 +75,27 @@ def test_the_judges_refits_are_validated_together_as_one_by_one():
         fitted, rms = shared.validated(c, val, None)
         assert rms == pytest.approx(error_rms(fitted, val), rel=1e-12)
         assert fitted.effects == (c.label,)
+
+
+@pytest.mark.parametrize("seed", [3, 5, 8])
+def test_refits_whose_columns_come_in_other_orders_share_lanes(seed):
+    """A shape that replaces the input (``through(u1*v)``, its column where the input's was) beside
+    effects after the input: the union keeps every model's own column order, so all share lanes,
+    each with its own prediction's error to rounding; models that order two columns both ways
+    cannot."""
+    from arxid.checks import error_rms
+    from arxid.diagnosis.extension import Candidate, Refits
+    from arxid.models.lanes import _union
+
+    est, val = _record(seed), _record(seed + 1)
+    model = arxid.arx(est, 2, 2, 1)
+    labels = ("u1*v", "u1*v+const", "through(u1*v)", "through(u1*v)+const", "const", "time")
+    cands = [Candidate(lab, tuple(lab.split("+")), 2, model.nb_, model.nk_, "effect") for lab in labels]
+    shared = Refits(model, est, cands)
+    shared.validate_all(cands, val, None)
+    assert len(shared._validated) == len(cands)
+    for c in cands:
+        fitted, rms = shared.validated(c, val, None)
+        assert rms == pytest.approx(error_rms(fitted, val), rel=1e-12)
+    assert _union([["u1", "const"], ["through(u1*v)", "const"]]) == ["u1", "through(u1*v)", "const"]
+    assert _union([["u1", "v"], ["v", "u1"]]) is None

@@ -35,7 +35,54 @@ pub fn reduce_checked(
     keep_going: &(dyn Fn() -> bool + Sync),
 ) -> Result<Mat<f64>> {
     let p = s.n_params();
-    let q = p + 1;
+    let inputs: Vec<(&[f64], usize)> = (0..d.m).map(|i| (&d.u[i..], d.m)).collect();
+    let fill = |block: &[usize], a: &mut Mat<f64>| {
+        if s.output_terms.is_empty() {
+            // Column by column: every column is the output or an input read at a fixed lag.
+            fill_block_columns(d.y, &inputs, s, block, a);
+        } else {
+            let mut row = vec![0.0; p];
+            for (r, &t) in block.iter().enumerate() {
+                fill_row(d, s, t, &mut row);
+                for (c, &v) in row.iter().enumerate() {
+                    a[(r, c)] = v;
+                }
+                a[(r, p)] = d.y[t];
+            }
+        }
+    };
+    reduce_filled(p + 1, rows, parallel, keep_going, &fill)
+}
+
+/// [`reduce_checked`] of a linear structure whose inputs are separate series, each read with its
+/// own stride (`inputs[i] = (samples, stride)`, sample t of input i at `samples[t * stride]`): the
+/// same blocks, so the same R to the bit as from the inputs side by side in one row-major matrix.
+///
+/// # Errors
+/// As [`reduce_checked`]; `InvalidStructure` when the structure has output terms.
+pub fn reduce_series(
+    y: &[f64],
+    inputs: &[(&[f64], usize)],
+    s: &Structure,
+    rows: &[usize],
+    parallel: bool,
+    keep_going: &(dyn Fn() -> bool + Sync),
+) -> Result<Mat<f64>> {
+    if !s.output_terms.is_empty() {
+        return Err(ArxError::InvalidStructure("output terms need the inputs side by side".into()));
+    }
+    let fill = |block: &[usize], a: &mut Mat<f64>| fill_block_columns(y, inputs, s, block, a);
+    reduce_filled(s.n_params() + 1, rows, parallel, keep_going, &fill)
+}
+
+/// The TSQR reduction of the `q` columns `fill(block, a)` writes for each block of `rows`.
+fn reduce_filled(
+    q: usize,
+    rows: &[usize],
+    parallel: bool,
+    keep_going: &(dyn Fn() -> bool + Sync),
+    fill: &(dyn Fn(&[usize], &mut Mat<f64>) + Sync),
+) -> Result<Mat<f64>> {
     let threads = if parallel { rayon::current_num_threads() } else { 1 };
     ensure_memory(reduce_memory(rows.len(), q, threads), "the QR reduction of the regressor")?;
     // One block buffer per worker, reused: a fresh 4096-row buffer per block is a large
@@ -47,19 +94,7 @@ pub fn reduce_checked(
         }
         // Every entry is written below, so the values the resize leaves do not matter.
         a.resize_with(block.len(), q, |_, _| 0.0);
-        if s.output_terms.is_empty() {
-            // Column by column: every column is the output or an input read at a fixed lag.
-            fill_block_columns(d, s, block, a);
-        } else {
-            let mut row = vec![0.0; p];
-            for (r, &t) in block.iter().enumerate() {
-                fill_row(d, s, t, &mut row);
-                for (c, &v) in row.iter().enumerate() {
-                    a[(r, c)] = v;
-                }
-                a[(r, p)] = d.y[t];
-            }
-        }
+        fill(block, a);
         qr_r_in_place(a.as_mut());
         Some(take_r(a, q))
     };
@@ -114,8 +149,9 @@ pub fn reduce_with(
 }
 
 /// Writes `[Φ | y]` of a linear structure for the rows `block` into `a`, one contiguous column at a
-/// time (the same values [`fill_row`] gives, without a per-element gather into a column-major matrix).
-fn fill_block_columns(d: &Data, s: &Structure, block: &[usize], a: &mut Mat<f64>) {
+/// time (the same values [`fill_row`] gives, without a per-element gather into a column-major matrix);
+/// input i's sample t is `inputs[i].0[t * inputs[i].1]`.
+fn fill_block_columns(y: &[f64], inputs: &[(&[f64], usize)], s: &Structure, block: &[usize], a: &mut Mat<f64>) {
     // Column c is sign · series[(t − lag) · stride] over the block's samples t.
     let put = |a: &mut Mat<f64>, c: usize, series: &[f64], stride: usize, lag: usize, sign: f64| {
         let dst = a.col_as_slice_mut(c);
@@ -126,16 +162,16 @@ fn fill_block_columns(d: &Data, s: &Structure, block: &[usize], a: &mut Mat<f64>
     };
     let mut c = 0;
     for i in 1..=s.na {
-        put(a, c, d.y, 1, i, -1.0);
+        put(a, c, y, 1, i, -1.0);
         c += 1;
     }
-    for (i, (&b, &k)) in s.nb.iter().zip(&s.nk).enumerate() {
+    for (&(series, stride), (&b, &k)) in inputs.iter().zip(s.nb.iter().zip(&s.nk)) {
         for j in 0..b {
-            put(a, c, &d.u[i..], d.m, k + j, 1.0);
+            put(a, c, series, stride, k + j, 1.0);
             c += 1;
         }
     }
-    put(a, c, d.y, 1, 0, 1.0);
+    put(a, c, y, 1, 0, 1.0);
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use super::arguments::{factor_array, factor_from, saturating_usize, slices, stru
 use super::errors::{to_pyerr, DataError, OrderError};
 use super::run::{run, run_short, SHORT_CALL};
 use crate::arx::fit::fit_rows_like;
-use crate::arx::reduce::reduce_checked;
+use crate::arx::reduce::reduce_series;
 use crate::arx::structure::Data;
 use crate::linalg::qr::to_col_major;
 use crate::sweep::grid_factors::rows_of;
@@ -107,25 +107,35 @@ pub(super) fn fit_from_factor<'py>(
 /// `(R, n_rows)`: the triangular factor (q × q, output last) of the regressor `[Φ | y]` of the
 /// structure `envelope = (na, nb, nk)` on the rows from `first_lag` into each experiment (at least
 /// its own largest lag), to fit its sub-structures from (`fit_from_factor`). Unlike `grid_factor`,
-/// rows that start later than the envelope needs cost no output lags of their own.
+/// rows that start later than the envelope needs cost no output lags of their own. Its inputs are
+/// `columns`, one array of samples each (never written side by side into one matrix); the data
+/// must have no missing sample.
 #[pyfunction]
-#[pyo3(signature = (y, u, starts, envelope, first_lag, n_threads = 0))]
+#[pyo3(signature = (y, columns, starts, envelope, first_lag, n_threads = 0))]
 pub(super) fn envelope_factor<'py>(
     py: Python<'py>,
     y: PyReadonlyArray1<'py, f64>,
-    u: PyReadonlyArray2<'py, f64>,
+    columns: Vec<PyReadonlyArray1<'py, f64>>,
     starts: Vec<usize>,
     envelope: (usize, Vec<usize>, Vec<usize>),
     first_lag: usize,
     n_threads: usize,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, usize)> {
     let env = structure(py, envelope.0, envelope.1, envelope.2, Vec::new())?;
-    let (ys, us, m) = slices(&y, &u)?;
-    let d = Data::new(ys, us, m, &starts).map_err(|e| to_pyerr(py, e))?;
+    let ys = y.as_slice()?;
+    let cols = columns.iter().map(|c| c.as_slice()).collect::<Result<Vec<_>, _>>()?;
+    if let Some(c) = cols.iter().find(|c| c.len() != ys.len()) {
+        return Err(DataError::new_err(format!("y has {} samples but a column has {}", ys.len(), c.len())));
+    }
+    let d = Data::new(ys, &[], 0, &starts).map_err(|e| to_pyerr(py, e))?;
+    if !py.detach(|| ys.iter().chain(cols.iter().flat_map(|c| c.iter())).all(|v| v.is_finite())) {
+        return Err(DataError::new_err("the envelope's factor needs data without missing samples"));
+    }
     let (r, n) = run(py, n_threads, |cancel| {
-        env.check(m)?;
-        let rows = rows_of(&d, &env, first_lag);
-        let r = reduce_checked(&d, &env, &rows, n_threads != 1, &|| !cancel.load(Ordering::Relaxed))?;
+        env.check(cols.len())?;
+        let rows = rows_of(&d, &env, first_lag); // every row from first_lag: the data are finite
+        let inputs: Vec<(&[f64], usize)> = cols.iter().map(|&c| (c, 1)).collect();
+        let r = reduce_series(ys, &inputs, &env, &rows, n_threads != 1, &|| !cancel.load(Ordering::Relaxed))?;
         Ok((to_col_major(&r), rows.len()))
     })?;
     Ok((factor_array(py, r)?, n))

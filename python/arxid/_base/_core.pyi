@@ -148,7 +148,7 @@ def fit_from_factor(
 ) -> FitOutput: ...
 def envelope_factor(
     y: _F,
-    u: _F,
+    columns: Sequence[_F],
     starts: Sequence[int],
     envelope: tuple[int, Sequence[int], Sequence[int]],
     first_lag: int,

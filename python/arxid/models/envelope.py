@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import types
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from ..exceptions import ArxidError
 from .effects import EffectLayout, compile_effects, effect_names, layout_column
 from .regressors import max_lag, output_term_values, regressor_names
 
-__all__ = ["EnvelopeFactor", "envelope_inputs"]
+__all__ = ["EnvelopeFactor", "envelope_columns", "envelope_inputs"]
 
 #: (na, nb, nk, effects) of one structure, nb and nk one per input.
 Spec = tuple[int, Sequence[int], Sequence[int], Sequence[str]]
@@ -75,21 +75,26 @@ class EnvelopeFactor:
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
         self.first_lag = Counter(rows).most_common(1)[0][0]
         self.inside = [r == self.first_lag for r in rows]
-        self.labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
+        labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
+        _refuse_missing_output(data)  # before any column is formed
+        # A column two labels name (a shape that replaces the input by an effect's own series) is
+        # one column of the envelope: a duplicate would cost its share of the QR and fit nothing.
+        self.alias = _same_columns(data, labels, [lay for lay, ok in zip(self.layouts, self.inside) if ok])
+        self.labels = [label for label in labels if label not in self.alias]
         terms = {
-            _TERM + text: (kind, power, lay.column_labels[carrier] if carrier >= 0 else None)
+            _TERM + text: (kind, power, self._at(lay.column_labels[carrier]) if carrier >= 0 else None)
             for lay in self.layouts
             for text, (kind, power, carrier) in zip(lay.effect_of_term, lay.output_terms)
         }
-        u = envelope_inputs(data, self.labels, terms)
-        self.columns = [_column_orders(lay, self.labels) for lay in self.layouts]
+        columns = list(envelope_columns(data, self.labels, terms))
+        self.columns = [_column_orders(lay, self.labels, self.alias) for lay in self.layouts]
         na_env = max(na for (na, *_), ok in zip(self.structures, self.inside) if ok)
         self.envelope = _envelope(na_env, [c for c, ok in zip(self.columns, self.inside) if ok])
         # The rows start at first_lag (at least the envelope's largest lag): a later start costs no
         # output lags the structures do not read.
         y = np.require(data.y, requirements=["C", "A"])
         starts = list(data.experiment_starts)
-        self.r, self.n_rows = _core.envelope_factor(y, u, starts, self.envelope, self.first_lag, n_threads=0)
+        self.r, self.n_rows = _core.envelope_factor(y, columns, starts, self.envelope, self.first_lag, n_threads=0)
 
     def has(self, i: int) -> bool:
         """Whether structure ``i`` is fitted from the factor (on its own rows).
@@ -127,9 +132,10 @@ class EnvelopeFactor:
         have = set(self.labels)
         if max(self.given_first_lag, max_lag(spec[0], lay)) != self.first_lag or spec[0] > self.envelope[0]:
             return None
-        if any(label not in have for label in _labels(lay)):
+        own = [self._at(label) for label in _labels(lay)]
+        if any(label not in have for label in own) or len(set(own)) < len(own):  # two names of one column
             return None
-        cols = _column_orders(lay, self.labels)
+        cols = _column_orders(lay, self.labels, self.alias)
         for b, k, b_env, k_env in zip(*cols, self.envelope[1], self.envelope[2], strict=True):
             if b > 0 and (k < k_env or b + k > b_env + k_env):
                 return None
@@ -138,6 +144,10 @@ class EnvelopeFactor:
         self.inside.append(True)
         self.columns.append(cols)
         return len(self.structures) - 1
+
+    def _at(self, label: str) -> str:
+        """The envelope's name of a structure's column."""
+        return self.alias.get(label, label)
 
     def solve(self, i: int) -> tuple[EffectLayout, list[str], types.SimpleNamespace]:
         """The fit of structure ``i`` from the factor.
@@ -167,7 +177,7 @@ class EnvelopeFactor:
         layout, na = self.layouts[i], self.structures[i][0]
         nb, nk = self.columns[i]
         out = _core.fit_from_factor(self.r, self.n_rows, self.envelope, (na, nb, nk), [])
-        own = _own_order(na, layout, self.labels)
+        own = _own_order(na, layout, self.labels, self.alias)
         theta = np.empty(len(own))
         theta[own] = np.asarray(out.theta)
         inv = np.empty((len(own), len(own)))
@@ -207,23 +217,9 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
     -------
     ndarray of shape (n_samples, len(labels))
     """
-    terms = terms or {}
-    # Refused at the first missing sample, before the matrix is written (a record with gaps is
-    # fitted structure by structure: the matrix would be thrown away).
-    if not np.isfinite(data.y).all():
-        raise ArxidError(_MISSING)
     u = np.empty((data.n_samples, len(labels)))
-    at = {label: j for j, label in enumerate(labels)}
     pending: dict[int, np.ndarray] = {}
-    for j, label in enumerate(labels):
-        if label in terms:  # its carrier's column comes before it (a layout's columns, then its terms)
-            kind, power, by = terms[label]
-            carrier = None if by is None else pending.get(at[by], u[:, at[by]])
-            col = _term_series(kind, power, carrier, data)
-        else:
-            col = layout_column(label, data)
-        if not np.isfinite(col).all():
-            raise ArxidError(_MISSING)
+    for j, col in enumerate(envelope_columns(data, labels, terms)):
         pending[j] = col
         if len(pending) == _COLUMNS_AT_ONCE:
             write_columns(u, pending)
@@ -232,7 +228,47 @@ def envelope_inputs(data: IOData, labels: list[str], terms: dict[str, tuple] | N
     return u
 
 
+def envelope_columns(data: IOData, labels: list[str], terms: dict[str, tuple] | None = None) -> Iterator[np.ndarray]:
+    """The columns of :func:`envelope_inputs`, one at a time (C-contiguous; an input or a logged
+    signal is the data's own samples), as the core's envelope factor reads them. Raises ArxidError
+    at the first missing sample.
+
+    Parameters
+    ----------
+    data : IOData
+    labels : list of str
+    terms : dict, optional
+
+    Yields
+    ------
+    ndarray of shape (n_samples,)
+    """
+    terms = terms or {}
+    # Refused at the first missing sample, before the other columns are formed (a record with gaps
+    # is fitted structure by structure: they would be thrown away).
+    _refuse_missing_output(data)
+    carriers = {by for _, _, by in terms.values() if by is not None}
+    kept: dict[str, np.ndarray] = {}  # the carriers, until their terms come (after them)
+    for label in labels:
+        if label in terms:
+            kind, power, by = terms[label]
+            col = _term_series(kind, power, None if by is None else kept[by], data)
+        else:
+            col = layout_column(label, data)
+        if not np.isfinite(col).all():
+            raise ArxidError(_MISSING)
+        col = np.ascontiguousarray(col, dtype=float)
+        if label in carriers:
+            kept[label] = col
+        yield col
+
+
 _MISSING = "the envelope's fits need data without missing samples"
+
+
+def _refuse_missing_output(data: IOData) -> None:
+    if not np.isfinite(data.y).all():
+        raise ArxidError(_MISSING)
 
 
 def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData) -> np.ndarray:
@@ -252,22 +288,44 @@ def _term_series(kind: str, power: int, carrier: np.ndarray | None, data: IOData
         return g * carrier if carrier is not None else g
 
 
-def _column_orders(layout: EffectLayout, labels: list[str]) -> tuple[list[int], list[int]]:
+def _same_columns(data: IOData, labels: list[str], layouts: list[EffectLayout]) -> dict[str, str]:
+    """``through(e) → e`` for a shape whose series is the effect ``e``'s, to the bit, where both are
+    among ``labels`` and no structure has both (their own fit has the column twice)."""
+    have = set(labels)
+    alias = {}
+    for label in labels:
+        inner = label[len("through(") : -1] if label.startswith("through(") and label.endswith(")") else None
+        if inner not in have or any({label, inner} <= set(lay.column_labels) for lay in layouts):
+            continue
+        try:
+            same = np.array_equal(layout_column(label, data), layout_column(inner, data))
+        except ArxidError:  # a column that cannot be formed: envelope_inputs says why
+            continue
+        if same:
+            alias[label] = inner
+    return alias
+
+
+def _column_orders(
+    layout: EffectLayout, labels: list[str], alias: dict[str, str] | None = None
+) -> tuple[list[int], list[int]]:
     """(nb, nk) of a structure per envelope column: its own, or no lag where it has no such column
-    (an output term's column: one lag, delay 1)."""
-    own = dict(zip(layout.column_labels, zip(layout.nb, layout.nk)))
+    (an output term's column: one lag, delay 1); ``alias`` names the envelope's column of a label
+    that shares one (:func:`_same_columns`)."""
+    alias = alias or {}
+    own = {alias.get(label, label): orders for label, orders in zip(layout.column_labels, zip(layout.nb, layout.nk))}
     own.update({_TERM + text: (1, 1) for text in layout.effect_of_term})
     nb = [int(own[label][0]) if label in own else 0 for label in labels]
     nk = [int(own[label][1]) if label in own else 0 for label in labels]
     return nb, nk
 
 
-def _own_order(na: int, layout: EffectLayout, labels: list[str]) -> np.ndarray:
+def _own_order(na: int, layout: EffectLayout, labels: list[str], alias: dict[str, str]) -> np.ndarray:
     """For each parameter of a structure as the envelope orders them (output lags, then the
     envelope's columns in its order, output terms among them), its position in the structure's own
     order (output lags, input columns, output terms)."""
     starts = na + np.concatenate([[0], np.cumsum(layout.nb)]).astype(int)
-    at = {label: j for j, label in enumerate(layout.column_labels)}
+    at = {alias.get(label, label): j for j, label in enumerate(layout.column_labels)}
     term_at = {_TERM + text: int(starts[-1]) + i for i, text in enumerate(layout.effect_of_term)}
     order = list(range(na))
     for label in labels:

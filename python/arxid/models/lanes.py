@@ -46,15 +46,15 @@ def lane_rms(models: Sequence[ArxModel], data: IOData, horizon: int | None) -> n
         return None
     if any(m.layout_.output_terms or m.measured_input_names != data.input_names for m in models):
         return None
-    labels = list(dict.fromkeys(label for m in models for label in m.layout_.column_labels))
+    labels = _union([list(m.layout_.column_labels) for m in models])
+    if labels is None:
+        return None
     at = {label: j for j, label in enumerate(labels)}
     width = len(labels)
     rows = np.zeros((len(models), 1 + 2 * width), dtype=np.int64)
     theta = np.full((len(models), max(m.n_params for m in models)), np.nan)
     for i, m in enumerate(models):
         cols = [at[label] for label in m.layout_.column_labels]
-        if cols != sorted(cols):  # its parameters follow its own column order
-            return None
         rows[i, 0] = m.na_
         rows[i, 1 + np.array(cols, dtype=np.intp)] = m.layout_.nb
         rows[i, 1 + width + np.array(cols, dtype=np.intp)] = m.layout_.nk
@@ -68,3 +68,30 @@ def lane_rms(models: Sequence[ArxModel], data: IOData, horizon: int | None) -> n
         y, u, list(data.experiment_starts), rows, [], theta, models[0].first_lag_, horizon
     )
     return np.where(diverged, math.inf, rms)
+
+
+def _union(orders: list[list[str]]) -> list[str] | None:
+    """Every model's columns in one order that keeps each model's own (its parameters follow it),
+    first seen first where the models leave the order free; None when two models order two columns
+    differently. ``[u1, u1*vbat, const]`` and ``[through(u1*vbat), const]`` give ``[u1, u1*vbat,
+    through(u1*vbat), const]``, where first seen first alone would put ``const`` before the shape."""
+    seen = list(dict.fromkeys(label for order in orders for label in order))
+    rank = {label: j for j, label in enumerate(seen)}
+    after: dict[str, set[str]] = {label: set() for label in seen}
+    before = dict.fromkeys(seen, 0)
+    for order in orders:
+        for a, b in zip(order, order[1:]):
+            if b not in after[a]:
+                after[a].add(b)
+                before[b] += 1
+    ready = [label for label in seen if not before[label]]
+    out: list[str] = []
+    while ready:
+        label = min(ready, key=rank.__getitem__)
+        ready.remove(label)
+        out.append(label)
+        for b in after[label]:
+            before[b] -= 1
+            if not before[b]:
+                ready.append(b)
+    return out if len(out) == len(seen) else None
