@@ -56,7 +56,7 @@ from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
 from .scan_sample import scan_sample
-from .shape_beside import BesideFit
+from .shape_beside import Beside, BesideFit, beside_from_factor
 from .shape_cost import ShapeCost
 
 __all__ = [
@@ -249,7 +249,9 @@ class ShapeFits:
 
     def __init__(self, model: ArxModel, data: IOData, shapes: Sequence[tuple[InputShape, bool]]):
         self.model, self.data = model, data
-        self.specs = [self._spec(shape, const) for shape, const in shapes]
+        m = model
+        # the model itself first: its columns in the factor give each shape's beside fit too
+        self.specs = [(m.na_, m.nb_, m.nk_, list(m.effects))] + [self._spec(shape, const) for shape, const in shapes]
         self.envelope: EnvelopeFactor | None = None
         if len(self.specs) > 1:
             try:
@@ -269,6 +271,14 @@ class ShapeFits:
         if self.envelope is not None and i >= 0 and self.envelope.has(i):
             return fitted.fit_in(self.envelope, i)
         return fitted.fit(self.data, first_lag=self.model.first_lag_)
+
+    def beside(self, shape: InputShape, const: bool) -> Beside | None:
+        """The model with ``shape``'s columns (and an offset) beside its own, from the envelope's
+        factor (:func:`beside_from_factor`); None without one (raises as the refit raises)."""
+        spec = self._spec(shape, const)
+        if self.envelope is None or spec not in self.specs:
+            return None
+        return beside_from_factor(self.envelope, self.model, 0, self.specs.index(spec))
 
 
 class ValidationEvidence:
@@ -305,7 +315,9 @@ def _scored(
 ) -> dict | None:
     """One shape as the judge reads a candidate, with the smaller p-value of its two tests, doubled."""
     try:
-        beside = fit(shape, const)  # the shape's columns (and the offset) beside the input's
+        beside = fits.beside(shape, const)  # the shape's columns (and the offset) beside the input's
+        if beside is None:
+            beside = fit(shape, const)
         p_val = evidence.p_value(fits.fit(shape, const))
     except ArxidError:
         return None
