@@ -211,3 +211,19 @@ def test_without_an_envelope_the_beside_fit_is_the_basis():
     model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
     fits = ShapeFits(model, data, [(SHAPES[0], False), (SHAPES[2], True)])
     assert fits.envelope is None and fits.beside(SHAPES[0], False) is None
+
+
+def test_the_beside_fit_from_the_envelope_tests_the_shape_as_written():
+    """A scanned parameter has more digits than the effect's text: the beside fit from the envelope
+    is that of the shape as its effect writes it (four significant digits), the shape the
+    validation test and the judge's refit fit, to numpy's least squares (1e-10)."""
+    data = plant(35)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    scanned = InputShape("dead zone", "u", (0.4123456789,))
+    written = InputShape("dead zone", "u", (0.4123,))
+    assert scanned.effect == written.effect
+    fits = ShapeFits(model, data, [(scanned, False), (scanned, True)])
+    for const in (False, True):
+        got = fits.beside(scanned, const)
+        assert got is not None
+        assert got.rss == pytest.approx(_reference_rss(model, data, written, const), rel=1e-10)

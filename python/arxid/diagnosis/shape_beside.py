@@ -13,7 +13,9 @@ Where the shape models are fitted from one factor of their envelope that also ho
 (:class:`arxid.diagnosis.shapes.ShapeFits`, data without gaps), the model with a shape beside it
 is one more sub-structure of that envelope (:func:`beside_from_factor`): a small QR of a few
 columns of its R, and no basis at all (at 4M samples the basis and the shapes' projections were
-two seconds of each diagnosis).
+two seconds of each diagnosis). The shape is then the one its effect writes (parameters to four
+significant digits), as in the validation test and the judge's refit, where the basis reads a
+scanned parameter to all its digits.
 
 A shape the refit would refuse is refused alike (a shaped lag the model's columns already span is
 rank deficient by the core's rule). Where the shortcut cannot stand for the refit (the basis does
