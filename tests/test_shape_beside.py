@@ -172,3 +172,58 @@ def test_a_known_r_gives_the_fresh_qrs_basis_and_refuses_dependent_columns():
     np.testing.assert_allclose(np.abs(given.T @ fresh), np.eye(4), rtol=0, atol=1e-12)
     x[:, 1] = 2 * x[:, 0]
     assert orthonormal_basis(x.copy(), r=np.linalg.qr(x, mode="r")) is None
+
+
+@pytest.mark.parametrize("seed", [31, 32, 33])
+@pytest.mark.parametrize("effects", [(), ("u^2",), ("u*v",), ("const",), ("y^3",)])
+def test_the_beside_fits_from_the_shape_models_envelope_equal_the_refits(seed, effects):
+    """With the model among the shape models' envelope, each shape beside the model is a
+    sub-structure of its factor: the refit's loss, rows and parameters (no basis is built), beside
+    an additive effect of the same input, an offset and an output term."""
+    data = plant(seed)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=effects).fit(data)
+    offsets = (False,) if "const" in effects else (False, True)
+    pairs = [(shape, const) for shape in SHAPES for const in offsets]
+    fits, fit = ShapeFits(model, data, pairs), BesideFit(model, data)
+    for shape, const in pairs:
+        try:
+            exact = fit.refit(shape, const)
+        except ArxidError:  # through(u*v) beside u*v: the same columns
+            with pytest.raises(ArxidError):
+                fits.beside(shape, const)
+            continue
+        got = fits.beside(shape, const)
+        assert got is not None
+        assert (got.n_rows, got.n_params) == (exact.n_rows, exact.n_params)
+        assert got.rss == pytest.approx(exact.rss, rel=1e-10)
+    assert fit._basis is None  # never needed
+    wide = InputShape("dead zone", "u", (5.0,))  # zero columns: refused as the refit refuses them
+    wide_fits = ShapeFits(model, data, [(wide, False), (SHAPES[0], False)])
+    with pytest.raises(ArxidError):
+        fit.refit(wide, False)
+    with pytest.raises(ArxidError):
+        wide_fits.beside(wide, False)
+
+
+def test_without_an_envelope_the_beside_fit_is_the_basis():
+    """Data with gaps have no envelope: the beside fit comes from the model's basis."""
+    data = plant(34, gaps=True)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    fits = ShapeFits(model, data, [(SHAPES[0], False), (SHAPES[2], True)])
+    assert fits.envelope is None and fits.beside(SHAPES[0], False) is None
+
+
+def test_the_beside_fit_from_the_envelope_tests_the_shape_as_written():
+    """A scanned parameter has more digits than the effect's text: the beside fit from the envelope
+    is that of the shape as its effect writes it (four significant digits), the shape the
+    validation test and the judge's refit fit, to numpy's least squares (1e-10)."""
+    data = plant(35)
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1]).fit(data)
+    scanned = InputShape("dead zone", "u", (0.4123456789,))
+    written = InputShape("dead zone", "u", (0.4123,))
+    assert scanned.effect == written.effect
+    fits = ShapeFits(model, data, [(scanned, False), (scanned, True)])
+    for const in (False, True):
+        got = fits.beside(scanned, const)
+        assert got is not None
+        assert got.rss == pytest.approx(_reference_rss(model, data, written, const), rel=1e-10)

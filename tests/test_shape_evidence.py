@@ -1,7 +1,7 @@
-"""The validation evidence of a shape, formed in place: each shape's Diebold–Mariano test against
-the model's errors (kept once, squared) is the plain comparison of the two error series to the
-last bit, on two-input records with missing samples, short and long (the core's one-pass lagged
-sums); the statistic is the textbook formula to rounding. A shape's series evaluated in place is
+"""The validation evidence of a shape, formed in one call of the core: each shape's Diebold–Mariano
+test against the model's errors (kept once, squared) is the plain comparison of the two error series
+(numpy's passes) to 1e-12, on two-input records with missing samples, short and long, free run and
+k steps; the statistic is the textbook formula to rounding. A shape's series evaluated in place is
 the formula's to the last bit."""
 
 from __future__ import annotations
@@ -49,11 +49,37 @@ def test_each_shapes_p_value_is_the_plain_comparisons(seed, n, horizon):
     for shape in (InputShape("dead zone", "u1", (0.3,)), InputShape("signed power", "u1", (1.5,))):
         fitted = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=[shape.effect]).fit(est)
         err = val.y - fitted.predict(val, horizon)
-        assert evidence.p_value(fitted) == validation_p(base, err)  # the same bits
+        assert evidence.p_value(fitted) == pytest.approx(validation_p(base, err), rel=1e-12, abs=1e-300)
         stat = parsimony.diebold_mariano(base, err).statistic
         assert stat == pytest.approx(textbook_dm(base, err), rel=1e-12)
         assert 0.5 * math.erfc(stat / math.sqrt(2)) == validation_p(base, err)
-    assert evidence._known is not None and not evidence._known.all()  # the gaps were left out
+    assert evidence._squares is not None and np.isnan(evidence._squares).any()  # the gaps were left out
+
+
+@pytest.mark.parametrize("seed", [6, 7, 8])
+def test_the_cores_loss_differences_are_numpys(seed):
+    """``_core.loss_difference``: the count, mean and centred lagged sums of numpy's passes, with
+    missing and infinite errors left out, on short and long series (to 1e-12)."""
+    rng = np.random.default_rng(seed)
+    for n in (50, 3000, parsimony._ONE_PASS_SAMPLES + 77):
+        y = rng.standard_normal(n)
+        pred = y + 0.3 * rng.standard_normal(n) + 0.05 * np.sin(np.arange(n) / 40)
+        base_err = 0.31 * rng.standard_normal(n)
+        pred[rng.integers(0, n, 4)] = np.nan
+        pred[rng.integers(0, n, 2)] = np.inf
+        base_err[rng.integers(0, n, 3)] = np.nan
+        err = y - pred
+        ok = np.isfinite(err) & np.isfinite(base_err)
+        d = base_err[ok] ** 2 - err[ok] ** 2
+        lag = int(d.size ** (1 / 3))
+        dc = d - d.mean()
+        want = [float(dc[k:] @ dc[: d.size - k]) for k in range(lag + 1)]
+        squares = np.where(np.isfinite(base_err), base_err**2, np.nan)
+        count, mean, sums = arxid._base._core.loss_difference(y, squares, pred.copy())
+        assert count == d.size and mean == pytest.approx(d.mean(), rel=1e-12)
+        np.testing.assert_allclose(sums, want, rtol=0, atol=1e-12 * want[0])
+        got = parsimony.comparison_from_sums(count, mean, sums)
+        assert got.statistic == pytest.approx(parsimony.diebold_mariano(base_err, err).statistic, rel=1e-12)
 
 
 def test_the_difference_test_centres_in_place_and_agrees_with_the_two_series():

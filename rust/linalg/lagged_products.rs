@@ -5,6 +5,10 @@
 //! [`BLOCK`] samples of `a` is summed against every lag while it and its window of `b` are in
 //! cache, on every core; the blocks' sums are added in block order, so the result does not depend
 //! on the number of threads. It agrees with numpy to rounding, not to the last bit.
+//!
+//! With AVX2 and FMA the lags are summed [`GROUP`] at a time: four samples of `a`, loaded once,
+//! serve eight lags (one load of `b` per multiply-add where a lag at a time takes two). On 2M
+//! samples and 126 lags that is 2–3× the lag-at-a-time loop.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -14,7 +18,10 @@ use crate::error::{ArxError, Result};
 use crate::linalg::simd::{avx2_fma, madd};
 
 /// Samples of `a` per block: the block and its window of `b` stay in the first-level cache.
-const BLOCK: usize = 2048;
+const BLOCK: usize = 1024;
+
+/// Lags summed side by side by [`block_avx2`].
+const GROUP: usize = 8;
 
 /// `c(k) = Σ_t a(t) b(t − k)` for k in `first..=last`, over the t where both exist.
 ///
@@ -76,7 +83,55 @@ fn block_products(a: &[f64], b: &[f64], (lo, hi): (usize, usize), first: isize, 
     block_impl::<false>(a, b, (lo, hi), first, width)
 }
 
-#[cfg(any(target_arch = "x86_64", target_arch = "x86"))]
+/// [`block_impl`] with the lags [`GROUP`] at a time: on the samples where every lag of a group
+/// reads inside `b`, four samples of `a` are loaded once and multiplied with each lag's four of
+/// `b`, in one register of sums per lag; the samples at the group's edges, and the lags left over,
+/// are summed one lag at a time.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn block_avx2(a: &[f64], b: &[f64], (lo, hi): (usize, usize), first: isize, width: usize) -> Vec<f64> {
+    use std::arch::x86_64::{_mm256_fmadd_pd, _mm256_loadu_pd, _mm256_setzero_pd, _mm256_storeu_pd};
+    let n = a.len() as isize;
+    let (lo_i, hi_i) = (lo as isize, hi as isize);
+    let grouped = width - width % GROUP;
+    let mut out = vec![0.0; width];
+    out[grouped..].copy_from_slice(&block_impl::<true>(a, b, (lo, hi), first + grouped as isize, width - grouped));
+    for j0 in (0..grouped).step_by(GROUP) {
+        let k0 = first + j0 as isize;
+        // samples t of the block where every lag k0..k0+GROUP reads b(t − k) inside b
+        let start = lo_i.max(k0 + GROUP as isize - 1).min(hi_i);
+        let end = hi_i.min(n + k0).max(start);
+        let mut sums = [_mm256_setzero_pd(); GROUP];
+        let mut t = start;
+        while t + 4 <= end {
+            // SAFETY: lo <= t and t + 4 <= hi <= n read inside a; for lag k = k0 + j,
+            // 0 <= t − k (t >= k0 + GROUP − 1) and t − k + 4 <= n (t + 4 <= n + k0) read inside b.
+            let av = _mm256_loadu_pd(a.as_ptr().offset(t));
+            for (j, sum) in sums.iter_mut().enumerate() {
+                let bv = _mm256_loadu_pd(b.as_ptr().offset(t - k0 - j as isize));
+                *sum = _mm256_fmadd_pd(av, bv, *sum);
+            }
+            t += 4;
+        }
+        for (j, sum) in sums.iter().enumerate() {
+            let k = k0 + j as isize;
+            let mut lanes = [0.0f64; 4];
+            _mm256_storeu_pd(lanes.as_mut_ptr(), *sum);
+            // the lag's own samples [v0, v1) outside the ones summed above, [start, t)
+            let (v0, v1) = (lo_i.max(k), hi_i.min(n + k));
+            let edges = [(v0, v1.min(start)), (v0.max(t), v1)];
+            let mut total = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+            for (e0, e1) in edges.into_iter().filter(|(e0, e1)| e0 < e1) {
+                let shift = (e0 - k) as usize;
+                total += dot::<true>(&a[e0 as usize..e1 as usize], &b[shift..shift + (e1 - e0) as usize]);
+            }
+            out[j0 + j] = total;
+        }
+    }
+    out
+}
+
+#[cfg(target_arch = "x86")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn block_avx2(a: &[f64], b: &[f64], rows: (usize, usize), first: isize, width: usize) -> Vec<f64> {
     block_impl::<true>(a, b, rows, first, width)
@@ -144,7 +199,16 @@ mod tests {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
         };
-        for (n, first, last) in [(5000usize, -25isize, 25isize), (2048, 0, 3), (300, -400, 10), (7, -2, 9), (1, 0, 0)] {
+        for (n, first, last) in [
+            (5000usize, -25isize, 25isize),
+            (2048, 0, 3),
+            (300, -400, 10),
+            (7, -2, 9),
+            (1, 0, 0),
+            (4099, 0, 125),
+            (1500, -1100, 1200),
+            (3000, 1010, 1030),
+        ] {
             let a: Vec<f64> = (0..n).map(|_| rnd()).collect();
             let b: Vec<f64> = (0..n).map(|_| rnd()).collect();
             let got = lagged_products(&a, &b, first, last, &AtomicBool::new(false)).unwrap();
@@ -176,7 +240,7 @@ mod tests {
 mod perf_probe {
     use super::*;
 
-    /// Timing on 2M samples, lags −25..25 (ignored by default; `--ignored --nocapture`).
+    /// Timing on 2M samples, lags −25..25 and 0..125 (ignored by default; `--ignored --nocapture`).
     #[test]
     #[ignore]
     fn lagged_products_timing() {
@@ -186,13 +250,19 @@ mod perf_probe {
         let never = AtomicBool::new(false);
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let mut best = f64::INFINITY;
-            for _ in 0..7 {
-                let t = std::time::Instant::now();
-                pool.install(|| lagged_products(&a, &b, -25, 25, &never).unwrap());
-                best = best.min(t.elapsed().as_secs_f64());
+            for (first, last) in [(-25, 25), (0, 125)] {
+                let mut best = f64::INFINITY;
+                for _ in 0..7 {
+                    let t = std::time::Instant::now();
+                    pool.install(|| lagged_products(&a, &b, first, last, &never).unwrap());
+                    best = best.min(t.elapsed().as_secs_f64());
+                }
+                let rate = (n as f64) * (last - first + 1) as f64 / best / 1e9;
+                println!(
+                    "{threads} thread(s), lags {first}..{last}: {:.2} ms, {rate:.1} G multiply-adds/s",
+                    best * 1e3
+                );
             }
-            println!("{threads} thread(s): {:.2} ms", best * 1e3);
         }
     }
 }

@@ -2,7 +2,8 @@
 //! ([`crate::linalg::lagged_qr`]), lagged cross-products and the prewhitening filter of rows.
 
 use numpy::{
-    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray2, PyUntypedArrayMethods,
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyReadwriteArray2,
+    PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
@@ -122,6 +123,22 @@ pub(super) fn lagged_products<'py>(
     let (a, b) = (a.as_slice()?, b.as_slice()?);
     let out = run(py, 0, |cancel| crate::linalg::lagged_products::lagged_products(a, b, first, last, cancel))?;
     Ok(PyArray1::from_vec(py, out))
+}
+
+/// `(n, mean, sums)` of a Diebold–Mariano test of `base` (one model's squared errors, NaN where
+/// its error is not finite) against the errors `y − pred` of another (see
+/// [`crate::scoring::loss_difference`]); `pred` is overwritten. With the GIL released on every
+/// core, stops on Ctrl-C.
+#[pyfunction]
+pub(super) fn loss_difference<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    base: PyReadonlyArray1<'py, f64>,
+    mut pred: PyReadwriteArray1<'py, f64>,
+) -> PyResult<(usize, f64, Bound<'py, PyArray1<f64>>)> {
+    let (y, base, pred) = (y.as_slice()?, base.as_slice()?, pred.as_slice_mut()?);
+    let out = run(py, 0, |cancel| crate::scoring::loss_difference::loss_difference(y, base, pred, cancel))?;
+    Ok((out.n, out.mean, PyArray1::from_vec(py, out.sums)))
 }
 
 /// `scipy.signal.lfilter(b, a, x)` of a signal from rest (see [`crate::simulate::digital_filter`]; scipy's

@@ -9,6 +9,14 @@ rounding, without a pass of the core over all the rows (twenty of those were a t
 at 4M samples). A shape's columns are its series at the input's lags: row t of lag k reads sample
 t − k.
 
+Where the shape models are fitted from one factor of their envelope that also holds the model
+(:class:`arxid.diagnosis.shapes.ShapeFits`, data without gaps), the model with a shape beside it
+is one more sub-structure of that envelope (:func:`beside_from_factor`): a small QR of a few
+columns of its R, and no basis at all (at 4M samples the basis and the shapes' projections were
+two seconds of each diagnosis). The shape is then the one its effect writes (parameters to four
+significant digits), as in the validation test and the judge's refit, where the basis reads a
+scanned parameter to all its digits.
+
 A shape the refit would refuse is refused alike (a shaped lag the model's columns already span is
 rank deficient by the core's rule). Where the shortcut cannot stand for the refit (the basis does
 not give the model's own loss, the model's columns are dependent, or a shaped lag is missing on a
@@ -21,16 +29,18 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.effects import compile_effects
+from ..models.envelope import EnvelopeFactor
 from ..models.input_shapes import InputShape
 from ..models.regressors import lagger, regressor_matrix
 from .candidates import candidate_input_names
 from .shape_cost import orthonormal_basis, projected_r
 
-__all__ = ["BesideFit", "Beside"]
+__all__ = ["BesideFit", "Beside", "beside_from_factor"]
 
 #: The basis must give the model's own loss to this relative difference.
 _AGREEMENT = 1e-9
@@ -143,6 +153,46 @@ class BesideFit:
         effects = [*model.effects] + (["const"] if const else [])
         fitted = ArxModel(na=model.na_, nb=nb, nk=nk, effects=effects).fit(extended, first_lag=model.first_lag_)
         return Beside(fitted.rss_, fitted.n_rows_, fitted.n_params)
+
+
+def beside_from_factor(envelope: EnvelopeFactor, model: ArxModel, own: int, shaped: int) -> Beside | None:
+    """The model (structure ``own`` of ``envelope``) with the columns of a shape model (structure
+    ``shaped``: the shape at its input's lags, and an offset) beside its own, from the envelope's
+    factor; None where the factor does not stand for the model's own fit (other rows, another loss).
+    Raises as the refit raises on columns the model's already span.
+
+    Parameters
+    ----------
+    envelope : EnvelopeFactor
+    model : ArxModel
+        The fitted model, structure ``own`` of the envelope.
+    own, shaped : int
+        Indices of the model and of the shape model among the envelope's structures.
+
+    Returns
+    -------
+    Beside or None
+    """
+    if not (envelope.has(own) and envelope.has(shaped)) or envelope.n_rows != model.n_rows_:
+        return None
+    na = envelope.structures[own][0]
+    (nb, nk), (nb_shape, nk_shape) = envelope.columns[own], envelope.columns[shaped]
+    if not _stands_for(envelope, na, nb, nk, model):
+        return None
+    # the model's columns, and the shape model's where the model has none (the shape, the offset)
+    both = [(b, k) if b > 0 else (b2, k2) for b, k, b2, k2 in zip(nb, nk, nb_shape, nk_shape, strict=True)]
+    orders = (na, [b for b, _ in both], [k for _, k in both])
+    out = _core.fit_from_factor(envelope.r, envelope.n_rows, envelope.envelope, orders, [])
+    return Beside(float(out.rss), int(out.n_rows), int(np.asarray(out.theta).size))
+
+
+def _stands_for(envelope: EnvelopeFactor, na: int, nb: list[int], nk: list[int], model: ArxModel) -> bool:
+    """Whether the model's fit from the factor gives its own loss (to :data:`_AGREEMENT`)."""
+    try:
+        rss = float(_core.fit_from_factor(envelope.r, envelope.n_rows, envelope.envelope, (na, nb, nk), []).rss)
+    except ArxidError:
+        return False
+    return abs(rss - model.rss_) <= _AGREEMENT * model.rss_
 
 
 def _model_r(model: ArxModel, phi: np.ndarray) -> np.ndarray | None:

@@ -41,6 +41,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._base import _core
 from .._base.local_search import bounded_minimum, simplex_minimum
 from .._base.probabilities import f_sf
 from ..checks import prediction
@@ -51,12 +52,12 @@ from ..models.effects import parse_effect
 from ..models.envelope import EnvelopeFactor
 from ..models.input_shapes import InputShape
 from ..models.iv import IvModel
-from ..selection.parsimony import diebold_mariano, loss_difference_test
+from ..selection.parsimony import comparison_from_sums, diebold_mariano
 from .candidates import candidate_input_names, changes_sign
 from .extension import Candidate
 from .result import Suspect
 from .scan_sample import scan_sample
-from .shape_beside import BesideFit
+from .shape_beside import Beside, BesideFit, beside_from_factor
 from .shape_cost import ShapeCost
 
 __all__ = [
@@ -249,7 +250,9 @@ class ShapeFits:
 
     def __init__(self, model: ArxModel, data: IOData, shapes: Sequence[tuple[InputShape, bool]]):
         self.model, self.data = model, data
-        self.specs = [self._spec(shape, const) for shape, const in shapes]
+        m = model
+        # the model itself first: its columns in the factor give each shape's beside fit too
+        self.specs = [(m.na_, m.nb_, m.nk_, list(m.effects))] + [self._spec(shape, const) for shape, const in shapes]
         self.envelope: EnvelopeFactor | None = None
         if len(self.specs) > 1:
             try:
@@ -270,34 +273,40 @@ class ShapeFits:
             return fitted.fit_in(self.envelope, i)
         return fitted.fit(self.data, first_lag=self.model.first_lag_)
 
+    def beside(self, shape: InputShape, const: bool) -> Beside | None:
+        """The model with ``shape``'s columns (and an offset) beside its own, from the envelope's
+        factor (:func:`beside_from_factor`); None without one (raises as the refit raises)."""
+        spec = self._spec(shape, const)
+        if self.envelope is None or spec not in self.specs:
+            return None
+        return beside_from_factor(self.envelope, self.model, 0, self.specs.index(spec))
+
 
 class ValidationEvidence:
     """The model's validation errors, found once, against which each shape's are tested: their
-    squares and where they exist are kept, so a shape's test forms its loss differences in place."""
+    squares are kept (NaN where the error is not finite), and the core forms a shape's loss
+    differences and their lagged sums over its prediction in one call (``_core.loss_difference``)."""
 
     def __init__(self, model: ArxModel, validation: IOData, horizon: int | None, initial: str):
         self.model, self.validation, self.horizon, self.initial = model, validation, horizon, initial
         self._squares: np.ndarray | None = None
-        self._known: np.ndarray | None = None
 
-    def _errors(self, model: ArxModel) -> np.ndarray:
-        """The validation errors (a new array)."""
-        return self.validation.y - prediction(model, self.validation, self.horizon, self.initial)[0]
+    def _prediction(self, model: ArxModel) -> np.ndarray:
+        """The validation prediction (a new array)."""
+        return prediction(model, self.validation, self.horizon, self.initial)[0]
 
     def p_value(self, fitted: ArxModel) -> float:
         """One-sided p-value that ``fitted``'s validation error is below the model's (as
         :func:`validation_p`)."""
+        y = np.ascontiguousarray(self.validation.y, dtype=float)
         if self._squares is None:
-            base = self._errors(self.model)
-            self._known = np.isfinite(base)
+            base = np.subtract(y, self._prediction(self.model))
+            known = np.isfinite(base)
             self._squares = np.square(base, out=base)
-        assert self._known is not None
-        d = self._errors(fitted)
-        known = np.isfinite(d)
-        known &= self._known
-        np.square(d, out=d)
-        np.subtract(self._squares, d, out=d)  # the model's squared error less the shape's
-        return _normal_tail(loss_difference_test(d if known.all() else d[known]).statistic)
+            self._squares[~known] = np.nan  # an infinite error is no evidence either
+        pred = np.require(self._prediction(fitted), dtype=float, requirements=["C", "A", "W"])
+        n, mean, sums = _core.loss_difference(y, self._squares, pred)  # overwrites pred
+        return _normal_tail(comparison_from_sums(n, mean, sums).statistic)
 
 
 def _scored(
@@ -305,7 +314,9 @@ def _scored(
 ) -> dict | None:
     """One shape as the judge reads a candidate, with the smaller p-value of its two tests, doubled."""
     try:
-        beside = fit(shape, const)  # the shape's columns (and the offset) beside the input's
+        beside = fits.beside(shape, const)  # the shape's columns (and the offset) beside the input's
+        if beside is None:
+            beside = fit(shape, const)
         p_val = evidence.p_value(fits.fit(shape, const))
     except ArxidError:
         return None

@@ -22,7 +22,7 @@ import numpy as np
 from .._base import _core
 from .._base.records import record
 
-__all__ = ["DM_CRITICAL", "Comparison", "diebold_mariano", "loss_difference_test"]
+__all__ = ["DM_CRITICAL", "Comparison", "diebold_mariano", "loss_difference_test", "comparison_from_sums"]
 
 #: One-sided 5% critical value of the standard normal: DM above it means "significantly worse".
 DM_CRITICAL = 1.645
@@ -86,7 +86,33 @@ def loss_difference_test(d: np.ndarray) -> Comparison:
     mean = d.mean()
     d -= mean
     lag = int(n ** (1 / 3))
-    lrv = _long_run_variance(d, lag)
+    return _compared(float(mean), _long_run_variance(d, lag), n)
+
+
+def comparison_from_sums(n: int, mean: float, sums: np.ndarray) -> Comparison:
+    """:func:`loss_difference_test` from the sums a core kernel formed in one pass
+    (``_core.loss_difference``): the differences' count and mean, and the lagged products of the
+    centred ones at lags 0..⌊n^(1/3)⌋.
+
+    Parameters
+    ----------
+    n : int
+        Samples compared.
+    mean : float
+        Mean of the differences.
+    sums : ndarray of shape (⌊n^(1/3)⌋ + 1,)
+        ``Σ_t dc(t) dc(t − k)``.
+
+    Returns
+    -------
+    Comparison
+    """
+    if n < 2:
+        return Comparison(math.nan, n, True)
+    return _compared(mean, _bartlett(np.asarray(sums, dtype=float), n), n)
+
+
+def _compared(mean: float, lrv: float, n: int) -> Comparison:
     if not lrv > 0:
         stat = math.inf if mean > 0 else 0.0
     else:
@@ -94,13 +120,18 @@ def loss_difference_test(d: np.ndarray) -> Comparison:
     return Comparison(stat, n, stat > DM_CRITICAL)
 
 
+def _bartlett(sums: np.ndarray, n: int) -> float:
+    """``S`` from the lagged products at lags 0..lag: their Bartlett-weighted sum over ``n``."""
+    lag = sums.size - 1
+    lags = np.arange(1, lag + 1)
+    return float(sums[0] + 2.0 * np.dot(1.0 - lags / (lag + 1), sums[1:])) / n
+
+
 def _long_run_variance(dc: np.ndarray, lag: int) -> float:
     """``S``: the Bartlett-weighted sum of the centred differences' autocovariances up to ``lag``."""
     n = dc.size
-    if n >= _ONE_PASS_SAMPLES:
-        lags = np.arange(1, lag + 1)
-        sums = np.asarray(_core.lagged_products(dc, dc, 0, lag))  # Σ_t dc(t) dc(t − k), k = 0..lag
-        return float(sums[0] + 2.0 * np.dot(1.0 - lags / (lag + 1), sums[1:])) / n
+    if n >= _ONE_PASS_SAMPLES:  # Σ_t dc(t) dc(t − k), k = 0..lag
+        return _bartlett(np.asarray(_core.lagged_products(dc, dc, 0, lag)), n)
     # einsum, not @: a BLAS call per lag leaves its threads spinning on shared cores.
     lrv = float(np.einsum("i,i->", dc, dc)) / n
     for k in range(1, lag + 1):
