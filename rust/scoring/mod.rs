@@ -5,4 +5,5 @@ pub mod ar_filter;
 pub mod column_products;
 pub mod fit_residual;
 pub mod group_sums;
+pub mod shape_scan;
 pub mod threshold_scan;
