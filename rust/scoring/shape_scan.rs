@@ -38,7 +38,7 @@ pub fn shaped_projected_r(
     if index.len() != n * k {
         return Err(mismatch("the lag indices", n * k, index.len()));
     }
-    if len == 0 || series.len() % len != 0 {
+    if len == 0 || !series.len().is_multiple_of(len) {
         return Err(mismatch("the shaped series' samples", len, series.len()));
     }
     if let Some(&far) = index.iter().find(|&&i| !(0..len as i64).contains(&i)) {
