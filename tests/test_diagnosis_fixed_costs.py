@@ -146,3 +146,33 @@ def test_a_constant_input_is_refused_every_time_and_a_varying_one_is_checked_onc
     other_output = data.with_samples(y=2.0 * y)
     assert other_output.u is data.u  # the same input matrix: no second check
     assert arxid.arx(other_output, 1, 1, 1).parameters_.shape == (2,)
+
+
+def test_a_scans_grid_in_one_call_equals_its_values_one_at_a_time():
+    """The grid's values projected in one call of the core (the lags gathered there) give each
+    value's loss of the value alone, to the bit: a dead zone on the thrust stand, some values twice."""
+    data = _thrust(1)
+    model = arxid.arx(data, 2, 2, 1)
+    top = float(np.max(np.abs(data.u)))
+    widths = [(f * top,) for f in (0.05, 0.2, 0.2, 0.31, 0.9, 2.0)]
+    batch = shape_cost.ShapeCost(model, data, "dead zone", "pwm", True)
+    alone = shape_cost.ShapeCost(model, data, "dead zone", "pwm", True)
+    got = batch.many(widths)
+    assert batch._fast is not None
+    assert got == [alone(w) for w in widths]
+    assert math.isinf(got[-1])  # a dead zone wider than the input: rank deficient, as the refit says
+
+
+def test_lags_gathered_by_the_core_equal_numpys_and_a_missing_lag_is_flagged():
+    rng = np.random.default_rng(5)
+    n = 600
+    q = np.linalg.qr(rng.standard_normal((n, 3)))[0]
+    y = rng.standard_normal(n)
+    y -= q @ (q.T @ y)
+    series = rng.standard_normal((3, n + 2))
+    series[2, 10] = np.nan
+    index = np.column_stack([np.arange(n) + 2, np.arange(n) + 1]).astype(np.int64)
+    projector = Projector(q, y)
+    got = projector.shaped_rss(series, index)
+    assert got[:2] == [projector.rss(s[index]) for s in series[:2]]
+    assert got[2] is None
