@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .._base import _core, metrics
+from .._base import _core
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from .arx_model import ArxModel
@@ -305,15 +305,6 @@ class SensorScan:
     def wiener(self, sensor: SensorShape) -> WienerModel:
         """The Wiener model with ``sensor`` (its fit: :func:`fit_wiener`)."""
         return fit_wiener(self.model, self.data, sensor, self.floor)
-
-
-def free_run_rms(model: Any, data: IOData) -> float:
-    """The free-run RMS of ``model`` on ``data`` (inf when it diverges or cannot be fitted)."""
-    try:
-        pred = model.predict(data, None)
-    except ArxidError:
-        return math.inf
-    return metrics.prediction_rms(data.y, pred)
 
 
 def added_effects(model: Any) -> tuple[str, ...]:
