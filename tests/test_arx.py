@@ -257,8 +257,21 @@ def test_compiled_effects_are_kept_per_data_and_equal_a_fresh_compile():
     np.testing.assert_array_equal(fresh.u[:, 2], data.u[:, 0] * data.extra["vbat"])
     other = arxid.IOData(data.y.copy(), data.u * 2.0, 0.01, extra={"vbat": data.extra["vbat"]})
     np.testing.assert_allclose(fx.compile_effects(("u1*vbat", "y^2"), other, (3, 2), (0, 1)).u, 2.0 * fresh.u)
-    for effects in [(), ("const",), ("time",), ("u1^2",)]:  # only the last set stays
+    for effects in [(), ("const",), ("time",), ("u1^2",)]:  # a short record's sets stay (the inputs need none)
         fx.compile_effects(effects, data, (1, 1), (1, 1))
-    assert list(fx._COMPILED[data]) == [("u1^2",)]
+    kept = [("u1*vbat", "y^2"), ("const",), ("time",), ("u1^2",)]
+    assert list(fx._COMPILED[data]) == kept
     bare = fx.compile_effects(("u1*vbat", "y^2"), data, (3, 2), (0, 1), samples=False)
-    assert bare.u.shape == (0, 3) and bare.nb == fresh.nb and list(fx._COMPILED[data]) == [("u1^2",)]
+    assert bare.u.shape == (0, 3) and bare.nb == fresh.nb and list(fx._COMPILED[data]) == kept
+
+
+def test_a_long_records_input_matrices_are_kept_one_at_a_time(monkeypatch):
+    """Beyond the bytes kept per record only the last matrix stays: a long record's never pile up."""
+    from arxid.models import effects as fx
+
+    rng = np.random.default_rng(4)
+    data = arxid.IOData(rng.standard_normal(400), rng.standard_normal((400, 1)), 0.01)
+    monkeypatch.setattr(fx, "_KEEP_BYTES", 2 * 400 * 8)  # room for the inputs and one column, not two matrices
+    for effects in [("const",), ("u1^2",), ("time",)]:
+        fx.compile_effects(effects, data, (1,), (1,))
+    assert list(fx._COMPILED[data]) == [("time",)]

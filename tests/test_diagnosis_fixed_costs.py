@@ -1,7 +1,9 @@
 """The shortcuts that cut a diagnosis's fixed costs give the answers of the long way, to the bit
-(issue 42, part 5): a shape scan's projection readied once and its values kept by their digits
-(:class:`arxid._base.orthonormal.Projector`, :mod:`arxid.diagnosis.shape_cost`), and a fit's
-memory estimate and input check made once per size and per input matrix
+(issue 42, part 5): a shape scan's projection readied once, its values kept by their digits and its
+grid's values projected in one call of the core with the lags gathered there
+(:class:`arxid._base.orthonormal.Projector`, :mod:`arxid.diagnosis.shape_cost`), a sensor scan's
+fits made by the core without a fitted model per sensor (:class:`arxid.models.wiener.SensorScan`),
+and a fit's memory estimate and input check made once per size and per input matrix
 (:mod:`arxid.models.arx_solver`).
 
 Known answers: the ladder of each plant with the shortcuts equals the ladder without them (every
@@ -23,8 +25,8 @@ import arxid
 from arxid._base import _core
 from arxid._base.orthonormal import RANK_FACTOR, Projector
 from arxid.diagnosis import shape_cost
-from arxid.exceptions import IdentifiabilityError
-from arxid.models import arx_model, arx_solver
+from arxid.exceptions import ArxidError, IdentifiabilityError
+from arxid.models import arx_solver, wiener
 from arxid.models.excitation import check_excitation
 from arxid.models.input_shapes import InputShape
 
@@ -56,9 +58,30 @@ def _ladder_answer(data: arxid.IOData, orders: tuple[int, int, int]) -> tuple:
 
 
 def _every_value_anew(self, values):
-    """A scan's value without the kept digits: the shape made, read and projected each time."""
-    z = self._lags(InputShape(self.cost.kind, self.cost.signal, values))
-    return z if isinstance(z, float) else self.projector.rss(z)
+    """A scan's values one at a time, without the kept digits: the shape made and read, its lags
+    gathered in numpy and projected (the core's general projection) each time."""
+    out = []
+    for v in values:
+        shape = InputShape(self.cost.kind, self.cost.signal, v)
+        series = self._series(shape)
+        if isinstance(series, float):
+            out.append(series)
+            continue
+        z = series[self.index]
+        out.append(self.projector.rss(z) if np.isfinite(z).all() else self.cost.refit(shape))
+    return out
+
+
+def _wiener_fitted_each_time(self, sensor):
+    """A sensor's fit and free run through a fitted Wiener model, a new IOData each time."""
+    try:
+        w = wiener.fit_wiener(self.model, self.data, sensor, self.floor)
+    except ArxidError:
+        return None
+    try:
+        return w.linear.a, w.predict(self.data, None)
+    except ArxidError:
+        return w.linear.a, None
 
 
 def _numpy_rss(self, z):
@@ -81,10 +104,11 @@ def _numpy_rss(self, z):
 def test_ladder_with_the_shortcuts_equals_the_long_way(plant, orders, monkeypatch):
     data = plant()
     short = _ladder_answer(data, orders)
-    monkeypatch.setattr(shape_cost._Projection, "rss", _every_value_anew)
+    monkeypatch.setattr(shape_cost._Projection, "rss_many", _every_value_anew)
     monkeypatch.setattr(Projector, "rss", _numpy_rss)
-    monkeypatch.setattr(arx_model, "check_inputs_vary", check_excitation)
-    monkeypatch.setattr(arx_model, "fit_memory", _core.fit_memory)
+    monkeypatch.setattr(wiener.SensorScan, "free_run", _wiener_fitted_each_time)
+    monkeypatch.setattr(arx_solver, "check_inputs_vary", check_excitation)
+    monkeypatch.setattr(arx_solver, "fit_memory", _core.fit_memory)
     long = _ladder_answer(data, orders)
     # a rung was added (the shortcuts served several models), or the sensor shapes were fitted
     assert len(short[1]) >= 2 or any(s[0].startswith("sensor:") for s in short[1][0])
@@ -122,3 +146,33 @@ def test_a_constant_input_is_refused_every_time_and_a_varying_one_is_checked_onc
     other_output = data.with_samples(y=2.0 * y)
     assert other_output.u is data.u  # the same input matrix: no second check
     assert arxid.arx(other_output, 1, 1, 1).parameters_.shape == (2,)
+
+
+def test_a_scans_grid_in_one_call_equals_its_values_one_at_a_time():
+    """The grid's values projected in one call of the core (the lags gathered there) give each
+    value's loss of the value alone, to the bit: a dead zone on the thrust stand, some values twice."""
+    data = _thrust(1)
+    model = arxid.arx(data, 2, 2, 1)
+    top = float(np.max(np.abs(data.u)))
+    widths = [(f * top,) for f in (0.05, 0.2, 0.2, 0.31, 0.9, 2.0)]
+    batch = shape_cost.ShapeCost(model, data, "dead zone", "pwm", True)
+    alone = shape_cost.ShapeCost(model, data, "dead zone", "pwm", True)
+    got = batch.many(widths)
+    assert batch._fast is not None
+    assert got == [alone(w) for w in widths]
+    assert math.isinf(got[-1])  # a dead zone wider than the input: rank deficient, as the refit says
+
+
+def test_lags_gathered_by_the_core_equal_numpys_and_a_missing_lag_is_flagged():
+    rng = np.random.default_rng(5)
+    n = 600
+    q = np.linalg.qr(rng.standard_normal((n, 3)))[0]
+    y = rng.standard_normal(n)
+    y -= q @ (q.T @ y)
+    series = rng.standard_normal((3, n + 2))
+    series[2, 10] = np.nan
+    index = np.column_stack([np.arange(n) + 2, np.arange(n) + 1]).astype(np.int64)
+    projector = Projector(q, y)
+    got = projector.shaped_rss(series, index)
+    assert got[:2] == [projector.rss(s[index]) for s in series[:2]]
+    assert got[2] is None

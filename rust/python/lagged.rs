@@ -2,8 +2,8 @@
 //! ([`crate::linalg::lagged_qr`]), lagged cross-products and the prewhitening filter of rows.
 
 use numpy::{
-    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyReadwriteArray2,
-    PyUntypedArrayMethods,
+    PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
+    PyReadwriteArray2, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
@@ -73,6 +73,52 @@ pub(super) fn projected_r<'py>(
     let m = zs.columns + 1;
     let r = PyArray1::from_vec(py, out.r).reshape([m, m])?; // column-major read row-major: Rᵀ
     Ok((r.transpose()?.cast_into::<PyArray2<f64>>()?, PyArray1::from_vec(py, out.squares)))
+}
+
+/// R of each value, the lags' sums of squares and whether the lags are finite, as numpy arrays.
+type ShapedProjected<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<bool>>);
+
+/// `(R, squares, finite)`: for each row v of `series` (values × samples, C-contiguous), R[v]
+/// ((k + 1) × (k + 1)) and Σ z² per column as [`projected_r`] gives them for the lags
+/// Z[t, c] = series[v, index[t, c]] (`index`: rows × k, C-contiguous), and whether every Z[t, c] is
+/// finite (R[v] is zero where not); see [`crate::scoring::shape_scan`]. Short calls run on the
+/// calling thread, long ones on every core (the same R for any number); the GIL is released.
+#[pyfunction]
+pub(super) fn shaped_projected_r<'py>(
+    py: Python<'py>,
+    q: PyReadonlyArray2<'py, f64>,
+    y: PyReadonlyArray1<'py, f64>,
+    series: PyReadonlyArray2<'py, f64>,
+    index: PyReadonlyArray2<'py, i64>,
+) -> PyResult<ShapedProjected<'py>> {
+    let qs = source(&q)?;
+    let (n_values, len, k) = (series.shape()[0], series.shape()[1], index.shape()[1]);
+    let (y, values, index) = (y.as_slice()?, series.as_slice()?, index.as_slice()?);
+    let parallel = y.len() * (qs.columns + k + 1) > SHORT_CALL;
+    let scan = |cancel: &std::sync::atomic::AtomicBool| {
+        crate::scoring::shape_scan::shaped_projected_r(&qs, y, values, len, index, k, parallel, cancel)
+    };
+    let out = if parallel { run(py, 0, scan)? } else { run_short(py, scan)? };
+    let m = k + 1;
+    let (mut r, mut squares) = (Vec::with_capacity(n_values * m * m), Vec::with_capacity(n_values * k));
+    for f in &out {
+        match f {
+            Some(f) => {
+                r.extend((0..m * m).map(|e| f.r[(e % m) * m + e / m])); // column-major to row-major
+                squares.extend(&f.squares);
+            }
+            None => {
+                r.extend(std::iter::repeat_n(0.0, m * m));
+                squares.extend(std::iter::repeat_n(0.0, k));
+            }
+        }
+    }
+    let finite: Vec<bool> = out.iter().map(Option::is_some).collect();
+    Ok((
+        PyArray1::from_vec(py, r).reshape([n_values, m, m])?,
+        PyArray1::from_vec(py, squares).reshape([n_values, k])?,
+        PyArray1::from_vec(py, finite),
+    ))
 }
 
 /// The strided view of a numpy array as a [`Source`] (its strides in elements, not bytes).

@@ -36,7 +36,9 @@ mod core_module {
     #[pymodule_export]
     use super::iv::iv_sweep;
     #[pymodule_export]
-    use super::lagged::{ar_filter_rows, lagged_products, lagged_r, lfilter, loss_difference, projected_r};
+    use super::lagged::{
+        ar_filter_rows, lagged_products, lagged_r, lfilter, loss_difference, projected_r, shaped_projected_r,
+    };
     #[pymodule_export]
     use super::pem::{pem_fit, pem_gradient, pem_max_lag, pem_predict, PemOutput};
     #[pymodule_export]

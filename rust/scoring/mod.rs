@@ -7,4 +7,5 @@ pub mod column_products;
 pub mod fit_residual;
 pub mod group_sums;
 pub mod loss_difference;
+pub mod shape_scan;
 pub mod threshold_scan;

@@ -133,3 +133,26 @@ class Projector:
         """
         r, dependent = self.r(z)
         return math.inf if any(dependent) else float(r[-1, -1] ** 2)
+
+    def shaped_rss(self, series: np.ndarray, index: np.ndarray) -> list[float | None]:
+        """:meth:`rss` for each row of ``series`` with ``z[t, c] = series[v, index[t, c]]`` (the same
+        numbers), the lags gathered by the core, one call for all rows; None where a gathered lag is
+        not finite.
+
+        Parameters
+        ----------
+        series : ndarray of shape (n_values, n_samples)
+        index : ndarray of int64, shape (n, k)
+
+        Returns
+        -------
+        list of float or None
+        """
+        y = np.ascontiguousarray(self.y_perp)
+        r, squares, finite = _core.shaped_projected_r(self.basis, y, np.ascontiguousarray(series), index)
+        scale = RANK_FACTOR * index.shape[0]  # the core's rule, as :meth:`r` reads it
+        out: list[float | None] = []
+        for rv, sv, ok in zip(r, squares.tolist(), finite.tolist()):
+            dependent = any(not abs(rv[c, c]) > scale * math.sqrt(s) for c, s in enumerate(sv))
+            out.append(None if not ok else math.inf if dependent else float(rv[-1, -1] ** 2))
+        return out

@@ -24,7 +24,7 @@ from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
 from ..models.iv import IvModel
-from ..models.wiener import SensorShape, WienerModel, fit_wiener, free_run_rms, noise_floor
+from ..models.wiener import SensorScan, SensorShape, WienerModel, fit_wiener, noise_floor
 from .result import Suspect
 from .scan_sample import ScanSample, scan_sample
 from .shapes import validation_p
@@ -55,44 +55,38 @@ def _sensor_grid(y: np.ndarray, floor: float) -> list[SensorShape]:
     return out
 
 
-def _fitted(model: ArxModel, sample: ScanSample, sensor: SensorShape, floor: float) -> tuple[WienerModel | None, float]:
-    """The Wiener model with ``sensor`` fitted on the sample and its free-run error there, each
-    block's warm-up left out (``floor``: the output's noise floor, found once for the scan)."""
-    data = sample.data
-    try:
-        w = fit_wiener(model, data, sensor, floor)
-    except ArxidError:
-        return None, math.inf
-    counts = sample.settled(w.linear.a)
-    if counts is None:
-        return w, free_run_rms(w, data)
-    try:
-        pred = w.predict(data, None)
-    except ArxidError:
-        return w, math.inf
-    return w, metrics.prediction_rms(data.y, np.where(counts, pred, np.nan))
+def _fitted(scan: SensorScan, sample: ScanSample, sensor: SensorShape) -> tuple[bool, float]:
+    """Whether the Wiener model with ``sensor`` can be fitted on the sample, and its free-run error
+    there, each block's warm-up left out (``scan``: the sample's :class:`SensorScan`)."""
+    run = scan.free_run(sensor)
+    if run is None:
+        return False, math.inf
+    a, pred = run
+    if pred is None:
+        return True, math.inf
+    counts = sample.settled(a)
+    return True, metrics.prediction_rms(sample.data.y, pred if counts is None else np.where(counts, pred, np.nan))
 
 
-def _polished(
-    model: ArxModel, sample: ScanSample, w: WienerModel, rms: float, floor: float
-) -> tuple[float, WienerModel]:
+def _polished(scan: SensorScan, sample: ScanSample, sensor: SensorShape, rms: float) -> tuple[float, SensorShape]:
     """A local search from the grid's best parameters (Nelder–Mead; each point a fit and a free run)."""
-    kind, start = w.sensor.kind, np.array(w.sensor.params)
+    kind, start = sensor.kind, np.array(sensor.params)
     scale = np.maximum(np.abs(start), 1e-3) * 0.05
     simplex = [start] + [start + np.eye(start.size)[i] * scale[i] for i in range(start.size)]
 
     def cost(params: np.ndarray) -> float:
         try:
-            sensor = SensorShape(kind, tuple(sorted(float(v) for v in params)))
+            tried = SensorShape(kind, tuple(sorted(float(v) for v in params)))
         except ArxidError:  # the search stepped out of the shape's range
             return math.inf
-        return _fitted(model, sample, sensor, floor)[1]
+        return _fitted(scan, sample, tried)[1]
 
     found, fun = simplex_minimum(cost, np.array(simplex), maxfev=40)
     if not fun < rms:
-        return rms, w
-    better, after = _fitted(model, sample, SensorShape(kind, tuple(sorted(float(v) for v in found))), floor)
-    return (after, better) if better is not None else (rms, w)
+        return rms, sensor
+    better = SensorShape(kind, tuple(sorted(float(v) for v in found)))
+    fitted, after = _fitted(scan, sample, better)
+    return (after, better) if fitted else (rms, sensor)
 
 
 def sensor_suspects(
@@ -121,15 +115,17 @@ def sensor_suspects(
     floor = noise_floor(data.y)
     grid = _sensor_grid(np.asarray(data.y, dtype=float), floor)  # the levels of the whole record
     sample = scan_sample(data)
-    best: dict[str, tuple[float, WienerModel]] = {}
+    scan = SensorScan(model, sample.data, floor)
+    best: dict[str, tuple[float, SensorShape]] = {}
     for sensor in grid:
-        w, rms = _fitted(model, sample, sensor, floor)
-        if w is not None and rms < best.get(sensor.kind, (math.inf, None))[0]:
-            best[sensor.kind] = (rms, w)
-    best = {kind: _polished(model, sample, w, rms, floor) for kind, (rms, w) in best.items()}
+        fitted, rms = _fitted(scan, sample, sensor)
+        if fitted and rms < best.get(sensor.kind, (math.inf, None))[0]:
+            best[sensor.kind] = (rms, sensor)
+    best = {kind: _polished(scan, sample, sensor, rms) for kind, (rms, sensor) in best.items()}
+    found = [scan.wiener(sensor) for _, sensor in best.values()]  # each fitted as the scan fitted it
     base_err = validation.y - prediction(model, validation, horizon, initial)[0]
     out = []
-    for w in _on_every_sample([w for _, w in best.values()], model, data, sample.data, floor):
+    for w in _on_every_sample(found, model, data, sample.data, floor):
         pred = w.predict(validation, horizon)
         after = float(np.sqrt(np.nanmean((validation.y - pred) ** 2))) if np.isfinite(pred).any() else math.inf
         p = validation_p(base_err, validation.y - pred)

@@ -6,7 +6,8 @@ and only the input's own lag columns change between values. So the other columns
 the other inputs, the effects, the offset) are reduced once to an orthonormal basis Q, and a value
 costs the projection of the shaped lags, Z − Q(QᵀZ), and the R factor of them beside the projected
 output (QR of a few columns; its last diagonal entry is the residual's norm): the refit's loss to
-rounding, without a refit (a few hundred of those were most of a short diagnosis).
+rounding, without a refit (a few hundred of those were most of a short diagnosis). The core gathers
+the lags from the shaped series, and a scan's grid of values is one call (:meth:`ShapeCost.many`).
 
 A value the refit would refuse is refused alike: a shaped lag that depends on the other columns
 (a dead zone wider than the input, a saturation that leaves a constant) is rank deficient by the
@@ -18,6 +19,7 @@ other columns are themselves dependent), every value is refitted.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -26,9 +28,10 @@ from .._base.orthonormal import Projector, orthonormal_basis, projected_r
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
+from ..models.arx_solver import checked_layout, solve
 from ..models.effects import EffectLayout, compile_effects, format_threshold
 from ..models.input_shapes import InputShape, parse_shape
-from ..models.regressors import regressor_columns, regressor_matrix
+from ..models.regressors import regressor_columns, regressor_matrix, regressor_names
 from .candidates import candidate_input_names
 
 __all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_r", "projected_rss"]
@@ -75,15 +78,25 @@ class ShapeCost:
             return exact
         return self.refit(shape)
 
+    def many(self, values: Sequence[tuple[float, ...]]) -> list[float]:
+        """``[cost(v) for v in values]``, the values after the first projected in one call of the core."""
+        values = [tuple(float(v) for v in params) for params in values]
+        head = [self(values[0])] if values and not self._checked else []
+        if self._fast is None:
+            return head + [self(v) for v in values[len(head) :]]
+        return head + self._fast.rss_many(values[len(head) :])
+
     def effects(self, shape: InputShape) -> list[str]:
         return [*self.model.effects, shape.effect] + (["const"] if self.const else [])
 
     def refit(self, shape: InputShape) -> float:
         """The loss of the refit itself."""
-        m = self.model
-        try:
+        m, data = self.model, self.data
+        try:  # ArxModel.fit's checks and solve, without the fitted model's state (only its loss is read)
             fitted = ArxModel(na=m.na_, nb=m.nb_, nk=m.nk_, effects=self.effects(shape))
-            return float(fitted.fit(self.data, first_lag=m.first_lag_).rss_)
+            (na, _, _), layout = checked_layout(fitted, data, m.first_lag_, 0)
+            names = regressor_names(data.output_name, na, layout)
+            return float(solve(data, na, layout, names, m.first_lag_, 0, None).rss)
         except ArxidError:
             return math.inf
 
@@ -93,7 +106,8 @@ class _Projection:
     shaped lags are read from the shaped series at fixed sample indices."""
 
     def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray):
-        self.cost, self.index, self.projector = cost, index, Projector(q, y_perp)
+        self.cost, self.projector = cost, Projector(q, y_perp)
+        self.index = np.ascontiguousarray(index, dtype=np.int64)
         data = cost.data
         self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
         self.signal = data.signal(cost.signal)
@@ -117,17 +131,29 @@ class _Projection:
         return cls(cost, index, basis, y_perp)
 
     def rss(self, values: tuple[float, ...]) -> float:
+        return self.rss_many([values])[0]
+
+    def rss_many(self, values: Sequence[tuple[float, ...]]) -> list[float]:
+        """The loss at each of ``values``; the shaped series of the new ones projected in one call of
+        the core (each value's numbers as alone)."""
         # The refit reads the effect's text, four digits a value: values with the same digits are
         # the same shape (a local search's late steps), and a new text is made and read once.
-        digits = tuple(format_threshold(v) for v in values)
-        if digits not in self._known:
-            z = self._lags(InputShape(self.cost.kind, self.cost.signal, values))
-            # inf: a shaped lag the other columns span
-            self._known[digits] = z if isinstance(z, float) else self.projector.rss(z)
-        return self._known[digits]
+        digits = [tuple(format_threshold(v) for v in params) for params in values]
+        new: dict[tuple[str, ...], InputShape] = {}
+        for d, params in zip(digits, values):
+            if d not in self._known and d not in new:
+                new[d] = InputShape(self.cost.kind, self.cost.signal, params)
+        read = {d: self._series(shape) for d, shape in new.items()}
+        self._known.update((d, s) for d, s in read.items() if isinstance(s, float))
+        shaped = {d: s for d, s in read.items() if not isinstance(s, float)}
+        if shaped:
+            losses = self.projector.shaped_rss(np.stack(list(shaped.values())), self.index)
+            for d, loss in zip(shaped, losses):  # None: a lag the shape leaves undefined, refitted
+                self._known[d] = self.cost.refit(new[d]) if loss is None else loss
+        return [self._known[d] for d in digits]
 
-    def _lags(self, shape: InputShape) -> np.ndarray | float:
-        """The shaped lag columns, or the loss itself when they cannot be projected."""
+    def _series(self, shape: InputShape) -> np.ndarray | float:
+        """The shaped input's samples, or the loss itself when it is refused (+inf)."""
         text = shape.text
         try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
             read = parse_shape(text, self.names, f"through({text})")
@@ -137,10 +163,7 @@ class _Projection:
             series = read.evaluate(self.signal)
         if np.isinf(series).any():  # beyond the float range: a data error to the refit
             return math.inf
-        z = series[self.index]
-        if not np.isfinite(z).all():
-            return self.cost.refit(shape)
-        return z
+        return series
 
 
 def input_lags(

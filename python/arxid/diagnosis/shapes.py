@@ -161,7 +161,7 @@ def _threshold_shapes(name: str, lo: float, hi: float) -> list[tuple[InputShape,
 def _scan(model: ArxModel, data: IOData, sample: IOData, shape: InputShape, const: bool) -> InputShape:
     """The shape's parameters with the lowest one-step error on ``sample`` (:func:`scan_sample` of
     ``data``): a grid across the whole record's input (a saturation's two levels in turn), then a
-    local search from its best point (each value tried is a refit)."""
+    local search from its best point (each value tried costs a refit's loss: :class:`ShapeCost`)."""
     x = np.asarray(data.u[:, candidate_input_names(data).index(shape.signal)], dtype=float)
     x = x[np.isfinite(x)]
     kind, name = shape.kind, shape.signal
@@ -173,7 +173,7 @@ def _scan(model: ArxModel, data: IOData, sample: IOData, shape: InputShape, cons
 
     def best(values: np.ndarray, make) -> InputShape:
         shapes = [make(float(v)) for v in values]
-        return shapes[int(np.argmin([cost(s.params) for s in shapes]))]
+        return shapes[int(np.argmin(loss.many([s.params for s in shapes])))]
 
     if kind == "saturation":
         lo, hi = float(np.min(x)), float(np.max(x))

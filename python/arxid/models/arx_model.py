@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING, Any, Literal, overload
 import numpy as np
 
 from .._base import _core, metrics
-from .._base.limits import check_memory, check_order, check_work
+from .._base.limits import check_order, check_work
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
-from .arx_solver import check_inputs_vary, check_rows, check_size, fit_memory, per_input, solve, solve_factor
+from .arx_solver import check_rows, check_size, checked_layout, per_input, solve, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
 from .envelope import EnvelopeFactor
 from .fitted import FittedModel
@@ -123,18 +123,8 @@ class ArxModel(FittedModel):
             raise DataError(
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
             )
-        m = data.n_inputs
-        na, nb, nk = check_order("na", self.na), per_input("nb", self.nb, m), per_input("nk", self.nk, m)
-        first_lag = check_order("first_lag", first_lag)
-        n_threads = check_order("n_threads", n_threads)
-        layout = compile_effects(self.effects, data, nb, nk)
-        p, usable = check_size(na, layout, data, first_lag)
-        check_memory(
-            fit_memory(usable, p, n_threads) + layout.u.nbytes,
-            f"the fit of {self.structure_name()} ({p} parameters) on {usable:,} regression rows",
-            "lower the orders or use fewer samples",
-        )
-        check_inputs_vary(data, nb)
+        (na, nb, nk), layout = checked_layout(self, data, first_lag, n_threads)
+        first_lag, n_threads = check_order("first_lag", first_lag), check_order("n_threads", n_threads)
         names = regressor_names(data.output_name, na, layout)
         res = solve(data, na, layout, names, first_lag, n_threads, rows_like)
         self._store(data, (na, nb, nk), layout, names, first_lag, res)

@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 
 from .._base import _core
-from .._base.limits import check_order
+from .._base.limits import check_memory, check_order
 from ..data.iodata import IOData
 from ..exceptions import DataError, IdentifiabilityError, OrderError
-from .effects import EffectLayout
+from .effects import EffectLayout, compile_effects
 from .excitation import check_excitation
 from .regressors import dependent_partners, max_lag, regressor_matrix, row_bound
 
@@ -24,6 +24,7 @@ __all__ = [
     "check_inputs_vary",
     "check_rows",
     "check_size",
+    "checked_layout",
     "collinear",
     "fit_memory",
     "per_input",
@@ -42,6 +43,27 @@ def per_input(name: str, value: Any, m: int) -> tuple[int, ...]:
             )
         return vals
     return (check_order(name, value),) * m
+
+
+def checked_layout(
+    model: Any, data: IOData, first_lag: int, n_threads: int
+) -> tuple[tuple[int, tuple[int, ...], tuple[int, ...]], EffectLayout]:
+    """The orders per input and the effect layout of ``model`` (an unfitted ARX model's ``na``,
+    ``nb``, ``nk``, ``effects``) on ``data``, after the checks of its fit: orders, rows, memory and
+    inputs that vary. They read the inputs and the record's size only, so fits of one record that
+    differ in the output alone (a sensor's g⁻¹(y)) pass or fail them alike."""
+    m = data.n_inputs
+    na, nb, nk = check_order("na", model.na), per_input("nb", model.nb, m), per_input("nk", model.nk, m)
+    first_lag, n_threads = check_order("first_lag", first_lag), check_order("n_threads", n_threads)
+    layout = compile_effects(model.effects, data, nb, nk)
+    p, usable = check_size(na, layout, data, first_lag)
+    check_memory(
+        fit_memory(usable, p, n_threads) + layout.u.nbytes,
+        f"the fit of {model.structure_name()} ({p} parameters) on {usable:,} regression rows",
+        "lower the orders or use fewer samples",
+    )
+    check_inputs_vary(data, nb)
+    return (na, nb, nk), layout
 
 
 def check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> tuple[int, int]:

@@ -421,7 +421,7 @@ def compile_effects(
             u = _stacked(plan.cols, data.n_samples)
             if len(plan.cols) > 1 or plan.replaced:  # the inputs themselves need no keeping
                 u = _keep(data, texts, u)
-    if u is None:
+    if u is None or not samples:
         u = np.empty((0, len(lags[0])))
     return EffectLayout(u, *lags)
 
@@ -433,8 +433,11 @@ _LAYOUTS: dict[tuple, tuple] = {}
 #: The input matrices of the last effect sets compiled on each data set (by effect tuple).
 _COMPILED: weakref.WeakKeyDictionary[IOData, dict[tuple[str, ...], np.ndarray]] = weakref.WeakKeyDictionary()
 
-#: How many input matrices are kept per data set: the last (a model is simulated again and again).
-_KEEP_PER_DATA = 1
+#: The input matrices kept per data set: the last always (a model is simulated again and again),
+#: and earlier ones, up to this many, while they all fit in :data:`_KEEP_BYTES` (a diagnosis of a
+#: short record predicts with a dozen effect sets in turn; a long record's each fill it alone).
+_KEEP_PER_DATA = 32
+_KEEP_BYTES = 16 * 2**20
 
 
 #: Stages of an analysis may compile on two threads (:mod:`arxid._base.background`).
@@ -447,7 +450,7 @@ def _keep(data: IOData, texts: tuple[str, ...], u: np.ndarray) -> np.ndarray:
         kept = _COMPILED.setdefault(data, {})
         kept.pop(texts, None)
         kept[texts] = u
-        while len(kept) > _KEEP_PER_DATA:
+        while len(kept) > 1 and (len(kept) > _KEEP_PER_DATA or sum(a.nbytes for a in kept.values()) > _KEEP_BYTES):
             kept.pop(next(iter(kept)))
     return u
 

@@ -24,13 +24,15 @@ from typing import Any
 
 import numpy as np
 
-from .._base import metrics
+from .._base import _core, metrics
 from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
 from .arx_model import ArxModel
+from .arx_solver import checked_layout
+from .effects import EffectLayout
 
-__all__ = ["SensorShape", "WienerModel", "fit_wiener", "added_effects", "linear_part", "SENSOR_KINDS"]
+__all__ = ["SensorShape", "SensorScan", "WienerModel", "fit_wiener", "added_effects", "linear_part", "SENSOR_KINDS"]
 
 #: The output nonlinearities :func:`fit_wiener` knows.
 SENSOR_KINDS = ("power", "saturation", "dead zone")
@@ -253,13 +255,57 @@ def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape, floor: float 
     return WienerModel(linear, sensor, data)
 
 
-def free_run_rms(model: Any, data: IOData) -> float:
-    """The free-run RMS of ``model`` on ``data`` (inf when it diverges or cannot be fitted)."""
-    try:
-        pred = model.predict(data, None)
-    except ArxidError:
-        return math.inf
-    return metrics.prediction_rms(data.y, pred)
+class SensorScan:
+    """The linear parts of many Wiener models of one record (a scan of g's parameter): the fit's
+    checks and the layout once (they read the inputs and the record's size, not the output), then
+    per sensor one call of the core for the fit on g⁻¹(y) and one for the free run, the calls of
+    :func:`fit_wiener` and :meth:`WienerModel.predict` with the same arguments (the same numbers),
+    without a new IOData and a fitted model per sensor.
+
+    Parameters
+    ----------
+    model : ArxModel
+        Gives the orders, delays and effects of the linear part.
+    data : IOData
+    floor : float
+        ``noise_floor(data.y)``.
+    """
+
+    def __init__(self, model: ArxModel, data: IOData, floor: float):
+        self.model, self.data, self.floor = model, data, floor
+        self.na = model.na_
+        self.layout: EffectLayout | None = None
+        try:
+            linear = ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=model.effects)
+            self.layout = checked_layout(linear, data, 0, 0)[1]
+        except ArxidError:  # refused whatever the output: every sensor's fit fails
+            pass
+
+    def free_run(self, sensor: SensorShape) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """The linear part's A(z⁻¹) and g of its free run on the data: None where the fit fails, a
+        free run of None where the prediction fails (NaN where it has no value)."""
+        data, layout = self.data, self.layout
+        z = sensor.inverse(data.y, self.floor)
+        if layout is None or np.isfinite(z).sum() < 0.2 * data.n_samples:
+            return None
+        starts, terms = list(data.experiment_starts), list(layout.output_terms)
+        nb, nk = list(layout.nb), list(layout.nk)
+        try:
+            fit = _core.fit(np.require(z, requirements=["C", "A"]), layout.u, starts, self.na, nb, nk, terms)
+        except ArxidError:
+            return None
+        theta = np.require(np.asarray(fit.theta), dtype=float, requirements=["C", "A"])
+        a = np.concatenate([[1.0], theta[: self.na]])
+        try:
+            y = np.require(data.y, requirements=["C", "A"])
+            x = np.asarray(_core.predict(y, layout.u, starts, self.na, nb, nk, terms, theta, horizon=None))
+        except ArxidError:
+            return a, None
+        return a, sensor(x)
+
+    def wiener(self, sensor: SensorShape) -> WienerModel:
+        """The Wiener model with ``sensor`` (its fit: :func:`fit_wiener`)."""
+        return fit_wiener(self.model, self.data, sensor, self.floor)
 
 
 def added_effects(model: Any) -> tuple[str, ...]:
