@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .._base import _core, metrics
+from .._base import _core
 from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
