@@ -28,10 +28,10 @@ from .._base.orthonormal import Projector, orthonormal_basis, projected_r
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
-from ..models.arx_solver import checked_layout, solve
+from ..models.arx_solver import checked_solution
 from ..models.effects import EffectLayout, compile_effects, format_threshold
 from ..models.input_shapes import InputShape, parse_shape
-from ..models.regressors import regressor_columns, regressor_matrix, regressor_names
+from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
 __all__ = ["ShapeCost", "input_lags", "orthonormal_basis", "projected_r", "projected_rss"]
@@ -94,9 +94,7 @@ class ShapeCost:
         m, data = self.model, self.data
         try:  # ArxModel.fit's checks and solve, without the fitted model's state (only its loss is read)
             fitted = ArxModel(na=m.na_, nb=m.nb_, nk=m.nk_, effects=self.effects(shape))
-            (na, _, _), layout = checked_layout(fitted, data, m.first_lag_, 0)
-            names = regressor_names(data.output_name, na, layout)
-            return float(solve(data, na, layout, names, m.first_lag_, 0, None).rss)
+            return float(checked_solution(fitted, data, m.first_lag_, 0)[3].rss)
         except ArxidError:
             return math.inf
 

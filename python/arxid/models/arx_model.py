@@ -15,7 +15,7 @@ from .._base import _core, metrics
 from .._base.limits import check_order, check_work
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, NotFittedError, OrderError
-from .arx_solver import check_rows, check_size, checked_layout, per_input, solve, solve_factor
+from .arx_solver import check_rows, check_size, checked_solution, per_input, solve_factor
 from .effects import EffectLayout, compile_effects, effect_names
 from .envelope import EnvelopeFactor
 from .fitted import FittedModel
@@ -123,11 +123,8 @@ class ArxModel(FittedModel):
             raise DataError(
                 f"fit needs an arxid.IOData, got {type(data).__name__}; build one with arxid.IOData(y, u, ts)"
             )
-        (na, nb, nk), layout = checked_layout(self, data, first_lag, n_threads)
-        first_lag, n_threads = check_order("first_lag", first_lag), check_order("n_threads", n_threads)
-        names = regressor_names(data.output_name, na, layout)
-        res = solve(data, na, layout, names, first_lag, n_threads, rows_like)
-        self._store(data, (na, nb, nk), layout, names, first_lag, res)
+        orders, layout, names, res = checked_solution(self, data, first_lag, n_threads, rows_like)
+        self._store(data, orders, layout, names, check_order("first_lag", first_lag), res)
         return self
 
     def _fit_cluster(self, logs: FactorSource, first_lag: int, rows_like: Any) -> ArxModel:

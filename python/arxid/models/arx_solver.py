@@ -18,13 +18,14 @@ from ..data.iodata import IOData
 from ..exceptions import DataError, IdentifiabilityError, OrderError
 from .effects import EffectLayout, compile_effects
 from .excitation import check_excitation
-from .regressors import dependent_partners, max_lag, regressor_matrix, row_bound
+from .regressors import dependent_partners, max_lag, regressor_matrix, regressor_names, row_bound
 
 __all__ = [
     "check_inputs_vary",
     "check_rows",
     "check_size",
     "checked_layout",
+    "checked_solution",
     "collinear",
     "fit_memory",
     "per_input",
@@ -64,6 +65,18 @@ def checked_layout(
     )
     check_inputs_vary(data, nb)
     return (na, nb, nk), layout
+
+
+def checked_solution(
+    model: Any, data: IOData, first_lag: int, n_threads: int, rows_like: tuple | None = None
+) -> tuple[tuple[int, tuple[int, ...], tuple[int, ...]], EffectLayout, list[str], Any]:
+    """What the fit of ``model`` on ``data`` finds, without storing it: the orders per input, the
+    effect layout, the regressor names and the core's solution (its ``rss``, ``theta``...), after
+    the checks of :func:`checked_layout` (a scan reads the loss of many refits this way)."""
+    orders, layout = checked_layout(model, data, first_lag, n_threads)
+    names = regressor_names(data.output_name, orders[0], layout)
+    first_lag, n_threads = check_order("first_lag", first_lag), check_order("n_threads", n_threads)
+    return orders, layout, names, solve(data, orders[0], layout, names, first_lag, n_threads, rows_like)
 
 
 def check_size(na: int, layout: EffectLayout, data: IOData, first_lag: int) -> tuple[int, int]:
