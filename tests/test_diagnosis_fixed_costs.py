@@ -28,7 +28,7 @@ from arxid.diagnosis import shape_cost
 from arxid.exceptions import ArxidError, IdentifiabilityError
 from arxid.models import arx_solver, wiener
 from arxid.models.excitation import check_excitation
-from arxid.models.input_shapes import InputShape
+from arxid.models.input_shapes import InputShape, parse_shape
 
 
 def _thrust(seed: int) -> arxid.IOData:
@@ -58,14 +58,22 @@ def _ladder_answer(data: arxid.IOData, orders: tuple[int, int, int]) -> tuple:
 
 
 def _every_value_anew(self, values):
-    """A scan's values one at a time, without the kept digits: the shape made and read, its lags
-    gathered in numpy and projected (the core's general projection) each time."""
+    """A scan's values one at a time, without the kept digits: the shape made, written as the
+    effect's text and read back by the grammar, evaluated, its lags gathered in numpy and projected
+    (the core's general projection) each time."""
     out = []
+    names = set(self.cost.data.signal_names) | {"y", "u1"}
     for v in values:
         shape = InputShape(self.cost.kind, self.cost.signal, v)
-        series = self._series(shape)
-        if isinstance(series, float):
-            out.append(series)
+        try:
+            read = parse_shape(shape.text, names, shape.effect)
+        except ArxidError:
+            out.append(math.inf)
+            continue
+        with np.errstate(over="ignore", invalid="ignore"):
+            series = read.evaluate(self.signal)
+        if np.isinf(series).any():
+            out.append(math.inf)
             continue
         z = series[self.index]
         out.append(self.projector.rss(z) if np.isfinite(z).all() else self.cost.refit(shape))

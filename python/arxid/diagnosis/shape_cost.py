@@ -26,11 +26,11 @@ import numpy as np
 
 from .._base.orthonormal import Projector, orthonormal_basis, projected_r
 from ..data.iodata import IOData
-from ..exceptions import ArxidError
+from ..exceptions import ArxidError, OrderError
 from ..models.arx_model import ArxModel
 from ..models.arx_solver import checked_solution
 from ..models.effects import EffectLayout, compile_effects, format_threshold
-from ..models.input_shapes import InputShape, parse_shape
+from ..models.input_shapes import InputShape, check_params, shape_values
 from ..models.regressors import regressor_columns, regressor_matrix
 from .candidates import candidate_input_names
 
@@ -106,9 +106,12 @@ class _Projection:
     def __init__(self, cost: ShapeCost, index: np.ndarray, q: np.ndarray, y_perp: np.ndarray):
         self.cost, self.projector = cost, Projector(q, y_perp)
         self.index = np.ascontiguousarray(index, dtype=np.int64)
-        data = cost.data
-        self.names = set(data.signal_names) | {"y"} | {f"u{i + 1}" for i in range(data.n_inputs)}
-        self.signal = data.signal(cost.signal)
+        x = np.asarray(cost.data.signal(cost.signal), dtype=float)
+        self.signal = x
+        # a power of a negative input raises, as the refit's evaluation raises (one check, not one a value)
+        self.checked = cost.kind != "power" or not np.nanmin(x, initial=0.0) < 0
+        odd = cost.kind in ("signed power", "dead zone")  # |x| and sign(x), the same at every value
+        self.magnitude, self.sign = (np.abs(x), np.sign(x)) if odd else (None, None)
         self._known: dict[tuple[str, ...], float] = {}
 
     @classmethod
@@ -135,33 +138,49 @@ class _Projection:
         """The loss at each of ``values``; the shaped series of the new ones projected in one call of
         the core (each value's numbers as alone)."""
         # The refit reads the effect's text, four digits a value: values with the same digits are
-        # the same shape (a local search's late steps), and a new text is made and read once.
-        digits = [tuple(format_threshold(v) for v in params) for params in values]
-        new: dict[tuple[str, ...], InputShape] = {}
-        for d, params in zip(digits, values):
-            if d not in self._known and d not in new:
-                new[d] = InputShape(self.cost.kind, self.cost.signal, params)
-        read = {d: self._series(shape) for d, shape in new.items()}
-        self._known.update((d, s) for d, s in read.items() if isinstance(s, float))
-        shaped = {d: s for d, s in read.items() if not isinstance(s, float)}
-        if shaped:
-            losses = self.projector.shaped_rss(np.stack(list(shaped.values())), self.index)
-            for d, loss in zip(shaped, losses):  # None: a lag the shape leaves undefined, refitted
-                self._known[d] = self.cost.refit(new[d]) if loss is None else loss
+        # the same shape (a local search's late steps), and a new text is read once.
+        digits = [tuple(map(format_threshold, params)) for params in values]
+        new = {d: params for d, params in zip(digits, values) if d not in self._known}
+        if new:
+            self._shaped(new)
         return [self._known[d] for d in digits]
 
-    def _series(self, shape: InputShape) -> np.ndarray | float:
-        """The shaped input's samples, or the loss itself when it is refused (+inf)."""
-        text = shape.text
-        try:  # the values the refit reads (the effect's digits), refused as the refit refuses them
-            read = parse_shape(text, self.names, f"through({text})")
-        except ArxidError:
-            return math.inf
+    def _shaped(self, new: dict[tuple[str, ...], tuple[float, ...]]) -> None:
+        """The losses of new values (by their digits), the shaped series written side by side."""
+        series = np.empty((len(new), self.signal.size))
+        shaped = []
         with np.errstate(over="ignore", invalid="ignore"):
-            series = read.evaluate(self.signal)
-        if np.isinf(series).any():  # beyond the float range: a data error to the refit
-            return math.inf
-        return series
+            for d in new:
+                read = self._read(d)
+                if read is None:
+                    self._known[d] = math.inf
+                    continue
+                shaped.append(d)
+                shape_values(self.cost.kind, read, self.signal, series[len(shaped) - 1], self.magnitude, self.sign)
+        series = series[: len(shaped)]
+        beyond = np.isinf(series).any(axis=1)  # beyond the float range: a data error to the refit
+        if beyond.any():
+            self._known.update((d, math.inf) for d, out in zip(shaped, beyond.tolist()) if out)
+            shaped, series = [d for d, out in zip(shaped, beyond.tolist()) if not out], series[~beyond]
+        if not shaped:
+            return
+        losses = self.projector.shaped_rss(series, self.index)
+        for d, loss in zip(shaped, losses):  # None: a lag the shape leaves undefined, refitted
+            self._known[d] = self.cost.refit(InputShape(self.cost.kind, self.cost.signal, new[d])) if loss is None else loss
+
+    def _read(self, digits: tuple[str, ...]) -> tuple[float, ...] | None:
+        """The parameters the refit reads from the effect's text (its digits), None where it refuses
+        them (a number the grammar cannot write, a parameter out of range)."""
+        read = tuple(float(d) for d in digits)
+        if not all(math.isfinite(v) for v in read):  # "inf", "nan": not a number of the grammar
+            return None
+        try:
+            check_params(self.cost.kind, read, "")
+        except OrderError:
+            return None
+        if not self.checked:  # raises as the refit's evaluation raises
+            InputShape(self.cost.kind, self.cost.signal, read).evaluate(self.signal)
+        return read
 
 
 def input_lags(

@@ -29,7 +29,7 @@ import numpy as np
 from .._base.records import record
 from ..exceptions import DataError, OrderError
 
-__all__ = ["InputShape", "parse_shape", "SHAPE_KINDS"]
+__all__ = ["InputShape", "parse_shape", "shape_values", "check_params", "SHAPE_KINDS"]
 
 #: The named shape families, in the order the diagnosis lists them.
 SHAPE_KINDS = ("power", "signed power", "saturation", "dead zone", "product")
@@ -111,24 +111,13 @@ class InputShape:
         """
         x = np.asarray(x, dtype=float)
         k, p = self.kind, self.params
-        if k == "power":
-            if np.nanmin(x, initial=0.0) < 0:
-                raise DataError(
-                    f"{self.effect}: {self.signal} goes negative (down to {np.nanmin(x):.4g}), where a power law is "
-                    f"not defined; use the signed power through(spow({self.signal},{_num(p[0])})) or shift the input"
-                )
-            return np.power(x, p[0])
-        if k == "saturation":
-            return np.clip(x, p[0], p[1])
-        if k in ("signed power", "dead zone"):  # in place: one temporary of the record's length, not four
-            out = np.abs(x)
-            if k == "signed power":
-                np.power(out, p[0], out=out)
-            else:
-                np.subtract(out, p[0], out=out)
-                np.maximum(out, 0.0, out=out)
-            out *= np.sign(x)
-            return out
+        if k == "power" and np.nanmin(x, initial=0.0) < 0:
+            raise DataError(
+                f"{self.effect}: {self.signal} goes negative (down to {np.nanmin(x):.4g}), where a power law is "
+                f"not defined; use the signed power through(spow({self.signal},{_num(p[0])})) or shift the input"
+            )
+        if k != "product":
+            return shape_values(k, p, x, np.empty(x.shape))
         if other is None:
             raise OrderError(f"{self.effect} needs the samples of {self.other}")
         return x * np.asarray(other, dtype=float)
@@ -152,6 +141,50 @@ class InputShape:
                 "product": f" (product): the command scaled by {self.other}, as duty × battery voltage",
             }[self.kind]
         )
+
+
+def shape_values(
+    kind: str,
+    params: tuple[float, ...],
+    x: np.ndarray,
+    out: np.ndarray,
+    magnitude: np.ndarray | None = None,
+    sign: np.ndarray | None = None,
+) -> np.ndarray:
+    """f(x) of a family with parameters (not a product), written into ``out``: the numbers of
+    :meth:`InputShape.evaluate`, which checks what this does not (a power of a negative input).
+
+    A scan evaluates one family at many values on the same samples: it passes |x| and sign(x),
+    found once, as ``magnitude`` and ``sign``.
+
+    Parameters
+    ----------
+    kind : str
+        ``"power"``, ``"signed power"``, ``"saturation"`` or ``"dead zone"``.
+    params : tuple of float
+    x : ndarray of float, shape (n,)
+    out : ndarray of float, shape (n,)
+        Written over (in place: one temporary of the record's length, not four).
+    magnitude, sign : ndarray of shape (n,), optional
+        ``np.abs(x)`` and ``np.sign(x)``.
+
+    Returns
+    -------
+    ndarray
+        ``out``.
+    """
+    if kind == "power":
+        return np.power(x, params[0], out=out)
+    if kind == "saturation":
+        return np.clip(x, params[0], params[1], out=out)
+    source = np.abs(x, out=out) if magnitude is None else magnitude
+    if kind == "signed power":
+        np.power(source, params[0], out=out)
+    else:
+        np.subtract(source, params[0], out=out)
+        np.maximum(out, 0.0, out=out)
+    out *= np.sign(x) if sign is None else sign
+    return out
 
 
 def _power_physics(p: float, signed: bool) -> str:
@@ -194,14 +227,16 @@ def parse_shape(inner: str, signals: set[str], effect: str) -> InputShape:
             if n not in signals:
                 raise OrderError(f"effect {effect!r} uses signal {n!r}, which the data do not have")
         params = tuple(float(m[g]) for g in ("p", "lo", "hi", "c") if g in form.groupindex)
-        _check_params(kind, params, effect)
+        check_params(kind, params, effect)
         return InputShape(kind, m["s"], params, m["o"] if kind == "product" else "")
     raise OrderError(
         f"cannot read effect {effect!r}: through( ) takes one of u^p, spow(u,p), clip(u,lo,hi), dz(u,c), u*x"
     )
 
 
-def _check_params(kind: str, params: tuple[float, ...], effect: str) -> None:
+def check_params(kind: str, params: tuple[float, ...], effect: str) -> None:
+    """Raise :class:`~arxid.OrderError` for a parameter out of its family's range (as
+    :func:`parse_shape` reads it)."""
     if kind in ("power", "signed power") and not 0 < params[0] <= 10:
         raise OrderError(f"effect {effect!r}: the exponent must be in (0, 10], got {params[0]}")
     if kind == "saturation" and not params[0] < params[1]:
