@@ -111,14 +111,14 @@ def test_bin_index_is_quantile_bins_by_searchsorted(seed):
 
 
 def test_sorted_quantiles_are_numpys_to_the_bit():
-    from arxid.checks.binning import _sorted_quantiles
+    from arxid._base.order_statistics import sorted_quantiles
 
     rng = np.random.default_rng(7)
     for n in [1, 2, 3, 7, 8, 9, 100, 1001, 40000]:
         for xs in [rng.standard_normal(n) * 1e3, np.round(rng.standard_normal(n), 2), rng.integers(0, 4, n) * 0.1]:
             for n_bins in [2, 7, 8, 13]:
                 q = np.linspace(0, 1, n_bins + 1)
-                assert np.array_equal(_sorted_quantiles(np.sort(xs), q), np.quantile(xs, q))
+                assert np.array_equal(sorted_quantiles(np.sort(xs), q), np.quantile(xs, q))
 
 
 def test_argsort_of_nonnegative_values_sorts_them():

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from .._base import _core, metrics
+from .._base.order_statistics import distinct, sorted_quantiles
 from .._base.probabilities import chi2_sf, f_sf
 from .._base.records import record
 
@@ -139,19 +140,6 @@ class SquaredRanks:
         return self._centred
 
 
-def _sorted_quantiles(ordered: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``np.quantile(x, q)`` (its default, linear method, and its rounding) of the values
-    ``ordered``, sorted: the order statistics are read instead of partitioned for."""
-    n = len(ordered)
-    virtual = (n - 1) * q
-    below = np.floor(virtual)
-    t = virtual - below
-    i = below.astype(np.intp)
-    a, b = ordered[i], ordered[np.minimum(i + 1, n - 1)]
-    d = b - a
-    return np.where(t >= 0.5, b - d * (1 - t), a + d * t)
-
-
 def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Bin edges of ``xs`` (its quantiles; for a signal with at most ``n_bins`` values, the midpoints
     between them) and the bin of each sample; None for a signal with a single value."""
@@ -159,14 +147,14 @@ def _bin_index(xs: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray] | N
     # for a signal with few values, its values; the quantile edges are all distinct for a signal
     # with more than n_bins values.
     ordered = np.sort(xs)
-    edges = _sorted_quantiles(ordered, np.linspace(0, 1, n_bins + 1))
-    values = ordered[np.r_[True, ordered[1:] != ordered[:-1]]] if len(np.unique(edges)) <= n_bins else None
+    edges = sorted_quantiles(ordered, np.linspace(0, 1, n_bins + 1))
+    values = ordered[np.r_[True, ordered[1:] != ordered[:-1]]] if len(distinct(edges)) <= n_bins else None
     if values is not None and len(values) < 2:
         return None
     if values is not None and len(values) <= n_bins:
         mids = (values[1:] + values[:-1]) / 2
         return np.concatenate([[values[0]], mids, [values[-1]]]), np.searchsorted(values, xs)
-    edges = np.unique(edges)
+    edges = distinct(edges)
     if len(edges) > 256:
         return edges, np.clip(np.searchsorted(edges, xs, side="right") - 1, 0, len(edges) - 2)
     # searchsorted(edges, x, "right") − 1 clipped to the bins: the inner edges at or below x

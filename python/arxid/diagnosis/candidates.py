@@ -27,6 +27,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from .._base.order_statistics import distinct, sorted_quantiles
 from .._base.records import record
 from ..data.iodata import IOData
 from ..models.arx_model import ArxModel
@@ -164,7 +165,7 @@ def threshold_grid(x: np.ndarray) -> np.ndarray:
     a = np.sort(np.abs(x[np.isfinite(x)]))  # one sort serves the count of levels and the quantiles
     if a.size == 0 or 1 + np.count_nonzero(a[1:] != a[:-1]) < MIN_THRESHOLD_LEVELS:
         return np.zeros(0)
-    q = np.unique(np.quantile(a, np.linspace(0.05, 0.95, 19)))
+    q = distinct(sorted_quantiles(a, np.linspace(0.05, 0.95, 19)))
     return q[q > 0]
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from .._base import metrics
 from .._base.local_search import simplex_minimum
+from .._base.order_statistics import quantiles
 from ..checks import prediction
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
@@ -44,7 +45,7 @@ def _sensor_grid(y: np.ndarray, floor: float) -> list[SensorShape]:
         out += [SensorShape("power", (float(p),)) for p in np.geomspace(0.33, 3.0, SENSOR_STEPS)]
     lo, hi = float(np.min(y)), float(np.max(y))
     qs = np.linspace(0.0, 0.03, 4)
-    levels = np.quantile(y, np.concatenate([1 - qs, qs]))  # one call: one copy of the record, not eight
+    levels = quantiles(y, np.concatenate([1 - qs, qs]))  # one call: one copy of the record, not eight
     for top, bottom in zip(levels[: len(qs)].tolist(), levels[len(qs) :].tolist()):
         # levels at the plateaus a clipping sensor leaves
         out += [SensorShape("saturation", (bottom, top)), SensorShape("saturation", (lo - (hi - lo), top))]

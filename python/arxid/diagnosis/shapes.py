@@ -43,6 +43,7 @@ import numpy as np
 
 from .._base import _core
 from .._base.local_search import bounded_minimum, simplex_minimum
+from .._base.order_statistics import distinct, median
 from .._base.probabilities import f_sf
 from ..checks import prediction
 from ..data.iodata import IOData
@@ -84,7 +85,7 @@ THRESHOLD_STEPS = 16
 
 def input_levels(x: np.ndarray) -> np.ndarray:
     """The distinct finite values of an input, ascending."""
-    return np.unique(x[np.isfinite(x)])
+    return distinct(x[np.isfinite(x)])
 
 
 def level_count(x: np.ndarray) -> int:
@@ -177,7 +178,7 @@ def _scan(model: ArxModel, data: IOData, sample: IOData, shape: InputShape, cons
 
     if kind == "saturation":
         lo, hi = float(np.min(x)), float(np.max(x))
-        mid, span = float(np.median(x)), hi - lo
+        mid, span = float(median(x)), hi - lo
         uppers = np.append(np.linspace(mid, hi, THRESHOLD_STEPS + 1)[1:], hi + span)
         lowers = np.append(np.linspace(lo, mid, THRESHOLD_STEPS + 1)[:-1], lo - span)
         up = best(uppers, lambda h: InputShape(kind, name, (lo - span, h)))

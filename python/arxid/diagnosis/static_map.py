@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._base import metrics
+from .._base.order_statistics import distinct, quantiles
 from ..data.iodata import IOData
 from ..exceptions import ArxidError
 from ..models.arx_model import ArxModel
@@ -107,7 +108,7 @@ def _knots(x: np.ndarray) -> np.ndarray:
     levels = input_levels(x)
     if levels.size < MIN_SCAN_LEVELS:
         return levels
-    return np.unique(np.quantile(x[np.isfinite(x)], np.linspace(0, 1, MAP_KNOTS)))
+    return distinct(quantiles(x[np.isfinite(x)], np.linspace(0, 1, MAP_KNOTS)))
 
 
 def static_map(model: ArxModel, data: IOData, name: str) -> StaticMap:

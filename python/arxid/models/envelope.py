@@ -73,7 +73,8 @@ class EnvelopeFactor:
         self.layouts = [compile_effects(eff, data, nb, nk, samples=False) for _, nb, nk, eff in self.structures]
         self.given_first_lag = int(first_lag)
         rows = [max(int(first_lag), max_lag(na, lay)) for (na, *_), lay in zip(self.structures, self.layouts)]
-        self.first_lag = Counter(rows).most_common(1)[0][0]
+        # the most common (the first of equals, as Counter.most_common(1), without importing heapq)
+        self.first_lag = max(Counter(rows).items(), key=lambda item: item[1])[0]
         self.inside = [r == self.first_lag for r in rows]
         labels = list(dict.fromkeys(c for lay, ok in zip(self.layouts, self.inside) if ok for c in _labels(lay)))
         _refuse_missing_output(data)  # before any column is formed

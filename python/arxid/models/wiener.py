@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .._base import _core
+from .._base.order_statistics import median
 from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError, OrderError
@@ -222,7 +223,7 @@ def noise_floor(y: np.ndarray) -> float:
     d = np.diff(y[np.isfinite(y)])
     if d.size < 3:
         return 0.0
-    return float(3 * 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2))
+    return float(3 * 1.4826 * median(np.abs(d - median(d))) / math.sqrt(2))
 
 
 def fit_wiener(model: ArxModel, data: IOData, sensor: SensorShape, floor: float | None = None) -> WienerModel:

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from .._base import _core, metrics
+from .._base.order_statistics import distinct
 from .._base.records import record
 from ..data.iodata import IOData
 from . import stages
@@ -183,7 +184,7 @@ def max_poles(na: np.ndarray, theta: np.ndarray) -> np.ndarray:
         0 for a structure without poles, NaN where a coefficient is not finite.
     """
     out = np.zeros(len(na))
-    for k in np.unique(na):
+    for k in distinct(na):
         if k == 0:
             continue
         every = np.flatnonzero(na == k)

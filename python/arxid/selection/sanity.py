@@ -45,6 +45,7 @@ from dataclasses import asdict
 
 import numpy as np
 
+from .._base.order_statistics import quantiles
 from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import ArxidError, DataError
@@ -230,7 +231,7 @@ def output_range(data: IOData) -> float:
     y = data.y[np.isfinite(data.y)]
     if y.size == 0:
         return math.nan
-    lo, hi = np.percentile(y, [1, 99])
+    lo, hi = quantiles(y, np.array([1, 99]) / 100)  # np.percentile(y, [1, 99])
     return float(hi - lo)
 
 
