@@ -44,6 +44,29 @@ def test_shortcut_equals_the_refit(kind, values, effects, const):
         assert cost(v) == pytest.approx(cost.refit(shape), rel=1e-10)
 
 
+@pytest.mark.parametrize("effects", [[], ["y^2"]])
+def test_the_families_of_one_model_share_one_projection_to_the_bit(effects):
+    """The scans of a diagnosis share the projection of the model's other columns: each family's
+    losses equal those of its own projection, to the bit (the missing samples' rows too)."""
+    data = plant(4)
+    y = data.y.copy()
+    y[[300, 301]] = np.nan
+    data = arxid.IOData(y, data.u, 0.01, input_names=["u", "w"])
+    model = arxid.ArxModel(na=2, nb=[2, 1], nk=[1, 1], effects=effects).fit(data)
+    families = [
+        ("signed power", [(1.0,), (0.7,), (1.6,)]),
+        ("saturation", [(-1.6, 1.6), (-0.9, 1.2), (-2.0, 0.4)]),
+        ("dead zone", [(0.0,), (0.35,), (0.8,)]),
+    ]
+    shared: dict = {}
+    for kind, values in families:
+        alone = ShapeCost(model, data, kind, "u", True)
+        together = ShapeCost(model, data, kind, "u", True, shared)
+        assert together.many(values) == alone.many(values)
+        assert together._fast is not None
+    assert len(shared) == 1
+
+
 def test_refused_values_cost_infinity_as_the_refit_does():
     """A dead zone wider than the input leaves zero columns; the refit calls them rank deficient."""
     data = plant(2)

@@ -143,7 +143,9 @@ def in_row_halves(fill: Callable[[tuple[int, int]], None], n_rows: int, block: i
 def one_blas_thread() -> Iterator[None]:
     """BLAS (numpy's products and factorizations) on one thread inside the block, restored after.
 
-    The limit is the process's: other threads' BLAS calls run on one thread too meanwhile.
+    The limit is the process's: other threads' BLAS calls run on one thread too meanwhile. Blocks
+    inside it (a ladder's diagnoses inside an analysis, on any thread) keep it: only the first
+    sets it and the last restores it (each setting looks up the process's libraries, ~1 ms).
 
     Examples
     --------
@@ -152,5 +154,22 @@ def one_blas_thread() -> Iterator[None]:
     ...     float(np.ones(3) @ np.ones(3))
     3.0
     """
-    with threadpool_limits(limits=1, user_api="blas"):
+    global _LIMITED, _OPEN
+    with _LIMIT_LOCK:
+        if _OPEN == 0:
+            _LIMITED = threadpool_limits(limits=1, user_api="blas")
+        _OPEN += 1
+    try:
         yield
+    finally:
+        with _LIMIT_LOCK:
+            _OPEN -= 1
+            if _OPEN == 0 and _LIMITED is not None:
+                _LIMITED.restore_original_limits()
+                _LIMITED = None
+
+
+#: The limit :func:`one_blas_thread` set, and how many of its blocks are open.
+_LIMITED: threadpool_limits | None = None
+_OPEN = 0
+_LIMIT_LOCK = threading.Lock()

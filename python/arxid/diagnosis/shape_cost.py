@@ -55,10 +55,15 @@ class ShapeCost:
         it replaces.
     const : bool
         Refit with an offset.
+    shared : dict, optional
+        The scans of one model on one record, each family in turn, share their projection here: the
+        other columns, their basis and the projected output do not depend on the family (only the
+        shaped input's lags do).
     """
 
-    def __init__(self, model: ArxModel, data: IOData, kind: str, signal: str, const: bool):
+    def __init__(self, model: ArxModel, data: IOData, kind: str, signal: str, const: bool, shared: dict | None = None):
         self.model, self.data, self.kind, self.signal, self.const = model, data, kind, signal, const
+        self.shared = shared
         self.column = candidate_input_names(data).index(signal)
         self._fast: _Projection | None = None
         self._checked = False
@@ -116,6 +121,11 @@ class _Projection:
 
     @classmethod
     def build(cls, cost: ShapeCost, shape: InputShape) -> _Projection | None:
+        """The projection of ``cost``'s first value ``shape``, whose refit succeeded (the effects
+        compile); another family's of the same model, record, input and offset when shared."""
+        key = (cost.signal, cost.const)
+        if cost.shared is not None and key in cost.shared:
+            return cls(cost, *cost.shared[key])
         m, data = cost.model, cost.data
         try:
             layout = compile_effects(cost.effects(shape), data, m.nb_, m.nk_)
@@ -129,6 +139,8 @@ class _Projection:
         if basis is None:
             return None  # dependent columns besides the shape: the refit decides
         y_perp = y - basis @ (basis.T @ y)
+        if cost.shared is not None:
+            cost.shared[key] = (index, basis, y_perp)
         return cls(cost, index, basis, y_perp)
 
     def rss(self, values: tuple[float, ...]) -> float:

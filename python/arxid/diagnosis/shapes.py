@@ -159,7 +159,9 @@ def _threshold_shapes(name: str, lo: float, hi: float) -> list[tuple[InputShape,
     ]
 
 
-def _scan(model: ArxModel, data: IOData, sample: IOData, shape: InputShape, const: bool) -> InputShape:
+def _scan(
+    model: ArxModel, data: IOData, sample: IOData, shape: InputShape, const: bool, shared: dict | None = None
+) -> InputShape:
     """The shape's parameters with the lowest one-step error on ``sample`` (:func:`scan_sample` of
     ``data``): a grid across the whole record's input (a saturation's two levels in turn), then a
     local search from its best point (each value tried costs a refit's loss: :class:`ShapeCost`)."""
@@ -167,7 +169,7 @@ def _scan(model: ArxModel, data: IOData, sample: IOData, shape: InputShape, cons
     x = x[np.isfinite(x)]
     kind, name = shape.kind, shape.signal
 
-    loss = ShapeCost(model, sample, kind, name, const)
+    loss = ShapeCost(model, sample, kind, name, const, shared)
 
     def cost(params) -> float:
         return loss(tuple(float(v) for v in np.atleast_1d(params)))
@@ -231,7 +233,8 @@ def score_shapes(
     n_shapes = len(shapes) * len(offsets)
     sample = scan_sample(data).data
     # the offset a shape may need is in the scan: the parameter is found with it
-    shapes = [(_scan(model, data, sample, shape, offsets[-1]) if n > 1 else shape, n) for shape, n in shapes]
+    shared: dict = {}  # the scans' projections (one model, one sample, one offset)
+    shapes = [(_scan(model, data, sample, shape, offsets[-1], shared) if n > 1 else shape, n) for shape, n in shapes]
     fits = ShapeFits(model, data, [(shape, const) for shape, _ in shapes for const in offsets])
     beside = BesideFit(model, data)
     out = []
