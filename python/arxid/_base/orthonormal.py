@@ -152,7 +152,7 @@ class Projector:
         r, squares, finite = _core.shaped_projected_r(self.basis, y, np.ascontiguousarray(series), index)
         scale = RANK_FACTOR * index.shape[0]  # the core's rule, as :meth:`r` reads it
         out: list[float | None] = []
-        for rv, sv, ok in zip(r, squares.tolist(), finite.tolist()):
-            dependent = any(not abs(rv[c, c]) > scale * math.sqrt(s) for c, s in enumerate(sv))
-            out.append(None if not ok else math.inf if dependent else float(rv[-1, -1] ** 2))
+        for rv, sv, ok in zip(r.tolist(), squares.tolist(), finite.tolist()):  # Python floats: the same bits
+            dependent = any(not abs(rv[c][c]) > scale * math.sqrt(s) for c, s in enumerate(sv))
+            out.append(None if not ok else math.inf if dependent else rv[-1][-1] ** 2)
         return out

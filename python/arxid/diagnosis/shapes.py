@@ -172,7 +172,7 @@ def _scan(
     loss = ShapeCost(model, sample, kind, name, const, shared)
 
     def cost(params) -> float:
-        return loss(tuple(float(v) for v in np.atleast_1d(params)))
+        return loss(np.atleast_1d(params).tolist())  # Python floats, as ShapeCost reads them
 
     def best(values: np.ndarray, make) -> InputShape:
         shapes = [make(float(v)) for v in values]
