@@ -91,7 +91,13 @@ def _polished(scan: SensorScan, sample: ScanSample, sensor: SensorShape, rms: fl
 
 
 def sensor_suspects(
-    model: ArxModel, data: IOData, validation: IOData, horizon: int | None, initial: str, base_rms: float
+    model: ArxModel,
+    data: IOData,
+    validation: IOData,
+    horizon: int | None,
+    initial: str,
+    base_rms: float,
+    base_prediction: np.ndarray | None = None,
 ) -> list[Suspect]:
     """The best sensor shape of each kind, refitted and judged on the validation data.
 
@@ -104,6 +110,8 @@ def sensor_suspects(
     initial : {"zero", "estimate"}
     base_rms : float
         The model's validation error.
+    base_prediction : ndarray, optional
+        The model's validation prediction at ``horizon`` (made here when not given).
 
     Returns
     -------
@@ -124,7 +132,8 @@ def sensor_suspects(
             best[sensor.kind] = (rms, sensor)
     best = {kind: _polished(scan, sample, sensor, rms) for kind, (rms, sensor) in best.items()}
     found = [scan.wiener(sensor) for _, sensor in best.values()]  # each fitted as the scan fitted it
-    base_err = validation.y - prediction(model, validation, horizon, initial)[0]
+    made = prediction(model, validation, horizon, initial)[0] if base_prediction is None else base_prediction
+    base_err = validation.y - made
     out = []
     for w in _on_every_sample(found, model, data, sample.data, floor):
         pred = w.predict(validation, horizon)

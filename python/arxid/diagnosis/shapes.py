@@ -289,11 +289,20 @@ class ShapeFits:
 class ValidationEvidence:
     """The model's validation errors, found once, against which each shape's are tested: their
     squares are kept (NaN where the error is not finite), and the core forms a shape's loss
-    differences and their lagged sums over its prediction in one call (``_core.loss_difference``)."""
+    differences and their lagged sums over its prediction in one call (``_core.loss_difference``).
+    ``prediction``: the model's validation prediction when the baseline made it (else made here)."""
 
-    def __init__(self, model: ArxModel, validation: IOData, horizon: int | None, initial: str):
+    def __init__(
+        self,
+        model: ArxModel,
+        validation: IOData,
+        horizon: int | None,
+        initial: str,
+        prediction: np.ndarray | None = None,
+    ):
         self.model, self.validation, self.horizon, self.initial = model, validation, horizon, initial
         self._squares: np.ndarray | None = None
+        self._made = prediction
 
     def _prediction(self, model: ArxModel) -> np.ndarray:
         """The validation prediction (a new array)."""
@@ -304,7 +313,8 @@ class ValidationEvidence:
         :func:`validation_p`)."""
         y = np.ascontiguousarray(self.validation.y, dtype=float)
         if self._squares is None:
-            base = np.subtract(y, self._prediction(self.model))
+            made, self._made = self._made, None
+            base = np.subtract(y, self._prediction(self.model) if made is None else made)
             known = np.isfinite(base)
             self._squares = np.square(base, out=base)
             self._squares[~known] = np.nan  # an infinite error is no evidence either

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import field
 from functools import partial
 from importlib import import_module
 from typing import Any, Protocol, overload, runtime_checkable
@@ -253,7 +254,7 @@ def diagnose(
     base = pending.result()
     samples = records.here and isinstance(scoring, Scoring) and auto  # the stages that read the samples here
     if samples:  # shapes that replace an input compete on equal terms
-        evidence = ValidationEvidence(model, validation, base.horizon, initial)
+        evidence = ValidationEvidence(model, validation, base.horizon, initial, base.prediction)
         scored = scored + score_shapes(model, data, evidence, loop_signals)
     judge = records.judge(model, base.horizon, base.rms, min_improvement, initial)
     suspects = judge.suspects(scored, notes, alpha, n_refit if auto else None)
@@ -265,7 +266,7 @@ def diagnose(
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
     if samples:  # the output read through a static shape (Wiener)
-        sensors = sensor_suspects(model, data, validation, base.horizon, initial, base.rms)
+        sensors = sensor_suspects(model, data, validation, base.horizon, initial, base.rms, base.prediction)
         suspects = rank_sensors(suspects, sensors, alpha, min_improvement)
     suspects = finish_suspects(notes, cands, suspects, records.head)
     # The dependence test runs when the diagnosis is first asked for it (a ladder asks its last
@@ -324,7 +325,8 @@ def _data_pair(model: ArxModel, data: IOData | None, validation: IOData | None) 
 class Baseline:
     """The model's validation errors, before any candidate: at ``horizon`` (None: free run), one
     step ahead, the fit percent at ``horizon``, and the residual tests and slow disturbance (None
-    where the residual sequence is not in this process)."""
+    where the residual sequence is not in this process); ``prediction`` at ``horizon`` where it
+    was made in this process (the shapes' and sensors' evidence is measured against it)."""
 
     horizon: int | None
     rms: float
@@ -332,6 +334,7 @@ class Baseline:
     fit: float
     residual_tests: ResidualAnalysis | None = None
     disturbance: Disturbance | None = None
+    prediction: np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 def baseline_errors(
@@ -407,7 +410,8 @@ def _baseline(model: ArxModel, validation: IOData, horizon: int | None, max_lag:
         rtests = None
     rest = None if rtests is None else remaining_disturbance(model, validation, validation.y - pred, rtests.is_white)
     # the one-step prediction last: it is not held while the residual tests run
-    return Baseline(horizon, base_rms, rms(1, "zero")[0], metrics.fit_percent(validation.y, pred), rtests, rest)
+    one_step = rms(1, "zero")[0]
+    return Baseline(horizon, base_rms, one_step, metrics.fit_percent(validation.y, pred), rtests, rest, pred)
 
 
 @runtime_checkable

@@ -280,7 +280,11 @@ class SensorScan:
             linear = ArxModel(na=model.na_, nb=model.nb_, nk=model.nk_, effects=model.effects)
             self.layout = checked_layout(linear, data, 0, 0)[1]
         except ArxidError:  # refused whatever the output: every sensor's fit fails
-            pass
+            return
+        # the core's arguments that do not depend on the sensor, once
+        lay = self.layout
+        self._structure = (list(data.experiment_starts), list(lay.nb), list(lay.nk), list(lay.output_terms))
+        self._y = np.require(data.y, requirements=["C", "A"])
 
     def free_run(self, sensor: SensorShape) -> tuple[np.ndarray, np.ndarray | None] | None:
         """The linear part's A(z⁻¹) and g of its free run on the data: None where the fit fails, a
@@ -289,8 +293,7 @@ class SensorScan:
         z = sensor.inverse(data.y, self.floor)
         if layout is None or np.isfinite(z).sum() < 0.2 * data.n_samples:
             return None
-        starts, terms = list(data.experiment_starts), list(layout.output_terms)
-        nb, nk = list(layout.nb), list(layout.nk)
+        starts, nb, nk, terms = self._structure
         try:
             fit = _core.fit(np.require(z, requirements=["C", "A"]), layout.u, starts, self.na, nb, nk, terms)
         except ArxidError:
@@ -298,8 +301,7 @@ class SensorScan:
         theta = np.require(np.asarray(fit.theta), dtype=float, requirements=["C", "A"])
         a = np.concatenate([[1.0], theta[: self.na]])
         try:
-            y = np.require(data.y, requirements=["C", "A"])
-            x = np.asarray(_core.predict(y, layout.u, starts, self.na, nb, nk, terms, theta, horizon=None))
+            x = np.asarray(_core.predict(self._y, layout.u, starts, self.na, nb, nk, terms, theta, horizon=None))
         except ArxidError:
             return a, None
         return a, sensor(x)
