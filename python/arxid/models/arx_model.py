@@ -224,7 +224,9 @@ class ArxModel(FittedModel):
         self.n_skipped_ = int(res.n_skipped)
         self.first_lag_ = first_lag
         self.rss_ = float(res.rss)
-        self.covariance_ = metrics.parameter_covariance(res.inv_gram, self.rss_, self.n_rows_)
+        # made when first read (a diagnosis's refits, a few hundred, are read for their loss only)
+        self.__dict__.pop("covariance_", None)
+        self._covariance_of = (res.inv_gram, self.rss_, self.n_rows_)
         self.data_ = data if isinstance(data, IOData) else None
         if fit_percent is not None:
             self.fit_percent_ = fit_percent(self)
@@ -246,6 +248,11 @@ class ArxModel(FittedModel):
         # an AttributeError, so Python asked here: say why instead of "no attribute 'a'".
         if hasattr(type(self), name):
             self.check_fitted()
+        parts = self.__dict__.get("_covariance_of") if name == "covariance_" else None
+        if parts is not None:  # (two threads that ask at once make the same)
+            covariance = self.covariance_ = metrics.parameter_covariance(*parts)
+            self.__dict__.pop("_covariance_of", None)
+            return covariance
         if name == "fit_percent_" and "parameters_" in self.__dict__ and self.__dict__.get("data_") is not None:
             data = self.__dict__["data_"]
             self.fit_percent_ = metrics.fit_percent(data.y, self.predict(data, horizon=1))
