@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import types
 from collections import Counter
+from itertools import accumulate
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -182,7 +183,7 @@ class EnvelopeFactor:
         theta = np.empty(len(own))
         theta[own] = np.asarray(out.theta)
         inv = np.empty((len(own), len(own)))
-        inv[np.ix_(own, own)] = np.asarray(out.inv_gram)
+        inv[own[:, None], own] = np.asarray(out.inv_gram)
         res = types.SimpleNamespace(theta=theta, rss=out.rss, n_rows=out.n_rows, n_skipped=0, inv_gram=inv)
         return layout, regressor_names(self.data.output_name, na, layout), res
 
@@ -325,14 +326,14 @@ def _own_order(na: int, layout: EffectLayout, labels: list[str], alias: dict[str
     """For each parameter of a structure as the envelope orders them (output lags, then the
     envelope's columns in its order, output terms among them), its position in the structure's own
     order (output lags, input columns, output terms)."""
-    starts = na + np.concatenate([[0], np.cumsum(layout.nb)]).astype(int)
+    starts = list(accumulate((int(b) for b in layout.nb), initial=na))  # each column's first parameter
     at = {alias.get(label, label): j for j, label in enumerate(layout.column_labels)}
-    term_at = {_TERM + text: int(starts[-1]) + i for i, text in enumerate(layout.effect_of_term)}
+    term_at = {_TERM + text: starts[-1] + i for i, text in enumerate(layout.effect_of_term)}
     order = list(range(na))
     for label in labels:
         j = at.get(label)
         if j is not None:
-            order += list(range(starts[j], starts[j] + layout.nb[j]))
+            order += range(starts[j], starts[j + 1])
         elif label in term_at:
             order.append(term_at[label])
     return np.array(order, dtype=np.intp)
