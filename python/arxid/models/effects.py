@@ -656,15 +656,38 @@ def layout_column(label: str, data: IOData) -> np.ndarray:
     i = _input_index(label, data)
     if i is not None:
         return data.u[:, i]
+    with _COLUMNS_LOCK:
+        kept = _COLUMNS.get(data)
+        out = kept.get(label) if kept is not None else None
+    if out is not None:
+        return out
     text = label.removeprefix("carrier:")
     e = parse_effect(text, data)
     if e.special is not None:
-        return _special_column(e.special, data)
-    if e.shape is not None:
-        return shape_series(e, data)
-    prod = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
+        out = _special_column(e.special, data)
+    elif e.shape is not None:
+        out = shape_series(e, data)
+    else:
+        out = _input_product(e.text, [f for f in e.factors if not _is_output(f.signal, data)], data)
     # A read-only view, not a copy (16 MB at 2M samples, for each of dozens of candidates): it may
     # be the data's own samples (a logged signal as it is).
-    out = np.asarray(prod, dtype=float).view()
+    out = np.asarray(out, dtype=float).view()
     out.flags.writeable = False
-    return out
+    return _keep_column(data, label, out)
+
+
+#: The columns :func:`layout_column` formed on each data set, by label, while they fit in
+#: :data:`_KEEP_BYTES` (the last always): a diagnosis forms the same effect's column for the
+#: envelope of every refit and the lanes of every validation.
+_COLUMNS: weakref.WeakKeyDictionary[IOData, dict[str, np.ndarray]] = weakref.WeakKeyDictionary()
+_COLUMNS_LOCK = threading.Lock()
+
+
+def _keep_column(data: IOData, label: str, column: np.ndarray) -> np.ndarray:
+    with _COLUMNS_LOCK:
+        kept = _COLUMNS.setdefault(data, {})
+        kept.pop(label, None)
+        kept[label] = column
+        while len(kept) > 1 and sum(a.nbytes for a in kept.values()) > _KEEP_BYTES:
+            kept.pop(next(iter(kept)))
+    return column
