@@ -503,7 +503,7 @@ class _Plan:
         if self.build:
             if self.cols[0] is self.data.u:
                 self.cols[0] = self.data.u.copy()
-            self.cols[0][:, i] = shape_series(e, self.data)
+            self.cols[0][:, i] = layout_column(e.text, self.data)  # shape_series, kept per data set
         self.labels[i], self.eff_col[i] = e.text, e.text
         self.replaced = True
 
@@ -520,7 +520,11 @@ class _Plan:
         others = [f for f in e.factors if not _is_output(f.signal, data)]
         if len(y_factors) > 1:
             raise OrderError(f"effect {text!r}: at most one factor may involve the output")
-        prod = _input_product(text, others, data) if self.build else None
+        prod = None
+        if self.build and others and text == e.text:  # kept per data set (an error names the text as given)
+            prod = layout_column(f"carrier:{e.text}" if y_factors else e.text, data)
+        elif self.build:
+            prod = _input_product(text, others, data)
         if y_factors:
             kind, power = _output_term(y_factors[0], text)
             if self.build:
