@@ -103,6 +103,7 @@ class Projector:
 
     def __init__(self, basis: np.ndarray, y_perp: np.ndarray):
         self.basis, self.y_perp = core_readable(basis), core_readable(y_perp)
+        self._y: np.ndarray | None = None  # y_perp contiguous, for the gathered scans
 
     def r(self, z: np.ndarray) -> tuple[np.ndarray, list[bool]]:
         """R of [Z − Q(QᵀZ) | y⊥] and whether each column of ``z`` is dependent (as :func:`projected_r`).
@@ -148,8 +149,9 @@ class Projector:
         -------
         list of float or None
         """
-        y = np.ascontiguousarray(self.y_perp)
-        r, squares, finite = _core.shaped_projected_r(self.basis, y, np.ascontiguousarray(series), index)
+        if self._y is None:
+            self._y = np.ascontiguousarray(self.y_perp)
+        r, squares, finite = _core.shaped_projected_r(self.basis, self._y, np.ascontiguousarray(series), index)
         scale = RANK_FACTOR * index.shape[0]  # the core's rule, as :meth:`r` reads it
         out: list[float | None] = []
         for rv, sv, ok in zip(r.tolist(), squares.tolist(), finite.tolist()):  # Python floats: the same bits

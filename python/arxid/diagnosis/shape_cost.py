@@ -170,8 +170,9 @@ class _Projection:
                 shaped.append(d)
                 shape_values(self.cost.kind, read, self.signal, series[len(shaped) - 1], self.magnitude, self.sign)
         series = series[: len(shaped)]
-        beyond = np.isinf(series).any(axis=1)  # beyond the float range: a data error to the refit
-        if beyond.any():
+        infinite = np.isinf(series)  # beyond the float range: a data error to the refit
+        beyond = infinite.any(axis=1) if infinite.any() else None
+        if beyond is not None:
             self._known.update((d, math.inf) for d, out in zip(shaped, beyond.tolist()) if out)
             shaped, series = [d for d, out in zip(shaped, beyond.tolist()) if not out], series[~beyond]
         if not shaped:
@@ -183,7 +184,7 @@ class _Projection:
     def _read(self, digits: tuple[str, ...]) -> tuple[float, ...] | None:
         """The parameters the refit reads from the effect's text (its digits), None where it refuses
         them (a number the grammar cannot write, a parameter out of range)."""
-        read = tuple(float(d) for d in digits)
+        read = tuple(map(float, digits))
         if not all(math.isfinite(v) for v in read):  # "inf", "nan": not a number of the grammar
             return None
         try:

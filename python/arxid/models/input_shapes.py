@@ -176,7 +176,7 @@ def shape_values(
     if kind == "power":
         return np.power(x, params[0], out=out)
     if kind == "saturation":
-        return np.clip(x, params[0], params[1], out=out)
+        return x.clip(params[0], params[1], out=out)  # np.clip's own call
     source = np.abs(x, out=out) if magnitude is None else magnitude
     if kind == "signed power":
         np.power(source, params[0], out=out)
