@@ -35,6 +35,8 @@ def rosenbrock(p):
         (rosenbrock, [-1.2, 1.0]),
         (lambda p: float(np.sum(np.abs(p - [0.5, -0.25, 2.0]))), [0.0, 0.0, 0.0]),
         (lambda p: float(np.round(10 * (p[0] ** 2 + p[1] ** 2))), [1.0, 1.0]),  # plateaus: shrinks
+        (lambda p: float(np.floor(5 * abs(p[0] - 0.7))), [0.0]),  # one parameter, tied costs
+        (lambda p: float(np.floor(2 * abs(p[0])) + np.floor(2 * abs(p[1]))), [0.9, -0.8]),  # ties at -0.0 and 0.0
     ],
 )
 def test_simplex_minimum_is_scipys(f, start, maxfev):

@@ -117,6 +117,9 @@ def simplex_minimum(
     """The minimum of ``cost`` by the Nelder–Mead simplex from ``simplex``, at most ``maxfev``
     evaluations.
 
+    The vertices are lists of Python floats (a few parameters: numpy's calls on them cost more
+    than their arithmetic), each step the same operations in the same order as scipy's arrays.
+
     Parameters
     ----------
     cost : callable
@@ -131,47 +134,62 @@ def simplex_minimum(
     -------
     (ndarray of shape (n,), float)
     """
-    sim = np.asarray(simplex, dtype=float).copy()
-    n = sim.shape[1]
+    sim = np.asarray(simplex, dtype=float).tolist()
+    n = len(sim[0])
     calls = [0]
 
-    def f(x: np.ndarray) -> float:
+    def f(x: list[float]) -> float:
         if calls[0] >= maxfev:
             raise _Exhausted
         calls[0] += 1
-        return float(cost(np.copy(x)))
+        return float(cost(np.array(x)))
 
-    fsim = np.full(n + 1, np.inf)
+    fsim = [math.inf] * (n + 1)
     try:
         for k in range(n + 1):
             fsim[k] = f(sim[k])
     except _Exhausted:
         pass
-    ind = np.argsort(fsim)
-    sim, fsim = np.take(sim, ind, 0), np.take(fsim, ind, 0)
+    sim, fsim = _sorted(sim, fsim)
     while calls[0] < maxfev:
         try:
-            if np.max(np.abs(sim[1:] - sim[0])) <= xatol and np.max(np.abs(fsim[0] - fsim[1:])) <= fatol:
+            if _within(sim, fsim, xatol, fatol):
                 break
             _step(f, sim, fsim, n)
         except _Exhausted:
             pass
-        ind = np.argsort(fsim)
-        sim, fsim = np.take(sim, ind, 0), np.take(fsim, ind, 0)
-    return sim[0], float(np.min(fsim))
+        sim, fsim = _sorted(sim, fsim)
+    return np.array(sim[0]), float(np.min(fsim))
 
 
 class _Exhausted(Exception):
     """The evaluations are used up."""
 
 
-def _step(f: Callable[[np.ndarray], float], sim: np.ndarray, fsim: np.ndarray, n: int) -> None:
+def _sorted(sim: list[list[float]], fsim: list[float]) -> tuple[list[list[float]], list[float]]:
+    """The vertices by cost, by numpy's argsort (its order of ties, which is not always theirs)."""
+    order = np.argsort(fsim).tolist()
+    return [sim[i] for i in order], [fsim[i] for i in order]
+
+
+def _within(sim: list[list[float]], fsim: list[float], xatol: float, fatol: float) -> bool:
+    """Every vertex within ``xatol`` of the best and every cost within ``fatol`` (a NaN never is)."""
+    best = sim[0]
+    near = all(abs(v[i] - best[i]) <= xatol for v in sim[1:] for i in range(len(best)))
+    return near and all(abs(fsim[0] - c) <= fatol for c in fsim[1:])
+
+
+def _step(f: Callable[[list[float]], float], sim: list[list[float]], fsim: list[float], n: int) -> None:
     """One Nelder–Mead step in place: reflect, expand, contract or shrink (coefficients 1, 2, ½, ½)."""
-    xbar = np.add.reduce(sim[:-1], 0) / n
-    xr = 2.0 * xbar - sim[-1]
+    xbar = list(sim[0])
+    for v in sim[1:-1]:  # the centroid of all but the worst, summed vertex after vertex
+        xbar = [a + b for a, b in zip(xbar, v)]
+    xbar = [a / n for a in xbar]
+    worst = sim[-1]
+    xr = [2.0 * a - w for a, w in zip(xbar, worst)]
     fxr = f(xr)
     if fxr < fsim[0]:
-        xe = 3.0 * xbar - 2.0 * sim[-1]
+        xe = [3.0 * a - 2.0 * w for a, w in zip(xbar, worst)]
         fxe = f(xe)
         sim[-1], fsim[-1] = (xe, fxe) if fxe < fxr else (xr, fxr)
         return
@@ -179,17 +197,17 @@ def _step(f: Callable[[np.ndarray], float], sim: np.ndarray, fsim: np.ndarray, n
         sim[-1], fsim[-1] = xr, fxr
         return
     if fxr < fsim[-1]:  # outside contraction
-        xc = 1.5 * xbar - 0.5 * sim[-1]
+        xc = [1.5 * a - 0.5 * w for a, w in zip(xbar, worst)]
         fxc = f(xc)
         if fxc <= fxr:
             sim[-1], fsim[-1] = xc, fxc
             return
     else:  # inside contraction
-        xcc = 0.5 * xbar + 0.5 * sim[-1]
+        xcc = [0.5 * a + 0.5 * w for a, w in zip(xbar, worst)]
         fxcc = f(xcc)
         if fxcc < fsim[-1]:
             sim[-1], fsim[-1] = xcc, fxcc
             return
     for j in range(1, n + 1):  # shrink towards the best
-        sim[j] = sim[0] + 0.5 * (sim[j] - sim[0])
+        sim[j] = [b + 0.5 * (v - b) for b, v in zip(sim[0], sim[j])]
         fsim[j] = f(sim[j])
