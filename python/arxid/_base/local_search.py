@@ -104,7 +104,8 @@ def bounded_minimum(
 
 
 def _sign(v: float) -> float:
-    return float(np.sign(v))
+    """``float(np.sign(v))``: -1, 0 or 1, NaN for NaN."""
+    return 1.0 if v > 0 else -1.0 if v < 0 else 0.0 if v == 0 else math.nan
 
 
 def simplex_minimum(
