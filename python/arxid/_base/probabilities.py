@@ -64,7 +64,7 @@ def standard_normal_quantile(p: float) -> float:
     if p in (0.0, 1.0):
         return -math.inf if p == 0.0 else math.inf
     try:  # what NormalDist().inv_cdf calls, without importing statistics (random, decimal, fractions: ~4 ms)
-        from _statistics import _normal_dist_inv_cdf
+        from _statistics import _normal_dist_inv_cdf  # type: ignore[import-not-found]
     except ImportError:  # an interpreter without CPython's accelerator
         from statistics import NormalDist
 

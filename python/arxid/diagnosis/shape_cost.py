@@ -116,7 +116,8 @@ class _Projection:
         # a power of a negative input raises, as the refit's evaluation raises (one check, not one a value)
         self.checked = cost.kind != "power" or not np.nanmin(x, initial=0.0) < 0
         odd = cost.kind in ("signed power", "dead zone")  # |x| and sign(x), the same at every value
-        self.magnitude, self.sign = (np.abs(x), np.sign(x)) if odd else (None, None)
+        self.magnitude: np.ndarray | None = np.abs(x) if odd else None
+        self.sign: np.ndarray | None = np.sign(x) if odd else None
         self._known: dict[tuple[str, ...], float] = {}
 
     @classmethod
@@ -171,15 +172,17 @@ class _Projection:
                 shape_values(self.cost.kind, read, self.signal, series[len(shaped) - 1], self.magnitude, self.sign)
         series = series[: len(shaped)]
         infinite = np.isinf(series)  # beyond the float range: a data error to the refit
-        beyond = infinite.any(axis=1) if infinite.any() else None
-        if beyond is not None:
+        if infinite.any():
+            beyond = np.asarray(infinite.any(axis=1))
             self._known.update((d, math.inf) for d, out in zip(shaped, beyond.tolist()) if out)
             shaped, series = [d for d, out in zip(shaped, beyond.tolist()) if not out], series[~beyond]
         if not shaped:
             return
         losses = self.projector.shaped_rss(series, self.index)
         for d, loss in zip(shaped, losses):  # None: a lag the shape leaves undefined, refitted
-            self._known[d] = self.cost.refit(InputShape(self.cost.kind, self.cost.signal, new[d])) if loss is None else loss
+            self._known[d] = (
+                self.cost.refit(InputShape(self.cost.kind, self.cost.signal, new[d])) if loss is None else loss
+            )
 
     def _read(self, digits: tuple[str, ...]) -> tuple[float, ...] | None:
         """The parameters the refit reads from the effect's text (its digits), None where it refuses

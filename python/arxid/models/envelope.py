@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import types
 from collections import Counter
-from itertools import accumulate
 from collections.abc import Iterator, Sequence
+from itertools import accumulate
 
 import numpy as np
 
