@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 
 use super::arguments::{slices, structure};
 use super::errors::{to_pyerr, DataError};
-use super::run::run;
+use super::run::{run, run_short, SHORT_CALL};
 use crate::arx::structure::Data;
 use crate::scoring::column_products::{column_products, Block};
 use crate::scoring::fit_residual::{refine_residual, residual_products};
@@ -157,8 +157,8 @@ pub(super) fn refine_fit_residual<'py>(
 /// Writes the regressors of the structure `(na, nb, nk, output_terms)` on `(y, u)` at the samples
 /// `rows` into the first columns of `out` (C-contiguous, a row per sample of `rows`), the output
 /// lags negated when `negate_output`; returns whether each row is finite. The values are numpy's
-/// (`models/regressors.py`) to the last bit. Runs with the GIL released on `n_threads` (0 = all
-/// cores) and stops on Ctrl-C.
+/// (`models/regressors.py`) to the last bit. Runs with the GIL released, a short call on this thread,
+/// a long one on `n_threads` (0 = all cores), and stops on Ctrl-C.
 #[pyfunction]
 #[pyo3(signature = (y, u, na, nb, nk, output_terms, rows, out, negate_output = true, n_threads = 0))]
 #[allow(clippy::too_many_arguments)]
@@ -182,8 +182,14 @@ pub(super) fn regressor_rows<'py>(
     let width = out.shape()[1];
     let (at, values) = (rows.as_slice()?, out.as_slice_mut()?);
     let mut finite = vec![false; at.len()];
-    run(py, n_threads, |cancel| {
-        write_rows(&d, &s, at, negate_output, values, width, &mut finite, n_threads != 1, cancel)
-    })?;
+    let finite_ref = &mut finite;
+    if at.len() * width <= SHORT_CALL {
+        run_short(py, |cancel| write_rows(&d, &s, at, negate_output, values, width, finite_ref, false, cancel))?;
+    } else {
+        let parallel = n_threads != 1;
+        run(py, n_threads, |cancel| {
+            write_rows(&d, &s, at, negate_output, values, width, finite_ref, parallel, cancel)
+        })?;
+    }
     Ok(PyArray1::from_vec(py, finite))
 }
