@@ -301,8 +301,8 @@ class Scoring(CandidateScoring):
         for t in terms:
             kind, power, mult = lay.output_terms[t]
             g = output_term_values(kind, power, self.lagged(y, 1), lambda: self.lagged(y, 2))
-            if mult >= 0:
-                g = g * self.lagged(layout_column(lay.column_labels[mult], self.data), 1)
+            if mult >= 0:  # g is a new array: multiplied in place (one column less held on gathered rows)
+                g *= self.lagged(layout_column(lay.column_labels[mult], self.data), 1)
             columns.append(g)
         return columns[0].reshape(-1, 1) if len(columns) == 1 else np.column_stack(columns)
 
