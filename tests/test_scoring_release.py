@@ -65,3 +65,25 @@ def test_candidate_columns_on_rows_with_gaps_equal_those_of_the_whole_regressor_
         assert len(at) < len(y) - 3  # rows were left out
         np.testing.assert_array_equal(at, rows)
         np.testing.assert_array_equal(z, phi[:, which])
+
+
+def test_output_term_columns_equal_those_of_the_candidates_regressor_matrix():
+    """An output term's candidate columns, with a carrier (``u1*y``, ``y^3*vbat``) or without, read
+    off the output and the carrier on the model's rows: to the bit the new columns of the regressor
+    matrix of the model with the term (on consecutive rows, and gathered around gaps)."""
+    from arxid.diagnosis.extension import layout_for
+    from arxid.models.regressors import regressor_columns, regressor_names
+
+    data = _record(n=6000)
+    y = data.y.copy()
+    y[3000:3004] = np.nan
+    for d in (data, arxid.IOData(y, data.u, ts=0.01, extra=dict(data.extra))):
+        model = arxid.arx(d, 2, 1, 1)
+        sc = Scoring(model, d, candidate_list(["u1*y", "y^3*vbat", "sign(dy)", "y^2"], model, d)[0])
+        assert len(sc.prepared) == 4
+        for c in sc.prepared:
+            lay = layout_for(c, model, d)[1]
+            new = [i for i, nm in enumerate(regressor_names(d.output_name, c.na, lay)) if nm not in sc.base_names]
+            z = sc._effect_columns(c)
+            assert z is not None and z.shape[1] == len(new) == 1
+            assert z.tobytes() == regressor_columns(d, c.na, lay, sc.rows0, new).tobytes()

@@ -39,24 +39,46 @@ def test_blocks_sized_by_bytes_write_what_the_column_assignments_write(monkeypat
     assert np.isnan(out[:, 1]).all()
 
 
-def test_regressors_written_in_halves_equal_those_written_in_one_pass(monkeypatch):
-    """The regressor matrix (lags, input effects, output terms; with missing samples) is the same
-    to the bit whether its rows are written in one pass or in two halves on two threads."""
+@pytest.mark.parametrize("n", [301, 40_000])  # the core writes a long matrix on all cores
+@pytest.mark.parametrize("signs", [True, False])
+def test_regressors_written_by_the_core_equal_numpys_columns(n, signs):
+    """The regressor matrix the core writes row by row (lags, input effects, output terms with and
+    without a carrier; missing samples) is, to the bit, the one numpy's columns give, with the same
+    rows left out."""
     import arxid
     from arxid.models import regressors
     from arxid.models.effects import compile_effects
 
     rng = np.random.default_rng(7)
-    n = 301
-    u, y = rng.standard_normal(n), rng.standard_normal(n)
+    u, y = rng.standard_normal(n), 2.0 * rng.standard_normal(n)
     u[50] = np.nan
+    y[120:123] = np.nan
+    y[200] = 0.0  # sign(0) is 0, as numpy's
     data = arxid.IOData(y, u, ts=0.1, extra={"vbat": 11 + rng.standard_normal(n)})
-    layout = compile_effects(("u1*vbat", "y^2", "sign(dy)"), data, (2,), (1,))
-    monkeypatch.setattr(regressors, "_BLOCK_ROWS", 8)
-    monkeypatch.setattr(background, "ROWS_IN_HALVES", 10**9)
-    whole = regressors.regressor_matrix(data, 2, layout, 3)
-    monkeypatch.setattr(background, "ROWS_IN_HALVES", 16)
-    halves = regressors.regressor_matrix(data, 2, layout, 3)
-    for a, b in zip(whole, halves, strict=True):
-        np.testing.assert_array_equal(a, b)
-    assert whole[0].shape[1] == 2 + 2 + 2 + 2 and len(whole[2]) < n - 3  # rows near the gap left out
+    effects = ("u1*vbat", "y^2", "y^5", "sign(dy)", "abs(y)", "sign(y)*u1", "y^3*vbat")
+    layout = compile_effects(effects, data, (2,), (1,))
+    phi, yy, rows = regressors.regressor_matrix(data, 2, layout, 3, signs=signs)
+    every = regressors.regression_rows(data, 3)
+    expected = regressors.regressor_columns(data, 2, layout, every, list(range(phi.shape[1])))
+    if not signs:
+        expected[:, :2] *= -1.0
+    ok = np.isfinite(expected).all(axis=1) & np.isfinite(y[every])
+    assert phi.tobytes() == expected[ok].tobytes()
+    np.testing.assert_array_equal(rows, every[ok])
+    assert yy.tobytes() == y[every[ok]].tobytes()
+    assert 0 < len(every) - len(rows) < 20  # rows near the gaps left out
+
+
+def test_regressors_written_into_the_first_columns_leave_the_others():
+    import arxid
+    from arxid.models import regressors
+    from arxid.models.effects import compile_effects
+
+    rng = np.random.default_rng(3)
+    data = arxid.IOData(rng.standard_normal(50), rng.standard_normal(50), ts=0.1)
+    layout = compile_effects(("y^3",), data, (1,), (0,))
+    rows = np.arange(2, 50)
+    out = np.full((48, 6), np.nan)
+    finite = regressors.write_regressors(out, data, 1, layout, rows)
+    assert finite.all() and np.isnan(out[:, 3:]).all()
+    np.testing.assert_array_equal(out[:, :3], regressors.regressor_columns(data, 1, layout, rows, [0, 1, 2]))

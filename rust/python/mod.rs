@@ -45,7 +45,8 @@ mod core_module {
     use super::procest::{procest_refine, procest_simulate};
     #[pymodule_export]
     use super::scoring::{
-        dead_zone_and_saturation_products, fit_residual, refine_fit_residual, tested_products, threshold_products,
+        dead_zone_and_saturation_products, fit_residual, refine_fit_residual, regressor_rows, tested_products,
+        threshold_products,
     };
     #[pymodule_export]
     use super::simulate::{divergence_limit, fma_limit, free_run_variance, predict};

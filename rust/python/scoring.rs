@@ -1,16 +1,19 @@
 //! Python bindings of the candidate scoring's products ([`crate::scoring::threshold_scan`],
-//! [`crate::scoring::column_products`], the base fit's residual).
+//! [`crate::scoring::column_products`], the base fit's residual, the model's regressors).
 
 use numpy::{
     PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
-    PyUntypedArrayMethods,
+    PyReadwriteArray2, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
-use super::errors::DataError;
-use super::run::run;
+use super::arguments::{slices, structure};
+use super::errors::{to_pyerr, DataError};
+use super::run::{run, run_short, SHORT_CALL};
+use crate::arx::structure::Data;
 use crate::scoring::column_products::{column_products, Block};
 use crate::scoring::fit_residual::{refine_residual, residual_products};
+use crate::scoring::regressor_rows::regressor_rows as write_rows;
 use crate::scoring::threshold_scan::{scan_products, ScanRows, Shape};
 
 /// `(cross, zz)`: see [`threshold_products`].
@@ -149,4 +152,44 @@ pub(super) fn refine_fit_residual<'py>(
     let (av, dv) = (a.as_slice()?, delta.as_slice()?);
     let ev = e.as_slice_mut()?;
     run(py, n_threads, |cancel| refine_residual(av, k, ev, dv, n_threads != 1, cancel))
+}
+
+/// Writes the regressors of the structure `(na, nb, nk, output_terms)` on `(y, u)` at the samples
+/// `rows` into the first columns of `out` (C-contiguous, a row per sample of `rows`), the output
+/// lags negated when `negate_output`; returns whether each row is finite. The values are numpy's
+/// (`models/regressors.py`) to the last bit. Runs with the GIL released, a short call on this thread,
+/// a long one on `n_threads` (0 = all cores), and stops on Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (y, u, na, nb, nk, output_terms, rows, out, negate_output = true, n_threads = 0))]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn regressor_rows<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    u: PyReadonlyArray2<'py, f64>,
+    na: usize,
+    nb: Vec<usize>,
+    nk: Vec<usize>,
+    output_terms: Vec<(String, i32, i64)>,
+    rows: PyReadonlyArray1<'py, i64>,
+    mut out: PyReadwriteArray2<'py, f64>,
+    negate_output: bool,
+    n_threads: usize,
+) -> PyResult<Bound<'py, PyArray1<bool>>> {
+    let (ys, us, m) = slices(&y, &u)?;
+    let s = structure(py, na, nb, nk, output_terms)?;
+    s.check(m).map_err(|e| to_pyerr(py, e))?;
+    let d = Data::new(ys, us, m, &[0]).map_err(|e| to_pyerr(py, e))?;
+    let width = out.shape()[1];
+    let (at, values) = (rows.as_slice()?, out.as_slice_mut()?);
+    let mut finite = vec![false; at.len()];
+    let finite_ref = &mut finite;
+    if at.len() * width <= SHORT_CALL {
+        run_short(py, |cancel| write_rows(&d, &s, at, negate_output, values, width, finite_ref, false, cancel))?;
+    } else {
+        let parallel = n_threads != 1;
+        run(py, n_threads, |cancel| {
+            write_rows(&d, &s, at, negate_output, values, width, finite_ref, parallel, cancel)
+        })?;
+    }
+    Ok(PyArray1::from_vec(py, finite))
 }

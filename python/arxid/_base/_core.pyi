@@ -56,6 +56,7 @@ __all__ = [
     "tested_products",
     "fit_residual",
     "refine_fit_residual",
+    "regressor_rows",
     "lagged_products",
     "loss_difference",
     "lagged_r",
@@ -349,6 +350,18 @@ def tested_products(
 ) -> list[tuple[_F, _F]]: ...
 def fit_residual(a: _F, y: _F, theta: _F, n_threads: int = 0) -> tuple[_F, _F]: ...
 def refine_fit_residual(a: _F, e: _F, delta: _F, n_threads: int = 0) -> float: ...
+def regressor_rows(
+    y: _F,
+    u: _F,
+    na: int,
+    nb: Sequence[int],
+    nk: Sequence[int],
+    output_terms: Sequence[tuple[str, int, int]],
+    rows: npt.NDArray[np.int64],
+    out: _F,
+    negate_output: bool = True,
+    n_threads: int = 0,
+) -> npt.NDArray[np.bool_]: ...
 
 # The factor of lagged signals (arxid.models.lagged, the residual tests, the dependence test).
 def lagged_r(

@@ -36,6 +36,7 @@ from ..models.regressors import (
     first_of_run,
     lagger,
     max_lag,
+    output_term_values,
     regressor_columns,
     regressor_matrix,
     regressor_names,
@@ -286,10 +287,24 @@ class Scoring(CandidateScoring):
             names = regressor_names(self.data.output_name, c.na, lay)
             new = [i for i, nm in enumerate(names) if nm not in self.base_names]
             first_term = c.na + sum(lay.nb)
-            if any(i < first_term or lay.output_terms[i - first_term][2] >= 0 for i in new):
+            if any(i < first_term for i in new):
                 return None
-            z = regressor_columns(self.data, c.na, lay, self.rows0, new)
+            z = self._output_term_columns(lay, [i - first_term for i in new])
         return z if all_finite(z) else None
+
+    def _output_term_columns(self, lay: EffectLayout, terms: list[int]) -> np.ndarray:
+        """The columns of the output terms ``terms`` of ``lay`` on the model's rows, as
+        :func:`regressor_columns` writes them (the same operations, so the same bits): a carrier is
+        its own column (:func:`layout_column`), not the input matrix of the model with it."""
+        y = self.data.y
+        columns = []
+        for t in terms:
+            kind, power, mult = lay.output_terms[t]
+            g = output_term_values(kind, power, self.lagged(y, 1), lambda: self.lagged(y, 2))
+            if mult >= 0:  # g is a new array: multiplied in place (one column less held on gathered rows)
+                g *= self.lagged(layout_column(lay.column_labels[mult], self.data), 1)
+            columns.append(g)
+        return columns[0].reshape(-1, 1) if len(columns) == 1 else np.column_stack(columns)
 
     def _score_all(self) -> list[dict]:
         """Every prepared candidate scored, in order; those on the model's rows in groups that

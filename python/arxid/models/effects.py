@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from .._base import _core
 from .._base.columns import write_columns
 from .._base.records import record
 from ..data.iodata import IOData
@@ -327,9 +328,9 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     if f.op in ("pos", "neg"):
         return np.maximum(x, 0.0) if f.op == "pos" else np.minimum(x, 0.0)
     d = np.zeros_like(x)
-    for a, b in data.segments:
-        d[a + 1 : b] = np.diff(x[a:b])
-    return np.sign(d) if f.op == "signdiff" else d
+    for a, b in data.segments:  # np.diff's differences, written in place (no temporary per segment)
+        np.subtract(x[a + 1 : b], x[a : b - 1], out=d[a + 1 : b])
+    return np.sign(d, out=d) if f.op == "signdiff" else d
 
 
 @record
@@ -365,6 +366,11 @@ def _output_term(f: Factor, text: str) -> tuple[str, int]:
 def _check_range(text: str, value: np.ndarray) -> None:
     """Refuse an effect that leaves the float range (IOData holds no inf, so any inf is an overflow):
     the core would drop those rows as if they were missing samples."""
+    if value.ndim == 1 and value.dtype == np.float64 and value.flags.c_contiguous:
+        # One pass without a temporary (the largest |x| over the samples that are numbers: inf when
+        # one is infinite); the sample is then found the long way.
+        if not np.isinf(_core.peak_magnitude(value)):
+            return
     bad = np.isinf(value)
     if bad.any():
         i = int(np.argmax(bad))

@@ -12,7 +12,6 @@ from collections.abc import Callable, Iterator, Sequence
 import numpy as np
 
 from .._base import _core
-from .._base.background import in_row_halves
 from ..data.iodata import IOData
 from .effects import EffectLayout, integer_power
 
@@ -127,8 +126,7 @@ def regressor_matrix(
     y = data.y
     rows = regression_rows(data, max(first_lag, max_lag(na, layout)))
     phi = np.empty((len(rows), len(regressor_names(data.output_name, na, layout))))
-    write_regressors(phi, data, na, layout, rows, signs)
-    ok = np.isfinite(phi).all(axis=1) & np.isfinite(y[rows])
+    ok = write_regressors(phi, data, na, layout, rows, signs) & np.isfinite(y[rows])
     if ok.all():  # no row touches a missing sample: no copies
         return phi, y[rows], rows
     return phi[ok], y[rows][ok], rows[ok]
@@ -153,29 +151,30 @@ def regression_rows(data: IOData, lag: int) -> np.ndarray:
 
 def write_regressors(
     out: np.ndarray, data: IOData, na: int, layout: EffectLayout, rows: np.ndarray, signs: bool = True
-) -> None:
-    """Write the regressors at ``rows`` into the first columns of ``out``, one column at a time (a
-    list of columns stacked at the end would hold the matrix twice); a long matrix in two halves of
-    its rows on two threads, as :func:`arxid._base.columns.write_columns`.
+) -> np.ndarray:
+    """Write the regressors at ``rows`` into the first columns of ``out``, row by row in the Rust core
+    (all cores, the GIL released): each row written once, its finiteness noted on the way, where a
+    column at a time made one pass over the matrix per column and one more to find the missing rows.
 
     Parameters
     ----------
-    out : ndarray of shape (len(rows), >= n_params)
+    out : ndarray of shape (len(rows), >= n_params), C-contiguous
     data, na, layout, signs
         As in :func:`regressor_matrix`.
     rows : ndarray of int
         Sample index of each row (each at least the model's largest lag into its experiment).
+
+    Returns
+    -------
+    ndarray of bool, shape (len(rows),)
+        Whether every regressor of each row is finite.
     """
-
-    def write(span: tuple[int, int]) -> None:
-        # A block of rows at a time: the lags of a column share its cache lines.
-        for lo in range(span[0], span[1], _BLOCK_ROWS):
-            hi = min(lo + _BLOCK_ROWS, span[1])
-            block = out[lo:hi]
-            for j, col in enumerate(_columns(data, na, layout, rows[lo:hi], None, signs)):
-                block[:, j] = col
-
-    in_row_halves(write, len(rows), _BLOCK_ROWS)
+    if na + sum(layout.nb) + len(layout.output_terms) == 0 or not len(rows):
+        return np.ones(len(rows), dtype=bool)
+    y, u = (np.ascontiguousarray(v, dtype=float) for v in (data.y, layout.u))
+    at = np.ascontiguousarray(rows, dtype=np.int64)
+    terms = list(layout.output_terms)
+    return _core.regressor_rows(y, u, na, list(layout.nb), list(layout.nk), terms, at, out, signs)
 
 
 def regressor_columns(
@@ -202,7 +201,7 @@ def regressor_columns(
     """
     index = sorted(set(which))
     out = np.empty((len(rows), len(which)))
-    for lo in range(0, len(rows), _BLOCK_ROWS):  # a block of rows at a time, as write_regressors
+    for lo in range(0, len(rows), _BLOCK_ROWS):  # a block of rows at a time: a column's lags share its cache lines
         cols = list(_columns(data, na, layout, rows[lo : lo + _BLOCK_ROWS], set(which), True))
         block = out[lo : lo + _BLOCK_ROWS]
         for i, w in enumerate(which):
