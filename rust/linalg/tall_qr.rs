@@ -5,7 +5,6 @@
 //! A TSQR block of a sweep (4,096 rows of 31 columns) is read once from memory instead of once per
 //! column block of a blocked QR, at the same multiply-add count as Householder QR of the block.
 
-
 /// Rows folded into the triangle per step: a multiple of [`VEC`]; 64 rows of 32 columns are 16 KiB.
 const PANEL: usize = 64;
 
@@ -158,7 +157,10 @@ unsafe fn fold_panel_avx2(r: &mut [f64], panel: &mut [PanelColumn], n: usize) {
             let ntw = _mm256_set1_pd(-tw);
             let (pv, px) = (v.as_ptr(), x.as_mut_ptr());
             for o in (0..PANEL).step_by(W) {
-                _mm256_storeu_pd(px.add(o), _mm256_fmadd_pd(ntw, _mm256_loadu_pd(pv.add(o)), _mm256_loadu_pd(px.add(o))));
+                _mm256_storeu_pd(
+                    px.add(o),
+                    _mm256_fmadd_pd(ntw, _mm256_loadu_pd(pv.add(o)), _mm256_loadu_pd(px.add(o))),
+                );
             }
         }
     }
