@@ -39,6 +39,9 @@ pub fn tall_r(columns: &[&[f64]]) -> Vec<f64> {
 /// One column of the panel.
 type PanelColumn = [f64; PANEL];
 
+/// Folds a panel into R (`fold(r, panel, n)`): [`fold_panel`] or a vectorised build of it.
+type FoldPanel = dyn Fn(&mut [f64], &mut [PanelColumn], usize);
+
 /// `Σ_i v_i x_i` over a panel column, summed in [`VEC`] lanes and then pairwise.
 #[inline(always)]
 fn dot(v: &PanelColumn, x: &PanelColumn) -> f64 {
@@ -53,7 +56,7 @@ fn dot(v: &PanelColumn, x: &PanelColumn) -> f64 {
 
 /// Panel after panel of rows folded into R by `fold(r, panel, n)`.
 #[inline(always)]
-fn tall_r_impl(columns: &[&[f64]], m: usize, fold: &dyn Fn(&mut [f64], &mut [PanelColumn], usize)) -> Vec<f64> {
+fn tall_r_impl(columns: &[&[f64]], m: usize, fold: &FoldPanel) -> Vec<f64> {
     let n = columns.len();
     let mut r = vec![0.0; n * n];
     let mut panel: Vec<PanelColumn> = vec![[0.0; PANEL]; n];

@@ -335,6 +335,7 @@ fn lanes_block<const NA: usize, const FMA: bool, const PEAK: bool>(
         }
         t += STEPS;
     }
+    #[allow(clippy::needless_range_loop)] // the step reads the inputs of t too
     for t in t..end {
         ar_step!(st.input_part::<FMA>(ucol, n, t), t);
     }
