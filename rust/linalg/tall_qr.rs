@@ -22,18 +22,30 @@ pub const MAX_COLUMNS: usize = 64;
 /// # Panics
 /// When the columns differ in length or there are more than [`MAX_COLUMNS`].
 pub fn tall_r(columns: &[&[f64]]) -> Vec<f64> {
+    let mut r = vec![0.0; columns.len() * columns.len()];
+    tall_r_into(columns, &mut r);
+    r
+}
+
+/// [`tall_r`] into `r` (`n × n`, column-major), with no allocation: a TSQR worker factors block
+/// after block, and small allocations between its block buffers fragmented its heap.
+///
+/// # Panics
+/// As [`tall_r`]; when `r` does not have `n²` entries.
+pub fn tall_r_into(columns: &[&[f64]], r: &mut [f64]) {
     let n = columns.len();
     assert!(n <= MAX_COLUMNS, "at most {MAX_COLUMNS} columns");
+    assert_eq!(r.len(), n * n, "an n × n factor");
     let m = columns.first().map_or(0, |c| c.len());
     assert!(columns.iter().all(|c| c.len() == m), "columns of one length");
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
             // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { tall_r_avx2(columns, m) };
+            return unsafe { tall_r_avx2(columns, m, r) };
         }
     }
-    tall_r_impl(columns, m, &fold_panel)
+    tall_r_impl(columns, m, r, &fold_panel)
 }
 
 /// One column of the panel.
@@ -56,10 +68,11 @@ fn dot(v: &PanelColumn, x: &PanelColumn) -> f64 {
 
 /// Panel after panel of rows folded into R by `fold(r, panel, n)`.
 #[inline(always)]
-fn tall_r_impl(columns: &[&[f64]], m: usize, fold: &FoldPanel) -> Vec<f64> {
+fn tall_r_impl(columns: &[&[f64]], m: usize, r: &mut [f64], fold: &FoldPanel) {
     let n = columns.len();
-    let mut r = vec![0.0; n * n];
-    let mut panel: Vec<PanelColumn> = vec![[0.0; PANEL]; n];
+    r.fill(0.0);
+    let mut panel_store = [[0.0; PANEL]; MAX_COLUMNS];
+    let panel = &mut panel_store[..n];
     let mut start = 0;
     while start < m {
         let rows = PANEL.min(m - start);
@@ -68,10 +81,9 @@ fn tall_r_impl(columns: &[&[f64]], m: usize, fold: &FoldPanel) -> Vec<f64> {
             // Zero rows change no sum: the last, short panel is padded with them.
             p[rows..].fill(0.0);
         }
-        fold(&mut r, &mut panel, n);
+        fold(r, panel, n);
         start += rows;
     }
-    r
 }
 
 /// Folds the panel into R: for each column k the reflection that maps `[R_kk; panel_k]` onto
@@ -108,8 +120,8 @@ fn fold_panel(r: &mut [f64], panel: &mut [PanelColumn], n: usize) {
 /// [`tall_r`] with AVX2 and FMA: [`fold_panel`] in 4-wide vectors.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn tall_r_avx2(columns: &[&[f64]], m: usize) -> Vec<f64> {
-    tall_r_impl(columns, m, &|r, panel, n| {
+unsafe fn tall_r_avx2(columns: &[&[f64]], m: usize, r: &mut [f64]) {
+    tall_r_impl(columns, m, r, &|r, panel, n| {
         // SAFETY: called only from here, where the CPU has the features.
         unsafe { fold_panel_avx2(r, panel, n) }
     })
