@@ -12,8 +12,9 @@ use crate::linalg::tall_qr::{tall_r_into, MAX_COLUMNS};
 /// and therefore every bit of R, is the same for any number of threads.
 pub const BLOCK_ROWS: usize = 4096;
 
-/// Overwrites the upper triangle of `a` with R of its Householder QR (below-diagonal entries are
-/// Householder vectors, ignore them).
+/// Overwrites the upper triangle of `a` with R of its Householder QR (ignore the entries below the
+/// diagonal: Householder vectors, zeros or the input). Tall matrices of up to
+/// [`MAX_COLUMNS`] columns are factored by [`tall_r_into`], others by faer's blocked QR.
 pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
     let (m, n) = (a.nrows(), a.ncols());
     if m == 0 || n == 0 {
