@@ -11,3 +11,4 @@ pub mod levenberg;
 pub mod projected_qr;
 pub mod qr;
 pub mod simd;
+pub mod tall_qr;

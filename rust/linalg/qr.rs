@@ -6,16 +6,38 @@ use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, re
 use faer::{Mat, MatMut, Par};
 
 use crate::error::{ArxError, Result};
+use crate::linalg::tall_qr::{tall_r_into, MAX_COLUMNS};
 
 /// Rows per TSQR block. Fixed (not derived from the thread count) so that the reduction tree,
 /// and therefore every bit of R, is the same for any number of threads.
 pub const BLOCK_ROWS: usize = 4096;
 
-/// Overwrites the upper triangle of `a` with R of its Householder QR (below-diagonal entries are
-/// Householder vectors, ignore them).
-pub fn qr_r_in_place(a: MatMut<'_, f64>) {
+/// Overwrites the upper triangle of `a` with R of its Householder QR (ignore the entries below the
+/// diagonal: Householder vectors, zeros or the input). Tall matrices of up to
+/// [`MAX_COLUMNS`] columns are factored by [`tall_r_into`], others by faer's blocked QR.
+pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
     let (m, n) = (a.nrows(), a.ncols());
     if m == 0 || n == 0 {
+        return;
+    }
+    if m >= n && n <= MAX_COLUMNS && a.row_stride() == 1 {
+        // Tall and narrow (a TSQR block): reflections of a panel of rows at a time into R, in cache.
+        // On the stack: no allocation between a worker's block buffers.
+        let mut r = [0.0; MAX_COLUMNS * MAX_COLUMNS];
+        let r = &mut r[..n * n];
+        {
+            let view = a.as_ref();
+            let mut columns: [&[f64]; MAX_COLUMNS] = [&[]; MAX_COLUMNS];
+            for (j, c) in columns.iter_mut().enumerate().take(n) {
+                *c = view.col(j).try_as_col_major().expect("unit row stride").as_slice();
+            }
+            tall_r_into(&columns[..n], r);
+        }
+        for j in 0..n {
+            for i in 0..n {
+                a[(i, j)] = r[i + j * n];
+            }
+        }
         return;
     }
     let bs = recommended_block_size::<f64>(m, n);
