@@ -3,7 +3,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, recommended_block_size};
-use faer::{Mat, MatMut, Par};
+use faer::{Mat, MatMut, MatRef, Par};
 
 use crate::error::{ArxError, Result};
 use crate::linalg::tall_qr::{tall_r_into, MAX_COLUMNS};
@@ -20,7 +20,7 @@ pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
     if m == 0 || n == 0 {
         return;
     }
-    if m >= n && n <= MAX_COLUMNS && a.row_stride() == 1 {
+    if m >= n && n <= MAX_COLUMNS && a.row_stride() == 1 && in_tall_range(a.as_ref()) {
         // Tall and narrow (a TSQR block): reflections of a panel of rows at a time into R, in cache.
         // On the stack: no allocation between a worker's block buffers.
         let mut r = [0.0; MAX_COLUMNS * MAX_COLUMNS];
@@ -44,6 +44,27 @@ pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
     let mut q_coeff = Mat::<f64>::zeros(bs, m.min(n));
     let mut buf = MemBuffer::new(qr_in_place_scratch::<f64>(m, n, bs, Par::Seq, Default::default()));
     qr_in_place(a, q_coeff.as_mut(), Par::Seq, MemStack::new(&mut buf), Default::default());
+}
+
+/// The entries [`tall_r_into`] takes: a column's largest |entry| is zero or within `[1e-140, 1e140]`,
+/// so its sums of squares neither overflow nor underflow (the kernel does not scale them). Other
+/// matrices, and any with a NaN or infinity, go to faer's QR, which scales its norms.
+fn in_tall_range(a: MatRef<'_, f64>) -> bool {
+    const LOW: f64 = 1e-140;
+    const HIGH: f64 = 1e140;
+    (0..a.ncols()).all(|j| {
+        let mut largest = 0.0f64;
+        for &x in a.col(j).iter() {
+            let ax = x.abs();
+            // NaN must leave the range too, hence the negated comparison.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            if !(ax <= HIGH) {
+                return false;
+            }
+            largest = largest.max(ax);
+        }
+        largest == 0.0 || largest >= LOW
+    })
 }
 
 /// Upper-triangular (q × q) copy of the first q rows of `a`'s R, zero-padded when `a` had fewer rows.
@@ -242,5 +263,28 @@ mod tests {
         let mut a = vec![1.0, 2.0, 3.0, 1.0, 2.0, 3.0, 0.5, 0.1, 0.9];
         small_qr(&mut a, 3, 3);
         assert!(matches!(check_rank(&a, 3, 2, 1e-12), Err(ArxError::RankDeficient { column: 1, .. })));
+    }
+
+    /// R of `scale · A` is `scale · R(A)` up to row signs, at scales whose squares leave the float
+    /// range (such columns go to faer's scaled QR) as at ordinary ones (the tall kernel).
+    #[test]
+    fn r_scales_with_the_matrix_near_the_float_range_limits() {
+        let a = Mat::from_fn(300, 3, |i, j| ((i * 7 + j * 13) % 17) as f64 - 8.0 + (i as f64 * 0.37 + j as f64).sin());
+        let r_of = |scale: f64| {
+            let mut b = Mat::from_fn(300, 3, |i, j| a[(i, j)] * scale);
+            qr_r_in_place(b.as_mut());
+            take_r(&b, 3)
+        };
+        let r1 = r_of(1.0);
+        for scale in [1e154, 1e-200, 1e200] {
+            let r = r_of(scale);
+            for j in 0..3 {
+                for i in 0..=j {
+                    let (want, got) = (r1[(i, j)].abs() * scale, r[(i, j)].abs());
+                    assert!((got - want).abs() <= 1e-12 * want.max(r1[(0, 0)].abs() * scale), "{scale}: R[{i},{j}]");
+                }
+            }
+            assert!(r[(2, 2)] != 0.0, "{scale}: the last column must not look dependent");
+        }
     }
 }

@@ -367,8 +367,7 @@ def _check_range(text: str, value: np.ndarray) -> None:
     """Refuse an effect that leaves the float range (IOData holds no inf, so any inf is an overflow):
     the core would drop those rows as if they were missing samples."""
     if value.ndim == 1 and value.dtype == np.float64 and value.flags.c_contiguous:
-        # One pass without a temporary (the largest |x| over the samples that are numbers: inf when
-        # one is infinite); the sample is then found the long way.
+        # One pass, no temporary (the largest |x|: inf when one is infinite); the sample found the long way.
         if not np.isinf(_core.peak_magnitude(value)):
             return
     bad = np.isinf(value)
@@ -667,8 +666,7 @@ def layout_column(label: str, data: IOData) -> np.ndarray:
     if i is not None:
         return data.u[:, i]
     with _COLUMNS_LOCK:
-        kept = _COLUMNS.get(data)
-        out = kept.get(label) if kept is not None else None
+        out = _COLUMNS.get(data, {}).get(label)
     if out is not None:
         return out
     text = label.removeprefix("carrier:")
@@ -686,9 +684,8 @@ def layout_column(label: str, data: IOData) -> np.ndarray:
     return _keep_column(data, label, out)
 
 
-#: The columns :func:`layout_column` formed on each data set, by label, while they fit in
-#: :data:`_KEEP_BYTES` (the last always): a diagnosis forms the same effect's column for the
-#: envelope of every refit and the lanes of every validation.
+#: The columns :func:`layout_column` formed on each data set, by label, while they fit in :data:`_KEEP_BYTES`
+#: (the last always): a diagnosis forms one effect's column for every refit's envelope and validation's lanes.
 _COLUMNS: weakref.WeakKeyDictionary[IOData, dict[str, np.ndarray]] = weakref.WeakKeyDictionary()
 _COLUMNS_LOCK = threading.Lock()
 

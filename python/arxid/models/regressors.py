@@ -171,7 +171,8 @@ def write_regressors(
     """
     if na + sum(layout.nb) + len(layout.output_terms) == 0 or not len(rows):
         return np.ones(len(rows), dtype=bool)
-    y, u = (np.ascontiguousarray(v, dtype=float) for v in (data.y, layout.u))
+    # Arrays unpickled on a Dask worker may be misaligned: the core reads aligned, contiguous ones.
+    y, u = (np.require(v, dtype=float, requirements=["C", "A"]) for v in (data.y, layout.u))
     at = np.ascontiguousarray(rows, dtype=np.int64)
     terms = list(layout.output_terms)
     return _core.regressor_rows(y, u, na, list(layout.nb), list(layout.nk), terms, at, out, signs)
