@@ -3,7 +3,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, recommended_block_size};
-use faer::{Mat, MatMut, MatRef, Par};
+use faer::{Mat, MatMut, Par};
 
 use crate::error::{ArxError, Result};
 use crate::linalg::tall_qr::{tall_r_into, MAX_COLUMNS};
@@ -20,11 +20,16 @@ pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
     if m == 0 || n == 0 {
         return;
     }
-    if m >= n && n <= MAX_COLUMNS && a.row_stride() == 1 && in_tall_range(a.as_ref()) {
+    if m >= n && n <= MAX_COLUMNS && a.row_stride() == 1 {
         // Tall and narrow (a TSQR block): reflections of a panel of rows at a time into R, in cache.
         // On the stack: no allocation between a worker's block buffers.
         let mut r = [0.0; MAX_COLUMNS * MAX_COLUMNS];
         let r = &mut r[..n * n];
+        let mut exponents = [0i32; MAX_COLUMNS];
+        for (j, e) in exponents.iter_mut().enumerate().take(n) {
+            let col = a.as_mut().col_mut(j).try_as_col_major_mut().expect("unit row stride").as_slice_mut();
+            *e = into_tall_range(col);
+        }
         {
             let view = a.as_ref();
             let mut columns: [&[f64]; MAX_COLUMNS] = [&[]; MAX_COLUMNS];
@@ -35,7 +40,7 @@ pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
         }
         for j in 0..n {
             for i in 0..n {
-                a[(i, j)] = r[i + j * n];
+                a[(i, j)] = times_power_of_two(r[i + j * n], -exponents[j]); // R(A D) D⁻¹ = R(A)
             }
         }
         return;
@@ -46,25 +51,35 @@ pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
     qr_in_place(a, q_coeff.as_mut(), Par::Seq, MemStack::new(&mut buf), Default::default());
 }
 
-/// The entries [`tall_r_into`] takes: a column's largest |entry| is zero or within `[1e-140, 1e140]`,
-/// so its sums of squares neither overflow nor underflow (the kernel does not scale them). Other
-/// matrices, and any with a NaN or infinity, go to faer's QR, which scales its norms.
-fn in_tall_range(a: MatRef<'_, f64>) -> bool {
-    const LOW: f64 = 1e-140;
-    const HIGH: f64 = 1e140;
-    (0..a.ncols()).all(|j| {
-        let mut largest = 0.0f64;
-        for &x in a.col(j).iter() {
-            let ax = x.abs();
-            // NaN must leave the range too, hence the negated comparison.
-            #[allow(clippy::neg_cmp_op_on_partial_ord)]
-            if !(ax <= HIGH) {
-                return false;
-            }
-            largest = largest.max(ax);
-        }
-        largest == 0.0 || largest >= LOW
-    })
+/// A column's largest |entry| the tall kernel factors as it is: its sums of squares stay inside the
+/// float range (2^±400 squared is 2^±800), as faer's QR, which scales its norms, needs no bound.
+const TALL_LOW: f64 = 3.872591914849318e-121; // 2^-400
+const TALL_HIGH: f64 = 2.5822498780869086e120; // 2^400
+
+/// Scales `col` by the power of two `2^e` that brings its largest |entry| near 1 when that lies
+/// outside `[TALL_LOW, TALL_HIGH]`, and returns `e` (0, the column untouched, when it lies inside or
+/// the column is zero or holds an infinity). A power of two scales every rounding with it, so R of
+/// the scaled columns is R's columns times `2^e` exactly: the same bits once scaled back.
+fn into_tall_range(col: &mut [f64]) -> i32 {
+    let largest = col.iter().fold(0.0f64, |m, &x| m.max(x.abs())); // NaN is passed over
+    if largest == 0.0 || !largest.is_finite() || (TALL_LOW..=TALL_HIGH).contains(&largest) {
+        return 0;
+    }
+    let e = -(largest.log2().floor() as i32);
+    for x in col.iter_mut() {
+        *x = times_power_of_two(*x, e);
+    }
+    e
+}
+
+/// `x · 2^e`, exact while the result is a normal number (in steps: `2^e` alone may not be one).
+fn times_power_of_two(mut x: f64, mut e: i32) -> f64 {
+    while e != 0 {
+        let step = e.clamp(-1000, 1000);
+        x *= f64::from_bits(((1023 + step) as u64) << 52);
+        e -= step;
+    }
+    x
 }
 
 /// Upper-triangular (q × q) copy of the first q rows of `a`'s R, zero-padded when `a` had fewer rows.
@@ -285,6 +300,12 @@ mod tests {
                 }
             }
             assert!(r[(2, 2)] != 0.0, "{scale}: the last column must not look dependent");
+        }
+        // Scaled by a power of two, R is scaled to the bit, inside the kernel's range and beyond it.
+        for e in [3, 600, -700, 1000] {
+            let r = r_of(times_power_of_two(1.0, e));
+            let scaled = Mat::from_fn(3, 3, |i, j| times_power_of_two(r1[(i, j)], e));
+            assert_eq!(r, scaled, "2^{e}");
         }
     }
 }
