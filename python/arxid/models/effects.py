@@ -596,19 +596,18 @@ def _special_column(special: str, data: IOData) -> np.ndarray:
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
     """Product of the factors that do not involve the output (None when there are none), refusing
     overflow."""
-    prod = None
+    prod, formed = None, False  # formed: prod is an array made here, so multiplied in place
     with np.errstate(over="ignore", invalid="ignore"):
         for f in factors:
             x = np.asarray(data.signal(f.signal), dtype=float)
-            if f.op != "pow" or f.power != 1:
+            own = f.op != "pow" or f.power != 1  # else the signal as it is (no inf in an IOData), not a copy
+            if own:
                 x = _apply(f, x, data)
                 _check_range(text, x)
-            # else: the signal as it is (an IOData's samples hold no inf), not a copy
             if prod is not None:
-                prod = prod * x
+                prod = np.multiply(prod, x, out=prod) if formed else prod * x
                 _check_range(text, prod)
-            else:
-                prod = x
+            prod, formed = (x, own) if prod is None else (prod, True)
     return prod
 
 
