@@ -47,7 +47,7 @@ from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from .input_shapes import InputShape, parse_shape
-from .term_values import integer_power, thresholded, thresholded_products
+from .term_values import format_threshold, integer_power, thresholded, thresholded_products
 
 __all__ = [
     "Effect",
@@ -265,22 +265,6 @@ def _threshold(text: str, c: str) -> float:
     if not 0 < value < float("inf"):
         raise OrderError(f"effect {text!r}: the threshold c must be a positive number, got {c}")
     return value
-
-
-def format_threshold(c: float) -> str:
-    """A threshold as the grammar writes it: four significant digits, no ``+`` in an exponent.
-
-    Parameters
-    ----------
-    c : float
-        A positive threshold.
-
-    Returns
-    -------
-    str
-        e.g. ``"0.3012"`` or ``"1.5e-05"``.
-    """
-    return f"{c:.4g}".replace("e+", "e")
 
 
 def _is_output(name: str, data: IOData) -> bool:
@@ -507,16 +491,20 @@ class _Plan:
         if self.eff_col[i] is not None:
             raise OrderError(f"effects {self.eff_col[i]!r} and {e.text!r} both replace the input {self.labels[i]!r}")
         if self.build:
-            if self.cols[0] is self.data.u:
-                self.cols[0] = self.data.u.copy()
-            self.cols[0][:, i] = layout_column(e.text, self.data)  # shape_series, kept per data set
+            col = layout_column(e.text, self.data)  # shape_series, kept per data set (read-only)
+            if self.cols[0].shape[1] == 1:  # the only input: the shape's column itself, not a copy
+                self.cols[0] = col.reshape(-1, 1)
+            else:
+                if self.cols[0] is self.data.u:
+                    self.cols[0] = self.data.u.copy()
+                self.cols[0][:, i] = col
         self.labels[i], self.eff_col[i] = e.text, e.text
         self.replaced = True
 
     def effect(self, e: Effect, text: str) -> None:
         data = self.data
         if e.special is not None:
-            col = _special_column(e.special, data) if self.build else None
+            col = _special_column(e.special, data, stacked=True) if self.build else None
             self.add(col, 1, 0, None, e.special, e.text)
             return
         if e.shape is not None:
@@ -588,9 +576,12 @@ def effect_series(text: str, data: IOData) -> np.ndarray:
     return prod
 
 
-def _special_column(special: str, data: IOData) -> np.ndarray:
-    """The column of ``const`` (ones) or ``time`` (the sample times)."""
-    return np.ones(data.n_samples) if special == "const" else np.asarray(data.time, dtype=float)
+def _special_column(special: str, data: IOData, stacked: bool = False) -> np.ndarray:
+    """The column of ``const`` (ones) or ``time`` (the sample times); ``stacked``: only copied into
+    an input matrix, so ``const`` is a read-only broadcast 1 (no array of ones formed and dropped)."""
+    if special == "const":
+        return np.broadcast_to(1.0, (data.n_samples,)) if stacked else np.ones(data.n_samples)
+    return np.asarray(data.time, dtype=float)
 
 
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:

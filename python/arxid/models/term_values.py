@@ -1,6 +1,6 @@
 """The values of effect terms that several modules compute: integer powers evaluated as the Rust
 core evaluates them, and the dead zone and saturation of a signal (with the products a threshold
-scan needs, in the core)."""
+scan needs, in the core) and its threshold as the grammar writes it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 
 from .._base import _core
 
-__all__ = ["integer_power", "thresholded", "thresholded_products"]
+__all__ = ["format_threshold", "integer_power", "thresholded", "thresholded_products"]
 
 
 def thresholded(
@@ -123,3 +123,19 @@ def integer_power(x: np.ndarray, power: int) -> np.ndarray:
             assert result is not None  # power >= 1 sets it
             return result
         base = base * base if base is x else np.multiply(base, base, out=base)
+
+
+def format_threshold(c: float) -> str:
+    """A threshold as the grammar writes it: four significant digits, no ``+`` in an exponent.
+
+    Parameters
+    ----------
+    c : float
+        A positive threshold.
+
+    Returns
+    -------
+    str
+        e.g. ``"0.3012"`` or ``"1.5e-05"``.
+    """
+    return f"{c:.4g}".replace("e+", "e")
