@@ -123,13 +123,13 @@ def regressor_matrix(
     rows : ndarray of int, shape (n_rows,)
         Sample index of each row.
     """
-    y = data.y
     rows = regression_rows(data, max(first_lag, max_lag(na, layout)))
     phi = np.empty((len(rows), len(regressor_names(data.output_name, na, layout))))
-    ok = write_regressors(phi, data, na, layout, rows, signs) & np.isfinite(y[rows])
+    y = data.y[rows]  # gathered once
+    ok = write_regressors(phi, data, na, layout, rows, signs) & np.isfinite(y)
     if ok.all():  # no row touches a missing sample: no copies
-        return phi, y[rows], rows
-    return phi[ok], y[rows][ok], rows[ok]
+        return phi, y, rows
+    return phi[ok], y[ok], rows[ok]
 
 
 def regression_rows(data: IOData, lag: int) -> np.ndarray:
