@@ -308,7 +308,8 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     if f.op == "sign":
         return np.sign(x)
     if f.op in ("dz", "sat"):
-        return thresholded(f.op, np.abs(x), np.sign(x), f.threshold)
+        magnitude = np.abs(x)
+        return thresholded(f.op, magnitude, np.sign(x), f.threshold, out=magnitude)  # |x| is ours: written over
     if f.op in ("pos", "neg"):
         return np.maximum(x, 0.0) if f.op == "pos" else np.minimum(x, 0.0)
     d = np.zeros_like(x)
@@ -622,7 +623,7 @@ def _check_output_term_once(text: str, kind: str, power: int, prod: np.ndarray |
         g = _apply(Factor("y", kind, power), data.y, data)
         _check_range(text, g)
         if prod is not None:
-            _check_range(text, g * prod)
+            _check_range(text, np.multiply(g, prod, out=g))  # g is a new array
 
 
 def layout_column(label: str, data: IOData) -> np.ndarray:
