@@ -275,7 +275,7 @@ class IOData(SeveralOutputs, TableReaders, FlightLogReaders):
         """Time of each sample in seconds, restarting at 0 in each experiment."""
         t = np.empty(self.n_samples)
         for a, b in self.segments:
-            t[a:b] = np.arange(b - a) * self.ts
+            np.multiply(np.arange(b - a), self.ts, out=t[a:b])
         return t
 
     @property

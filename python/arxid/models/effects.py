@@ -47,7 +47,7 @@ from .._base.records import record
 from ..data.iodata import IOData
 from ..exceptions import DataError, OrderError
 from .input_shapes import InputShape, parse_shape
-from .term_values import integer_power, thresholded, thresholded_products
+from .term_values import format_threshold, integer_power, thresholded, thresholded_products
 
 __all__ = [
     "Effect",
@@ -267,22 +267,6 @@ def _threshold(text: str, c: str) -> float:
     return value
 
 
-def format_threshold(c: float) -> str:
-    """A threshold as the grammar writes it: four significant digits, no ``+`` in an exponent.
-
-    Parameters
-    ----------
-    c : float
-        A positive threshold.
-
-    Returns
-    -------
-    str
-        e.g. ``"0.3012"`` or ``"1.5e-05"``.
-    """
-    return f"{c:.4g}".replace("e+", "e")
-
-
 def _is_output(name: str, data: IOData) -> bool:
     return name in ("y", data.output_name)
 
@@ -324,7 +308,8 @@ def _apply(f: Factor, x: np.ndarray, data: IOData) -> np.ndarray:
     if f.op == "sign":
         return np.sign(x)
     if f.op in ("dz", "sat"):
-        return thresholded(f.op, np.abs(x), np.sign(x), f.threshold)
+        magnitude = np.abs(x)
+        return thresholded(f.op, magnitude, np.sign(x), f.threshold, out=magnitude)  # |x| is ours: written over
     if f.op in ("pos", "neg"):
         return np.maximum(x, 0.0) if f.op == "pos" else np.minimum(x, 0.0)
     d = np.zeros_like(x)
@@ -506,16 +491,20 @@ class _Plan:
         if self.eff_col[i] is not None:
             raise OrderError(f"effects {self.eff_col[i]!r} and {e.text!r} both replace the input {self.labels[i]!r}")
         if self.build:
-            if self.cols[0] is self.data.u:
-                self.cols[0] = self.data.u.copy()
-            self.cols[0][:, i] = layout_column(e.text, self.data)  # shape_series, kept per data set
+            col = layout_column(e.text, self.data)  # shape_series, kept per data set (read-only)
+            if self.cols[0].shape[1] == 1:  # the only input: the shape's column itself, not a copy
+                self.cols[0] = col.reshape(-1, 1)
+            else:
+                if self.cols[0] is self.data.u:
+                    self.cols[0] = self.data.u.copy()
+                self.cols[0][:, i] = col
         self.labels[i], self.eff_col[i] = e.text, e.text
         self.replaced = True
 
     def effect(self, e: Effect, text: str) -> None:
         data = self.data
         if e.special is not None:
-            col = _special_column(e.special, data) if self.build else None
+            col = _special_column(e.special, data, stacked=True) if self.build else None
             self.add(col, 1, 0, None, e.special, e.text)
             return
         if e.shape is not None:
@@ -587,27 +576,29 @@ def effect_series(text: str, data: IOData) -> np.ndarray:
     return prod
 
 
-def _special_column(special: str, data: IOData) -> np.ndarray:
-    """The column of ``const`` (ones) or ``time`` (the sample times)."""
-    return np.ones(data.n_samples) if special == "const" else np.asarray(data.time, dtype=float)
+def _special_column(special: str, data: IOData, stacked: bool = False) -> np.ndarray:
+    """The column of ``const`` (ones) or ``time`` (the sample times); ``stacked``: only copied into
+    an input matrix, so ``const`` is a read-only broadcast 1 (no array of ones formed and dropped)."""
+    if special == "const":
+        return np.broadcast_to(1.0, (data.n_samples,)) if stacked else np.ones(data.n_samples)
+    return np.asarray(data.time, dtype=float)
 
 
 def _input_product(text: str, factors: list[Factor], data: IOData) -> np.ndarray | None:
     """Product of the factors that do not involve the output (None when there are none), refusing
     overflow."""
-    prod = None
+    prod, formed = None, False  # formed: prod is an array made here, so multiplied in place
     with np.errstate(over="ignore", invalid="ignore"):
         for f in factors:
             x = np.asarray(data.signal(f.signal), dtype=float)
-            if f.op != "pow" or f.power != 1:
+            own = f.op != "pow" or f.power != 1  # else the signal as it is (no inf in an IOData), not a copy
+            if own:
                 x = _apply(f, x, data)
                 _check_range(text, x)
-            # else: the signal as it is (an IOData's samples hold no inf), not a copy
             if prod is not None:
-                prod = prod * x
+                prod = np.multiply(prod, x, out=prod) if formed else prod * x
                 _check_range(text, prod)
-            else:
-                prod = x
+            prod, formed = (x, own) if prod is None else (prod, True)
     return prod
 
 
@@ -631,7 +622,7 @@ def _check_output_term_once(text: str, kind: str, power: int, prod: np.ndarray |
         g = _apply(Factor("y", kind, power), data.y, data)
         _check_range(text, g)
         if prod is not None:
-            _check_range(text, g * prod)
+            _check_range(text, np.multiply(g, prod, out=g))  # g is a new array
 
 
 def layout_column(label: str, data: IOData) -> np.ndarray:

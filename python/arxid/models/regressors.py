@@ -123,13 +123,15 @@ def regressor_matrix(
     rows : ndarray of int, shape (n_rows,)
         Sample index of each row.
     """
-    y = data.y
     rows = regression_rows(data, max(first_lag, max_lag(na, layout)))
     phi = np.empty((len(rows), len(regressor_names(data.output_name, na, layout))))
-    ok = write_regressors(phi, data, na, layout, rows, signs) & np.isfinite(y[rows])
+    ok = write_regressors(phi, data, na, layout, rows, signs)
+    y = data.y[rows]  # gathered after Φ is written, and once when no sample is missing
+    ok &= np.isfinite(y)
     if ok.all():  # no row touches a missing sample: no copies
-        return phi, y[rows], rows
-    return phi[ok], y[rows][ok], rows[ok]
+        return phi, y, rows
+    del y  # not held beside Φ and its kept rows (the peak): gathered again on those rows
+    return phi[ok], data.y[rows[ok]], rows[ok]
 
 
 def regression_rows(data: IOData, lag: int) -> np.ndarray:

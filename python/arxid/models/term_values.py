@@ -1,6 +1,6 @@
 """The values of effect terms that several modules compute: integer powers evaluated as the Rust
 core evaluates them, and the dead zone and saturation of a signal (with the products a threshold
-scan needs, in the core)."""
+scan needs, in the core) and its threshold as the grammar writes it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 
 from .._base import _core
 
-__all__ = ["integer_power", "thresholded", "thresholded_products"]
+__all__ = ["format_threshold", "integer_power", "thresholded", "thresholded_products"]
 
 
 def thresholded(
@@ -106,13 +106,36 @@ def integer_power(x: np.ndarray, power: int) -> np.ndarray:
     >>> integer_power(np.array([2.0, -1.5]), 3).tolist()
     [8.0, -3.375]
     """
-    result, given = None, np.asarray(x, dtype=float)
-    base = given
+    x = np.asarray(x, dtype=float)
+    if power & (power - 1) == 0 or (power & 1 and bin(power).count("1") == 2):
+        # x^(2^k), or x^(2^k)·x (3, 5, 9): one buffer squared in place, x multiplied in last; a
+        # product of two factors has the same bits in either order.
+        out = np.multiply(x, x) if power > 1 else x.copy()
+        for _ in range((power >> 1).bit_length() - 1):
+            np.multiply(out, out, out=out)
+        return np.multiply(out, x, out=out) if power & 1 and power > 1 else out
+    result, base = None, x  # the general case: the core's order of products
     while True:
         if power & 1:
-            result = (base.copy() if base is given else base) if result is None else result * base
+            result = base.copy() if result is None else np.multiply(result, base, out=result)
         power >>= 1
         if power == 0:
             assert result is not None  # power >= 1 sets it
             return result
-        base = base * base
+        base = base * base if base is x else np.multiply(base, base, out=base)
+
+
+def format_threshold(c: float) -> str:
+    """A threshold as the grammar writes it: four significant digits, no ``+`` in an exponent.
+
+    Parameters
+    ----------
+    c : float
+        A positive threshold.
+
+    Returns
+    -------
+    str
+        e.g. ``"0.3012"`` or ``"1.5e-05"``.
+    """
+    return f"{c:.4g}".replace("e+", "e")
