@@ -175,7 +175,7 @@ def write_regressors(
         return np.ones(len(rows), dtype=bool)
     # Arrays unpickled on a Dask worker may be misaligned: the core reads aligned, contiguous ones.
     y, u = (np.require(v, dtype=float, requirements=["C", "A"]) for v in (data.y, layout.u))
-    at = np.ascontiguousarray(rows, dtype=np.int64)
+    at = np.require(rows, dtype=np.int64, requirements=["C", "A"])
     terms = list(layout.output_terms)
     return _core.regressor_rows(y, u, na, list(layout.nb), list(layout.nk), terms, at, out, signs)
 
