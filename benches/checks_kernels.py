@@ -40,7 +40,8 @@ def _csd_matrix(x: np.ndarray, nseg: int, ts: float) -> np.ndarray:
 
 
 def main() -> None:
-    from arxid.checks.binning import _argsort_nonnegative, _sorted_quantiles
+    from arxid._base.order_statistics import sorted_quantiles
+    from arxid.checks.binning import _argsort_nonnegative
     from arxid.checks.frequency import spectra
     from arxid.diagnosis.disturbance import _low_share
 
@@ -90,11 +91,11 @@ def main() -> None:
     )
 
     q = np.linspace(0, 1, 9)
-    same = np.array_equal(_sorted_quantiles(np.sort(x[0]), q), np.quantile(x[0], q))
+    same = np.array_equal(sorted_quantiles(np.sort(x[0]), q), np.quantile(x[0], q))
     rows.append(
         (
             f"quantile edges, {n:,} samples",
-            median_time(lambda: _sorted_quantiles(np.sort(x[0]), q), 3),
+            median_time(lambda: sorted_quantiles(np.sort(x[0]), q), 3),
             median_time(lambda: np.quantile(x[0], q), 3),
             0.0 if same else float("inf"),
         )
