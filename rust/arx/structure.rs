@@ -211,14 +211,14 @@ impl<'a> Data<'a> {
     }
 }
 
-/// Fills `row` with the regressor of `s` at time `t` (followed by nothing else) and returns whether
-/// every value is finite. The caller guarantees `t` is at least `s.max_lag()` into its experiment.
+/// Writes the lagged outputs (negated with `negate_output`, as in `A(q)`) and inputs of `s` at time
+/// `t` into the first entries of `row`; returns how many it wrote and whether all are finite.
 #[inline]
-pub fn fill_row(d: &Data, s: &Structure, t: usize, row: &mut [f64]) -> bool {
+pub fn fill_lags(d: &Data, s: &Structure, t: usize, negate_output: bool, row: &mut [f64]) -> (usize, bool) {
     let mut c = 0;
     let mut finite = true;
     for i in 1..=s.na {
-        let v = -d.y[t - i];
+        let v = if negate_output { -d.y[t - i] } else { d.y[t - i] };
         finite &= v.is_finite();
         row[c] = v;
         c += 1;
@@ -231,6 +231,14 @@ pub fn fill_row(d: &Data, s: &Structure, t: usize, row: &mut [f64]) -> bool {
             c += 1;
         }
     }
+    (c, finite)
+}
+
+/// Fills `row` with the regressor of `s` at time `t` (followed by nothing else) and returns whether
+/// every value is finite. The caller guarantees `t` is at least `s.max_lag()` into its experiment.
+#[inline]
+pub fn fill_row(d: &Data, s: &Structure, t: usize, row: &mut [f64]) -> bool {
+    let (mut c, mut finite) = fill_lags(d, s, t, true, row);
     for term in &s.output_terms {
         let y1 = d.y[t - 1];
         let y2 = if term.lag() >= 2 { d.y[t - 2] } else { 0.0 };

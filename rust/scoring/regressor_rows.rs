@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use crate::arx::structure::{Data, OutputKind, Structure};
+use crate::arx::structure::{fill_lags, Data, OutputKind, Structure};
 use crate::error::{ArxError, Result};
 
 /// Rows per chunk of work.
@@ -78,22 +78,7 @@ pub fn regressor_rows(
 /// One row at sample `t` (at least the structure's lag): whether every value is finite.
 #[inline]
 fn write_row(d: &Data, s: &Structure, t: usize, negate_output: bool, row: &mut [f64]) -> bool {
-    let mut c = 0;
-    let mut finite = true;
-    for i in 1..=s.na {
-        let v = if negate_output { -d.y[t - i] } else { d.y[t - i] };
-        finite &= v.is_finite();
-        row[c] = v;
-        c += 1;
-    }
-    for (i, (&b, &k)) in s.nb.iter().zip(&s.nk).enumerate() {
-        for j in 0..b {
-            let v = d.u_at(t - k - j, i);
-            finite &= v.is_finite();
-            row[c] = v;
-            c += 1;
-        }
-    }
+    let (mut c, mut finite) = fill_lags(d, s, t, negate_output, row);
     for term in &s.output_terms {
         let y1 = d.y[t - 1];
         let g = match term.kind {
