@@ -89,6 +89,21 @@ fn tall_r_impl(columns: &[&[f64]], m: usize, r: &mut [f64], fold: &FoldPanel) {
     }
 }
 
+/// The reflection that maps `[R_kk; v]` onto `[β; 0]` (`s` = v'v > 0, `rkk` = R_kk's index): writes β
+/// into R_kk, scales `v` to the reflector's vector below its implicit leading 1, and returns τ.
+#[inline(always)]
+fn reflect(r: &mut [f64], rkk: usize, v: &mut PanelColumn, s: f64) -> f64 {
+    let alpha = r[rkk];
+    let norm = (alpha * alpha + s).sqrt();
+    let beta = if alpha >= 0.0 { -norm } else { norm };
+    let scale = 1.0 / (alpha - beta);
+    for x in v.iter_mut() {
+        *x *= scale;
+    }
+    r[rkk] = beta;
+    (beta - alpha) / beta
+}
+
 /// Folds the panel into R: for each column k the reflection that maps `[R_kk; panel_k]` onto
 /// `[β; 0]`, applied to the columns after k.
 fn fold_panel(r: &mut [f64], panel: &mut [PanelColumn], n: usize) {
@@ -99,15 +114,7 @@ fn fold_panel(r: &mut [f64], panel: &mut [PanelColumn], n: usize) {
         if s == 0.0 {
             continue; // nothing below R_kk: the reflection is the identity
         }
-        let alpha = r[k + k * n];
-        let norm = (alpha * alpha + s).sqrt();
-        let beta = if alpha >= 0.0 { -norm } else { norm };
-        let tau = (beta - alpha) / beta;
-        let scale = 1.0 / (alpha - beta);
-        for x in v.iter_mut() {
-            *x *= scale;
-        }
-        r[k + k * n] = beta;
+        let tau = reflect(r, k + k * n, v, s);
         let v = &*v;
         for (j, x) in rest.iter_mut().enumerate() {
             let rkj = &mut r[k + (k + 1 + j) * n];
@@ -158,15 +165,7 @@ unsafe fn fold_panel_avx2(r: &mut [f64], panel: &mut [PanelColumn], n: usize) {
         if s == 0.0 {
             continue; // nothing below R_kk: the reflection is the identity
         }
-        let alpha = r[k + k * n];
-        let norm = (alpha * alpha + s).sqrt();
-        let beta = if alpha >= 0.0 { -norm } else { norm };
-        let tau = (beta - alpha) / beta;
-        let scale = 1.0 / (alpha - beta);
-        for x in v.iter_mut() {
-            *x *= scale;
-        }
-        r[k + k * n] = beta;
+        let tau = reflect(r, k + k * n, v, s);
         let v = &*v;
         for (j, x) in rest.iter_mut().enumerate() {
             let rkj = &mut r[k + (k + 1 + j) * n];
