@@ -7,6 +7,7 @@
 //! `core_module` below and typed in `python/arxid/_base/_core.pyi`.
 
 mod arguments;
+mod array_memory;
 mod arx;
 mod csv;
 mod errors;
@@ -27,6 +28,8 @@ use pyo3::prelude::*;
 
 #[pymodule(name = "_core", gil_used = false)]
 mod core_module {
+    #[pymodule_export]
+    use super::array_memory::{keep_array_blocks, kept_array_blocks, release_array_blocks};
     #[pymodule_export]
     use super::arx::{envelope_factor, fit, fit_from_factor, fit_memory, max_lag, FitOutput};
     #[pymodule_export]

@@ -13,6 +13,9 @@ _Term = tuple[str, int, int]
 _Orders = tuple[int, tuple[int, ...], tuple[int, ...]]
 
 __all__ = [
+    "keep_array_blocks",
+    "release_array_blocks",
+    "kept_array_blocks",
     "divergence_limit",
     "finite_peak",
     "finite_squares",
@@ -210,6 +213,11 @@ def group_sums(
 ) -> tuple[npt.NDArray[np.uint64], _F, npt.NDArray[np.bool_]]: ...
 def peak_magnitude(x: _F) -> float: ...
 def finite_peak(x: _F) -> float: ...
+
+# ---------------------------------------------------------------- numpy's memory handler of an analysis
+def keep_array_blocks(limit: int) -> Any: ...
+def release_array_blocks(previous: Any) -> None: ...
+def kept_array_blocks() -> tuple[int, int]: ...
 
 # ---------------------------------------------------------------- prediction-error models
 _PolyOrders = tuple[int, Sequence[int], int, int, Sequence[int], Sequence[int]]

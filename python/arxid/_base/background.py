@@ -15,6 +15,7 @@ a quarter slower on two cores).
 
 from __future__ import annotations
 
+import contextvars
 import itertools
 import threading
 from collections.abc import Callable, Iterator, Sequence
@@ -52,9 +53,11 @@ class Background(Generic[T]):
         self._value: T | None = None
         self._error: BaseException | None = None
 
+        context = contextvars.copy_context()  # numpy's settings and memory handler go with the stage
+
         def run() -> None:
             try:
-                self._value = fn(*args, **kwargs)
+                self._value = context.run(fn, *args, **kwargs)
             except BaseException as exc:  # handed to the caller by result()
                 self._error = exc
 

@@ -30,6 +30,7 @@ from dataclasses import replace
 from functools import cached_property, partial
 from typing import TYPE_CHECKING, Any
 
+from .._base.array_memory import kept_blocks
 from .._base.background import Background, in_two, one_blas_thread
 from .._base.formatting import format_value, horizon_label
 from .._base.heap import map_large_arrays
@@ -453,6 +454,7 @@ FLEET_ANALYSIS: dict[str, Any] = {}
 
 
 @one_blas_thread()  # its stages run beside each other on the cores BLAS's threads would take
+@kept_blocks()  # its temporaries reuse the blocks of those freed before them
 def analyse(
     data: IOData,
     validation: IOData | None = None,

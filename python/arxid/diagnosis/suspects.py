@@ -51,6 +51,7 @@ from typing import Any, Protocol, overload, runtime_checkable
 import numpy as np
 
 from .._base import metrics
+from .._base.array_memory import kept_blocks
 from .._base.background import Background, one_blas_thread
 from .._base.records import record
 from ..checks import PerOutput, ResidualAnalysis, prediction, residuals
@@ -123,6 +124,7 @@ def diagnose(
 
 
 @one_blas_thread()  # the baseline runs beside the scoring on the cores BLAS's threads would take
+@kept_blocks()  # its temporaries reuse the blocks of those freed before them
 def diagnose(
     model: ArxModel | StateSpaceModel,
     data: IOData | Records | None = None,
@@ -253,7 +255,10 @@ def diagnose(
         raise
     base = pending.result()
     samples = records.here and isinstance(scoring, Scoring) and auto  # the stages that read the samples here
+    # The output read through a static shape (Wiener) depends on the baseline alone: scanned beside
+    # the input shapes and the judge, which leave most of a second core free.
     if samples:  # shapes that replace an input compete on equal terms
+        sensors = Background(sensor_suspects, model, data, validation, base.horizon, initial, base.rms, base.prediction)
         evidence = ValidationEvidence(model, validation, base.horizon, initial, base.prediction)
         scored = scored + score_shapes(model, data, evidence, loop_signals)
     judge = records.judge(model, base.horizon, base.rms, min_improvement, initial)
@@ -265,9 +270,8 @@ def diagnose(
         masked = scoring.masked_pairs(scored, alpha)
         suspects = demote_pairs(suspects + judge.suspects(masked, notes, alpha, None), min_improvement)
         suspects = judge.simplest_first(suspects, simple_explanations)
-    if samples:  # the output read through a static shape (Wiener)
-        sensors = sensor_suspects(model, data, validation, base.horizon, initial, base.rms, base.prediction)
-        suspects = rank_sensors(suspects, sensors, alpha, min_improvement)
+    if samples:
+        suspects = rank_sensors(suspects, sensors.result(), alpha, min_improvement)
     suspects = finish_suspects(notes, cands, suspects, records.head)
     # The dependence test runs when the diagnosis is first asked for it (a ladder asks its last
     # diagnosis only), never beside the scoring: its design (~0.4 GiB at 2M rows) on top of the
