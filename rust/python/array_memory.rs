@@ -81,16 +81,40 @@ fn kept() -> std::sync::MutexGuard<'static, Kept> {
     KEPT.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// A kept block that can hold `size` bytes (the newest that fits), taken out of the list.
+/// A kept block that can hold `size` bytes (the newest that fits), taken out of the list. When
+/// none fits, the oldest kept blocks of at least `size` bytes in all are freed first: the fresh
+/// block then takes their place, and what the process holds (arrays and kept blocks) grows no
+/// more than it would have without keeping.
 fn take(size: usize) -> Option<*mut c_void> {
     if size < SMALLEST {
         return None;
     }
-    let mut k = kept();
-    let at = k.blocks.iter().rposition(|&(_, usable)| usable >= size && usable - size <= SLACK)?;
-    let (address, usable) = k.blocks.remove(at);
-    k.bytes -= usable;
-    Some(address as *mut c_void)
+    let mut freed = Vec::new();
+    let found = {
+        let mut k = kept();
+        match k.blocks.iter().rposition(|&(_, usable)| usable >= size && usable - size <= SLACK) {
+            Some(at) => {
+                let (address, usable) = k.blocks.remove(at);
+                k.bytes -= usable;
+                Some(address as *mut c_void)
+            }
+            None => {
+                let mut room = 0;
+                while room < size && !k.blocks.is_empty() {
+                    let (address, usable) = k.blocks.remove(0);
+                    k.bytes -= usable;
+                    room += usable;
+                    freed.push(address);
+                }
+                None
+            }
+        }
+    };
+    for address in freed {
+        // SAFETY: a kept block is a malloc block no array owns.
+        unsafe { free(address as *mut c_void) };
+    }
+    found
 }
 
 /// Keep `block` if the scope's limit allows, making room by freeing the oldest kept blocks; the
