@@ -63,7 +63,7 @@ const SMALLEST: usize = 1 << 20;
 /// one array size get one usable size; the slack never lets a block serve a much smaller array).
 const SLACK: usize = 1 << 16;
 
-/// At most this many blocks are kept (the list never grows while a `free` holds the lock).
+/// At most this many blocks are kept (a bound on the list's length, and on a lookup's time).
 const MAX_BLOCKS: usize = 64;
 
 struct Kept {
