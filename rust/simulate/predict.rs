@@ -154,29 +154,7 @@ fn predict_paths(
                     *o = step(d, s, theta, t, &|i| d.y[t - i]);
                 }
             }
-            None => {
-                // `from_measurement[t]`: take y(t) from the data (initial conditions, and samples whose
-                // inputs or measured initial outputs are missing, after which the simulation restarts
-                // from the measurements). A simulation that overflows is not restarted: its NaN/inf
-                // propagate so the divergence stays visible.
-                let mut sim = vec![f64::NAN; b - a];
-                let mut from_measurement = vec![true; b - a];
-                let reach = s.max_lag().max(1);
-                for t in start..b {
-                    if stop(t, 1) {
-                        return Err(ArxError::Interrupted);
-                    }
-                    let v = {
-                        let (sim_ref, meas) = (&sim, &from_measurement);
-                        step(d, s, theta, t, &|i| if meas[t - i - a] { d.y[t - i] } else { sim_ref[t - i - a] })
-                    };
-                    sim[t - a] = v;
-                    let missing_history =
-                        (1..=reach.min(t - a)).any(|i| from_measurement[t - i - a] && d.y[t - i].is_nan());
-                    from_measurement[t - a] = v.is_nan() && (missing_history || !inputs_finite(d, s, t));
-                    out[t] = v;
-                }
-            }
+            None => restarting_free_run(d, s, theta, (a, start, b), out, cancel, fast && s.output_terms.is_empty())?,
             Some(k) => {
                 // Beyond the segment every prediction starts from the measured initial outputs, so a
                 // longer horizon changes nothing (and must not size the buffer).
@@ -211,6 +189,84 @@ fn predict_paths(
         }
     }
     Ok(())
+}
+
+/// The free run of experiment `[a, b)` from `start` when a sample is missing: sample by sample,
+/// y(t) taken from the data where `from_measurement[t]` (initial conditions, and samples whose
+/// inputs or measured initial outputs are missing, after which the simulation restarts from the
+/// measurements). A simulation that overflows is not restarted: its NaN/inf propagate so the
+/// divergence stays visible.
+///
+/// With `linear` (no output terms), every stretch that starts from measured outputs only and reads
+/// no missing input runs as the fast recursion ([`crate::simulate::linear_predict::free_run`]),
+/// which the general step would repeat sample by sample (to rounding): after a gap, the run
+/// restarts that way, and only the samples around the gap take the general step.
+fn restarting_free_run(
+    d: &Data,
+    s: &Structure,
+    theta: &[f64],
+    (a, start, b): (usize, usize, usize),
+    out: &mut [f64],
+    cancel: &AtomicBool,
+    linear: bool,
+) -> Result<()> {
+    // The simulated outputs are `out` itself: a sample is read back only once written (the
+    // samples before `start` are always taken from the data).
+    let mut from_measurement = vec![true; b - a];
+    let reach = s.max_lag().max(1);
+    let mut general_until = start; // a stretch whose fast run overflowed takes the general step
+    let mut t = start;
+    while t < b {
+        if linear && t >= general_until && measured_history(d, s.na, t, &from_measurement[..t - a]) {
+            let end = finite_inputs_end(d, s, t, b);
+            if end > t {
+                if crate::simulate::linear_predict::free_run(d, s, theta, (t, end), out, cancel)? {
+                    from_measurement[t - a..end - a].fill(false);
+                    t = end;
+                    continue;
+                }
+                general_until = end;
+            }
+        }
+        if t.is_multiple_of(CANCEL_EVERY) && cancel.load(Ordering::Relaxed) {
+            return Err(ArxError::Interrupted);
+        }
+        let v = {
+            let (sim, meas) = (&*out, &from_measurement);
+            step(d, s, theta, t, &|i| if meas[t - i - a] { d.y[t - i] } else { sim[t - i] })
+        };
+        let missing_history = (1..=reach.min(t - a)).any(|i| from_measurement[t - i - a] && d.y[t - i].is_nan());
+        from_measurement[t - a] = v.is_nan() && (missing_history || !inputs_finite(d, s, t));
+        out[t] = v;
+        t += 1;
+    }
+    Ok(())
+}
+
+/// Whether the `na` outputs before `t` are all taken from the data and finite (`from_measurement`
+/// up to sample `t`, from the experiment's first): a free run from `t` then starts as from the
+/// experiment's own initial conditions.
+fn measured_history(d: &Data, na: usize, t: usize, from_measurement: &[bool]) -> bool {
+    let n = from_measurement.len();
+    (1..=na).all(|i| from_measurement[n - i] && d.y[t - i].is_finite())
+}
+
+/// The first sample from `t` on (`b` at most) at which the structure reads a missing input.
+fn finite_inputs_end(d: &Data, s: &Structure, t: usize, b: usize) -> usize {
+    let mut end = b;
+    for (i, (&nb, &nk)) in s.nb.iter().zip(&s.nk).enumerate() {
+        if nb == 0 {
+            continue;
+        }
+        // Sample p of input i is read from p + nk to p + nk + nb − 1: the first missing one from
+        // the oldest read at t ends the stretch at p + nk (at t itself when t reads it).
+        let mut p = t - nk - (nb - 1);
+        while p + nk < end && d.u_at(p, i).is_finite() {
+            p += 1;
+        }
+        end = end.min((p + nk).max(t));
+    }
+    end
 }
 
 /// [`predict`] through the general step only, whatever the structure: the reference for the fast
