@@ -1,6 +1,6 @@
 //! One-step prediction and free run of a linear structure (no output terms) over one experiment:
 //! the paths [`crate::simulate::predict::predict_cancellable`] takes when no output term and (for the free
-//! run) no missing sample calls for its general step.
+//! run) no missing sample calls for its general step; after a gap, the free run restarts here too.
 //!
 //! The input part $\sum_i \sum_j b_{ij} u_i(t - n_{k,i} - j)$ is computed first, a chunk of samples
 //! at a time, by passes over contiguous input columns that the compiler vectorises. The one-step
