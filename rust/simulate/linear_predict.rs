@@ -337,6 +337,23 @@ pub(crate) mod tests {
         poly[1..].to_vec()
     }
 
+    /// A random stable structure of 1 to `max_inputs` inputs, na below `na_below`, nb below 4 and nk
+    /// below 3 per input, with its θ and number of inputs (None when it has no parameter).
+    fn random_stable(rng: &mut Lcg, max_inputs: usize, na_below: usize) -> Option<(Structure, Vec<f64>, usize)> {
+        let m = 1 + rng.below(max_inputs);
+        let na = rng.below(na_below);
+        let nb: Vec<usize> = (0..m).map(|_| rng.below(4)).collect();
+        let nk: Vec<usize> = (0..m).map(|_| rng.below(3)).collect();
+        let n_b = nb.iter().sum::<usize>();
+        if na + n_b == 0 {
+            return None;
+        }
+        let s = Structure::new(na, nb, nk, vec![]).unwrap();
+        let mut theta = stable_a(rng, na);
+        theta.extend((0..n_b).map(|_| 2.0 * rng.next()));
+        Some((s, theta, m))
+    }
+
     /// The fast paths agree with the general step (run sample by sample on the same history) to
     /// 1e-12 of the output's scale, on random stable structures with several inputs, several
     /// experiments and a first lag beyond the structure's; an experiment with a missing input
@@ -345,16 +362,8 @@ pub(crate) mod tests {
     fn fast_paths_agree_with_the_general_step() {
         let mut rng = Lcg(7);
         for case in 0..60 {
-            let m = 1 + rng.below(3);
-            let na = rng.below(11); // 9 and 10 take the general-size history
-            let nb: Vec<usize> = (0..m).map(|_| rng.below(4)).collect();
-            let nk: Vec<usize> = (0..m).map(|_| rng.below(3)).collect();
-            if na + nb.iter().sum::<usize>() == 0 {
-                continue;
-            }
-            let s = Structure::new(na, nb.clone(), nk, vec![]).unwrap();
-            let mut theta = stable_a(&mut rng, na);
-            theta.extend((0..nb.iter().sum::<usize>()).map(|_| 2.0 * rng.next()));
+            // na 9 and 10 take the general-size history
+            let Some((s, theta, m)) = random_stable(&mut rng, 3, 11) else { continue };
             let n = 5000 + rng.below(200);
             let mut u: Vec<f64> = (0..n * m).map(|_| 10.0 * rng.next()).collect();
             let y: Vec<f64> = (0..n).map(|_| 100.0 * rng.next()).collect();
@@ -387,16 +396,7 @@ pub(crate) mod tests {
     fn free_run_restarts_after_gaps_as_the_general_step_does() {
         let mut rng = Lcg(11);
         for case in 0..80 {
-            let m = 1 + rng.below(2);
-            let na = rng.below(10);
-            let nb: Vec<usize> = (0..m).map(|_| rng.below(4)).collect();
-            let nk: Vec<usize> = (0..m).map(|_| rng.below(3)).collect();
-            if na + nb.iter().sum::<usize>() == 0 {
-                continue;
-            }
-            let s = Structure::new(na, nb.clone(), nk, vec![]).unwrap();
-            let mut theta = stable_a(&mut rng, na);
-            theta.extend((0..nb.iter().sum::<usize>()).map(|_| 2.0 * rng.next()));
+            let Some((s, theta, m)) = random_stable(&mut rng, 2, 10) else { continue };
             let n = 6000;
             let mut u: Vec<f64> = (0..n * m).map(|_| 10.0 * rng.next()).collect();
             let mut y: Vec<f64> = (0..n).map(|_| 100.0 * rng.next()).collect();
