@@ -89,8 +89,10 @@ _LONG_SWEEP = textwrap.dedent(
     print("start", flush=True)
     t = time.monotonic()
     try:
-        # top=None: every structure simulated (a two-stage sweep of this grid ends in about a second)
-        arxid.sweep(d, range(1, 11), range(1, 11), range(0, 400), validation=0.3, progress=False, top=None)
+        # top=None: every structure simulated (a two-stage sweep of this grid ends in about a second).
+        # nk to 999: about 7 s on an idle 2-core machine with AVX-512 (to 399 took 1.6 s there, and
+        # ended before the signal 1.5 s after "start").
+        arxid.sweep(d, range(1, 11), range(1, 11), range(0, 1000), validation=0.3, progress=False, top=None)
         print("finished", time.monotonic() - t, flush=True)
     except KeyboardInterrupt:
         print("interrupted", flush=True)
@@ -244,20 +246,22 @@ def test_ctrl_c_interrupts_a_long_prediction_or_simulation_promptly(which):
 @pytest.mark.timed  # a latency bound: run alone (make test runs these after the parallel run)
 def test_ctrl_c_stops_the_cli_with_exit_130(tmp_path):
     rng = np.random.default_rng(0)
-    u = rng.standard_normal(150_000)
+    u = rng.standard_normal(400_000)
     y = sps.lfilter([0, 0.5], [1, -0.9], u)
     np.savez(tmp_path / "log.npz", y=y, u=u, ts=0.01)
     cmd = [sys.executable, "-m", "arxid.analysis.cli", "sweep", str(tmp_path / "log.npz"), "--output", "y"]
     cmd += ["--inputs", "u", "--na", "1:10", "--nb", "1:10", "--nk", "0:599", "--json"]
-    # About 9 s in all on an idle machine at 150k samples (60k took under 4 s once the start got
-    # light; two stages, the reduction of the 611-column regressor most of it): the signal lands in
-    # the work, after the imports even on a loaded machine.
+    # About 9 s in all on an idle 2-core machine with AVX-512 at 400k samples (150k took 3.9 s there
+    # and ended before a signal 4 s in; two stages, the reduction of the 611-column regressor most of
+    # it): a signal 2.5 s in lands in the work, after the imports even on a loaded machine. There,
+    # signals 1.5-4 s in stopped it within 0.12 s; 4.5-6 s in waited 1.2-2.9 s (the stretch not yet
+    # found, below), so the signal goes well before it.
     # While the full suite ran, about 1 run in 6 ended killed by the signal (-2) instead of 130: on
     # a loaded machine the signal landed in the imports, before main (see the next test, which
     # covers them). One retry is kept for a signal in the interpreter's own start, before arxid.
     seen = []
     for _ in range(2):
-        out, code, latency, err = _interrupt_with_stderr(cmd, delay=4.0)
+        out, code, latency, err = _interrupt_with_stderr(cmd, delay=2.5)
         if code != -signal.SIGINT:
             break
         seen.append(err)
