@@ -52,7 +52,7 @@ pub fn qr_r_in_place(mut a: MatMut<'_, f64>) {
 }
 
 /// A column's largest |entry| the tall kernel factors as it is: its sums of squares stay inside the
-/// float range (2^±400 squared is 2^±800), as faer's QR, which scales its norms, needs no bound.
+/// float range (2^±400 squared is 2^±800). The kernel does not scale its norms as faer's QR does.
 const TALL_LOW: f64 = 3.872591914849318e-121; // 2^-400
 const TALL_HIGH: f64 = 2.5822498780869086e120; // 2^400
 
@@ -281,7 +281,7 @@ mod tests {
     }
 
     /// R of `scale · A` is `scale · R(A)` up to row signs, at scales whose squares leave the float
-    /// range (such columns go to faer's scaled QR) as at ordinary ones (the tall kernel).
+    /// range (such columns are scaled by a power of two around the tall kernel) as at ordinary ones.
     #[test]
     fn r_scales_with_the_matrix_near_the_float_range_limits() {
         let a = Mat::from_fn(300, 3, |i, j| ((i * 7 + j * 13) % 17) as f64 - 8.0 + (i as f64 * 0.37 + j as f64).sin());

@@ -75,6 +75,15 @@ struct Kept {
     scopes: usize,
 }
 
+impl Kept {
+    /// Takes the oldest kept block out of the list (there is one): its address and usable bytes.
+    fn oldest(&mut self) -> (usize, usize) {
+        let (address, usable) = self.blocks.remove(0);
+        self.bytes -= usable;
+        (address, usable)
+    }
+}
+
 static KEPT: Mutex<Kept> = Mutex::new(Kept { blocks: Vec::new(), bytes: 0, limit: 0, scopes: 0 });
 
 fn kept() -> std::sync::MutexGuard<'static, Kept> {
@@ -101,8 +110,7 @@ fn take(size: usize) -> Option<*mut c_void> {
             None => {
                 let mut room = 0;
                 while room < size && !k.blocks.is_empty() {
-                    let (address, usable) = k.blocks.remove(0);
-                    k.bytes -= usable;
+                    let (address, usable) = k.oldest();
                     room += usable;
                     freed.push(address);
                 }
@@ -132,9 +140,7 @@ fn keep(block: *mut c_void, size: usize) -> Vec<usize> {
     }
     let mut out = Vec::new();
     while k.bytes + usable > k.limit || k.blocks.len() >= MAX_BLOCKS {
-        let (address, bytes) = k.blocks.remove(0);
-        k.bytes -= bytes;
-        out.push(address);
+        out.push(k.oldest().0);
     }
     k.blocks.push((block as usize, usable));
     k.bytes += usable;
